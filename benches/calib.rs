@@ -1,0 +1,2 @@
+//! Benchmark: calib (in progress).
+fn main() {}

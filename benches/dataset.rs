@@ -1,0 +1,2 @@
+//! Benchmark: dataset (in progress).
+fn main() {}

@@ -1,0 +1,2 @@
+//! Benchmark: lrf (in progress).
+fn main() {}

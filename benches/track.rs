@@ -1,0 +1,2 @@
+//! Benchmark: track (in progress).
+fn main() {}

@@ -1,0 +1,2 @@
+//! Benchmark: train (in progress).
+fn main() {}

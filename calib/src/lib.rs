@@ -1,0 +1,1 @@
+//! odocal-calib (in progress).

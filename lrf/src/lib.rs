@@ -1,0 +1,1 @@
+//! odocal-lrf (in progress).

@@ -1,0 +1,12 @@
+//! One module per subcommand; each owns its arguments and its `run`.
+
+pub mod calibrate;
+pub mod correct;
+pub mod dataset;
+pub mod lrf;
+pub mod synth_calib;
+pub mod synth_experiment;
+pub mod synth_lrf;
+pub mod synth_track;
+pub mod track;
+pub mod train;

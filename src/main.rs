@@ -1,0 +1,74 @@
+//! odocal: ceiling-camera ground truth and learned odometry correction for
+//! small wheeled robots. This binary only parses arguments, shows progress and
+//! reports; the work is done by the library crates.
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+mod output;
+
+/// Ceiling-camera ground truth, odometry correction and laser positioning for small robots.
+#[derive(Parser)]
+#[command(name = "odocal", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render synthetic inputs with known truth.
+    #[command(subcommand)]
+    Synth(SynthCommand),
+    /// Calibrate a camera from checkerboard images (Zhang's method) and fix the floor plane.
+    Calibrate(cmd::calibrate::Args),
+    /// Track the robot's AprilTag through a video into a floor trajectory.
+    Track(cmd::track::Args),
+    /// Build the training set from runs (videos or trajectories) and odometry logs.
+    Dataset(cmd::dataset::Args),
+    /// Train the odometry corrector, or sweep hidden sizes with cross-validation.
+    Train(cmd::train::Args),
+    /// Correct a raw 200 ms odometry log with a trained model.
+    Correct(cmd::correct::Args),
+    /// Laser positioning among reflective landmarks.
+    #[command(subcommand)]
+    Lrf(cmd::lrf::Command),
+}
+
+#[derive(Subcommand)]
+enum SynthCommand {
+    /// Checkerboard views (and floor views) from a known camera.
+    Calib(cmd::synth_calib::Args),
+    /// A ceiling video of a robot carrying an AprilTag, with the true trajectory.
+    Track(cmd::synth_track::Args),
+    /// The whole odometry experiment: runs, logs, videos and truth.
+    Experiment(cmd::synth_experiment::Args),
+    /// A landmark map, a sensor trajectory and laser scans.
+    Lrf(cmd::synth_lrf::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Synth(SynthCommand::Calib(a)) => cmd::synth_calib::run(a),
+        Command::Synth(SynthCommand::Track(a)) => cmd::synth_track::run(a),
+        Command::Synth(SynthCommand::Experiment(a)) => cmd::synth_experiment::run(a),
+        Command::Synth(SynthCommand::Lrf(a)) => cmd::synth_lrf::run(a),
+        Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Track(a) => cmd::track::run(a),
+        Command::Dataset(a) => cmd::dataset::run(a),
+        Command::Train(a) => cmd::train::run(a),
+        Command::Correct(a) => cmd::correct::run(a),
+        Command::Lrf(c) => cmd::lrf::run(c),
+    };
+    if let Err(e) = result {
+        // One line: what was wrong, with the chain of causes joined.
+        let msg = e
+            .chain()
+            .map(|c| c.to_string())
+            .collect::<Vec<_>>()
+            .join(": ");
+        eprintln!("odocal: error: {msg}");
+        std::process::exit(2);
+    }
+}

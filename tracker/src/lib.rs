@@ -1,0 +1,1 @@
+//! odocal-tracker (in progress).

@@ -1,0 +1,1 @@
+//! odocal-trainer (in progress).
