@@ -41,7 +41,7 @@ impl Helmert2 {
     /// Applies the transform to a source point.
     pub fn apply(&self, p: &Point2<f64>) -> Point2<f64> {
         let iso = self.pose.isometry();
-        iso.rotation * (p.coords * self.scale) + iso.translation.vector
+        (iso.rotation * (p.coords * self.scale) + iso.translation.vector).into()
     }
 }
 
@@ -87,14 +87,19 @@ fn moments(src: &[Point2<f64>], dst: &[Point2<f64>]) -> Result<Moments, FitError
 fn finish(m: &Moments, scale: f64, src: &[Point2<f64>], dst: &[Point2<f64>]) -> (Pose2, f64) {
     let theta = m.cross.atan2(m.dot);
     let (s, c) = theta.sin_cos();
-    let rotated_mean = Vector2::new(c * m.src_mean.x - s * m.src_mean.y, s * m.src_mean.x + c * m.src_mean.y);
+    let rotated_mean = Vector2::new(
+        c * m.src_mean.x - s * m.src_mean.y,
+        s * m.src_mean.x + c * m.src_mean.y,
+    );
     let t = m.dst_mean - rotated_mean * scale;
     let pose = Pose2::new(t.x, t.y, theta);
     let iso = pose.isometry();
     let sq: f64 = src
         .iter()
         .zip(dst)
-        .map(|(p, q)| ((iso.rotation * (p.coords * scale) + iso.translation.vector) - q.coords).norm_squared())
+        .map(|(p, q)| {
+            ((iso.rotation * (p.coords * scale) + iso.translation.vector) - q.coords).norm_squared()
+        })
         .sum();
     (pose, (sq / src.len() as f64).sqrt())
 }

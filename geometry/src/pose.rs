@@ -85,7 +85,10 @@ mod tests {
             let a = k as f64 * 0.7;
             let w = wrap_angle(a);
             assert!(w > -PI - 1e-12 && w <= PI + 1e-12);
-            assert!(((a - w) / (2.0 * PI)).fract().abs() < 1e-9 || ((a - w) / (2.0 * PI)).fract().abs() > 1.0 - 1e-9);
+            assert!(
+                ((a - w) / (2.0 * PI)).fract().abs() < 1e-9
+                    || ((a - w) / (2.0 * PI)).fract().abs() > 1.0 - 1e-9
+            );
         }
         assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
     }
