@@ -1,1 +1,22 @@
-//! odocal-calib (in progress).
+//! Camera model, checkerboard detection, Zhang calibration (through OpenCV)
+//! and the floor plane of a ceiling camera.
+
+pub mod calibrate;
+pub mod camera_file;
+mod cv;
+pub mod detect;
+mod error;
+pub mod export;
+pub mod floor;
+pub mod model;
+
+pub use calibrate::{board_points, calibrate, Calibration};
+pub use camera_file::{
+    BoardSpec, CameraFile, FloorPlane, IntrinsicsStd, ViewResidual, CAMERA_FORMAT,
+};
+pub use detect::{detect_file, BoardView, Detection};
+pub use error::CalibError;
+pub use floor::{board_pose, fit_floor};
+pub use model::{
+    intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics,
+};

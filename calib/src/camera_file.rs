@@ -1,0 +1,134 @@
+//! camera.json: the calibration result, read by every later stage.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::{CalibError, CameraModel, FloorToCamera};
+
+/// The `format` tag of camera.json files.
+pub const CAMERA_FORMAT: &str = "odocal.camera/1";
+
+/// A checkerboard: inner-corner counts and square size.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoardSpec {
+    /// Inner corners along a row (the board's x axis).
+    pub cols: u32,
+    /// Inner corners along a column (the board's y axis).
+    pub rows: u32,
+    /// Side of one square, metres.
+    pub square_m: f64,
+}
+
+/// One standard deviation of each estimated intrinsic parameter (OpenCV's
+/// estimate from the Jacobian at the optimum, scaled by the residual).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct IntrinsicsStd {
+    /// σ of fx, pixels.
+    pub fx: f64,
+    /// σ of fy, pixels.
+    pub fy: f64,
+    /// σ of cx, pixels.
+    pub cx: f64,
+    /// σ of cy, pixels.
+    pub cy: f64,
+    /// σ of k1, k2, p1, p2, k3 (OpenCV order).
+    pub distortion: [f64; 5],
+}
+
+/// Reprojection error of one calibration view.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ViewResidual {
+    /// The image file of the view.
+    pub image: String,
+    /// RMS reprojection error of its corners, pixels.
+    pub rms_px: f64,
+}
+
+/// The floor plane: where the floor frame (origin and axes fixed by the first
+/// floor view, z up towards the camera) sits in the camera frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FloorPlane {
+    /// Floor frame to camera frame.
+    pub floor_to_camera: FloorToCamera,
+    /// RMS distance of all floor-board corners from the fitted plane, metres.
+    pub plane_rms_m: f64,
+    /// Camera height above the floor, metres.
+    pub camera_height_m: f64,
+    /// Floor views used.
+    pub views: Vec<String>,
+}
+
+/// The contents of camera.json.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraFile {
+    /// Always [`CAMERA_FORMAT`].
+    pub format: String,
+    /// The estimated camera.
+    pub camera: CameraModel,
+    /// Overall RMS reprojection error, pixels.
+    pub rms_px: f64,
+    /// Standard deviations of the intrinsics, if estimated.
+    pub std: Option<IntrinsicsStd>,
+    /// Per-view reprojection errors.
+    pub views: Vec<ViewResidual>,
+    /// Views that were skipped, with the reason.
+    pub skipped: Vec<ViewResidual>,
+    /// The calibration board.
+    pub board: Option<BoardSpec>,
+    /// The floor plane, if floor views were given.
+    pub floor: Option<FloorPlane>,
+}
+
+impl CameraFile {
+    /// A camera file for a known camera (used for synthetic truth).
+    pub fn from_model(camera: CameraModel, floor: Option<FloorPlane>) -> Self {
+        Self {
+            format: CAMERA_FORMAT.into(),
+            camera,
+            rms_px: 0.0,
+            std: None,
+            views: vec![],
+            skipped: vec![],
+            board: None,
+            floor,
+        }
+    }
+
+    /// Reads and validates a camera.json.
+    pub fn load(path: &Path) -> Result<Self, CalibError> {
+        let text = std::fs::read_to_string(path).map_err(|e| CalibError::Io {
+            path: path.display().to_string(),
+            source: e,
+        })?;
+        let value: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| CalibError::BadFile {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })?;
+        let format = value.get("format").and_then(|f| f.as_str()).unwrap_or("");
+        if format != CAMERA_FORMAT {
+            return Err(CalibError::BadFile {
+                path: path.display().to_string(),
+                reason: format!(
+                    "format is {format:?}, expected {CAMERA_FORMAT:?} (is this a camera.json written by `odocal calibrate`?)"
+                ),
+            });
+        }
+        serde_json::from_value(value).map_err(|e| CalibError::BadFile {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })
+    }
+
+    /// The floor plane, or an error naming the file if it has none.
+    pub fn require_floor(&self, path: &Path) -> Result<&FloorToCamera, CalibError> {
+        self.floor
+            .as_ref()
+            .map(|f| &f.floor_to_camera)
+            .ok_or_else(|| CalibError::BadFile {
+                path: path.display().to_string(),
+                reason: "has no floor plane: calibrate again with --floor images of a board lying on the floor".into(),
+            })
+    }
+}

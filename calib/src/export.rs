@@ -1,0 +1,83 @@
+//! Exports of a calibration for other tools: OpenCV FileStorage YAML (through
+//! OpenCV itself) and ROS camera_info YAML.
+
+use std::path::Path;
+
+use opencv::core::{FileStorage, FileStorage_Mode, Mat};
+use opencv::prelude::*;
+
+use crate::cv::{camera_matrix, dist_coeffs};
+use crate::{CalibError, CameraFile};
+
+fn temp_beside(path: &Path) -> std::path::PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "camera".into());
+    // FileStorage picks its format from the extension, so keep ".yaml" last.
+    path.with_file_name(format!(".{name}.{}.tmp.yaml", std::process::id()))
+}
+
+fn io_err(path: &Path, e: std::io::Error) -> CalibError {
+    CalibError::Io {
+        path: path.display().to_string(),
+        source: e,
+    }
+}
+
+/// Writes the calibration as an OpenCV FileStorage YAML file (the layout of
+/// OpenCV's calibration sample: camera_matrix, distortion_coefficients, ...).
+pub fn write_opencv_yaml(cam: &CameraFile, path: &Path) -> Result<(), CalibError> {
+    let tmp = temp_beside(path);
+    let tmp_name = tmp.to_string_lossy().into_owned();
+    {
+        let mut fs = FileStorage::new(&tmp_name, FileStorage_Mode::WRITE as i32, "")?;
+        fs.write_i32("image_width", cam.camera.width as i32)?;
+        fs.write_i32("image_height", cam.camera.height as i32)?;
+        fs.write_mat("camera_matrix", &camera_matrix(&cam.camera)?)?;
+        let d: Mat = dist_coeffs(&cam.camera)?;
+        fs.write_mat("distortion_coefficients", &d)?;
+        fs.write_f64("avg_reprojection_error", cam.rms_px)?;
+        if let Some(floor) = &cam.floor {
+            let iso = floor.floor_to_camera.0;
+            let r = iso.rotation.to_rotation_matrix();
+            let rows: Vec<[f64; 3]> = (0..3).map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]).collect();
+            fs.write_mat("floor_rotation", &Mat::from_slice_2d(&rows)?)?;
+            let t = iso.translation.vector;
+            fs.write_mat(
+                "floor_translation",
+                &Mat::from_slice(&[t.x, t.y, t.z])?.try_clone()?,
+            )?;
+        }
+        fs.release()?;
+    }
+    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+}
+
+/// Writes the calibration as a ROS camera_info YAML file (plumb_bob model).
+pub fn write_ros_yaml(cam: &CameraFile, path: &Path, camera_name: &str) -> Result<(), CalibError> {
+    let k = cam.camera.intrinsics;
+    let d = cam.camera.distortion.to_opencv();
+    let fmt = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.10}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let text = format!(
+        "image_width: {w}\nimage_height: {h}\ncamera_name: {camera_name}\n\
+         camera_matrix:\n  rows: 3\n  cols: 3\n  data: [{km}]\n\
+         distortion_model: plumb_bob\n\
+         distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [{dm}]\n\
+         rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n\
+         projection_matrix:\n  rows: 3\n  cols: 4\n  data: [{pm}]\n",
+        w = cam.camera.width,
+        h = cam.camera.height,
+        km = fmt(&[k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0]),
+        dm = fmt(&d),
+        pm = fmt(&[k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]),
+    );
+    let tmp = temp_beside(path);
+    std::fs::write(&tmp, text).map_err(|e| io_err(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+}

@@ -1,0 +1,112 @@
+//! The floor plane: boards lying flat on the floor, each located by solvePnP,
+//! one plane fitted through all their corners. The first floor view fixes the
+//! floor frame's origin (its first inner corner) and x axis (along its rows);
+//! z points up, towards the camera.
+
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use opencv::calib3d;
+use opencv::core::Mat;
+
+use crate::calibrate::board_points;
+use crate::cv::{camera_matrix, dist_coeffs, isometry_from_rt, points2f, points3f};
+use crate::{
+    BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorPlane, FloorToCamera,
+};
+
+/// Locates one board in the camera frame with a calibrated camera.
+pub fn board_pose(
+    camera: &CameraModel,
+    view: &BoardView,
+    board: &BoardSpec,
+) -> Result<BoardToCamera, CalibError> {
+    let object = points3f(&board_points(board));
+    let image = points2f(&view.corners);
+    let mut rvec = Mat::default();
+    let mut tvec = Mat::default();
+    let ok = calib3d::solve_pnp(
+        &object,
+        &image,
+        &camera_matrix(camera)?,
+        &dist_coeffs(camera)?,
+        &mut rvec,
+        &mut tvec,
+        false,
+        calib3d::SOLVEPNP_ITERATIVE,
+    )?;
+    if !ok {
+        return Err(CalibError::Input(format!(
+            "{}: cannot locate the floor board",
+            view.image
+        )));
+    }
+    Ok(BoardToCamera(isometry_from_rt(&rvec, &tvec)?))
+}
+
+/// Fits the floor plane through the boards of all floor views.
+pub fn fit_floor(
+    camera: &CameraModel,
+    views: &[BoardView],
+    board: &BoardSpec,
+) -> Result<FloorPlane, CalibError> {
+    if views.is_empty() {
+        return Err(CalibError::Input(
+            "no floor view: lay the board flat on the floor and photograph it".into(),
+        ));
+    }
+    let object = board_points(board);
+    let mut pts: Vec<Point3<f64>> = Vec::new();
+    let mut first_pose = None;
+    for v in views {
+        let pose = board_pose(camera, v, board)?;
+        if first_pose.is_none() {
+            first_pose = Some(pose);
+        }
+        pts.extend(object.iter().map(|p| pose.0 * p));
+    }
+    let first_pose = first_pose.ok_or_else(|| CalibError::Input("no floor view".into()))?;
+    let n = pts.len() as f64;
+    let centroid = pts.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let mut scatter = Matrix3::zeros();
+    for p in &pts {
+        let d = p.coords - centroid;
+        scatter += d * d.transpose();
+    }
+    let eig = scatter.symmetric_eigen();
+    let (imin, _) = eig
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .fold(
+            (0, f64::INFINITY),
+            |b, (i, &v)| if v < b.1 { (i, v) } else { b },
+        );
+    let mut up = eig.eigenvectors.column(imin).into_owned().normalize();
+    // "Up" points from the floor towards the camera (the camera origin).
+    if up.dot(&(-centroid)) < 0.0 {
+        up = -up;
+    }
+    let plane_rms_m = (pts
+        .iter()
+        .map(|p| (p.coords - centroid).dot(&up).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    // Origin: the first view's first corner, dropped onto the plane.
+    let o = first_pose.0.translation.vector;
+    let origin = o - up * (o - centroid).dot(&up);
+    let bx = first_pose.0.rotation * Vector3::x();
+    let x = (bx - up * bx.dot(&up)).normalize();
+    let y = up.cross(&x);
+    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, up]));
+    let floor_to_camera = FloorToCamera(Isometry3::from_parts(
+        Translation3::from(origin),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ));
+    let camera_height_m = (-centroid).dot(&up);
+    Ok(FloorPlane {
+        floor_to_camera,
+        plane_rms_m,
+        camera_height_m,
+        views: views.iter().map(|v| v.image.clone()).collect(),
+    })
+}
