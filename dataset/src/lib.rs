@@ -1,6 +1,25 @@
 //! Odometry logs, differential-drive kinematics, camera/robot alignment and
 //! the training samples of the odometry corrector (`dataset.json`).
 
+pub mod align;
+pub mod build;
+pub mod error;
+pub mod kinematics;
+pub mod manifest;
+pub mod odometry;
+pub mod oracle;
 pub mod sample;
+pub mod segment;
+pub mod trajectory;
 
-pub use sample::{Dataset, RejectedRun, RobotParams, Sample, DATASET_FORMAT, FEATURE_RULE, N_INPUTS};
+pub use build::{assemble, features_from_log, process_recording, BuildOptions, Recording, RunFeatures, RunOutcome};
+pub use error::DatasetError;
+pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
+pub use manifest::{Manifest, ManifestRow};
+pub use odometry::{LogKind, OdometryLog};
+pub use oracle::{OracleFile, OracleRun};
+pub use sample::{
+    relative_end_error, Dataset, DatasetSummary, RejectedRun, RobotParams, Sample, DATASET_FORMAT, FEATURE_RULE,
+    N_INPUTS,
+};
+pub use trajectory::{Trajectory, TrajectoryRow};

@@ -1,6 +1,9 @@
 //! The `dataset.json` contract shared by the dataset builder and the trainer.
 
+use odocal_geometry::Pose2;
 use serde::{Deserialize, Serialize};
+
+use crate::kinematics::RunOdometry;
 
 /// The `format` tag of dataset.json files.
 pub const DATASET_FORMAT: &str = "odocal.dataset/1";
@@ -8,8 +11,12 @@ pub const DATASET_FORMAT: &str = "odocal.dataset/1";
 /// Number of inputs per sample: eight intermediate odometry positions, t_b and t_e.
 pub const N_INPUTS: usize = 18;
 
-/// Name of the feature rule; a model trained on one rule refuses logs built with another.
-pub const FEATURE_RULE: &str = "odocal.features/1: x_i,y_i of dead-reckoned odometry (start frame, metres) at t_b + i/9 (t_e - t_b), i=1..8, then t_b, t_e (seconds, robot clock)";
+/// The feature rule, exactly; a model trained on one rule refuses logs built with another.
+/// t_b is the last log row at rest before the run's first encoder change, t_e the first row
+/// after its last change; positions are dead-reckoned from the row at t_b with the nominal
+/// [`RobotParams`] and the source kinematics (counter-clockwise positive), then linearly
+/// interpolated in time between log rows.
+pub const FEATURE_RULE: &str = "odocal.features/1: x_i,y_i of dead-reckoned odometry (start frame, metres) at t_b + i/9 (t_e - t_b), i=1..8, then t_b, t_e (seconds, robot clock); t_b = last log row at rest before the first encoder change, t_e = first row at rest after the last change; nominal wheels, CCW-positive source kinematics, linear interpolation in time between rows";
 
 /// Physical parameters of a differential-drive robot used for dead reckoning.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -37,7 +44,7 @@ impl Default for RobotParams {
 }
 
 /// One training sample: one straight run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Sample {
     /// Run identifier from the manifest.
     pub run_id: String,
@@ -55,6 +62,31 @@ pub struct Sample {
     pub clock_offset_s: f64,
     /// RMS residual of the time alignment (speed profiles), m/s.
     pub alignment_residual_mps: f64,
+    /// Manifest row (recording) the run came from; equals `run_id` for one run per recording.
+    #[serde(default)]
+    pub recording_id: String,
+    /// RMS residual of the time alignment (travel fit), metres.
+    #[serde(default)]
+    pub alignment_residual_m: f64,
+    /// Peak speed-profile correlation of the recording's coarse alignment.
+    #[serde(default)]
+    pub speed_correlation: f64,
+    /// Cruise speed seen by odometry (median log-interval speed while moving), m/s.
+    #[serde(default)]
+    pub odometry_speed_mps: f64,
+    /// Camera pose at rest before the run, floor frame: the run's start frame.
+    #[serde(default)]
+    pub start_pose_floor: Pose2,
+    /// Real end heading in the run's start frame, radians.
+    #[serde(default)]
+    pub target_theta_rad: f64,
+    /// Camera frames averaged for the start and end poses.
+    #[serde(default)]
+    pub rest_frames: [usize; 2],
+    /// The run's odometry (rows t_b..t_e, wheel revolutions since t_b), to re-dead-reckon with
+    /// other wheel geometry (calibration baselines, the oracle).
+    #[serde(default)]
+    pub odometry: RunOdometry,
 }
 
 /// A run that could not be turned into a sample, and why.
@@ -79,4 +111,120 @@ pub struct Dataset {
     pub samples: Vec<Sample>,
     /// Runs that could not be used, with reasons.
     pub rejected: Vec<RejectedRun>,
+    /// Summary figures of the build.
+    #[serde(default)]
+    pub summary: DatasetSummary,
+}
+
+/// Summary figures of a dataset build.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct DatasetSummary {
+    /// Manifest rows (recordings) read.
+    pub recordings: usize,
+    /// Runs detected in the logs (samples + rejected).
+    pub runs: usize,
+    /// Raw odometry relative end-point error, see [`relative_end_error`].
+    pub raw_relative_error: f64,
+    /// RMS raw odometry end-point error, metres.
+    pub raw_rms_error_m: f64,
+    /// Mean real path length, metres.
+    pub mean_path_length_m: f64,
+    /// Largest speed-profile alignment residual, m/s.
+    pub max_alignment_residual_mps: f64,
+}
+
+impl Dataset {
+    /// A dataset of `samples` and `rejected` runs with its summary computed.
+    pub fn new(robot: RobotParams, samples: Vec<Sample>, rejected: Vec<RejectedRun>, recordings: usize) -> Self {
+        let ends: Vec<[f64; 2]> = samples.iter().map(|s| s.raw_end_m).collect();
+        let n = samples.len().max(1) as f64;
+        let summary = DatasetSummary {
+            recordings,
+            runs: samples.len() + rejected.len(),
+            raw_relative_error: relative_end_error(&samples, &ends),
+            raw_rms_error_m: (samples
+                .iter()
+                .map(|s| (s.raw_end_m[0] - s.target_m[0]).powi(2) + (s.raw_end_m[1] - s.target_m[1]).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt(),
+            mean_path_length_m: samples.iter().map(|s| s.path_length_m).sum::<f64>() / n,
+            max_alignment_residual_mps: samples.iter().map(|s| s.alignment_residual_mps).fold(0.0, f64::max),
+        };
+        Self {
+            format: DATASET_FORMAT.to_string(),
+            feature_rule: FEATURE_RULE.to_string(),
+            robot,
+            samples,
+            rejected,
+            summary,
+        }
+    }
+
+    /// Reads dataset.json, rejecting other formats and feature rules with a clear message.
+    pub fn read(path: &std::path::Path) -> Result<Self, crate::DatasetError> {
+        let text = crate::error::read_text(path)?;
+        let name = path.display().to_string();
+        let ds: Dataset = crate::error::parse_json_with_format(&text, &name, DATASET_FORMAT)?;
+        if ds.feature_rule != FEATURE_RULE {
+            return Err(crate::DatasetError::Content {
+                path: name,
+                message: format!("feature rule \"{}\" is not this build's \"{FEATURE_RULE}\"", ds.feature_rule),
+            });
+        }
+        Ok(ds)
+    }
+}
+
+/// The relative end-point error of a set: mean over samples of |end - target| / path length.
+pub fn relative_end_error(samples: &[Sample], ends: &[[f64; 2]]) -> f64 {
+    let n = samples.len().min(ends.len());
+    if n == 0 {
+        return 0.0;
+    }
+    samples
+        .iter()
+        .zip(ends)
+        .map(|(s, e)| (e[0] - s.target_m[0]).hypot(e[1] - s.target_m[1]) / s.path_length_m)
+        .sum::<f64>()
+        / n as f64
+}
+
+/// The `format` tag of robot parameter files.
+pub const ROBOT_FORMAT: &str = "odocal.robot/1";
+
+#[derive(Deserialize)]
+struct RobotFile {
+    #[allow(dead_code)]
+    format: String,
+    #[serde(flatten)]
+    robot: RobotParams,
+}
+
+impl RobotParams {
+    /// Reads robot parameters from a small JSON file with `"format": "odocal.robot/1"`.
+    pub fn read(path: &std::path::Path) -> Result<Self, crate::DatasetError> {
+        let text = crate::error::read_text(path)?;
+        let f: RobotFile = crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
+        let r = f.robot;
+        let ok = [r.wheel_diameter_m, r.ticks_per_rev, r.wheel_base_m, r.period_s]
+            .iter()
+            .all(|v| v.is_finite() && *v > 0.0);
+        if !ok {
+            return Err(crate::DatasetError::Content {
+                path: path.display().to_string(),
+                message: "robot parameters must be positive finite numbers".into(),
+            });
+        }
+        Ok(r)
+    }
+
+    /// The parameters as robot-file JSON (with its format tag).
+    pub fn to_json(&self) -> String {
+        let mut v = serde_json::to_value(self).unwrap_or_default();
+        if let Some(o) = v.as_object_mut() {
+            o.insert("format".into(), ROBOT_FORMAT.into());
+        }
+        serde_json::to_string_pretty(&v).unwrap_or_default()
+    }
 }

@@ -1,0 +1,324 @@
+//! Turning recordings (an odometry log and a camera trajectory) into training samples.
+
+use nalgebra::Point2;
+use odocal_geometry::{wrap_angle, Pose2};
+
+use crate::align::{coarse_offset, refine_offset, AlignOptions};
+use crate::error::DatasetError;
+use crate::kinematics::{RunOdometry, WheelGeometry};
+use crate::odometry::OdometryLog;
+use crate::segment::{split_runs, RunSegment};
+use crate::trajectory::{mean_pose, Trajectory, TrajectoryRow};
+use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
+
+/// Shortest rest, seconds, that separates two runs in one log.
+pub const DEFAULT_MIN_GAP_S: f64 = 1.0;
+
+/// Settings of the dataset build.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildOptions {
+    /// Nominal robot used for dead reckoning.
+    pub robot: RobotParams,
+    /// Time alignment settings.
+    pub align: AlignOptions,
+    /// Shortest rest, seconds, that separates two runs in one log.
+    pub min_gap_s: f64,
+    /// Shortest odometry travel of a usable run, metres.
+    pub min_travel_m: f64,
+    /// Camera frames within this distance of the rest position count as at rest, metres.
+    pub rest_tolerance_m: f64,
+    /// Length of the camera rest windows before and after a run, seconds.
+    pub rest_window_s: f64,
+    /// Margin before t_b excluded from the start rest window (sub-tick motion), seconds.
+    pub rest_guard_s: f64,
+    /// Fewest camera frames at rest needed for the start and end poses.
+    pub min_rest_frames: usize,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            robot: RobotParams::default(),
+            align: AlignOptions::default(),
+            min_gap_s: DEFAULT_MIN_GAP_S,
+            min_travel_m: 0.3,
+            rest_tolerance_m: 0.005,
+            rest_window_s: 1.0,
+            rest_guard_s: 0.3,
+            min_rest_frames: 3,
+        }
+    }
+}
+
+/// One recording: a manifest row's odometry log and camera trajectory.
+#[derive(Debug, Clone, Copy)]
+pub struct Recording<'a> {
+    /// Manifest id.
+    pub id: &'a str,
+    /// Commanded speed from the manifest, m/s, if given.
+    pub speed_mps: Option<f64>,
+    /// The robot's odometry log.
+    pub log: &'a OdometryLog,
+    /// The camera trajectory (floor frame, camera clock).
+    pub camera: &'a Trajectory,
+}
+
+/// What became of one detected run.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunOutcome {
+    /// A usable run.
+    Sample(Box<Sample>),
+    /// An unusable run and why.
+    Rejected(RejectedRun),
+}
+
+/// The features of the single run in a raw odometry log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunFeatures {
+    /// The 18 inputs of [`crate::FEATURE_RULE`].
+    pub inputs: [f64; N_INPUTS],
+    /// Raw odometry end position in the start frame, metres.
+    pub raw_end_m: [f64; 2],
+    /// The run's odometry rows t_b..t_e.
+    pub odometry: RunOdometry,
+}
+
+/// Detects the one run in a raw log and computes its features exactly as the dataset does
+/// (what `odocal correct` must use). Errors if the log holds no run, several runs, or a run cut
+/// by the log's start or end.
+pub fn features_from_log(log: &OdometryLog, robot: &RobotParams) -> Result<RunFeatures, DatasetError> {
+    let segs = split_runs(log, DEFAULT_MIN_GAP_S);
+    let seg = match segs.as_slice() {
+        [] => return Err(DatasetError::Mismatch("the odometry log shows no motion".into())),
+        [s] => *s,
+        _ => {
+            return Err(DatasetError::Mismatch(format!(
+                "the odometry log holds {} runs separated by stops of {DEFAULT_MIN_GAP_S} s or more; give one run per log",
+                segs.len()
+            )))
+        }
+    };
+    if let Some(why) = cut_reason(&seg) {
+        return Err(DatasetError::Mismatch(format!("the odometry log {why}")));
+    }
+    let odometry = seg.odometry(&log.wheel_revs(robot));
+    let g = WheelGeometry::nominal(robot);
+    Ok(RunFeatures {
+        inputs: odometry.features(&g),
+        raw_end_m: odometry.end_m(&g),
+        odometry,
+    })
+}
+
+fn cut_reason(seg: &RunSegment) -> Option<&'static str> {
+    if seg.starts_in_motion {
+        Some("starts during the run's motion (no rest row before it)")
+    } else if seg.ends_in_motion {
+        Some("ends during the run's motion (log too short, no rest row after it)")
+    } else {
+        None
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Camera frames at rest around `anchor` within `rows`: those within `tol` of the median of the
+/// frames nearest the anchor (`near` = the 0.3 s next to it).
+fn rest_cluster(rows: &[TrajectoryRow], near: &[TrajectoryRow], tol: f64) -> Vec<TrajectoryRow> {
+    if near.is_empty() {
+        return Vec::new();
+    }
+    let c = Point2::new(
+        median(near.iter().map(|r| r.pose.x_m).collect()),
+        median(near.iter().map(|r| r.pose.y_m).collect()),
+    );
+    rows.iter()
+        .filter(|r| (r.pose.position() - c).norm() <= tol)
+        .copied()
+        .collect()
+}
+
+/// Splits a recording into runs and turns each into a sample or a rejection.
+///
+/// Hard errors (the whole build must stop): a log whose motion cannot overlap the trajectory.
+pub fn process_recording(rec: &Recording, opts: &BuildOptions) -> Result<Vec<RunOutcome>, DatasetError> {
+    let reject = |id: String, reason: String| RunOutcome::Rejected(RejectedRun { run_id: id, reason });
+    let segs = split_runs(rec.log, opts.min_gap_s);
+    if segs.is_empty() {
+        return Ok(vec![reject(rec.id.to_string(), "no motion in the odometry log".into())]);
+    }
+    let name = |j: usize| {
+        if segs.len() == 1 {
+            rec.id.to_string()
+        } else {
+            format!("{}.{}", rec.id, j + 1)
+        }
+    };
+    let revs = rec.log.wheel_revs(&opts.robot);
+    let geom = WheelGeometry::nominal(&opts.robot);
+    let coarse = coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id)?;
+    let mut out = Vec::with_capacity(segs.len());
+    for (j, seg) in segs.iter().enumerate() {
+        let id = name(j);
+        if coarse.correlation < opts.align.min_correlation {
+            out.push(reject(
+                id,
+                format!(
+                    "clock offset not found: speed-profile correlation {:.2} < {:.2}",
+                    coarse.correlation, opts.align.min_correlation
+                ),
+            ));
+            continue;
+        }
+        if let Some(why) = cut_reason(seg) {
+            out.push(reject(id, format!("the log {why}")));
+            continue;
+        }
+        let odo = seg.odometry(&revs);
+        let travel = odo.travel_m(&geom);
+        if travel < opts.min_travel_m {
+            out.push(reject(
+                id,
+                format!("too short: odometry travel {travel:.3} m < {:.3} m", opts.min_travel_m),
+            ));
+            continue;
+        }
+        let al = match refine_offset(&revs, seg, &geom, rec.camera, coarse.offset_s, &opts.align) {
+            Ok(a) => a,
+            Err(why) => {
+                out.push(reject(id, format!("clock offset not found: {why}")));
+                continue;
+            }
+        };
+        let d = al.offset_s;
+        let (tb, te) = (odo.t_b(), odo.t_e());
+        // Start pose: camera frames at rest before motion.
+        let a = tb + d - opts.rest_guard_s;
+        let start_rows = rest_cluster(
+            rec.camera.rows_between(a - opts.rest_window_s, a),
+            rec.camera.rows_between(a - 0.3, a),
+            opts.rest_tolerance_m,
+        );
+        if start_rows.len() < opts.min_rest_frames {
+            out.push(reject(
+                id,
+                format!(
+                    "tag not seen at rest before the run ({} frames in the {:.1} s before t_b)",
+                    start_rows.len(),
+                    opts.rest_window_s
+                ),
+            ));
+            continue;
+        }
+        let e = te + d;
+        let end_rows = rest_cluster(
+            rec.camera.rows_between(e, e + opts.rest_window_s),
+            rec.camera.rows_between(e, e + 0.3),
+            opts.rest_tolerance_m,
+        );
+        if end_rows.len() < opts.min_rest_frames {
+            out.push(reject(
+                id,
+                format!(
+                    "tag lost at the end of the run ({} frames at rest in the {:.1} s after t_e)",
+                    end_rows.len(),
+                    opts.rest_window_s
+                ),
+            ));
+            continue;
+        }
+        let (Some(start), Some(end)) = (mean_pose(&start_rows), mean_pose(&end_rows)) else {
+            continue;
+        };
+        let rel = end.relative_to(&start);
+        // Real path length: camera positions at the aligned log rows, rest poses at the ends.
+        let mut pts = vec![start.position()];
+        for k in seg.start_row + 1..seg.end_row {
+            if let Some(p) = rec.camera.position_at(revs.t_s[k] + d, opts.align.max_frame_gap_s) {
+                pts.push(p);
+            }
+        }
+        pts.push(end.position());
+        let path: f64 = pts.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+        let speeds: Vec<f64> = (1..odo.t_s.len())
+            .filter(|&k| odo.rev[k] != odo.rev[k - 1])
+            .map(|k| {
+                let g = &geom;
+                let dl = (odo.rev[k][0] - odo.rev[k - 1][0]) * std::f64::consts::PI * g.left_wheel_diameter_m;
+                let dr = (odo.rev[k][1] - odo.rev[k - 1][1]) * std::f64::consts::PI * g.right_wheel_diameter_m;
+                0.5 * (dl + dr).abs() / (odo.t_s[k] - odo.t_s[k - 1])
+            })
+            .collect();
+        let odo_speed = median(speeds);
+        out.push(RunOutcome::Sample(Box::new(Sample {
+            run_id: id,
+            speed_mps: rec.speed_mps.unwrap_or(odo_speed),
+            inputs: odo.features(&geom).to_vec(),
+            target_m: [rel.x_m, rel.y_m],
+            raw_end_m: odo.end_m(&geom),
+            path_length_m: path,
+            clock_offset_s: d,
+            alignment_residual_mps: al.residual_mps,
+            recording_id: rec.id.to_string(),
+            alignment_residual_m: al.residual_m,
+            speed_correlation: coarse.correlation,
+            odometry_speed_mps: odo_speed,
+            start_pose_floor: Pose2::new(start.x_m, start.y_m, start.theta_rad),
+            target_theta_rad: wrap_angle(rel.theta_rad),
+            rest_frames: [start_rows.len(), end_rows.len()],
+            odometry: odo,
+        })));
+    }
+    Ok(out)
+}
+
+/// Collects the outcomes of all recordings (in manifest order) into a dataset.
+pub fn assemble(robot: RobotParams, outcomes: Vec<Vec<RunOutcome>>) -> Dataset {
+    let recordings = outcomes.len();
+    let mut samples = Vec::new();
+    let mut rejected = Vec::new();
+    for o in outcomes.into_iter().flatten() {
+        match o {
+            RunOutcome::Sample(s) => samples.push(*s),
+            RunOutcome::Rejected(r) => rejected.push(r),
+        }
+    }
+    Dataset::new(robot, samples, rejected, recordings)
+}
+
+/// The samples as CSV: id, speed, the 18 inputs, target, raw end, path length, offset, residuals.
+pub fn samples_csv(ds: &Dataset) -> String {
+    let mut s = String::from("run_id,speed_mps");
+    for i in 1..=8 {
+        s.push_str(&format!(",x{i},y{i}"));
+    }
+    s.push_str(",t_b,t_e,target_x,target_y,raw_x,raw_y,path_length_m,clock_offset_s,alignment_residual_mps\n");
+    for smp in &ds.samples {
+        s.push_str(&format!("{},{}", smp.run_id, smp.speed_mps));
+        for v in &smp.inputs {
+            s.push_str(&format!(",{v}"));
+        }
+        s.push_str(&format!(
+            ",{},{},{},{},{},{},{}\n",
+            smp.target_m[0],
+            smp.target_m[1],
+            smp.raw_end_m[0],
+            smp.raw_end_m[1],
+            smp.path_length_m,
+            smp.clock_offset_s,
+            smp.alignment_residual_mps
+        ));
+    }
+    s
+}

@@ -1,0 +1,225 @@
+//! Run manifests (DESIGN.md contract): one row per recording with its id, a video or a
+//! trajectory, an odometry log and the commanded speed. JSON (`"format": "odocal.manifest/1"`,
+//! `runs: [...]`) or CSV (`id,video,trajectory,odometry,speed_mps`, empty cells allowed).
+//! Relative paths are relative to the manifest's directory.
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{parse_json_with_format, read_text, DatasetError};
+use crate::odometry::csv_error;
+
+/// The `format` tag of manifest JSON files.
+pub const MANIFEST_FORMAT: &str = "odocal.manifest/1";
+
+/// One recording: a camera source and the robot's odometry log.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestRow {
+    /// Recording identifier; runs split from it are named `<id>.<k>` (k from 1).
+    pub id: String,
+    /// Ceiling video (to be tracked), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub video: Option<String>,
+    /// Camera trajectory CSV (already tracked, or synthetic), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trajectory: Option<String>,
+    /// Odometry log CSV.
+    pub odometry: String,
+    /// Commanded speed, m/s (optional: the odometry's cruise speed is used when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_mps: Option<f64>,
+}
+
+/// A run manifest.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Always [`MANIFEST_FORMAT`].
+    pub format: String,
+    /// The recordings.
+    pub runs: Vec<ManifestRow>,
+    /// Directory relative paths are resolved against (not serialised).
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+impl Manifest {
+    /// A manifest of `runs` with paths relative to `base_dir`.
+    pub fn new(runs: Vec<ManifestRow>, base_dir: &Path) -> Self {
+        Self {
+            format: MANIFEST_FORMAT.to_string(),
+            runs,
+            base_dir: base_dir.to_path_buf(),
+        }
+    }
+
+    /// Reads a manifest (`.csv` by extension, JSON otherwise) and checks its rows.
+    pub fn read(path: &Path) -> Result<Self, DatasetError> {
+        let text = read_text(path)?;
+        let name = path.display().to_string();
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let is_csv = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        let (mut m, lines) = if is_csv {
+            parse_csv(&text, &name)?
+        } else {
+            let m: Manifest = parse_json_with_format(&text, &name, MANIFEST_FORMAT)?;
+            let n = m.runs.len();
+            (m, (0..n).map(|_| 0).collect())
+        };
+        m.base_dir = base;
+        m.check(&name, &lines)?;
+        Ok(m)
+    }
+
+    fn check(&self, name: &str, lines: &[u64]) -> Result<(), DatasetError> {
+        if self.runs.is_empty() {
+            return Err(DatasetError::content(name, "the manifest lists no runs"));
+        }
+        let mut seen = HashSet::new();
+        for (i, r) in self.runs.iter().enumerate() {
+            let at = match lines.get(i) {
+                Some(&l) if l > 0 => format!("line {l}"),
+                _ => format!("run {} (\"{}\")", i + 1, r.id),
+            };
+            let bad = |msg: String| DatasetError::content(name, format!("{at}: {msg}"));
+            if r.id.trim().is_empty() {
+                return Err(bad("empty run id".into()));
+            }
+            if !seen.insert(r.id.clone()) {
+                return Err(bad(format!("run id \"{}\" appears twice; ids must be unique", r.id)));
+            }
+            match (&r.video, &r.trajectory) {
+                (Some(_), Some(_)) => return Err(bad("give a video or a trajectory, not both".into())),
+                (None, None) => return Err(bad("no video and no trajectory".into())),
+                _ => {}
+            }
+            if r.odometry.trim().is_empty() {
+                return Err(bad("no odometry log".into()));
+            }
+            if let Some(v) = r.speed_mps {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(bad(format!("speed {v} m/s is not a positive number")));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Resolves a path of the manifest against its directory.
+    pub fn resolve(&self, p: &str) -> PathBuf {
+        let q = Path::new(p);
+        if q.is_absolute() {
+            q.to_path_buf()
+        } else {
+            self.base_dir.join(q)
+        }
+    }
+
+    /// Checks that every referenced file exists; the error names the run and the file.
+    pub fn check_files(&self) -> Result<(), DatasetError> {
+        for r in &self.runs {
+            for p in [Some(&r.odometry), r.video.as_ref(), r.trajectory.as_ref()].into_iter().flatten() {
+                let full = self.resolve(p);
+                if !full.is_file() {
+                    return Err(DatasetError::Mismatch(format!(
+                        "run \"{}\": file {} listed in the manifest does not exist",
+                        r.id,
+                        full.display()
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The manifest as pretty JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+}
+
+fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let mut header: Option<Vec<String>> = None;
+    let mut runs = Vec::new();
+    let mut lines = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| csv_error(name, &e))?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        if rec.iter().all(|f| f.is_empty()) {
+            continue;
+        }
+        let Some(h) = &header else {
+            let h: Vec<String> = rec.iter().map(str::to_string).collect();
+            for need in ["id", "odometry"] {
+                if !h.iter().any(|c| c == need) {
+                    return Err(DatasetError::parse(
+                        name,
+                        line,
+                        1,
+                        format!("header lacks column \"{need}\" (expected id,video,trajectory,odometry,speed_mps)"),
+                    ));
+                }
+            }
+            header = Some(h);
+            continue;
+        };
+        if rec.len() != h.len() {
+            return Err(DatasetError::parse(
+                name,
+                line,
+                rec.len().min(h.len()) as u64 + 1,
+                format!("expected {} fields, found {}", h.len(), rec.len()),
+            ));
+        }
+        let get = |col: &str| -> Option<String> {
+            h.iter()
+                .position(|c| c == col)
+                .and_then(|i| rec.get(i))
+                .filter(|v| !v.is_empty())
+                .map(str::to_string)
+        };
+        let speed = match h.iter().position(|c| c == "speed_mps") {
+            Some(i) => match rec.get(i).filter(|v| !v.is_empty()) {
+                Some(v) => Some(v.parse::<f64>().map_err(|_| {
+                    DatasetError::parse(name, line, i as u64 + 1, format!("\"{v}\" is not a number"))
+                })?),
+                None => None,
+            },
+            None => None,
+        };
+        runs.push(ManifestRow {
+            id: get("id").unwrap_or_default(),
+            video: get("video"),
+            trajectory: get("trajectory"),
+            odometry: get("odometry").unwrap_or_default(),
+            speed_mps: speed,
+        });
+        lines.push(line);
+    }
+    Ok((Manifest::new(runs, Path::new("")), lines))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_manifest_and_errors() {
+        let (m, _) = parse_csv("id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,0.5\nr2,c.csv,d.csv,\n", "m.csv").unwrap();
+        assert_eq!(m.runs.len(), 2);
+        assert_eq!(m.runs[0].speed_mps, Some(0.5));
+        assert_eq!(m.runs[1].speed_mps, None);
+        let e = parse_csv("id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,fast\n", "m.csv").unwrap_err();
+        assert_eq!(e.to_string(), "m.csv:2:4: \"fast\" is not a number");
+        let (m, l) = parse_csv("id,trajectory,odometry\nr1,a,b\nr1,c,d\n", "m.csv").unwrap();
+        let e = m.check("m.csv", &l).unwrap_err();
+        assert!(e.to_string().contains("line 3: run id \"r1\" appears twice"));
+    }
+}

@@ -1,0 +1,319 @@
+//! 200 ms odometry logs (DESIGN.md contract): `t,left_ticks,right_ticks` (cumulative encoder
+//! counts) or `t,v_left,v_right` (wheel speeds, m/s), `t` in seconds on the robot's clock.
+
+use std::path::Path;
+
+use crate::error::{read_text, DatasetError};
+use crate::RobotParams;
+
+/// Header of a tick log.
+pub const TICKS_HEADER: [&str; 3] = ["t", "left_ticks", "right_ticks"];
+/// Header of a wheel-speed log.
+pub const SPEEDS_HEADER: [&str; 3] = ["t", "v_left", "v_right"];
+
+/// Speed below which a wheel-speed log row counts as standing still, m/s.
+pub const SPEED_REST_THRESHOLD_MPS: f64 = 0.005;
+
+/// What the two wheel columns of a log hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogKind {
+    /// Cumulative encoder counts per wheel.
+    Ticks,
+    /// Wheel surface speed in m/s over the interval ending at the row's time.
+    Speeds,
+}
+
+/// An odometry log: strictly increasing robot-clock times and two wheel columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OdometryLog {
+    /// Column meaning.
+    pub kind: LogKind,
+    /// Robot-clock times, seconds, strictly increasing.
+    pub t_s: Vec<f64>,
+    /// Left wheel: cumulative ticks or speed (m/s), per [`LogKind`].
+    pub left: Vec<f64>,
+    /// Right wheel: cumulative ticks or speed (m/s), per [`LogKind`].
+    pub right: Vec<f64>,
+}
+
+/// Cumulative wheel revolutions at the log's times, relative to the first row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WheelRevs {
+    /// Robot-clock times, seconds.
+    pub t_s: Vec<f64>,
+    /// Cumulative revolutions [left, right] since the first row.
+    pub rev: Vec<[f64; 2]>,
+}
+
+impl OdometryLog {
+    /// A tick log from cumulative counts; checks times and lengths.
+    pub fn from_ticks(t_s: Vec<f64>, left: Vec<i64>, right: Vec<i64>) -> Result<Self, DatasetError> {
+        let log = Self {
+            kind: LogKind::Ticks,
+            t_s,
+            left: left.into_iter().map(|v| v as f64).collect(),
+            right: right.into_iter().map(|v| v as f64).collect(),
+        };
+        log.validate("<ticks>", |i| i as u64 + 2)?;
+        Ok(log)
+    }
+
+    /// A wheel-speed log (m/s per wheel over the interval ending at each row); checks times.
+    pub fn from_speeds(t_s: Vec<f64>, v_left: Vec<f64>, v_right: Vec<f64>) -> Result<Self, DatasetError> {
+        let log = Self {
+            kind: LogKind::Speeds,
+            t_s,
+            left: v_left,
+            right: v_right,
+        };
+        log.validate("<speeds>", |i| i as u64 + 2)?;
+        Ok(log)
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when the log has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+
+    /// Reads a log CSV; the header decides the kind.
+    pub fn read_csv(path: &Path) -> Result<Self, DatasetError> {
+        let text = read_text(path)?;
+        Self::parse_csv(&text, &path.display().to_string())
+    }
+
+    /// Parses log CSV text; `name` is used in error messages.
+    pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .comment(Some(b'#'))
+            .from_reader(text.as_bytes());
+        let mut kind = None;
+        let mut t_s = Vec::new();
+        let mut left = Vec::new();
+        let mut right = Vec::new();
+        let mut lines = Vec::new();
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| csv_error(name, &e))?;
+            let line = rec.position().map(|p| p.line()).unwrap_or(0);
+            if rec.iter().all(|f| f.is_empty()) {
+                continue;
+            }
+            let Some(k) = kind else {
+                let fields: Vec<&str> = rec.iter().collect();
+                kind = Some(if fields == TICKS_HEADER {
+                    LogKind::Ticks
+                } else if fields == SPEEDS_HEADER {
+                    LogKind::Speeds
+                } else {
+                    return Err(DatasetError::parse(
+                        name,
+                        line,
+                        1,
+                        format!(
+                            "header is \"{}\", expected \"t,left_ticks,right_ticks\" or \"t,v_left,v_right\"",
+                            fields.join(",")
+                        ),
+                    ));
+                });
+                continue;
+            };
+            if rec.len() != 3 {
+                return Err(DatasetError::parse(
+                    name,
+                    line,
+                    rec.len().min(3) as u64 + 1,
+                    format!("expected 3 fields, found {}", rec.len()),
+                ));
+            }
+            let mut vals = [0.0; 3];
+            for (c, field) in rec.iter().enumerate() {
+                let v: f64 = field.parse().map_err(|_| {
+                    DatasetError::parse(name, line, c as u64 + 1, format!("\"{field}\" is not a number"))
+                })?;
+                if !v.is_finite() {
+                    return Err(DatasetError::parse(
+                        name,
+                        line,
+                        c as u64 + 1,
+                        format!("\"{field}\" is not a finite number"),
+                    ));
+                }
+                if c > 0 && k == LogKind::Ticks && v.fract() != 0.0 {
+                    return Err(DatasetError::parse(
+                        name,
+                        line,
+                        c as u64 + 1,
+                        format!("\"{field}\" is not a whole tick count"),
+                    ));
+                }
+                vals[c] = v;
+            }
+            t_s.push(vals[0]);
+            left.push(vals[1]);
+            right.push(vals[2]);
+            lines.push(line);
+        }
+        let Some(kind) = kind else {
+            return Err(DatasetError::content(name, "empty odometry log (no header, no rows)"));
+        };
+        let log = Self {
+            kind,
+            t_s,
+            left,
+            right,
+        };
+        log.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
+        Ok(log)
+    }
+
+    /// Checks lengths, finiteness and strictly increasing times; `line_of(i)` locates row i.
+    fn validate(&self, name: &str, line_of: impl Fn(usize) -> u64) -> Result<(), DatasetError> {
+        if self.left.len() != self.t_s.len() || self.right.len() != self.t_s.len() {
+            return Err(DatasetError::content(name, "columns differ in length"));
+        }
+        if self.t_s.len() < 2 {
+            return Err(DatasetError::content(
+                name,
+                format!("odometry log has {} data rows; need at least 2", self.t_s.len()),
+            ));
+        }
+        for i in 0..self.t_s.len() {
+            for (c, v) in [self.t_s[i], self.left[i], self.right[i]].iter().enumerate() {
+                if !v.is_finite() {
+                    return Err(DatasetError::parse(name, line_of(i), c as u64 + 1, "value is not a finite number"));
+                }
+            }
+            if i > 0 {
+                let (a, b) = (self.t_s[i - 1], self.t_s[i]);
+                if b == a {
+                    return Err(DatasetError::parse(
+                        name,
+                        line_of(i),
+                        1,
+                        format!("duplicated timestamp {b} (same as line {}); remove the repeated row", line_of(i - 1)),
+                    ));
+                }
+                if b < a {
+                    return Err(DatasetError::parse(
+                        name,
+                        line_of(i),
+                        1,
+                        format!(
+                            "timestamp {b} goes back in time (line {} has {a}); rows must be in time order",
+                            line_of(i - 1)
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The log as CSV text with its header (full round-trip precision).
+    pub fn to_csv(&self) -> String {
+        let header = match self.kind {
+            LogKind::Ticks => TICKS_HEADER,
+            LogKind::Speeds => SPEEDS_HEADER,
+        };
+        let mut s = header.join(",");
+        s.push('\n');
+        for i in 0..self.t_s.len() {
+            s.push_str(&format!("{},{},{}\n", self.t_s[i], self.left[i], self.right[i]));
+        }
+        s
+    }
+
+    /// Whether the robot moved in the interval ending at row `i` (i ≥ 1).
+    pub fn moving_at(&self, i: usize) -> bool {
+        match self.kind {
+            LogKind::Ticks => self.left[i] != self.left[i - 1] || self.right[i] != self.right[i - 1],
+            LogKind::Speeds => {
+                self.left[i].abs() > SPEED_REST_THRESHOLD_MPS || self.right[i].abs() > SPEED_REST_THRESHOLD_MPS
+            }
+        }
+    }
+
+    /// Cumulative wheel revolutions relative to the first row. Speeds are converted with the
+    /// nominal wheel diameter (the robot computed them with it), ticks with `ticks_per_rev`.
+    pub fn wheel_revs(&self, robot: &RobotParams) -> WheelRevs {
+        let mut rev = Vec::with_capacity(self.len());
+        match self.kind {
+            LogKind::Ticks => {
+                for i in 0..self.len() {
+                    rev.push([
+                        (self.left[i] - self.left[0]) / robot.ticks_per_rev,
+                        (self.right[i] - self.right[0]) / robot.ticks_per_rev,
+                    ]);
+                }
+            }
+            LogKind::Speeds => {
+                let circ = std::f64::consts::PI * robot.wheel_diameter_m;
+                let mut acc = [0.0, 0.0];
+                rev.push(acc);
+                for i in 1..self.len() {
+                    let dt = self.t_s[i] - self.t_s[i - 1];
+                    acc[0] += self.left[i] * dt / circ;
+                    acc[1] += self.right[i] * dt / circ;
+                    rev.push(acc);
+                }
+            }
+        }
+        WheelRevs {
+            t_s: self.t_s.clone(),
+            rev,
+        }
+    }
+}
+
+/// Maps a csv crate error to a positioned parse error.
+pub(crate) fn csv_error(name: &str, e: &csv::Error) -> DatasetError {
+    let line = e.position().map(|p| p.line()).unwrap_or(0);
+    DatasetError::parse(name, line, 1, format!("malformed CSV: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_ticks_and_speeds() {
+        let log = OdometryLog::parse_csv("t,left_ticks,right_ticks\n0,0,0\n0.2,3,4\n0.4,7,7\n", "a.csv").unwrap();
+        assert_eq!(log.kind, LogKind::Ticks);
+        assert_eq!(log.left, vec![0.0, 3.0, 7.0]);
+        let revs = log.wheel_revs(&RobotParams::default());
+        assert!((revs.rev[2][1] - 7.0 / 12.0).abs() < 1e-12);
+        let sp = OdometryLog::parse_csv("t,v_left,v_right\n0,0,0\n0.2,0.5,0.5\n", "b.csv").unwrap();
+        assert_eq!(sp.kind, LogKind::Speeds);
+        let r = sp.wheel_revs(&RobotParams::default());
+        assert!((r.rev[1][0] - 0.1 / (std::f64::consts::PI * 0.043)).abs() < 1e-12);
+        let back = OdometryLog::parse_csv(&log.to_csv(), "c").unwrap();
+        assert_eq!(back, log);
+    }
+
+    fn err(text: &str) -> String {
+        OdometryLog::parse_csv(text, "log.csv").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn bad_input_is_located() {
+        assert_eq!(
+            err("t,left_ticks,right_ticks\n0,0,0\n0.2,x,1\n"),
+            "log.csv:3:2: \"x\" is not a number"
+        );
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1,NaN\n").starts_with("log.csv:3:3:"));
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0,1,1\n").contains("log.csv:3:1: duplicated timestamp"));
+        assert!(err("t,left_ticks,right_ticks\n0.2,0,0\n0.1,1,1\n").contains("goes back in time"));
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1\n").starts_with("log.csv:3:3: expected 3 fields"));
+        assert!(err("time,a,b\n0,0,0\n").starts_with("log.csv:1:1: header"));
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1.5,1\n").contains("whole tick count"));
+        assert!(err("").contains("empty odometry log"));
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n").contains("need at least 2"));
+    }
+}

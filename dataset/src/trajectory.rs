@@ -1,0 +1,278 @@
+//! Trajectory files (DESIGN.md contract): CSV `t,x,y,theta,quality`, floor frame, metres and
+//! radians, one row per frame with a detection; missed frames are absent. Written by the
+//! tracker (or the simulator with `--frames none`), read by the dataset builder.
+
+use std::path::Path;
+
+use nalgebra::Point2;
+use odocal_geometry::{wrap_angle, Pose2};
+
+use crate::error::{read_text, DatasetError};
+use crate::odometry::csv_error;
+
+/// Header of a trajectory CSV.
+pub const TRAJECTORY_HEADER: [&str; 5] = ["t", "x", "y", "theta", "quality"];
+
+/// One detected frame: camera-clock time and the robot's floor pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrajectoryRow {
+    /// Camera-clock time, seconds.
+    pub t_s: f64,
+    /// Robot pose in the floor frame (maps the robot's body frame into the floor frame).
+    pub pose: Pose2,
+    /// Detection quality in [0, 1] (tracker-defined; 1 for synthetic truth).
+    pub quality: f64,
+}
+
+/// A camera trajectory: rows in strictly increasing time.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Trajectory {
+    /// The rows, strictly increasing in time.
+    pub rows: Vec<TrajectoryRow>,
+}
+
+impl Trajectory {
+    /// Builds a trajectory, checking that times increase strictly and values are finite.
+    pub fn new(rows: Vec<TrajectoryRow>) -> Result<Self, DatasetError> {
+        let t = Self { rows };
+        t.validate("<trajectory>", |i| i as u64 + 2)?;
+        Ok(t)
+    }
+
+    /// Reads a trajectory CSV.
+    pub fn read_csv(path: &Path) -> Result<Self, DatasetError> {
+        let text = read_text(path)?;
+        Self::parse_csv(&text, &path.display().to_string())
+    }
+
+    /// Parses trajectory CSV text; `name` is used in error messages.
+    pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .comment(Some(b'#'))
+            .from_reader(text.as_bytes());
+        let mut header_seen = false;
+        let mut rows = Vec::new();
+        let mut lines = Vec::new();
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| csv_error(name, &e))?;
+            let line = rec.position().map(|p| p.line()).unwrap_or(0);
+            if rec.iter().all(|f| f.is_empty()) {
+                continue;
+            }
+            if !header_seen {
+                let fields: Vec<&str> = rec.iter().collect();
+                if fields != TRAJECTORY_HEADER {
+                    return Err(DatasetError::parse(
+                        name,
+                        line,
+                        1,
+                        format!("header is \"{}\", expected \"t,x,y,theta,quality\"", fields.join(",")),
+                    ));
+                }
+                header_seen = true;
+                continue;
+            }
+            if rec.len() != 5 {
+                return Err(DatasetError::parse(
+                    name,
+                    line,
+                    rec.len().min(5) as u64 + 1,
+                    format!("expected 5 fields, found {}", rec.len()),
+                ));
+            }
+            let mut v = [0.0; 5];
+            for (c, field) in rec.iter().enumerate() {
+                let x: f64 = field.parse().map_err(|_| {
+                    DatasetError::parse(name, line, c as u64 + 1, format!("\"{field}\" is not a number"))
+                })?;
+                if !x.is_finite() {
+                    return Err(DatasetError::parse(
+                        name,
+                        line,
+                        c as u64 + 1,
+                        format!("\"{field}\" is not a finite number"),
+                    ));
+                }
+                v[c] = x;
+            }
+            rows.push(TrajectoryRow {
+                t_s: v[0],
+                pose: Pose2::new(v[1], v[2], v[3]),
+                quality: v[4],
+            });
+            lines.push(line);
+        }
+        if !header_seen {
+            return Err(DatasetError::content(name, "empty trajectory file (no header)"));
+        }
+        let t = Self { rows };
+        t.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
+        Ok(t)
+    }
+
+    fn validate(&self, name: &str, line_of: impl Fn(usize) -> u64) -> Result<(), DatasetError> {
+        for (i, r) in self.rows.iter().enumerate() {
+            let vals = [r.t_s, r.pose.x_m, r.pose.y_m, r.pose.theta_rad, r.quality];
+            if let Some(c) = vals.iter().position(|v| !v.is_finite()) {
+                return Err(DatasetError::parse(name, line_of(i), c as u64 + 1, "value is not a finite number"));
+            }
+            if i > 0 {
+                let a = self.rows[i - 1].t_s;
+                if r.t_s == a {
+                    return Err(DatasetError::parse(
+                        name,
+                        line_of(i),
+                        1,
+                        format!("duplicated timestamp {a}; one row per frame"),
+                    ));
+                }
+                if r.t_s < a {
+                    return Err(DatasetError::parse(
+                        name,
+                        line_of(i),
+                        1,
+                        format!("timestamp {} goes back in time (previous row {a}); rows must be in time order", r.t_s),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The trajectory as CSV text with its header (full round-trip precision).
+    pub fn to_csv(&self) -> String {
+        let mut s = TRAJECTORY_HEADER.join(",");
+        s.push('\n');
+        for r in &self.rows {
+            s.push_str(&format!(
+                "{},{},{},{},{}\n",
+                r.t_s, r.pose.x_m, r.pose.y_m, r.pose.theta_rad, r.quality
+            ));
+        }
+        s
+    }
+
+    /// The trajectory in TUM format (`timestamp tx ty tz qx qy qz qw`, z = 0) for `evo`.
+    pub fn to_tum(&self) -> String {
+        let mut s = String::from("# timestamp tx ty tz qx qy qz qw\n");
+        for r in &self.rows {
+            let h = 0.5 * r.pose.theta_rad;
+            s.push_str(&format!(
+                "{:.6} {:.6} {:.6} 0 0 0 {:.9} {:.9}\n",
+                r.t_s,
+                r.pose.x_m,
+                r.pose.y_m,
+                h.sin(),
+                h.cos()
+            ));
+        }
+        s
+    }
+
+    /// Time of the first row, seconds (NaN when empty).
+    pub fn start_s(&self) -> f64 {
+        self.rows.first().map(|r| r.t_s).unwrap_or(f64::NAN)
+    }
+
+    /// Time of the last row, seconds (NaN when empty).
+    pub fn end_s(&self) -> f64 {
+        self.rows.last().map(|r| r.t_s).unwrap_or(f64::NAN)
+    }
+
+    /// Index i with rows[i].t <= t < rows[i+1].t, if t lies inside the trajectory.
+    fn bracket(&self, t: f64) -> Option<usize> {
+        let n = self.rows.len();
+        if n < 2 || !(t >= self.rows[0].t_s && t <= self.rows[n - 1].t_s) {
+            return None;
+        }
+        let i = self.rows.partition_point(|r| r.t_s <= t);
+        Some(i.saturating_sub(1).min(n - 2))
+    }
+
+    /// Position at time `t`, linearly interpolated between neighbouring frames; None outside the
+    /// trajectory or across a gap between frames longer than `max_gap_s`.
+    pub fn position_at(&self, t: f64, max_gap_s: f64) -> Option<Point2<f64>> {
+        let i = self.bracket(t)?;
+        let (a, b) = (&self.rows[i], &self.rows[i + 1]);
+        let span = b.t_s - a.t_s;
+        if span > max_gap_s {
+            return None;
+        }
+        let w = (t - a.t_s) / span;
+        Some(Point2::new(
+            a.pose.x_m + w * (b.pose.x_m - a.pose.x_m),
+            a.pose.y_m + w * (b.pose.y_m - a.pose.y_m),
+        ))
+    }
+
+    /// Whether every gap between frames within [t0, t1] is at most `max_gap_s` and the
+    /// trajectory covers the interval.
+    pub fn covers(&self, t0: f64, t1: f64, max_gap_s: f64) -> bool {
+        let (Some(i0), Some(i1)) = (self.bracket(t0), self.bracket(t1)) else {
+            return false;
+        };
+        (i0..=i1).all(|i| self.rows[i + 1].t_s - self.rows[i].t_s <= max_gap_s)
+    }
+
+    /// Rows with time in [t0, t1].
+    pub fn rows_between(&self, t0: f64, t1: f64) -> &[TrajectoryRow] {
+        let a = self.rows.partition_point(|r| r.t_s < t0);
+        let b = self.rows.partition_point(|r| r.t_s <= t1);
+        &self.rows[a..b.max(a)]
+    }
+}
+
+/// Mean of poses: arithmetic mean of positions, circular mean of headings.
+pub fn mean_pose(rows: &[TrajectoryRow]) -> Option<Pose2> {
+    if rows.is_empty() {
+        return None;
+    }
+    let n = rows.len() as f64;
+    let (mut x, mut y, mut s, mut c) = (0.0, 0.0, 0.0, 0.0);
+    for r in rows {
+        x += r.pose.x_m;
+        y += r.pose.y_m;
+        s += r.pose.theta_rad.sin();
+        c += r.pose.theta_rad.cos();
+    }
+    Some(Pose2::new(x / n, y / n, wrap_angle(s.atan2(c))))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_interpolation() {
+        let rows: Vec<TrajectoryRow> = (0..5)
+            .map(|i| TrajectoryRow {
+                t_s: i as f64 / 30.0,
+                pose: Pose2::new(0.1 * i as f64, -0.2, 0.3),
+                quality: 1.0,
+            })
+            .collect();
+        let t = Trajectory::new(rows).unwrap();
+        let back = Trajectory::parse_csv(&t.to_csv(), "t.csv").unwrap();
+        assert_eq!(back, t);
+        let p = t.position_at(1.5 / 30.0, 0.1).unwrap();
+        assert!((p.x - 0.15).abs() < 1e-12);
+        assert!(t.position_at(1.0, 0.1).is_none());
+        assert!(t.covers(0.0, 4.0 / 30.0, 0.05));
+        assert!(!t.covers(0.0, 4.0 / 30.0, 0.01));
+        assert_eq!(t.rows_between(0.02, 0.07).len(), 2);
+        assert!(t.to_tum().lines().count() == 6);
+    }
+
+    #[test]
+    fn bad_rows_are_located() {
+        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,1\n0.1,0,zz,0,1\n", "tr.csv").unwrap_err();
+        assert_eq!(e.to_string(), "tr.csv:3:3: \"zz\" is not a number");
+        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,1\n0,0,0,0,1\n", "tr.csv").unwrap_err();
+        assert!(e.to_string().starts_with("tr.csv:3:1: duplicated timestamp"));
+        let e = Trajectory::parse_csv("t,x,y\n", "tr.csv").unwrap_err();
+        assert!(e.to_string().contains("expected \"t,x,y,theta,quality\""));
+    }
+}
