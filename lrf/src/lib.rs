@@ -1,1 +1,36 @@
-//! odocal-lrf (in progress).
+//! odocal-lrf: positioning a laser range finder (Hokuyo Pos-URG-like) among
+//! sparse reflective landmarks with known positions.
+//!
+//! Pipeline: [`Map`] (landmarks, reflector orientation, visibility lines,
+//! sorted distance relations) → [`Scan`] (one sweep, right to left) →
+//! [`extract_detections`] (clusters of high-intensity returns) →
+//! [`Localizer::global`] (association without a prior: the source's chained
+//! distance/angle search made robust to missed and spurious reflections, with
+//! negative evidence and ambiguity detection) or [`Tracker::process`]
+//! (matching near the predicted pose, falling back to global search, keeping
+//! several hypotheses until the motion resolves them).
+//!
+//! Poses are [`odocal_geometry::Pose2`] of the *sensor in the map frame*:
+//! they map points from the sensor frame (x along the scan's 0 rad beam,
+//! angles counter-clockwise) into the map frame.
+
+mod check;
+mod error;
+mod eval;
+mod map;
+mod scan;
+mod search;
+mod track;
+
+pub use check::{find_ambiguities, Ambiguity, AmbiguityKind};
+pub use error::LrfError;
+pub use eval::{evaluate, read_truth_csv, Evaluation, TruthPose};
+pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
+pub use scan::{
+    extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, SensorConfig,
+};
+pub use search::{Hypothesis, Localization, Localizer, LocalizerConfig, SearchStats, Status};
+pub use track::{TrackResult, Tracker};
+
+#[cfg(test)]
+mod tests;

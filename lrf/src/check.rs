@@ -1,0 +1,204 @@
+//! Map check: sub-configurations of landmarks that are congruent (or
+//! mirror images) within the sensor's accuracy, i.e. places the sensor could
+//! confuse.
+
+use nalgebra::{Point2, Rotation2, Vector2};
+use odocal_geometry::{wrap_angle, Pose2};
+
+use crate::Map;
+
+/// How two sub-configurations relate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AmbiguityKind {
+    /// A rigid motion maps one onto the other: truly ambiguous for any matcher.
+    Congruent,
+    /// A reflection maps one onto the other: ambiguous for distance-only
+    /// matching; a rigid matcher (no reflection) tells them apart.
+    Mirror,
+}
+
+/// One ambiguous sub-configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ambiguity {
+    /// Congruent or mirror image.
+    pub kind: AmbiguityKind,
+    /// Landmark ids of the first configuration.
+    pub from_ids: Vec<u32>,
+    /// Landmark ids they map onto, in the same order.
+    pub to_ids: Vec<u32>,
+    /// The rigid motion (for mirror images: applied after reflecting y) mapping `from` onto `to`.
+    pub transform: Pose2,
+}
+
+impl Ambiguity {
+    /// Number of landmarks in the configuration.
+    pub fn size(&self) -> usize {
+        self.from_ids.len()
+    }
+}
+
+/// Finds landmark sets of at least `min_size` (≥ 3) landmarks, all within
+/// `radius_m` of their first pair's midpoint (seen together), that another
+/// set matches within `tol_m` by a rigid motion or a reflection, with
+/// consistent reflector orientations. Largest first.
+pub fn find_ambiguities(map: &Map, tol_m: f64, radius_m: f64, min_size: usize) -> Vec<Ambiguity> {
+    let n = map.len();
+    let mut found: Vec<Ambiguity> = Vec::new();
+    let min_size = min_size.max(3);
+    let mut used = vec![false; n];
+    for e1 in 0..map.pair_dist.len() {
+        let d = map.pair_dist[e1];
+        if d > radius_m {
+            break;
+        }
+        let hi = map.pair_dist.partition_point(|&x| x <= d + tol_m);
+        for e2 in e1..hi {
+            let (a, b) = map.pair_ab[e1];
+            let (c0, d0) = map.pair_ab[e2];
+            for (c, dd) in [(c0, d0), (d0, c0)] {
+                for kind in [AmbiguityKind::Congruent, AmbiguityKind::Mirror] {
+                    let (a, b, c, dd) = (a as usize, b as usize, c as usize, dd as usize);
+                    let refl = |p: Point2<f64>| match kind {
+                        AmbiguityKind::Congruent => p,
+                        AmbiguityKind::Mirror => Point2::new(p.x, -p.y),
+                    };
+                    let (pa, pb) = (refl(map.position(a)), refl(map.position(b)));
+                    let (pc, pd) = (map.position(c), map.position(dd));
+                    let u = pb - pa;
+                    let v = pd - pc;
+                    let theta = v.y.atan2(v.x) - u.y.atan2(u.x);
+                    let rot = Rotation2::new(theta);
+                    let t = pc.coords - rot * pa.coords;
+                    let tr = |p: Point2<f64>| Point2::from(rot * refl(p).coords + t);
+                    let is_identity = kind == AmbiguityKind::Congruent && (c, dd) == (a, b);
+                    if is_identity {
+                        continue;
+                    }
+                    let mid = Point2::from((map.position(a).coords + map.position(b).coords) * 0.5);
+                    let mut from = Vec::new();
+                    let mut to = Vec::new();
+                    used.iter_mut().for_each(|x| *x = false);
+                    let mut ok = true;
+                    map.for_each_within(&mid, radius_m, |i| {
+                        let q = tr(map.position(i));
+                        if let Some((j, _)) = map.nearest_within(&q, tol_m, |j| !used[j]) {
+                            if facing_matches(map, i, j, theta, kind) {
+                                used[j] = true;
+                                from.push(i);
+                                to.push(j);
+                            } else if i == a || i == b {
+                                ok = false;
+                            }
+                        }
+                    });
+                    if !ok || from.len() < min_size || from == to {
+                        continue;
+                    }
+                    let transform = Pose2::new(t.x, t.y, wrap_angle(theta));
+                    let same = found.iter_mut().find(|f| {
+                        f.kind == kind
+                            && (f.transform.position() - transform.position()).norm() < 3.0 * tol_m
+                            && wrap_angle(f.transform.theta_rad - transform.theta_rad).abs() < 0.02
+                    });
+                    let ids =
+                        |v: &[usize]| v.iter().map(|&k| map.landmarks[k].id).collect::<Vec<u32>>();
+                    let amb = Ambiguity {
+                        kind,
+                        from_ids: ids(&from),
+                        to_ids: ids(&to),
+                        transform,
+                    };
+                    match same {
+                        Some(f) if f.size() >= amb.size() => {}
+                        Some(f) => *f = amb,
+                        None => found.push(amb),
+                    }
+                }
+            }
+        }
+    }
+    found.sort_by(|a, b| {
+        b.size()
+            .cmp(&a.size())
+            .then((a.kind as u8).cmp(&(b.kind as u8)))
+    });
+    found
+}
+
+fn facing_matches(map: &Map, i: usize, j: usize, theta: f64, kind: AmbiguityKind) -> bool {
+    match (map.landmarks[i].facing, map.landmarks[j].facing) {
+        (None, None) => true,
+        (Some(fi), Some(fj)) => {
+            let fi = match kind {
+                AmbiguityKind::Congruent => fi,
+                AmbiguityKind::Mirror => Vector2::new(fi.x, -fi.y),
+            };
+            let g = Rotation2::new(theta) * fi;
+            g.dot(&fj) > 0.5f64.cos()
+        }
+        _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{LandmarkSpec, MapFile, MAP_FORMAT};
+
+    fn map(pts: &[(f64, f64)]) -> Map {
+        let landmarks = pts
+            .iter()
+            .enumerate()
+            .map(|(k, &(x, y))| LandmarkSpec {
+                id: k as u32,
+                x_m: x,
+                y_m: y,
+                facing_rad: None,
+                half_fov_rad: None,
+                visibility_line: None,
+            })
+            .collect();
+        Map::from_file(
+            &MapFile {
+                format: MAP_FORMAT.into(),
+                reflector_width_m: 0.08,
+                landmarks,
+                walls: vec![],
+            },
+            "t",
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn finds_a_repeated_triangle_and_not_a_random_one() {
+        // Triangle (0,0),(1.3,0),(0.4,0.9) repeated at +5 m in x: congruent.
+        let m = map(&[
+            (0.0, 0.0),
+            (1.3, 0.0),
+            (0.4, 0.9),
+            (5.0, 0.0),
+            (6.3, 0.0),
+            (5.4, 0.9),
+            (2.7, 3.1),
+        ]);
+        let a = find_ambiguities(&m, 0.02, 3.0, 3);
+        let c: Vec<_> = a
+            .iter()
+            .filter(|x| x.kind == AmbiguityKind::Congruent)
+            .collect();
+        assert!(!c.is_empty());
+        assert_eq!(c[0].size(), 3);
+        let m = map(&[
+            (0.0, 0.0),
+            (1.3, 0.0),
+            (0.4, 0.9),
+            (5.0, 0.2),
+            (6.1, 0.7),
+            (5.9, 2.0),
+        ]);
+        assert!(find_ambiguities(&m, 0.02, 3.0, 3)
+            .iter()
+            .all(|x| x.kind == AmbiguityKind::Mirror || x.size() < 3));
+    }
+}

@@ -1,0 +1,150 @@
+//! Comparison of estimated sensor poses with a truth file.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use odocal_geometry::{wrap_angle, Pose2};
+
+use crate::{LrfError, Status};
+
+/// One true sensor pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthPose {
+    /// Time, seconds.
+    pub t_s: f64,
+    /// True sensor pose in the map frame.
+    pub pose: Pose2,
+    /// Number of landmarks truly detected in the scan (if the file says).
+    pub n_detected: Option<usize>,
+}
+
+/// Reads a truth CSV with header containing `t,x,y,theta` (metres, radians)
+/// and optionally `n_detected`.
+pub fn read_truth_csv(path: &Path) -> Result<Vec<TruthPose>, LrfError> {
+    let name = path.display().to_string();
+    let err = |line: usize, message: String| LrfError::Truth {
+        path: name.clone(),
+        line,
+        message,
+    };
+    let text = std::fs::read_to_string(path).map_err(|source| LrfError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let headers = rdr
+        .headers()
+        .map_err(|e| err(1, format!("cannot read the header: {e}")))?
+        .clone();
+    let col = |n: &str| headers.iter().position(|h| h == n);
+    let (Some(ct), Some(cx), Some(cy), Some(ch)) = (col("t"), col("x"), col("y"), col("theta"))
+    else {
+        return Err(err(1, "a truth file needs the columns t,x,y,theta".into()));
+    };
+    let cn = col("n_detected");
+    let mut out = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| {
+            err(
+                e.position().map(|p| p.line() as usize).unwrap_or(0),
+                format!("{e}"),
+            )
+        })?;
+        let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
+        let num = |c: usize| -> Result<f64, LrfError> {
+            let s = rec.get(c).unwrap_or("");
+            s.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| err(line, format!("\"{s}\" is not a finite number")))
+        };
+        out.push(TruthPose {
+            t_s: num(ct)?,
+            pose: Pose2::new(num(cx)?, num(cy)?, num(ch)?),
+            n_detected: match cn {
+                Some(c) => Some(num(c)? as usize),
+                None => None,
+            },
+        });
+    }
+    Ok(out)
+}
+
+/// Accuracy of a pose sequence against the truth.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Evaluation {
+    /// Estimated scans that had a truth pose.
+    pub n_scans: usize,
+    /// Scans reported `ok`.
+    pub n_ok: usize,
+    /// Scans reported `ambiguous`.
+    pub n_ambiguous: usize,
+    /// Scans reported `lost`.
+    pub n_lost: usize,
+    /// `ok` scans with at least 3 matched landmarks (the accuracy set).
+    pub n_accuracy: usize,
+    /// Position RMS error over the accuracy set, metres.
+    pub position_rms_m: f64,
+    /// Heading RMS error over the accuracy set, radians.
+    pub heading_rms_rad: f64,
+    /// Largest position error over the accuracy set, metres.
+    pub position_max_m: f64,
+    /// `ok` scans whose pose is wrong (> 0.05 m or > 1° from the truth): confident wrong poses.
+    pub n_wrong_ok: usize,
+    /// Scans whose truth says ≥ 3 landmarks were detected.
+    pub n_eligible: usize,
+    /// Eligible scans localised correctly (`ok` and within 0.05 m and 1°).
+    pub n_correct_eligible: usize,
+}
+
+/// Position error bound of a correct pose, metres.
+pub const CORRECT_POS_M: f64 = 0.05;
+/// Heading error bound of a correct pose, radians (1°).
+pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
+
+/// Compares `(t, status, pose, n_landmarks)` rows with truth poses matched by time (to 1 µs).
+pub fn evaluate(rows: &[(f64, Status, Option<Pose2>, usize)], truth: &[TruthPose]) -> Evaluation {
+    let key = |t: f64| (t * 1e6).round() as i64;
+    let by_t: HashMap<i64, &TruthPose> = truth.iter().map(|p| (key(p.t_s), p)).collect();
+    let mut e = Evaluation::default();
+    let (mut sp, mut sh) = (0.0, 0.0);
+    for &(t, status, pose, n_lm) in rows {
+        let Some(tp) = by_t.get(&key(t)) else {
+            continue;
+        };
+        e.n_scans += 1;
+        match status {
+            Status::Ok => e.n_ok += 1,
+            Status::Ambiguous => e.n_ambiguous += 1,
+            Status::Lost => e.n_lost += 1,
+        }
+        let eligible = tp.n_detected.is_none_or(|n| n >= 3);
+        if eligible {
+            e.n_eligible += 1;
+        }
+        let (Status::Ok, Some(p)) = (status, pose) else {
+            continue;
+        };
+        let dp = (p.position() - tp.pose.position()).norm();
+        let dh = wrap_angle(p.theta_rad - tp.pose.theta_rad).abs();
+        let correct = dp <= CORRECT_POS_M && dh <= CORRECT_HEADING_RAD;
+        if !correct {
+            e.n_wrong_ok += 1;
+        } else if eligible {
+            e.n_correct_eligible += 1;
+        }
+        if n_lm >= 3 {
+            e.n_accuracy += 1;
+            sp += dp * dp;
+            sh += dh * dh;
+            e.position_max_m = e.position_max_m.max(dp);
+        }
+    }
+    if e.n_accuracy > 0 {
+        e.position_rms_m = (sp / e.n_accuracy as f64).sqrt();
+        e.heading_rms_rad = (sh / e.n_accuracy as f64).sqrt();
+    }
+    e
+}

@@ -1,0 +1,241 @@
+//! Tracking through a scan sequence: match near the predicted pose, fall
+//! back to global search, and keep several hypotheses until the motion
+//! resolves them.
+
+use odocal_geometry::{wrap_angle, Pose2};
+
+use crate::{Hypothesis, Localizer, Scan, Status};
+
+/// Result of processing one scan of a sequence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackResult {
+    /// Time of the scan, seconds.
+    pub t_s: f64,
+    /// ok / ambiguous / lost.
+    pub status: Status,
+    /// Best pose (sensor in map), if any.
+    pub pose: Option<Pose2>,
+    /// Landmarks matched for the best pose.
+    pub n_landmarks: usize,
+    /// Detections in the scan.
+    pub n_detections: usize,
+    /// Hypotheses still alive.
+    pub n_hypotheses: usize,
+    /// Score of the best hypothesis (matches − missing).
+    pub score: f64,
+    /// "track" if the pose came from tracking, "global" if from global search.
+    pub mode: &'static str,
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    pose: Pose2,
+    /// Velocity in the map frame: dx/dt, dy/dt (m/s), dθ/dt (rad/s).
+    vel: [f64; 3],
+    t_s: f64,
+    /// Accumulated score (evidence) since the track was created.
+    cum: f64,
+    /// True once the track was the only consistent hypothesis.
+    confirmed: bool,
+    last: Hypothesis,
+    coasting: u32,
+}
+
+/// Sequential localisation with history.
+#[derive(Debug, Clone)]
+pub struct Tracker<'a> {
+    loc: &'a Localizer,
+    tracks: Vec<Track>,
+    /// Accumulated-score lead that resolves an ambiguity.
+    pub history_margin: f64,
+    /// At most this many hypotheses are tracked.
+    pub max_tracks: usize,
+    /// Scans a track may go unmatched before it is dropped.
+    pub max_coast: u32,
+}
+
+impl<'a> Tracker<'a> {
+    /// A tracker with no prior.
+    pub fn new(loc: &'a Localizer) -> Tracker<'a> {
+        Tracker {
+            loc,
+            tracks: Vec::new(),
+            history_margin: 3.0,
+            max_tracks: 8,
+            max_coast: 5,
+        }
+    }
+
+    /// Forgets all hypotheses (next scan is localised globally).
+    pub fn reset(&mut self) {
+        self.tracks.clear();
+    }
+
+    fn predict(tr: &Track, t_s: f64) -> (Pose2, f64) {
+        let dt = (t_s - tr.t_s).clamp(0.0, 2.0);
+        let p = Pose2::new(
+            tr.pose.x_m + tr.vel[0] * dt,
+            tr.pose.y_m + tr.vel[1] * dt,
+            wrap_angle(tr.pose.theta_rad + tr.vel[2] * dt),
+        );
+        (p, dt)
+    }
+
+    fn update(tr: &mut Track, h: Hypothesis, t_s: f64) {
+        let dt = t_s - tr.t_s;
+        if dt > 1e-6 && tr.coasting == 0 {
+            let v = [
+                (h.pose.x_m - tr.pose.x_m) / dt,
+                (h.pose.y_m - tr.pose.y_m) / dt,
+                wrap_angle(h.pose.theta_rad - tr.pose.theta_rad) / dt,
+            ];
+            for k in 0..3 {
+                tr.vel[k] = 0.5 * tr.vel[k] + 0.5 * v[k];
+            }
+        }
+        tr.pose = h.pose;
+        tr.t_s = t_s;
+        tr.cum += h.score;
+        tr.coasting = 0;
+        tr.last = h;
+    }
+
+    fn new_track(h: Hypothesis, t_s: f64, confirmed: bool) -> Track {
+        Track {
+            pose: h.pose,
+            vel: [0.0; 3],
+            t_s,
+            cum: h.score,
+            confirmed,
+            last: h,
+            coasting: 0,
+        }
+    }
+
+    /// Processes the next scan taken at `t_s`.
+    pub fn process(&mut self, scan: &Scan, t_s: f64) -> TrackResult {
+        let dets = self.loc.detections(scan);
+        let n_det = dets.len();
+        let mut mode = "track";
+        // 1. Tracking mode for every live hypothesis.
+        let mut matched_any = false;
+        let mut results: Vec<Option<Hypothesis>> = Vec::with_capacity(self.tracks.len());
+        for tr in &self.tracks {
+            let (pred, dt) = Self::predict(tr, t_s);
+            let dt = dt + 0.1 * tr.coasting as f64;
+            let h = self
+                .loc
+                .track(scan, &dets, pred, 0.02 + 0.3 * dt, 0.005 + 0.1 * dt);
+            matched_any |= h.is_some();
+            results.push(h);
+        }
+        if matched_any {
+            // Hypotheses that fail while another one matches are refuted.
+            let n_before = self.tracks.len();
+            let mut kept = Vec::new();
+            for (mut tr, h) in self.tracks.drain(..).zip(results) {
+                if let Some(h) = h {
+                    Self::update(&mut tr, h, t_s);
+                    if kept.iter().all(|k: &Track| !same(&k.pose, &tr.pose)) {
+                        kept.push(tr);
+                    }
+                }
+            }
+            self.tracks = kept;
+            self.prune();
+            if n_before > 1 && self.tracks.len() == 1 {
+                // The others were refuted by the scans: the survivor is the pose.
+                self.tracks[0].confirmed = true;
+            }
+        } else {
+            // 2. Global search, preferring a hypothesis consistent with the history.
+            mode = "global";
+            let g = self.loc.global(scan, &dets);
+            let mut from_history = None;
+            for tr in self.tracks.iter().filter(|t| t.confirmed) {
+                let (pred, _) = Self::predict(tr, t_s);
+                if let Some(h) = g.hypotheses.iter().find(|h| {
+                    (h.pose.position() - pred.position()).norm() < 0.3
+                        && wrap_angle(h.pose.theta_rad - pred.theta_rad).abs() < 0.2
+                }) {
+                    from_history = Some((tr.clone(), h.clone()));
+                    break;
+                }
+            }
+            if let Some((mut tr, h)) = from_history {
+                Self::update(&mut tr, h, t_s);
+                self.tracks = vec![tr];
+            } else if g.status == Status::Lost {
+                for tr in &mut self.tracks {
+                    tr.coasting += 1;
+                }
+                let max_coast = self.max_coast;
+                self.tracks.retain(|t| t.coasting <= max_coast);
+                return TrackResult {
+                    t_s,
+                    status: Status::Lost,
+                    pose: None,
+                    n_landmarks: 0,
+                    n_detections: n_det,
+                    n_hypotheses: self.tracks.len(),
+                    score: 0.0,
+                    mode,
+                };
+            } else {
+                let confirmed = g.status == Status::Ok;
+                self.tracks = g
+                    .hypotheses
+                    .into_iter()
+                    .take(self.max_tracks)
+                    .map(|h| Self::new_track(h, t_s, confirmed))
+                    .collect();
+            }
+        }
+        self.report(t_s, n_det, mode)
+    }
+
+    /// Drops hypotheses far behind the best in accumulated evidence.
+    fn prune(&mut self) {
+        self.tracks.sort_by(|a, b| b.cum.total_cmp(&a.cum));
+        if let Some(best) = self.tracks.first().map(|t| t.cum) {
+            let m = self.history_margin;
+            let before = self.tracks.len();
+            self.tracks.retain(|t| t.cum >= best - m);
+            if before > 1 && self.tracks.len() == 1 {
+                self.tracks[0].confirmed = true;
+            }
+        }
+        self.tracks.truncate(self.max_tracks);
+    }
+
+    fn report(&self, t_s: f64, n_det: usize, mode: &'static str) -> TrackResult {
+        let Some(best) = self.tracks.first() else {
+            return TrackResult {
+                t_s,
+                status: Status::Lost,
+                pose: None,
+                n_landmarks: 0,
+                n_detections: n_det,
+                n_hypotheses: 0,
+                score: 0.0,
+                mode,
+            };
+        };
+        let ok = self.tracks.len() == 1 && best.confirmed && best.last.score >= 1.0;
+        TrackResult {
+            t_s,
+            status: if ok { Status::Ok } else { Status::Ambiguous },
+            pose: Some(best.pose),
+            n_landmarks: best.last.matches.len(),
+            n_detections: n_det,
+            n_hypotheses: self.tracks.len(),
+            score: best.last.score,
+            mode,
+        }
+    }
+}
+
+fn same(a: &Pose2, b: &Pose2) -> bool {
+    (a.position() - b.position()).norm() < 0.1
+        && wrap_angle(a.theta_rad - b.theta_rad).abs() < 0.035
+}
