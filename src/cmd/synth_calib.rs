@@ -1,10 +1,132 @@
-//! `odocal synth_calib` (not yet available).
+//! `odocal synth calib`: checkerboard and floor views from a known camera.
 
-/// Arguments of this subcommand.
-#[derive(clap::Args)]
-pub struct Args {}
+use std::path::PathBuf;
 
-/// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("this command is not available yet")
+use anyhow::Context;
+use clap::Args as ClapArgs;
+use odocal_calib::{BoardSpec, CameraFile, FloorPlane};
+use odocal_fixtures::board::{draw_views, render_view, CalibScene};
+use odocal_fixtures::raycast::RayGrid;
+use rayon::prelude::*;
+
+use crate::output::{progress, write_atomic, write_json};
+
+/// Arguments of `odocal synth calib`.
+#[derive(ClapArgs)]
+pub struct Args {
+    /// Output folder (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Number of hand-held checkerboard views.
+    #[arg(long, default_value_t = 20)]
+    views: usize,
+    /// Number of views of the board lying on the floor.
+    #[arg(long, default_value_t = 4)]
+    floor_views: usize,
+    /// Random seed (same seed, same bytes).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 70.0)]
+    hfov: f64,
+    /// Sensor noise σ, grey levels.
+    #[arg(long, default_value_t = 2.0)]
+    noise: f32,
+    /// Optical blur σ, pixels.
+    #[arg(long, default_value_t = 0.5)]
+    blur: f32,
+    /// Board inner corners, COLSxROWS.
+    #[arg(long, default_value = "9x6")]
+    board: String,
+    /// Board square size, metres.
+    #[arg(long, default_value_t = 0.05)]
+    square: f64,
+}
+
+/// Parses "9x6" into (cols, rows) of inner corners.
+pub fn parse_board(s: &str, square_m: f64) -> anyhow::Result<BoardSpec> {
+    let (c, r) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--board {s:?}: expected COLSxROWS of inner corners, e.g. 9x6"))?;
+    let cols: u32 = c.trim().parse().with_context(|| format!("--board {s:?}: {c:?} is not a number"))?;
+    let rows: u32 = r.trim().parse().with_context(|| format!("--board {s:?}: {r:?} is not a number"))?;
+    if cols < 3 || rows < 3 {
+        anyhow::bail!("--board {s}: need at least 3x3 inner corners");
+    }
+    if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
+        anyhow::bail!("--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm");
+    }
+    Ok(BoardSpec { cols, rows, square_m })
+}
+
+/// Runs `odocal synth calib`.
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if a.width < 64 || a.height < 48 || !(10.0..170.0).contains(&a.hfov) {
+        anyhow::bail!("image {}x{} with hfov {}°: need at least 64x48 and 10-170°", a.width, a.height, a.hfov);
+    }
+    let scene = CalibScene {
+        width: a.width,
+        height: a.height,
+        hfov_deg: a.hfov,
+        board: parse_board(&a.board, a.square)?,
+        views: a.views,
+        floor_views: a.floor_views,
+        noise_sigma: a.noise,
+        blur_px: a.blur,
+        ..CalibScene::default()
+    };
+    let truth = draw_views(&scene, a.seed);
+    if truth.views.len() < a.views {
+        anyhow::bail!("could only place {} of {} board views in a {}x{} image", truth.views.len(), a.views, a.width, a.height);
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    let grid = RayGrid::new(&truth.camera, scene.supersample);
+    let jobs: Vec<_> = truth
+        .views
+        .iter()
+        .map(|v| (v, None))
+        .chain(truth.floor_views.iter().map(|v| (v, Some(&truth.floor_to_camera))))
+        .enumerate()
+        .collect();
+    let bar = progress(jobs.len() as u64, "rendering");
+    jobs.par_iter().try_for_each(|(i, (view, floor))| -> anyhow::Result<()> {
+        let img = render_view(&grid, &scene, &view.board_to_camera, *floor, a.seed.wrapping_mul(1000).wrapping_add(*i as u64));
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+        write_atomic(&a.out.join(&view.image), &png)?;
+        bar.inc(1);
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    write_json(&a.out.join("truth.json"), &truth)?;
+    let floor = FloorPlane {
+        floor_to_camera: truth.floor_to_camera,
+        plane_rms_m: 0.0,
+        camera_height_m: scene.camera_height_m,
+        views: vec![],
+    };
+    write_json(&a.out.join("camera_true.json"), &CameraFile::from_model(truth.camera, Some(floor)))?;
+    let k = truth.camera.intrinsics;
+    println!(
+        "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
+        truth.views.len(),
+        truth.floor_views.len(),
+        a.width,
+        a.height,
+        scene.board.cols,
+        scene.board.rows,
+        scene.board.square_m,
+        a.out.display()
+    );
+    println!(
+        "true camera: fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
+        k.fx, k.fy, k.cx, k.cy
+    );
+    Ok(())
 }

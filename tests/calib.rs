@@ -1,0 +1,249 @@
+//! End-to-end tests of `odocal synth calib` and `odocal calibrate` against the
+//! renderer's truth (issue: foundation and Zhang calibration).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
+use odocal_calib::{BoardToCamera, CameraFile};
+use odocal_fixtures::board::{render_view, CalibScene, CalibTruth};
+use odocal_fixtures::raycast::RayGrid;
+
+fn odocal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(args)
+        .output()
+        .expect("the odocal binary runs")
+}
+
+fn ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "odocal failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
+
+fn synth(dir: &Path, seed: u64, extra: &[&str]) -> CalibTruth {
+    let d = dir.to_str().unwrap();
+    let seed = seed.to_string();
+    let mut args = vec!["synth", "calib", "--out", d, "--seed", &seed];
+    args.extend_from_slice(extra);
+    ok(&odocal(&args));
+    serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap()
+}
+
+fn images(dir: &Path, prefix: &str) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with(prefix)
+        })
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+fn calibrate(dir: &Path, out: &Path, board: &str, square: &str) -> Output {
+    let views = images(dir, "view_");
+    let floors = images(dir, "floor_");
+    let mut args: Vec<&str> = vec!["calibrate"];
+    args.extend(views.iter().map(|s| s.as_str()));
+    args.extend(["--board", board, "--square", square, "--out", out.to_str().unwrap()]);
+    if !floors.is_empty() {
+        args.push("--floor");
+        args.extend(floors.iter().map(|s| s.as_str()));
+    }
+    odocal(&args)
+}
+
+/// The acceptance figures of the calibration issue, on the default
+/// 1280x720 scene, for several seeds.
+#[test]
+fn calibration_matches_truth_for_several_seeds() {
+    for seed in [1u64, 2, 3] {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = synth(dir.path(), seed, &[]);
+        let out = dir.path().join("camera.json");
+        let res = calibrate(dir.path(), &out, "9x6", "0.05");
+        ok(&res);
+        let cam = CameraFile::load(&out).unwrap();
+        let (k, t) = (cam.camera.intrinsics, truth.camera.intrinsics);
+        let efx = (k.fx - t.fx).abs() / t.fx;
+        let efy = (k.fy - t.fy).abs() / t.fy;
+        let (ecx, ecy) = ((k.cx - t.cx).abs(), (k.cy - t.cy).abs());
+        let floor_err = floor_error_m(&cam, &truth);
+        println!(
+            "seed {seed}: fx err {:.4} %, fy err {:.4} %, cx err {ecx:.3} px, cy err {ecy:.3} px, RMS {:.3} px, floor max err {:.3} mm",
+            efx * 100.0,
+            efy * 100.0,
+            cam.rms_px,
+            floor_err * 1000.0
+        );
+        assert!(efx <= 0.002 && efy <= 0.002, "seed {seed}: focal error {efx} {efy}");
+        assert!(ecx <= 1.0 && ecy <= 1.0, "seed {seed}: principal point error {ecx} {ecy}");
+        assert!(cam.rms_px <= 0.2, "seed {seed}: RMS {}", cam.rms_px);
+        assert!(floor_err <= 0.002, "seed {seed}: floor error {floor_err} m");
+        assert_eq!(cam.views.len(), 20);
+    }
+}
+
+/// Largest error of pixel -> floor mapping over the central 2.5 m x 1.5 m
+/// of the floor (centred under the image centre), in metres.
+fn floor_error_m(cam: &CameraFile, truth: &CalibTruth) -> f64 {
+    let est_floor = cam.floor.as_ref().expect("floor plane").floor_to_camera;
+    let tc = &truth.camera;
+    let centre = tc
+        .pixel_to_floor(
+            &truth.floor_to_camera,
+            &Point2::new(tc.intrinsics.cx, tc.intrinsics.cy),
+            0.0,
+        )
+        .unwrap();
+    let mut worst: f64 = 0.0;
+    let mut n = 0;
+    for i in 0..=25 {
+        for j in 0..=15 {
+            let p = Point2::new(
+                centre.x - 1.25 + i as f64 * 0.1,
+                centre.y - 0.75 + j as f64 * 0.1,
+            );
+            let pix = tc.floor_to_pixel(&truth.floor_to_camera, &p, 0.0).unwrap();
+            if pix.x < 0.0 || pix.y < 0.0 || pix.x > tc.width as f64 - 1.0 || pix.y > tc.height as f64 - 1.0 {
+                continue;
+            }
+            let est = cam.camera.pixel_to_floor(&est_floor, &pix, 0.0).unwrap();
+            worst = worst.max((est - p).norm());
+            n += 1;
+        }
+    }
+    assert!(n > 300, "grid mostly inside the image ({n} points)");
+    worst
+}
+
+#[test]
+fn same_seed_same_bytes() {
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    let small = ["--width", "320", "--height", "180", "--views", "3", "--floor-views", "1"];
+    synth(a.path(), 7, &small);
+    synth(b.path(), 7, &small);
+    for name in ["view_00.png", "view_02.png", "floor_00.png", "truth.json"] {
+        assert_eq!(
+            std::fs::read(a.path().join(name)).unwrap(),
+            std::fs::read(b.path().join(name)).unwrap(),
+            "{name} differs between two runs with the same seed"
+        );
+    }
+}
+
+fn small_set(dir: &Path) -> CalibTruth {
+    synth(dir, 5, &["--width", "640", "--height", "360", "--views", "6", "--floor-views", "1"])
+}
+
+fn assert_fails(out: &Output, needle: &str, camera: &Path) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "expected exit code 2, stderr: {err}");
+    assert!(err.contains(needle), "stderr should mention {needle:?}: {err}");
+    assert!(!err.contains("panicked"), "must not panic: {err}");
+    assert!(!camera.exists(), "no camera.json may be written on failure");
+}
+
+#[test]
+fn corrupt_image_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    small_set(dir.path());
+    std::fs::write(dir.path().join("view_03.png"), b"not a png at all").unwrap();
+    let out = dir.path().join("camera.json");
+    let res = calibrate(dir.path(), &out, "9x6", "0.05");
+    assert_fails(&res, "view_03.png", &out);
+}
+
+#[test]
+fn board_size_mismatch_says_to_count_inner_corners() {
+    let dir = tempfile::tempdir().unwrap();
+    small_set(dir.path());
+    let out = dir.path().join("camera.json");
+    let res = calibrate(dir.path(), &out, "10x7", "0.05");
+    assert_fails(&res, "INNER corners", &out);
+    assert!(String::from_utf8_lossy(&res.stderr).contains("--board 9x6"));
+}
+
+#[test]
+fn view_without_board_is_skipped_and_too_few_views_fail() {
+    let dir = tempfile::tempdir().unwrap();
+    small_set(dir.path());
+    // A blank image: no board in it.
+    image::GrayImage::from_pixel(640, 360, image::Luma([128u8]))
+        .save(dir.path().join("view_99.png"))
+        .unwrap();
+    let out = dir.path().join("camera.json");
+    let res = calibrate(dir.path(), &out, "9x6", "0.05");
+    ok(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(err.contains("skipped") && err.contains("view_99.png"), "{err}");
+    let cam = CameraFile::load(&out).unwrap();
+    assert_eq!(cam.skipped.len(), 1);
+
+    let out2 = dir.path().join("camera2.json");
+    let v = images(dir.path(), "view_0");
+    let res = odocal(&["calibrate", &v[0], &v[1], "--square", "0.05", "--out", out2.to_str().unwrap()]);
+    assert_fails(&res, "at least 3", &out2);
+}
+
+#[test]
+fn mixed_image_sizes_fail() {
+    let dir = tempfile::tempdir().unwrap();
+    small_set(dir.path());
+    let other = tempfile::tempdir().unwrap();
+    synth(other.path(), 6, &["--width", "480", "--height", "270", "--views", "3", "--floor-views", "0"]);
+    std::fs::copy(other.path().join("view_00.png"), dir.path().join("view_50.png")).unwrap();
+    let out = dir.path().join("camera.json");
+    let res = calibrate(dir.path(), &out, "9x6", "0.05");
+    assert_fails(&res, "one resolution", &out);
+}
+
+#[test]
+fn fronto_parallel_views_are_degenerate() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = CalibScene {
+        width: 640,
+        height: 360,
+        ..CalibScene::default()
+    };
+    let camera = scene.camera();
+    let grid = RayGrid::new(&camera, 2);
+    for (i, (x, y, z)) in [(-0.3, -0.15, 1.0), (0.0, 0.0, 1.1), (-0.25, 0.0, 0.9), (-0.1, -0.2, 1.2)]
+        .iter()
+        .enumerate()
+    {
+        let pose = BoardToCamera(Isometry3::from_parts(
+            Translation3::new(*x, *y, *z),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.02 * i as f64),
+        ));
+        render_view(&grid, &scene, &pose, None, i as u64)
+            .save(dir.path().join(format!("view_{i:02}.png")))
+            .unwrap();
+    }
+    let out = dir.path().join("camera.json");
+    let res = calibrate(dir.path(), &out, "9x6", "0.05");
+    assert_fails(&res, "degenerate", &out);
+}
+
+#[test]
+fn missing_file_and_wrong_camera_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("camera.json");
+    let res = odocal(&["calibrate", "/nonexistent/a.png", "--square", "0.05", "--out", out.to_str().unwrap()]);
+    assert_fails(&res, "no such file", &out);
+    let bogus: PathBuf = dir.path().join("bogus.json");
+    std::fs::write(&bogus, r#"{"format": "odocal.model/1"}"#).unwrap();
+    let e = CameraFile::load(&bogus).unwrap_err().to_string();
+    assert!(e.contains("odocal.camera/1"), "{e}");
+}
