@@ -5,21 +5,30 @@
 //!    interval against the camera's speed over the same interval shifted by the lag), on a
 //!    10 ms lag grid over every lag at which the log's motion lies inside the trajectory, with
 //!    parabolic interpolation of the peak;
-//! 2. fine, per run: the odometry travel at each log row is fitted to the camera's travel along
-//!    the run direction at the shifted time (travel = a + b s + c s², absorbing odometry scale
-//!    and slow slip), minimising the squared residual over the offset by a 2 ms scan and a
-//!    golden-section search (continuous in the offset: the camera positions are interpolated
-//!    between frames, so the result is sub-frame).
+//! 2. fine, per run: each wheel's reading at each log row is compared with that wheel's travel
+//!    seen by the camera at the shifted time (forward travel of the tag along its own heading,
+//!    ∓ b/2 times the heading change), the camera positions being interpolated between frames
+//!    so the offset is continuous (sub-frame). Tick logs are quantised: a reading n says the
+//!    true count lay in [n, n + 1), so the fit of counts = a + b p (p = wheel travel, a absorbs
+//!    the unknown sub-count phase, b the scale) penalises only
+//!    departures from those intervals (squared hinge), and the offset is the mean of the
+//!    resulting likelihood over a 1 ms scan (quantisation leaves a flat feasible range; a
+//!    least-squares fit to mid-counts would be pulled by the shared phase error of the rest
+//!    rows). Wheel-speed logs use a least-squares fit (a + b p + c p², c for slow slip) and
+//!    its minimum. With 12 counts/rev and 200 ms rows the offset of a slow run is known to a
+//!    few milliseconds only: timing information comes from the start and stop transitions.
 //!
 //! Residuals are reported in metres (travel fit) and m/s (speed per log interval).
 
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use odocal_geometry::wrap_angle;
 
 use crate::error::DatasetError;
 use crate::kinematics::WheelGeometry;
-use crate::odometry::{OdometryLog, WheelRevs};
+use crate::odometry::{LogKind, OdometryLog, WheelRevs};
 use crate::segment::RunSegment;
 use crate::trajectory::Trajectory;
+use crate::RobotParams;
 
 /// Settings of the time alignment.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,7 +80,10 @@ pub struct Alignment {
 fn travel(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
     let cl = std::f64::consts::PI * geom.left_wheel_diameter_m;
     let cr = std::f64::consts::PI * geom.right_wheel_diameter_m;
-    revs.rev.iter().map(|r| 0.5 * (r[0] * cl + r[1] * cr)).collect()
+    revs.rev
+        .iter()
+        .map(|r| 0.5 * (r[0] * cl + r[1] * cr))
+        .collect()
 }
 
 /// Coarse clock offset of a whole log by speed-profile cross-correlation.
@@ -89,14 +101,16 @@ pub fn coarse_offset(
     let n = log.len();
     let moving: Vec<usize> = (1..n).filter(|&i| log.moving_at(i)).collect();
     let (Some(&m0), Some(&m1)) = (moving.first(), moving.last()) else {
-        return Err(DatasetError::Mismatch(format!("{what}: the odometry log shows no motion")));
+        return Err(DatasetError::Mismatch(format!(
+            "{what}: the odometry log shows no motion"
+        )));
     };
     let t = &revs.t_s;
     let (c0, c1) = (traj.start_s(), traj.end_s());
     let motion_s = t[m1] - t[m0 - 1];
     let lo = c0 - t[m0 - 1];
     let hi = c1 - t[m1];
-    if traj.rows.len() < 2 || !(hi >= lo) {
+    if traj.rows.len() < 2 || hi.is_nan() || lo.is_nan() || hi < lo {
         return Err(DatasetError::Mismatch(format!(
             "{what}: the log moves for {motion_s:.2} s but the trajectory covers {:.2} s; they cannot overlap \
              (check that the manifest pairs the right log and video/trajectory)",
@@ -104,7 +118,9 @@ pub fn coarse_offset(
         )));
     }
     let r = travel(revs, geom);
-    let v_robot: Vec<f64> = (1..n).map(|k| (r[k] - r[k - 1]) / (t[k] - t[k - 1])).collect();
+    let v_robot: Vec<f64> = (1..n)
+        .map(|k| (r[k] - r[k - 1]) / (t[k] - t[k - 1]))
+        .collect();
     let first = m0.saturating_sub(5).max(1);
     let last = (m1 + 5).min(n - 1);
     let need = (moving.len() * 4).div_ceil(5);
@@ -176,152 +192,361 @@ fn ncc(a: &[f64], b: &[f64]) -> f64 {
     sab / (saa * sbb).sqrt()
 }
 
-/// Travel-fit problem of one run at a given offset.
-struct Fine<'a> {
+/// Camera-derived travel of one run: forward travel along the tag's heading and the heading
+/// change, per frame, relative to the first frame of the window.
+struct CameraPaths {
     t: Vec<f64>,
-    r: Vec<f64>,
-    traj: &'a Trajectory,
-    origin: Vector2<f64>,
-    dir: Vector2<f64>,
-    scale: f64,
-    max_gap: f64,
+    s: Vec<f64>,
+    th: Vec<f64>,
 }
 
-impl Fine<'_> {
-    /// Camera travel along the run direction (in units of the run length) at each row.
-    fn s(&self, offset: f64) -> Option<Vec<f64>> {
-        self.t
-            .iter()
-            .map(|&tk| {
-                self.traj
-                    .position_at(tk + offset, self.max_gap)
-                    .map(|p| (p.coords - self.origin).dot(&self.dir) / self.scale)
-            })
-            .collect()
-    }
-
-    /// Least-squares (a, b, c) of r ≈ a + b s + c s² and the sum of squared residuals.
-    fn fit(&self, offset: f64) -> Option<(Vector3<f64>, f64, Vec<f64>)> {
-        let s = self.s(offset)?;
-        let mut m = Matrix3::zeros();
-        let mut v = Vector3::zeros();
-        for (&sk, &rk) in s.iter().zip(&self.r) {
-            let f = Vector3::new(1.0, sk, sk * sk);
-            m += f * f.transpose();
-            v += f * rk;
+impl CameraPaths {
+    fn build(traj: &Trajectory, t0: f64, t1: f64, max_gap: f64) -> Option<Self> {
+        let rows = traj.rows_between(t0, t1);
+        if rows.len() < 2 || rows[0].t_s > t0 + max_gap || rows[rows.len() - 1].t_s < t1 - max_gap {
+            return None;
         }
-        let c = m.lu().solve(&v)?;
-        let sse = s
-            .iter()
-            .zip(&self.r)
-            .map(|(&sk, &rk)| (rk - c[0] - c[1] * sk - c[2] * sk * sk).powi(2))
-            .sum();
-        Some((c, sse, s))
+        let mut out = CameraPaths {
+            t: vec![rows[0].t_s],
+            s: vec![0.0],
+            th: vec![0.0],
+        };
+        for w in rows.windows(2) {
+            if w[1].t_s - w[0].t_s > max_gap {
+                return None;
+            }
+            let dth = wrap_angle(w[1].pose.theta_rad - w[0].pose.theta_rad);
+            let mid = w[0].pose.theta_rad + 0.5 * dth;
+            let d = w[1].pose.position() - w[0].pose.position();
+            let ds = d.x * mid.cos() + d.y * mid.sin();
+            let (s_prev, th_prev) = (out.s[out.s.len() - 1], out.th[out.th.len() - 1]);
+            out.t.push(w[1].t_s);
+            out.s.push(s_prev + ds);
+            out.th.push(th_prev + dth);
+        }
+        Some(out)
     }
 
-    fn cost(&self, offset: f64) -> f64 {
-        self.fit(offset).map(|f| f.1).unwrap_or(f64::INFINITY)
+    /// (forward travel, heading change) at time t, linearly interpolated.
+    fn at(&self, t: f64) -> Option<(f64, f64)> {
+        let n = self.t.len();
+        if !(t >= self.t[0] && t <= self.t[n - 1]) {
+            return None;
+        }
+        let i = self
+            .t
+            .partition_point(|&x| x <= t)
+            .saturating_sub(1)
+            .min(n - 2);
+        let w = (t - self.t[i]) / (self.t[i + 1] - self.t[i]);
+        Some((
+            self.s[i] + w * (self.s[i + 1] - self.s[i]),
+            self.th[i] + w * (self.th[i + 1] - self.th[i]),
+        ))
     }
 }
+
+/// Fine-alignment problem of one run.
+struct Fine {
+    t: Vec<f64>,
+    /// Per wheel: readings in counts (tick logs) or metres (speed logs), relative to t_b.
+    reading: [Vec<f64>; 2],
+    cam: CameraPaths,
+    half_base: f64,
+    /// Run length for conditioning, metres.
+    scale: f64,
+    quantised: bool,
+}
+
+/// Least squares of y on the columns [1, p, p²]; returns the coefficients and the SSE.
+fn ls_fit(p: &[f64], y: &[f64]) -> Option<(Vector3<f64>, f64)> {
+    let mut m = Matrix3::zeros();
+    let mut v = Vector3::zeros();
+    for (&pk, &yk) in p.iter().zip(y) {
+        let f = Vector3::new(1.0, pk, pk * pk);
+        m += f * f.transpose();
+        v += f * yk;
+    }
+    let c = m.lu().solve(&v)?;
+    let sse = p
+        .iter()
+        .zip(y)
+        .map(|(&pk, &yk)| (yk - c[0] - c[1] * pk - c[2] * pk * pk).powi(2))
+        .sum();
+    Some((c, sse))
+}
+
+/// Squared departure of x from the interval [n, n + 1) and its signed value.
+fn hinge(x: f64, n: f64) -> f64 {
+    if x < n {
+        x - n
+    } else if x > n + 1.0 {
+        x - n - 1.0
+    } else {
+        0.0
+    }
+}
+
+/// Smallest sum of squared departures of counts = a + b p from the reading intervals.
+fn hinge_fit(p: &[f64], n: &[f64]) -> Option<f64> {
+    let feat = |pk: f64| Vector2::new(1.0, pk);
+    // Start from the least-squares line through the interval midpoints.
+    let mut m = Matrix2::zeros();
+    let mut v = Vector2::zeros();
+    for (&pk, &nk) in p.iter().zip(n) {
+        m += feat(pk) * feat(pk).transpose();
+        v += feat(pk) * (nk + 0.5);
+    }
+    let mut c = m.lu().solve(&v)?;
+    let cost = |c: &Vector2<f64>| -> f64 {
+        p.iter()
+            .zip(n)
+            .map(|(&pk, &nk)| hinge(c.dot(&feat(pk)), nk).powi(2))
+            .sum()
+    };
+    let mut cur = cost(&c);
+    for _ in 0..40 {
+        if cur == 0.0 {
+            break;
+        }
+        let mut m = Matrix2::zeros();
+        let mut g = Vector2::zeros();
+        for (&pk, &nk) in p.iter().zip(n) {
+            let f = feat(pk);
+            let r = hinge(c.dot(&f), nk);
+            if r != 0.0 {
+                m += f * f.transpose();
+                g += f * r;
+            }
+        }
+        let ridge = 1e-9 * (m.trace() + 1.0);
+        let Some(step) = (m + Matrix2::identity() * ridge).lu().solve(&(-g)) else {
+            break;
+        };
+        let mut lam = 1.0;
+        let mut improved = false;
+        for _ in 0..20 {
+            let trial = c + step * lam;
+            let tc = cost(&trial);
+            if tc < cur {
+                improved = cur - tc > 1e-12 * (1.0 + cur);
+                c = trial;
+                cur = tc;
+                break;
+            }
+            lam *= 0.5;
+        }
+        if !improved {
+            break;
+        }
+    }
+    Some(cur)
+}
+
+impl Fine {
+    /// Per-wheel camera travel (left, right) at each row for an offset, in run lengths.
+    fn paths(&self, offset: f64) -> Option<[Vec<f64>; 2]> {
+        let mut l = Vec::with_capacity(self.t.len());
+        let mut r = Vec::with_capacity(self.t.len());
+        for &tk in &self.t {
+            let (s, th) = self.cam.at(tk + offset)?;
+            l.push((s - self.half_base * th) / self.scale);
+            r.push((s + self.half_base * th) / self.scale);
+        }
+        Some([l, r])
+    }
+
+    /// Alignment cost at an offset: hinge cost in counts² (tick logs) or LS SSE in m² (speeds).
+    fn cost(&self, offset: f64) -> f64 {
+        let Some(p) = self.paths(offset) else {
+            return f64::INFINITY;
+        };
+        let mut total = 0.0;
+        for (pw, rw) in p.iter().zip(&self.reading) {
+            let c = if self.quantised {
+                hinge_fit(pw, rw)
+            } else {
+                ls_fit(pw, rw).map(|f| f.1)
+            };
+            match c {
+                Some(c) => total += c,
+                None => return f64::INFINITY,
+            }
+        }
+        total
+    }
+}
+
+/// Spread of the quantisation-interval likelihood, counts (camera noise and slip wander).
+const HINGE_SIGMA_COUNTS: f64 = 0.3;
 
 /// Fine clock offset of one run around a coarse offset; Err gives the reason the run is unusable.
+#[allow(clippy::too_many_arguments)]
 pub fn refine_offset(
+    log: &OdometryLog,
     revs: &WheelRevs,
     seg: &RunSegment,
-    geom: &WheelGeometry,
+    robot: &RobotParams,
     traj: &Trajectory,
     coarse_s: f64,
     opts: &AlignOptions,
 ) -> Result<Alignment, String> {
     let hw = opts.refine_half_width_s;
     let gap = opts.max_frame_gap_s;
+    let geom = WheelGeometry::nominal(robot);
     let first = seg.start_row.saturating_sub(2).max(seg.window_first);
     let last = (seg.end_row + 2).min(seg.window_last);
-    let ok = |k: usize| traj.covers(revs.t_s[k] + coarse_s - hw - 0.05, revs.t_s[k] + coarse_s + hw + 0.05, gap);
+    let ok = |k: usize| {
+        traj.covers(
+            revs.t_s[k] + coarse_s - hw - 0.05,
+            revs.t_s[k] + coarse_s + hw + 0.05,
+            gap,
+        )
+    };
     if !ok(seg.start_row) || !ok(seg.end_row) {
         return Err("the camera trajectory does not cover the start and end of the run".into());
     }
-    let rows: Vec<usize> = (first..=last).filter(|&k| ok(k)).collect();
-    let moving = rows.iter().filter(|&&k| k > seg.start_row && k <= seg.end_row).count();
-    if moving * 5 < (seg.end_row - seg.start_row) * 4 || moving < 3 {
-        return Err(format!(
-            "the camera misses too much of the run ({moving} of {} log intervals covered)",
-            seg.end_row - seg.start_row
-        ));
-    }
-    let (Some(p0), Some(p1)) = (
-        traj.position_at(revs.t_s[seg.start_row] + coarse_s, gap),
-        traj.position_at(revs.t_s[seg.end_row] + coarse_s, gap),
+    // Rows at both ends whose camera window is covered; the span between must be covered too.
+    let first = (first..=seg.start_row)
+        .find(|&k| ok(k))
+        .unwrap_or(seg.start_row);
+    let last = (seg.end_row..=last)
+        .rev()
+        .find(|&k| ok(k))
+        .unwrap_or(seg.end_row);
+    let Some(cam) = CameraPaths::build(
+        traj,
+        revs.t_s[first] + coarse_s - hw - 0.05,
+        revs.t_s[last] + coarse_s + hw + 0.05,
+        gap,
+    ) else {
+        return Err(
+            "the camera misses frames during the run (gap longer than the allowed maximum)".into(),
+        );
+    };
+    let (Some(a), Some(b)) = (
+        cam.at(revs.t_s[seg.start_row] + coarse_s),
+        cam.at(revs.t_s[seg.end_row] + coarse_s),
     ) else {
         return Err("the camera trajectory does not cover the start and end of the run".into());
     };
-    let d = p1 - p0;
-    let len = d.norm();
+    let len = (b.0 - a.0).abs();
     if len < 0.01 {
-        return Err(format!("the camera sees no motion during the run ({:.1} mm)", len * 1e3));
+        return Err(format!(
+            "the camera sees no motion during the run ({:.1} mm)",
+            len * 1e3
+        ));
     }
-    let all_r = travel(revs, geom);
+    let rows: Vec<usize> = (first..=last).collect();
+    let quantised = log.kind == LogKind::Ticks;
+    let circ = [
+        std::f64::consts::PI * geom.left_wheel_diameter_m,
+        std::f64::consts::PI * geom.right_wheel_diameter_m,
+    ];
+    let reading = |w: usize| -> Vec<f64> {
+        rows.iter()
+            .map(|&k| {
+                let r = revs.rev[k][w] - revs.rev[seg.start_row][w];
+                if quantised {
+                    (r * robot.ticks_per_rev).round()
+                } else {
+                    r * circ[w] / len
+                }
+            })
+            .collect()
+    };
     let fine = Fine {
         t: rows.iter().map(|&k| revs.t_s[k]).collect(),
-        r: rows.iter().map(|&k| (all_r[k] - all_r[seg.start_row]) / len).collect(),
-        traj,
-        origin: p0.coords,
-        dir: d / len,
+        reading: [reading(0), reading(1)],
+        cam,
+        half_base: 0.5 * geom.wheel_base_m,
         scale: len,
-        max_gap: gap,
+        quantised,
     };
-    // Scan, then golden section around the best scan point.
-    let step = 0.002;
+    let step = 0.001;
     let n = (2.0 * hw / step).round() as usize;
-    let (mut best, mut best_cost) = (coarse_s, f64::INFINITY);
-    for j in 0..=n {
-        let o = coarse_s - hw + j as f64 * step;
-        let c = fine.cost(o);
-        if c < best_cost {
-            best = o;
-            best_cost = c;
-        }
-    }
-    if !best_cost.is_finite() {
+    let grid: Vec<f64> = (0..=n).map(|j| coarse_s - hw + j as f64 * step).collect();
+    let costs: Vec<f64> = grid.iter().map(|&o| fine.cost(o)).collect();
+    let (jmin, &cmin) = costs
+        .iter()
+        .enumerate()
+        .min_by(|x, y| x.1.total_cmp(y.1))
+        .unwrap_or((0, &f64::INFINITY));
+    if !cmin.is_finite() {
         return Err("the travel fit failed (degenerate camera motion)".into());
     }
-    let (mut a, mut b) = (best - step, best + step);
+    let offset = if quantised {
+        let s2 = 2.0 * HINGE_SIGMA_COUNTS * HINGE_SIGMA_COUNTS;
+        let (mut sw, mut swx) = (0.0, 0.0);
+        for (&o, &c) in grid.iter().zip(&costs) {
+            if c.is_finite() {
+                let w = (-(c - cmin) / s2).exp();
+                sw += w;
+                swx += w * o;
+            }
+        }
+        swx / sw
+    } else {
+        golden(|o| fine.cost(o), grid[jmin] - step, grid[jmin] + step)
+    };
+    if (offset - coarse_s).abs() > hw - 2.0 * step {
+        return Err(format!(
+            "the fine offset {offset:.3} s runs to the edge of the search around the coarse {coarse_s:.3} s"
+        ));
+    }
+    // Residuals of the mean-wheel travel fit at the chosen offset (metres, m/s).
+    let Some(p) = fine.paths(offset) else {
+        return Err("the camera trajectory does not cover the start and end of the run".into());
+    };
+    let pm: Vec<f64> = p[0].iter().zip(&p[1]).map(|(a, b)| 0.5 * (a + b)).collect();
+    let rm: Vec<f64> = rows
+        .iter()
+        .map(|&k| {
+            let d = [
+                revs.rev[k][0] - revs.rev[seg.start_row][0],
+                revs.rev[k][1] - revs.rev[seg.start_row][1],
+            ];
+            0.5 * (d[0] * circ[0] + d[1] * circ[1]) / len
+        })
+        .collect();
+    let Some((c, sse)) = ls_fit(&pm, &rm) else {
+        return Err("the travel fit failed (degenerate camera motion)".into());
+    };
+    let model: Vec<f64> = pm.iter().map(|&x| c[0] + c[1] * x + c[2] * x * x).collect();
+    let mut sq = 0.0;
+    for k in 1..fine.t.len() {
+        let dt = fine.t[k] - fine.t[k - 1];
+        let e = ((rm[k] - rm[k - 1]) - (model[k] - model[k - 1])) * len / dt;
+        sq += e * e;
+    }
+    Ok(Alignment {
+        offset_s: offset,
+        residual_m: (sse / fine.t.len() as f64).sqrt() * len,
+        residual_mps: (sq / (fine.t.len() - 1).max(1) as f64).sqrt(),
+        rows_used: fine.t.len(),
+    })
+}
+
+/// Golden-section minimum of f on [a, b].
+fn golden(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let mut x1 = b - g * (b - a);
     let mut x2 = a + g * (b - a);
-    let (mut f1, mut f2) = (fine.cost(x1), fine.cost(x2));
+    let (mut f1, mut f2) = (f(x1), f(x2));
     while b - a > 1e-6 {
         if f1 < f2 {
             b = x2;
             x2 = x1;
             f2 = f1;
             x1 = b - g * (b - a);
-            f1 = fine.cost(x1);
+            f1 = f(x1);
         } else {
             a = x1;
             x1 = x2;
             f1 = f2;
             x2 = a + g * (b - a);
-            f2 = fine.cost(x2);
+            f2 = f(x2);
         }
     }
-    let offset = if f1.min(f2) <= best_cost { 0.5 * (a + b) } else { best };
-    let Some((c, sse, s)) = fine.fit(offset) else {
-        return Err("the travel fit failed (degenerate camera motion)".into());
-    };
-    let model: Vec<f64> = s.iter().map(|&sk| c[0] + c[1] * sk + c[2] * sk * sk).collect();
-    let mut sq = 0.0;
-    let mut m = 0;
-    for k in 1..fine.t.len() {
-        let dt = fine.t[k] - fine.t[k - 1];
-        let e = ((fine.r[k] - fine.r[k - 1]) - (model[k] - model[k - 1])) * len / dt;
-        sq += e * e;
-        m += 1;
-    }
-    Ok(Alignment {
-        offset_s: offset,
-        residual_m: (sse / fine.t.len() as f64).sqrt() * len,
-        residual_mps: (sq / m.max(1) as f64).sqrt(),
-        rows_used: fine.t.len(),
-    })
+    0.5 * (a + b)
 }

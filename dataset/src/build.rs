@@ -86,7 +86,10 @@ pub struct RunFeatures {
 /// Detects the one run in a raw log and computes its features exactly as the dataset does
 /// (what `odocal correct` must use). Errors if the log holds no run, several runs, or a run cut
 /// by the log's start or end.
-pub fn features_from_log(log: &OdometryLog, robot: &RobotParams) -> Result<RunFeatures, DatasetError> {
+pub fn features_from_log(
+    log: &OdometryLog,
+    robot: &RobotParams,
+) -> Result<RunFeatures, DatasetError> {
     let segs = split_runs(log, DEFAULT_MIN_GAP_S);
     let seg = match segs.as_slice() {
         [] => return Err(DatasetError::Mismatch("the odometry log shows no motion".into())),
@@ -152,11 +155,18 @@ fn rest_cluster(rows: &[TrajectoryRow], near: &[TrajectoryRow], tol: f64) -> Vec
 /// Splits a recording into runs and turns each into a sample or a rejection.
 ///
 /// Hard errors (the whole build must stop): a log whose motion cannot overlap the trajectory.
-pub fn process_recording(rec: &Recording, opts: &BuildOptions) -> Result<Vec<RunOutcome>, DatasetError> {
-    let reject = |id: String, reason: String| RunOutcome::Rejected(RejectedRun { run_id: id, reason });
+pub fn process_recording(
+    rec: &Recording,
+    opts: &BuildOptions,
+) -> Result<Vec<RunOutcome>, DatasetError> {
+    let reject =
+        |id: String, reason: String| RunOutcome::Rejected(RejectedRun { run_id: id, reason });
     let segs = split_runs(rec.log, opts.min_gap_s);
     if segs.is_empty() {
-        return Ok(vec![reject(rec.id.to_string(), "no motion in the odometry log".into())]);
+        return Ok(vec![reject(
+            rec.id.to_string(),
+            "no motion in the odometry log".into(),
+        )]);
     }
     let name = |j: usize| {
         if segs.len() == 1 {
@@ -190,11 +200,22 @@ pub fn process_recording(rec: &Recording, opts: &BuildOptions) -> Result<Vec<Run
         if travel < opts.min_travel_m {
             out.push(reject(
                 id,
-                format!("too short: odometry travel {travel:.3} m < {:.3} m", opts.min_travel_m),
+                format!(
+                    "too short: odometry travel {travel:.3} m < {:.3} m",
+                    opts.min_travel_m
+                ),
             ));
             continue;
         }
-        let al = match refine_offset(&revs, seg, &geom, rec.camera, coarse.offset_s, &opts.align) {
+        let al = match refine_offset(
+            rec.log,
+            &revs,
+            seg,
+            &opts.robot,
+            rec.camera,
+            coarse.offset_s,
+            &opts.align,
+        ) {
             Ok(a) => a,
             Err(why) => {
                 out.push(reject(id, format!("clock offset not found: {why}")));
@@ -245,7 +266,10 @@ pub fn process_recording(rec: &Recording, opts: &BuildOptions) -> Result<Vec<Run
         // Real path length: camera positions at the aligned log rows, rest poses at the ends.
         let mut pts = vec![start.position()];
         for k in seg.start_row + 1..seg.end_row {
-            if let Some(p) = rec.camera.position_at(revs.t_s[k] + d, opts.align.max_frame_gap_s) {
+            if let Some(p) = rec
+                .camera
+                .position_at(revs.t_s[k] + d, opts.align.max_frame_gap_s)
+            {
                 pts.push(p);
             }
         }
@@ -255,8 +279,12 @@ pub fn process_recording(rec: &Recording, opts: &BuildOptions) -> Result<Vec<Run
             .filter(|&k| odo.rev[k] != odo.rev[k - 1])
             .map(|k| {
                 let g = &geom;
-                let dl = (odo.rev[k][0] - odo.rev[k - 1][0]) * std::f64::consts::PI * g.left_wheel_diameter_m;
-                let dr = (odo.rev[k][1] - odo.rev[k - 1][1]) * std::f64::consts::PI * g.right_wheel_diameter_m;
+                let dl = (odo.rev[k][0] - odo.rev[k - 1][0])
+                    * std::f64::consts::PI
+                    * g.left_wheel_diameter_m;
+                let dr = (odo.rev[k][1] - odo.rev[k - 1][1])
+                    * std::f64::consts::PI
+                    * g.right_wheel_diameter_m;
                 0.5 * (dl + dr).abs() / (odo.t_s[k] - odo.t_s[k - 1])
             })
             .collect();
@@ -321,4 +349,114 @@ pub fn samples_csv(ds: &Dataset) -> String {
         ));
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Straight run along +x from (0.2, 0.1) heading 0.3 rad: trapezoid speed profile, rest
+    /// before and after; returns (log, camera trajectory) with camera clock = robot + offset.
+    fn synthetic(offset: f64, cut_end: bool) -> (OdometryLog, Trajectory) {
+        let v = 0.5;
+        let a = 1.0;
+        let t0 = 1.1;
+        let dist = 1.5;
+        let t_acc = v / a;
+        let t_end = t0 + t_acc + (dist - v * t_acc) / v + t_acc;
+        let s_at = |t: f64| -> f64 {
+            let u = t - t0;
+            if u <= 0.0 {
+                0.0
+            } else if u < t_acc {
+                0.5 * a * u * u
+            } else if t < t_end - t_acc {
+                0.5 * a * t_acc * t_acc + v * (u - t_acc)
+            } else if t < t_end {
+                let w = t_end - t;
+                dist - 0.5 * a * w * w
+            } else {
+                dist
+            }
+        };
+        let circ = std::f64::consts::PI * 0.043;
+        let n_rows = if cut_end { 20 } else { 40 };
+        let t: Vec<f64> = (0..n_rows).map(|k| 0.2 * k as f64).collect();
+        let ticks = |phase: f64| -> Vec<i64> {
+            t.iter()
+                .map(|&tk| (s_at(tk) / circ * 12.0 + phase).floor() as i64)
+                .collect()
+        };
+        let log = OdometryLog::from_ticks(t.clone(), ticks(0.37), ticks(0.81)).unwrap();
+        let start = Pose2::new(0.2, 0.1, 0.3);
+        let rows = (0..300)
+            .map(|k| {
+                let tc = k as f64 / 30.0;
+                let s = s_at(tc - offset);
+                TrajectoryRow {
+                    t_s: tc,
+                    pose: start.compose(&Pose2::new(s, 0.0, 0.0)),
+                    quality: 1.0,
+                }
+            })
+            .collect();
+        (log, Trajectory::new(rows).unwrap())
+    }
+
+    #[test]
+    fn recovers_offset_and_target() {
+        let (log, cam) = synthetic(0.8373, false);
+        let rec = Recording {
+            id: "r1",
+            speed_mps: Some(0.5),
+            log: &log,
+            camera: &cam,
+        };
+        let out = process_recording(&rec, &BuildOptions::default()).unwrap();
+        assert_eq!(out.len(), 1);
+        let RunOutcome::Sample(s) = &out[0] else {
+            panic!("rejected: {out:?}")
+        };
+        assert!(
+            (s.clock_offset_s - 0.8373).abs() < 0.01,
+            "offset {}",
+            s.clock_offset_s
+        );
+        assert!((s.target_m[0] - 1.5).abs() < 1e-6 && s.target_m[1].abs() < 1e-6);
+        assert!((s.path_length_m - 1.5).abs() < 1e-6);
+        assert!((s.raw_end_m[0] - 1.5).abs() < 0.012);
+        assert_eq!(s.inputs.len(), N_INPUTS);
+        assert_eq!(s.inputs[16], s.odometry.t_b());
+        assert!(s.alignment_residual_mps < 0.05);
+        let f = features_from_log(&log, &RobotParams::default()).unwrap();
+        assert_eq!(f.inputs.to_vec(), s.inputs);
+    }
+
+    #[test]
+    fn unusable_runs_are_rejected_and_mismatches_fail() {
+        let (log, cam) = synthetic(0.5, true);
+        let rec = Recording {
+            id: "r2",
+            speed_mps: None,
+            log: &log,
+            camera: &cam,
+        };
+        let out = process_recording(&rec, &BuildOptions::default()).unwrap();
+        match &out[..] {
+            [RunOutcome::Rejected(r)] => assert!(r.reason.contains("ends during"), "{}", r.reason),
+            o => panic!("{o:?}"),
+        }
+        assert!(features_from_log(&log, &RobotParams::default()).is_err());
+        // A camera trajectory far too short for the log's motion cannot overlap it.
+        let (log, cam) = synthetic(0.5, false);
+        let short = Trajectory::new(cam.rows[..20].to_vec()).unwrap();
+        let rec = Recording {
+            id: "r3",
+            speed_mps: None,
+            log: &log,
+            camera: &short,
+        };
+        let e = process_recording(&rec, &BuildOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("cannot overlap"), "{e}");
+    }
 }

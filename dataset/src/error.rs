@@ -73,8 +73,14 @@ pub(crate) fn parse_json_with_format<T: serde::de::DeserializeOwned>(
     name: &str,
     expected: &str,
 ) -> Result<T, DatasetError> {
-    let value: serde_json::Value = serde_json::from_str(text)
-        .map_err(|e| DatasetError::parse(name, e.line() as u64, e.column() as u64, format!("invalid JSON: {e}")))?;
+    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+        DatasetError::parse(
+            name,
+            e.line() as u64,
+            e.column() as u64,
+            format!("invalid JSON: {e}"),
+        )
+    })?;
     match value.get("format").and_then(|f| f.as_str()) {
         Some(f) if f == expected => {}
         Some(f) => {

@@ -55,7 +55,12 @@ pub fn dead_reckon(rev: &[[f64; 2]], geom: &WheelGeometry) -> Vec<Pose2> {
     let mut pose = Pose2::default();
     out.push(pose);
     for w in rev.windows(2) {
-        pose = step(&pose, (w[1][0] - w[0][0]) * cl, (w[1][1] - w[0][1]) * cr, geom.wheel_base_m);
+        pose = step(
+            &pose,
+            (w[1][0] - w[0][0]) * cl,
+            (w[1][1] - w[0][1]) * cr,
+            geom.wheel_base_m,
+        );
         out.push(pose);
     }
     out
@@ -128,7 +133,11 @@ pub fn features_from_poses(t_s: &[f64], poses: &[Pose2]) -> [f64; N_INPUTS] {
             (poses[0].x_m, poses[0].y_m)
         } else {
             let span = t_s[j + 1] - t_s[j];
-            let a = if span > 0.0 { ((t - t_s[j]) / span).clamp(0.0, 1.0) } else { 0.0 };
+            let a = if span > 0.0 {
+                ((t - t_s[j]) / span).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             (
                 poses[j].x_m + a * (poses[j + 1].x_m - poses[j].x_m),
                 poses[j].y_m + a * (poses[j + 1].y_m - poses[j].y_m),

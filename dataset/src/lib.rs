@@ -12,14 +12,17 @@ pub mod sample;
 pub mod segment;
 pub mod trajectory;
 
-pub use build::{assemble, features_from_log, process_recording, BuildOptions, Recording, RunFeatures, RunOutcome};
+pub use build::{
+    assemble, features_from_log, process_recording, BuildOptions, Recording, RunFeatures,
+    RunOutcome,
+};
 pub use error::DatasetError;
 pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
 pub use manifest::{Manifest, ManifestRow};
 pub use odometry::{LogKind, OdometryLog};
 pub use oracle::{OracleFile, OracleRun};
 pub use sample::{
-    relative_end_error, Dataset, DatasetSummary, RejectedRun, RobotParams, Sample, DATASET_FORMAT, FEATURE_RULE,
-    N_INPUTS,
+    relative_end_error, Dataset, DatasetSummary, RejectedRun, RobotParams, Sample, DATASET_FORMAT,
+    FEATURE_RULE, N_INPUTS,
 };
 pub use trajectory::{Trajectory, TrajectoryRow};

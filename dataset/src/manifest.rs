@@ -59,7 +59,9 @@ impl Manifest {
         let text = read_text(path)?;
         let name = path.display().to_string();
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let is_csv = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        let is_csv = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
         let (mut m, lines) = if is_csv {
             parse_csv(&text, &name)?
         } else {
@@ -87,10 +89,15 @@ impl Manifest {
                 return Err(bad("empty run id".into()));
             }
             if !seen.insert(r.id.clone()) {
-                return Err(bad(format!("run id \"{}\" appears twice; ids must be unique", r.id)));
+                return Err(bad(format!(
+                    "run id \"{}\" appears twice; ids must be unique",
+                    r.id
+                )));
             }
             match (&r.video, &r.trajectory) {
-                (Some(_), Some(_)) => return Err(bad("give a video or a trajectory, not both".into())),
+                (Some(_), Some(_)) => {
+                    return Err(bad("give a video or a trajectory, not both".into()))
+                }
                 (None, None) => return Err(bad("no video and no trajectory".into())),
                 _ => {}
             }
@@ -119,7 +126,10 @@ impl Manifest {
     /// Checks that every referenced file exists; the error names the run and the file.
     pub fn check_files(&self) -> Result<(), DatasetError> {
         for r in &self.runs {
-            for p in [Some(&r.odometry), r.video.as_ref(), r.trajectory.as_ref()].into_iter().flatten() {
+            for p in [Some(&r.odometry), r.video.as_ref(), r.trajectory.as_ref()]
+                .into_iter()
+                .flatten()
+            {
                 let full = self.resolve(p);
                 if !full.is_file() {
                     return Err(DatasetError::Mismatch(format!(
@@ -188,7 +198,12 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
         let speed = match h.iter().position(|c| c == "speed_mps") {
             Some(i) => match rec.get(i).filter(|v| !v.is_empty()) {
                 Some(v) => Some(v.parse::<f64>().map_err(|_| {
-                    DatasetError::parse(name, line, i as u64 + 1, format!("\"{v}\" is not a number"))
+                    DatasetError::parse(
+                        name,
+                        line,
+                        i as u64 + 1,
+                        format!("\"{v}\" is not a number"),
+                    )
                 })?),
                 None => None,
             },
@@ -212,14 +227,24 @@ mod tests {
 
     #[test]
     fn csv_manifest_and_errors() {
-        let (m, _) = parse_csv("id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,0.5\nr2,c.csv,d.csv,\n", "m.csv").unwrap();
+        let (m, _) = parse_csv(
+            "id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,0.5\nr2,c.csv,d.csv,\n",
+            "m.csv",
+        )
+        .unwrap();
         assert_eq!(m.runs.len(), 2);
         assert_eq!(m.runs[0].speed_mps, Some(0.5));
         assert_eq!(m.runs[1].speed_mps, None);
-        let e = parse_csv("id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,fast\n", "m.csv").unwrap_err();
+        let e = parse_csv(
+            "id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,fast\n",
+            "m.csv",
+        )
+        .unwrap_err();
         assert_eq!(e.to_string(), "m.csv:2:4: \"fast\" is not a number");
         let (m, l) = parse_csv("id,trajectory,odometry\nr1,a,b\nr1,c,d\n", "m.csv").unwrap();
         let e = m.check("m.csv", &l).unwrap_err();
-        assert!(e.to_string().contains("line 3: run id \"r1\" appears twice"));
+        assert!(e
+            .to_string()
+            .contains("line 3: run id \"r1\" appears twice"));
     }
 }

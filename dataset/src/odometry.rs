@@ -47,7 +47,11 @@ pub struct WheelRevs {
 
 impl OdometryLog {
     /// A tick log from cumulative counts; checks times and lengths.
-    pub fn from_ticks(t_s: Vec<f64>, left: Vec<i64>, right: Vec<i64>) -> Result<Self, DatasetError> {
+    pub fn from_ticks(
+        t_s: Vec<f64>,
+        left: Vec<i64>,
+        right: Vec<i64>,
+    ) -> Result<Self, DatasetError> {
         let log = Self {
             kind: LogKind::Ticks,
             t_s,
@@ -59,7 +63,11 @@ impl OdometryLog {
     }
 
     /// A wheel-speed log (m/s per wheel over the interval ending at each row); checks times.
-    pub fn from_speeds(t_s: Vec<f64>, v_left: Vec<f64>, v_right: Vec<f64>) -> Result<Self, DatasetError> {
+    pub fn from_speeds(
+        t_s: Vec<f64>,
+        v_left: Vec<f64>,
+        v_right: Vec<f64>,
+    ) -> Result<Self, DatasetError> {
         let log = Self {
             kind: LogKind::Speeds,
             t_s,
@@ -135,7 +143,12 @@ impl OdometryLog {
             let mut vals = [0.0; 3];
             for (c, field) in rec.iter().enumerate() {
                 let v: f64 = field.parse().map_err(|_| {
-                    DatasetError::parse(name, line, c as u64 + 1, format!("\"{field}\" is not a number"))
+                    DatasetError::parse(
+                        name,
+                        line,
+                        c as u64 + 1,
+                        format!("\"{field}\" is not a number"),
+                    )
                 })?;
                 if !v.is_finite() {
                     return Err(DatasetError::parse(
@@ -161,7 +174,10 @@ impl OdometryLog {
             lines.push(line);
         }
         let Some(kind) = kind else {
-            return Err(DatasetError::content(name, "empty odometry log (no header, no rows)"));
+            return Err(DatasetError::content(
+                name,
+                "empty odometry log (no header, no rows)",
+            ));
         };
         let log = Self {
             kind,
@@ -181,13 +197,24 @@ impl OdometryLog {
         if self.t_s.len() < 2 {
             return Err(DatasetError::content(
                 name,
-                format!("odometry log has {} data rows; need at least 2", self.t_s.len()),
+                format!(
+                    "odometry log has {} data rows; need at least 2",
+                    self.t_s.len()
+                ),
             ));
         }
         for i in 0..self.t_s.len() {
-            for (c, v) in [self.t_s[i], self.left[i], self.right[i]].iter().enumerate() {
+            for (c, v) in [self.t_s[i], self.left[i], self.right[i]]
+                .iter()
+                .enumerate()
+            {
                 if !v.is_finite() {
-                    return Err(DatasetError::parse(name, line_of(i), c as u64 + 1, "value is not a finite number"));
+                    return Err(DatasetError::parse(
+                        name,
+                        line_of(i),
+                        c as u64 + 1,
+                        "value is not a finite number",
+                    ));
                 }
             }
             if i > 0 {
@@ -197,7 +224,10 @@ impl OdometryLog {
                         name,
                         line_of(i),
                         1,
-                        format!("duplicated timestamp {b} (same as line {}); remove the repeated row", line_of(i - 1)),
+                        format!(
+                            "duplicated timestamp {b} (same as line {}); remove the repeated row",
+                            line_of(i - 1)
+                        ),
                     ));
                 }
                 if b < a {
@@ -225,7 +255,10 @@ impl OdometryLog {
         let mut s = header.join(",");
         s.push('\n');
         for i in 0..self.t_s.len() {
-            s.push_str(&format!("{},{},{}\n", self.t_s[i], self.left[i], self.right[i]));
+            s.push_str(&format!(
+                "{},{},{}\n",
+                self.t_s[i], self.left[i], self.right[i]
+            ));
         }
         s
     }
@@ -233,9 +266,12 @@ impl OdometryLog {
     /// Whether the robot moved in the interval ending at row `i` (i ≥ 1).
     pub fn moving_at(&self, i: usize) -> bool {
         match self.kind {
-            LogKind::Ticks => self.left[i] != self.left[i - 1] || self.right[i] != self.right[i - 1],
+            LogKind::Ticks => {
+                self.left[i] != self.left[i - 1] || self.right[i] != self.right[i - 1]
+            }
             LogKind::Speeds => {
-                self.left[i].abs() > SPEED_REST_THRESHOLD_MPS || self.right[i].abs() > SPEED_REST_THRESHOLD_MPS
+                self.left[i].abs() > SPEED_REST_THRESHOLD_MPS
+                    || self.right[i].abs() > SPEED_REST_THRESHOLD_MPS
             }
         }
     }
@@ -284,7 +320,11 @@ mod tests {
 
     #[test]
     fn parses_ticks_and_speeds() {
-        let log = OdometryLog::parse_csv("t,left_ticks,right_ticks\n0,0,0\n0.2,3,4\n0.4,7,7\n", "a.csv").unwrap();
+        let log = OdometryLog::parse_csv(
+            "t,left_ticks,right_ticks\n0,0,0\n0.2,3,4\n0.4,7,7\n",
+            "a.csv",
+        )
+        .unwrap();
         assert_eq!(log.kind, LogKind::Ticks);
         assert_eq!(log.left, vec![0.0, 3.0, 7.0]);
         let revs = log.wheel_revs(&RobotParams::default());
@@ -298,7 +338,9 @@ mod tests {
     }
 
     fn err(text: &str) -> String {
-        OdometryLog::parse_csv(text, "log.csv").unwrap_err().to_string()
+        OdometryLog::parse_csv(text, "log.csv")
+            .unwrap_err()
+            .to_string()
     }
 
     #[test]
@@ -308,9 +350,11 @@ mod tests {
             "log.csv:3:2: \"x\" is not a number"
         );
         assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1,NaN\n").starts_with("log.csv:3:3:"));
-        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0,1,1\n").contains("log.csv:3:1: duplicated timestamp"));
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0,1,1\n")
+            .contains("log.csv:3:1: duplicated timestamp"));
         assert!(err("t,left_ticks,right_ticks\n0.2,0,0\n0.1,1,1\n").contains("goes back in time"));
-        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1\n").starts_with("log.csv:3:3: expected 3 fields"));
+        assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1\n")
+            .starts_with("log.csv:3:3: expected 3 fields"));
         assert!(err("time,a,b\n0,0,0\n").starts_with("log.csv:1:1: header"));
         assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1.5,1\n").contains("whole tick count"));
         assert!(err("").contains("empty odometry log"));

@@ -56,6 +56,7 @@ impl OracleFile {
 
     /// The oracle's end point of a sample: its odometry dead-reckoned with the true geometry.
     pub fn end_m(&self, sample: &Sample) -> Option<[f64; 2]> {
-        self.get(&sample.run_id).map(|r| sample.odometry.end_m(&r.geometry))
+        self.get(&sample.run_id)
+            .map(|r| sample.odometry.end_m(&r.geometry))
     }
 }

@@ -135,7 +135,12 @@ pub struct DatasetSummary {
 
 impl Dataset {
     /// A dataset of `samples` and `rejected` runs with its summary computed.
-    pub fn new(robot: RobotParams, samples: Vec<Sample>, rejected: Vec<RejectedRun>, recordings: usize) -> Self {
+    pub fn new(
+        robot: RobotParams,
+        samples: Vec<Sample>,
+        rejected: Vec<RejectedRun>,
+        recordings: usize,
+    ) -> Self {
         let ends: Vec<[f64; 2]> = samples.iter().map(|s| s.raw_end_m).collect();
         let n = samples.len().max(1) as f64;
         let summary = DatasetSummary {
@@ -144,12 +149,18 @@ impl Dataset {
             raw_relative_error: relative_end_error(&samples, &ends),
             raw_rms_error_m: (samples
                 .iter()
-                .map(|s| (s.raw_end_m[0] - s.target_m[0]).powi(2) + (s.raw_end_m[1] - s.target_m[1]).powi(2))
+                .map(|s| {
+                    (s.raw_end_m[0] - s.target_m[0]).powi(2)
+                        + (s.raw_end_m[1] - s.target_m[1]).powi(2)
+                })
                 .sum::<f64>()
                 / n)
                 .sqrt(),
             mean_path_length_m: samples.iter().map(|s| s.path_length_m).sum::<f64>() / n,
-            max_alignment_residual_mps: samples.iter().map(|s| s.alignment_residual_mps).fold(0.0, f64::max),
+            max_alignment_residual_mps: samples
+                .iter()
+                .map(|s| s.alignment_residual_mps)
+                .fold(0.0, f64::max),
         };
         Self {
             format: DATASET_FORMAT.to_string(),
@@ -169,7 +180,10 @@ impl Dataset {
         if ds.feature_rule != FEATURE_RULE {
             return Err(crate::DatasetError::Content {
                 path: name,
-                message: format!("feature rule \"{}\" is not this build's \"{FEATURE_RULE}\"", ds.feature_rule),
+                message: format!(
+                    "feature rule \"{}\" is not this build's \"{FEATURE_RULE}\"",
+                    ds.feature_rule
+                ),
             });
         }
         Ok(ds)
@@ -205,11 +219,17 @@ impl RobotParams {
     /// Reads robot parameters from a small JSON file with `"format": "odocal.robot/1"`.
     pub fn read(path: &std::path::Path) -> Result<Self, crate::DatasetError> {
         let text = crate::error::read_text(path)?;
-        let f: RobotFile = crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
+        let f: RobotFile =
+            crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
         let r = f.robot;
-        let ok = [r.wheel_diameter_m, r.ticks_per_rev, r.wheel_base_m, r.period_s]
-            .iter()
-            .all(|v| v.is_finite() && *v > 0.0);
+        let ok = [
+            r.wheel_diameter_m,
+            r.ticks_per_rev,
+            r.wheel_base_m,
+            r.period_s,
+        ]
+        .iter()
+        .all(|v| v.is_finite() && *v > 0.0);
         if !ok {
             return Err(crate::DatasetError::Content {
                 path: path.display().to_string(),

@@ -69,7 +69,10 @@ impl Trajectory {
                         name,
                         line,
                         1,
-                        format!("header is \"{}\", expected \"t,x,y,theta,quality\"", fields.join(",")),
+                        format!(
+                            "header is \"{}\", expected \"t,x,y,theta,quality\"",
+                            fields.join(",")
+                        ),
                     ));
                 }
                 header_seen = true;
@@ -86,7 +89,12 @@ impl Trajectory {
             let mut v = [0.0; 5];
             for (c, field) in rec.iter().enumerate() {
                 let x: f64 = field.parse().map_err(|_| {
-                    DatasetError::parse(name, line, c as u64 + 1, format!("\"{field}\" is not a number"))
+                    DatasetError::parse(
+                        name,
+                        line,
+                        c as u64 + 1,
+                        format!("\"{field}\" is not a number"),
+                    )
                 })?;
                 if !x.is_finite() {
                     return Err(DatasetError::parse(
@@ -106,7 +114,10 @@ impl Trajectory {
             lines.push(line);
         }
         if !header_seen {
-            return Err(DatasetError::content(name, "empty trajectory file (no header)"));
+            return Err(DatasetError::content(
+                name,
+                "empty trajectory file (no header)",
+            ));
         }
         let t = Self { rows };
         t.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
@@ -117,7 +128,12 @@ impl Trajectory {
         for (i, r) in self.rows.iter().enumerate() {
             let vals = [r.t_s, r.pose.x_m, r.pose.y_m, r.pose.theta_rad, r.quality];
             if let Some(c) = vals.iter().position(|v| !v.is_finite()) {
-                return Err(DatasetError::parse(name, line_of(i), c as u64 + 1, "value is not a finite number"));
+                return Err(DatasetError::parse(
+                    name,
+                    line_of(i),
+                    c as u64 + 1,
+                    "value is not a finite number",
+                ));
             }
             if i > 0 {
                 let a = self.rows[i - 1].t_s;
@@ -208,6 +224,24 @@ impl Trajectory {
         ))
     }
 
+    /// Pose at time `t`: position and heading (shortest way round) linearly interpolated; None
+    /// outside the trajectory or across a gap longer than `max_gap_s`.
+    pub fn pose_at(&self, t: f64, max_gap_s: f64) -> Option<Pose2> {
+        let i = self.bracket(t)?;
+        let (a, b) = (&self.rows[i], &self.rows[i + 1]);
+        let span = b.t_s - a.t_s;
+        if span > max_gap_s {
+            return None;
+        }
+        let w = (t - a.t_s) / span;
+        let dth = wrap_angle(b.pose.theta_rad - a.pose.theta_rad);
+        Some(Pose2::new(
+            a.pose.x_m + w * (b.pose.x_m - a.pose.x_m),
+            a.pose.y_m + w * (b.pose.y_m - a.pose.y_m),
+            a.pose.theta_rad + w * dth,
+        ))
+    }
+
     /// Whether every gap between frames within [t0, t1] is at most `max_gap_s` and the
     /// trajectory covers the interval.
     pub fn covers(&self, t0: f64, t1: f64, max_gap_s: f64) -> bool {
@@ -268,10 +302,14 @@ mod tests {
 
     #[test]
     fn bad_rows_are_located() {
-        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,1\n0.1,0,zz,0,1\n", "tr.csv").unwrap_err();
+        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,1\n0.1,0,zz,0,1\n", "tr.csv")
+            .unwrap_err();
         assert_eq!(e.to_string(), "tr.csv:3:3: \"zz\" is not a number");
-        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,1\n0,0,0,0,1\n", "tr.csv").unwrap_err();
-        assert!(e.to_string().starts_with("tr.csv:3:1: duplicated timestamp"));
+        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,1\n0,0,0,0,1\n", "tr.csv")
+            .unwrap_err();
+        assert!(e
+            .to_string()
+            .starts_with("tr.csv:3:1: duplicated timestamp"));
         let e = Trajectory::parse_csv("t,x,y\n", "tr.csv").unwrap_err();
         assert!(e.to_string().contains("expected \"t,x,y,theta,quality\""));
     }
