@@ -1,13 +1,260 @@
-//! `odocal lrf` subcommands (not yet available).
+//! `odocal lrf`: laser positioning among reflective landmarks.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use odocal_lrf::{
+    evaluate, find_ambiguities, read_scans_csv, read_truth_csv, AmbiguityKind, Localizer,
+    LocalizerConfig, Map, Scan, SensorConfig, Status, Tracker,
+};
+
+use crate::output::{progress, write_atomic};
 
 /// Subcommands.
 #[derive(clap::Subcommand)]
 pub enum Command {
-    /// Placeholder until the subcommands land.
-    Todo,
+    /// Validate a landmark map and report ambiguous (congruent or mirror-image) sub-configurations.
+    CheckMap(CheckMapArgs),
+    /// Localise laser scans against a landmark map and write the sensor poses.
+    Localize(LocalizeArgs),
+}
+
+/// Arguments of `odocal lrf check-map`.
+#[derive(clap::Args)]
+pub struct CheckMapArgs {
+    /// The landmark map (JSON, "format": "odocal.lrf-map/1").
+    pub map: PathBuf,
+    /// Two configurations match if every landmark is within this distance, metres.
+    #[arg(long, default_value_t = 0.03)]
+    pub tolerance_m: f64,
+    /// Sensor range: only landmarks seen together (within this of each other's midpoint) count, metres.
+    #[arg(long, default_value_t = 5.6)]
+    pub max_range_m: f64,
+    /// Report configurations of at least this many landmarks.
+    #[arg(long, default_value_t = 3)]
+    pub min_size: usize,
+}
+
+/// Arguments of `odocal lrf localize`.
+#[derive(clap::Args)]
+pub struct LocalizeArgs {
+    /// The landmark map (JSON, "format": "odocal.lrf-map/1").
+    #[arg(long)]
+    pub map: PathBuf,
+    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`), in time order.
+    #[arg(required = true)]
+    pub scans: Vec<PathBuf>,
+    /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// True poses (CSV t,x,y,theta[,n_detected]) to report the error against.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// Localise every scan on its own (no tracking, no history).
+    #[arg(long)]
+    pub global_only: bool,
+    /// Range noise of the scanner (1 sigma), metres.
+    #[arg(long, default_value_t = 0.01)]
+    pub sigma_range_m: f64,
+    /// Maximum range of the scanner, metres.
+    #[arg(long, default_value_t = 5.6)]
+    pub max_range_m: f64,
+    /// Field of view of the scanner, degrees.
+    #[arg(long, default_value_t = 240.0)]
+    pub fov_deg: f64,
+    /// Returns at or above this intensity are reflector candidates.
+    #[arg(long, default_value_t = 0.5)]
+    pub intensity_min: f64,
+    /// Scan rate for files without a `t` column, Hz.
+    #[arg(long, default_value_t = 10.0)]
+    pub rate_hz: f64,
 }
 
 /// Runs a subcommand.
-pub fn run(_cmd: Command) -> anyhow::Result<()> {
-    anyhow::bail!("this command is not available yet")
+pub fn run(cmd: Command) -> anyhow::Result<()> {
+    match cmd {
+        Command::CheckMap(a) => check_map(a),
+        Command::Localize(a) => localize(a),
+    }
+}
+
+fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
+    if !(a.tolerance_m > 0.0 && a.tolerance_m <= 0.5) {
+        anyhow::bail!("--tolerance-m {} must be in (0, 0.5] metres", a.tolerance_m);
+    }
+    let map = Map::read(&a.map)?;
+    let amb = find_ambiguities(&map, a.tolerance_m, a.max_range_m, a.min_size);
+    let congruent: Vec<_> = amb
+        .iter()
+        .filter(|x| x.kind == AmbiguityKind::Congruent)
+        .collect();
+    let mirror: Vec<_> = amb
+        .iter()
+        .filter(|x| x.kind == AmbiguityKind::Mirror)
+        .collect();
+    println!(
+        "{}: {} landmarks, {} walls; tolerance {:.3} m, range {:.1} m",
+        a.map.display(),
+        map.len(),
+        map.walls.len(),
+        a.tolerance_m,
+        a.max_range_m
+    );
+    println!(
+        "congruent sub-configurations (ambiguous for any matcher): {}; mirror images (ambiguous for distance-only matching): {}",
+        congruent.len(),
+        mirror.len()
+    );
+    for x in congruent.iter().chain(mirror.iter()).take(10) {
+        println!(
+            "  {:<9} {} landmarks: ids {:?} ~ ids {:?} (moved {:.2} m, turned {:.1} deg)",
+            match x.kind {
+                AmbiguityKind::Congruent => "congruent",
+                AmbiguityKind::Mirror => "mirror",
+            },
+            x.size(),
+            x.from_ids,
+            x.to_ids,
+            x.transform.position().coords.norm(),
+            x.transform.theta_rad.to_degrees()
+        );
+    }
+    if congruent.is_empty() {
+        println!(
+            "verdict: no congruent configuration of {} or more landmarks",
+            a.min_size.max(3)
+        );
+    } else {
+        println!(
+            "verdict: AMBIGUOUS layout ({} congruent configurations, largest {} landmarks): expect `ambiguous` poses there until motion resolves them",
+            congruent.len(),
+            congruent[0].size()
+        );
+    }
+    Ok(())
+}
+
+fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
+    let map = Map::read(&a.map)?;
+    let mut scans: Vec<Scan> = Vec::new();
+    let mut step: Option<(f64, String)> = None;
+    for p in &a.scans {
+        let s = read_scans_csv(p)?;
+        let this = s[0].step_rad();
+        match &step {
+            Some((st, first)) if (this - st).abs() > 0.01 * st.abs() => anyhow::bail!(
+                "{}: angle step {this:.6} rad differs from {first}'s {st:.6} rad; mismatched angle steps — use scans of one sensor setting",
+                p.display()
+            ),
+            Some(_) => {}
+            None => step = Some((this, p.display().to_string())),
+        }
+        scans.extend(s);
+    }
+    let cfg = LocalizerConfig {
+        sensor: SensorConfig {
+            fov_rad: a.fov_deg.to_radians(),
+            max_range_m: a.max_range_m,
+            sigma_range_m: a.sigma_range_m,
+            intensity_min: a.intensity_min,
+            rate_hz: a.rate_hz,
+            step_rad: step
+                .as_ref()
+                .map_or(SensorConfig::default().step_rad, |s| s.0),
+            ..SensorConfig::default()
+        },
+        ..LocalizerConfig::default()
+    };
+    let loc = Localizer::new(map, cfg);
+    let mut tracker = Tracker::new(&loc);
+    let bar = progress(scans.len() as u64, "localize");
+    let mut csv =
+        String::from("t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan\n");
+    let mut rows = Vec::with_capacity(scans.len());
+    let mut n_det_total = 0usize;
+    let start = Instant::now();
+    for (k, scan) in scans.iter().enumerate() {
+        let t = scan.t_s.unwrap_or(k as f64 / a.rate_hz);
+        let (status, pose, n_lm, n_det, n_hyp, score, mode) = if a.global_only {
+            let dets = loc.detections(scan);
+            let g = loc.global(scan, &dets);
+            let b = g.best();
+            (
+                g.status,
+                b.map(|h| h.pose),
+                b.map_or(0, |h| h.matches.len()),
+                dets.len(),
+                g.hypotheses.len(),
+                b.map_or(0.0, |h| h.score),
+                "global",
+            )
+        } else {
+            let r = tracker.process(scan, t);
+            (
+                r.status,
+                r.pose,
+                r.n_landmarks,
+                r.n_detections,
+                r.n_hypotheses,
+                r.score,
+                r.mode,
+            )
+        };
+        n_det_total += n_det;
+        let (x, y, th) = match pose {
+            Some(p) => (
+                format!("{:.5}", p.x_m),
+                format!("{:.5}", p.y_m),
+                format!("{:.6}", p.theta_rad),
+            ),
+            None => (String::new(), String::new(), String::new()),
+        };
+        let _ = writeln!(
+            csv,
+            "{t:.4},{x},{y},{th},{status},{n_lm},{n_det},{n_hyp},{score:.1},{mode},{}",
+            scan.id
+        );
+        rows.push((t, status, pose, n_lm));
+        bar.inc(1);
+    }
+    let elapsed = start.elapsed();
+    bar.finish_and_clear();
+    write_atomic(&a.out, csv.as_bytes())?;
+    let count = |s: Status| rows.iter().filter(|r| r.1 == s).count();
+    let n = rows.len().max(1);
+    println!(
+        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; wrote {}",
+        rows.len(),
+        if a.global_only { "global" } else { "tracking" },
+        count(Status::Ok),
+        count(Status::Ambiguous),
+        count(Status::Lost),
+        n_det_total as f64 / n as f64,
+        elapsed.as_secs_f64() * 1e6 / n as f64,
+        a.out.display()
+    );
+    if let Some(tp) = &a.truth {
+        let truth = read_truth_csv(tp).with_context(|| "reading the truth file".to_string())?;
+        let e = evaluate(&rows, &truth);
+        if e.n_scans == 0 {
+            anyhow::bail!(
+                "{}: no truth pose has the time of a scan; pass the truth of these scans",
+                tp.display()
+            );
+        }
+        println!(
+            "vs truth: position RMS {:.1} mm, heading RMS {:.3} deg (max {:.1} mm) over {} ok scans with >= 3 landmarks; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
+            e.position_rms_m * 1e3,
+            e.heading_rms_rad.to_degrees(),
+            e.position_max_m * 1e3,
+            e.n_accuracy,
+            e.n_wrong_ok,
+            e.n_correct_eligible,
+            e.n_eligible,
+            100.0 * e.n_correct_eligible as f64 / e.n_eligible.max(1) as f64
+        );
+    }
+    Ok(())
 }

@@ -1,10 +1,79 @@
-//! `odocal synth_lrf` (not yet available).
+//! `odocal synth lrf`: a landmark map, a sensor trajectory and laser scans with known truth.
+
+use std::path::PathBuf;
+
+use odocal_fixtures::lrf_sim::{simulate, LrfSimConfig};
+
+use crate::output::write_atomic;
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Output directory (map.json, scans.csv, truth.csv).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of landmarks (rooms for more than 30 grow to keep the density of 30 in 10 m × 8 m).
+    #[arg(long, default_value_t = 30)]
+    pub landmarks: usize,
+    /// Random seed (same seed, same files).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Number of scans (10 Hz).
+    #[arg(long, default_value_t = 300)]
+    pub scans: usize,
+    /// Place landmarks in pairs symmetric under a 180° turn about the room centre (deliberately ambiguous).
+    #[arg(long)]
+    pub symmetric: bool,
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("this command is not available yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.landmarks < 3 || args.landmarks > 5000 {
+        anyhow::bail!("--landmarks {} must be between 3 and 5000", args.landmarks);
+    }
+    if args.scans == 0 {
+        anyhow::bail!("--scans must be at least 1");
+    }
+    let cfg = LrfSimConfig {
+        symmetric: args.symmetric,
+        n_scans: args.scans,
+        ..LrfSimConfig::scaled(args.landmarks, args.seed)
+    };
+    let sim = simulate(&cfg);
+    if sim.world.landmarks.len() < 3 {
+        anyhow::bail!(
+            "could only place {} landmarks; use fewer landmarks",
+            sim.world.landmarks.len()
+        );
+    }
+    let map = args.out.join("map.json");
+    let scans = args.out.join("scans.csv");
+    let truth = args.out.join("truth.csv");
+    write_atomic(&map, sim.map_json().as_bytes())?;
+    write_atomic(&scans, sim.scans_csv().as_bytes())?;
+    write_atomic(&truth, sim.truth_csv().as_bytes())?;
+    let (det, spur, missed) = sim.summary();
+    println!(
+        "synth lrf: {} landmarks in {:.1} m x {:.1} m{}, {} scans; per scan {:.1} reflectors detected, {:.1} spurious ({:.0} %), {:.0} % missed; sigma_range {:.0} mm",
+        sim.world.landmarks.len(),
+        cfg.room_w_m,
+        cfg.room_h_m,
+        if cfg.symmetric { " (symmetric layout)" } else { "" },
+        sim.scans.len(),
+        det,
+        spur,
+        100.0 * spur / det.max(1e-9),
+        100.0 * missed,
+        cfg.sigma_range_m * 1e3
+    );
+    println!(
+        "wrote {}, {}, {}\nnext: odocal lrf localize --map {} {} --out poses.csv --truth {}",
+        map.display(),
+        scans.display(),
+        truth.display(),
+        map.display(),
+        scans.display(),
+        truth.display()
+    );
+    Ok(())
 }

@@ -1,0 +1,466 @@
+//! Laser positioning: acceptance on seeded synthetic scans (library level)
+//! and the `odocal synth lrf` / `odocal lrf` commands end to end.
+
+use std::path::Path;
+use std::process::Command;
+
+use odocal_fixtures::lrf_sim::{simulate, LrfSim, LrfSimConfig};
+use odocal_lrf::{
+    evaluate, Evaluation, Localizer, LocalizerConfig, Map, Scan, Status, Tracker, TruthPose,
+};
+
+fn scans_of(sim: &LrfSim) -> Vec<Scan> {
+    sim.scans
+        .iter()
+        .map(|s| Scan {
+            id: s.id,
+            t_s: Some(s.t_s),
+            angles_rad: s.angles_rad.clone(),
+            ranges_m: s.ranges_m.clone(),
+            intensities: s.intensities.clone(),
+        })
+        .collect()
+}
+
+fn truth_of(sim: &LrfSim) -> Vec<TruthPose> {
+    sim.scans
+        .iter()
+        .map(|s| TruthPose {
+            t_s: s.t_s,
+            pose: s.truth,
+            n_detected: Some(s.n_detected),
+        })
+        .collect()
+}
+
+/// Global (no prior) and tracking evaluations of one simulated sequence.
+fn run(cfg: &LrfSimConfig) -> (LrfSim, Localizer, Evaluation, Evaluation) {
+    let sim = simulate(cfg);
+    let map = Map::parse(&sim.map_json(), "sim").expect("simulated map is valid");
+    let loc = Localizer::new(map, LocalizerConfig::default());
+    let scans = scans_of(&sim);
+    let truth = truth_of(&sim);
+    let global: Vec<_> = scans
+        .iter()
+        .map(|s| {
+            let d = loc.detections(s);
+            let g = loc.global(s, &d);
+            let b = g.best();
+            (
+                s.t_s.unwrap_or(0.0),
+                g.status,
+                b.map(|h| h.pose),
+                b.map_or(0, |h| h.matches.len()),
+            )
+        })
+        .collect();
+    let mut tracker = Tracker::new(&loc);
+    let tracked: Vec<_> = scans
+        .iter()
+        .map(|s| {
+            let r = tracker.process(s, s.t_s.unwrap_or(0.0));
+            (r.t_s, r.status, r.pose, r.n_landmarks)
+        })
+        .collect();
+    let eg = evaluate(&global, &truth);
+    let et = evaluate(&tracked, &truth);
+    (sim, loc, eg, et)
+}
+
+fn report(name: &str, e: &Evaluation) {
+    println!(
+        "{name}: {} scans, ok {}, ambiguous {}, lost {}; position RMS {:.2} mm, heading RMS {:.3} deg over {} scans; correct {}/{} ({:.2} %); confident wrong {}",
+        e.n_scans,
+        e.n_ok,
+        e.n_ambiguous,
+        e.n_lost,
+        e.position_rms_m * 1e3,
+        e.heading_rms_rad.to_degrees(),
+        e.n_accuracy,
+        e.n_correct_eligible,
+        e.n_eligible,
+        100.0 * e.n_correct_eligible as f64 / e.n_eligible as f64,
+        e.n_wrong_ok
+    );
+}
+
+#[test]
+fn acceptance_30_landmarks_10_by_8_room() {
+    for seed in [1, 2] {
+        let cfg = LrfSimConfig {
+            seed,
+            ..LrfSimConfig::default()
+        };
+        assert_eq!(
+            (
+                cfg.n_landmarks,
+                cfg.room_w_m,
+                cfg.room_h_m,
+                cfg.sigma_range_m,
+                cfg.p_missed,
+                cfg.spurious_ratio
+            ),
+            (30, 10.0, 8.0, 0.01, 0.1, 0.2)
+        );
+        let (sim, _, g, t) = run(&cfg);
+        let (det, spur, missed) = sim.summary();
+        println!(
+            "seed {seed}: {det:.2} detected and {spur:.2} spurious per scan, missed {:.1} %",
+            missed * 100.0
+        );
+        // The simulator delivers the conditions of the acceptance test.
+        assert!(
+            (0.15..0.25).contains(&(spur / det)),
+            "spurious ratio {}",
+            spur / det
+        );
+        assert!((0.07..0.13).contains(&missed), "missed {missed}");
+        report(&format!("seed {seed} global"), &g);
+        report(&format!("seed {seed} tracking"), &t);
+        for e in [&g, &t] {
+            assert!(
+                e.n_eligible >= 250,
+                "too few scans with >= 3 landmarks: {}",
+                e.n_eligible
+            );
+            assert!(e.n_accuracy >= 250);
+            assert!(
+                e.position_rms_m <= 0.010,
+                "position RMS {} m",
+                e.position_rms_m
+            );
+            assert!(
+                e.heading_rms_rad <= 0.3f64.to_radians(),
+                "heading RMS {} rad",
+                e.heading_rms_rad
+            );
+            assert!(
+                e.n_correct_eligible as f64 >= 0.99 * e.n_eligible as f64,
+                "correct on {}/{}",
+                e.n_correct_eligible,
+                e.n_eligible
+            );
+            assert_eq!(e.n_wrong_ok, 0, "confident wrong poses");
+        }
+    }
+}
+
+#[test]
+fn symmetric_layout_never_gives_a_confident_wrong_pose() {
+    let cfg = LrfSimConfig {
+        symmetric: true,
+        seed: 3,
+        ..LrfSimConfig::default()
+    };
+    let (sim, loc, g, t) = run(&cfg);
+    report("symmetric global", &g);
+    report("symmetric tracking", &t);
+    assert_eq!(g.n_wrong_ok, 0);
+    assert_eq!(t.n_wrong_ok, 0);
+    // Not by giving up: most scans with >= 3 landmarks are reported ambiguous
+    // with the true pose among the hypotheses (and its 180° twin).
+    let mut with_truth = 0;
+    let mut eligible = 0;
+    for (s, scan) in sim.scans.iter().zip(scans_of(&sim)) {
+        if s.n_detected < 3 {
+            continue;
+        }
+        eligible += 1;
+        let l = loc.global(&scan, &loc.detections(&scan));
+        let has_truth = l
+            .hypotheses
+            .iter()
+            .any(|h| (h.pose.position() - s.truth.position()).norm() < 0.05);
+        if l.status == Status::Ambiguous && has_truth && l.hypotheses.len() >= 2 {
+            with_truth += 1;
+        }
+    }
+    println!("symmetric: {with_truth}/{eligible} eligible scans ambiguous with the truth among the hypotheses");
+    assert!(eligible >= 100);
+    assert!(
+        with_truth as f64 >= 0.9 * eligible as f64,
+        "{with_truth}/{eligible}"
+    );
+}
+
+fn odocal(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(args)
+        .output()
+        .expect("run odocal")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn cli_synth_then_localize_with_truth() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let out = odocal(&[
+        "synth",
+        "lrf",
+        "--out",
+        s(d),
+        "--seed",
+        "4",
+        "--scans",
+        "120",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let first = std::fs::read(d.join("scans.csv")).expect("scans");
+    // Same seed, same bytes.
+    let d2 = d.join("again");
+    let out = odocal(&[
+        "synth",
+        "lrf",
+        "--out",
+        s(&d2),
+        "--seed",
+        "4",
+        "--scans",
+        "120",
+    ]);
+    assert!(out.status.success());
+    assert_eq!(first, std::fs::read(d2.join("scans.csv")).expect("scans"));
+    assert_eq!(
+        std::fs::read(d.join("map.json")).expect("map"),
+        std::fs::read(d2.join("map.json")).expect("map")
+    );
+
+    let poses = d.join("poses.csv");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&d.join("scans.csv")),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&d.join("truth.csv")),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    println!("{stdout}");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("120 scans"), "{stdout}");
+    assert!(
+        stdout.contains("position RMS")
+            && stdout.contains(" mm")
+            && stdout.contains("confident wrong poses: 0")
+    );
+    let text = std::fs::read_to_string(&poses).expect("poses");
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan")
+    );
+    let truth = std::fs::read_to_string(d.join("truth.csv")).expect("truth");
+    let mut n_ok = 0;
+    for (row, tr) in lines.zip(truth.lines().skip(1)) {
+        let f: Vec<&str> = row.split(',').collect();
+        let t: Vec<f64> = tr
+            .split(',')
+            .take(4)
+            .map(|v| v.parse().expect("number"))
+            .collect();
+        assert!(["ok", "ambiguous", "lost"].contains(&f[4]), "{row}");
+        if f[4] == "ok" {
+            n_ok += 1;
+            let (x, y): (f64, f64) = (f[1].parse().expect("x"), f[2].parse().expect("y"));
+            assert!((x - t[1]).hypot(y - t[2]) < 0.05, "{row} vs {tr}");
+            assert!(f[5].parse::<usize>().expect("n_landmarks") >= 3);
+        }
+    }
+    assert!(n_ok >= 100, "{n_ok} ok scans of 120");
+
+    // One scan per file (no scan/t columns) works too, in global-only mode.
+    let one = d.join("one.csv");
+    let mut single = String::from("angle,range,intensity\n");
+    for l in first.split(|&b| b == b'\n').skip(1).take(683) {
+        let l = String::from_utf8_lossy(l);
+        let f: Vec<&str> = l.split(',').collect();
+        single.push_str(&format!("{},{},{}\n", f[2], f[3], f[4]));
+    }
+    std::fs::write(&one, single).expect("write");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--global-only",
+        "--map",
+        s(&d.join("map.json")),
+        s(&one),
+        "--out",
+        s(&d.join("one_poses.csv")),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("1 scans"));
+}
+
+#[test]
+fn cli_check_map_flags_the_symmetric_layout() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let sym = d.join("sym");
+    assert!(odocal(&[
+        "synth",
+        "lrf",
+        "--out",
+        s(&sym),
+        "--symmetric",
+        "--scans",
+        "1"
+    ])
+    .status
+    .success());
+    let out = odocal(&["lrf", "check-map", s(&sym.join("map.json"))]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("{text}");
+    assert!(out.status.success());
+    assert!(text.contains("verdict: AMBIGUOUS"), "{text}");
+    let rnd = d.join("rnd");
+    assert!(odocal(&["synth", "lrf", "--out", s(&rnd), "--scans", "1"])
+        .status
+        .success());
+    let out = odocal(&["lrf", "check-map", s(&rnd.join("map.json"))]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("{text}");
+    assert!(out.status.success());
+    assert!(
+        text.contains("verdict: no congruent configuration"),
+        "{text}"
+    );
+}
+
+/// Runs odocal expecting exit code 2 and a one-line error containing `want`.
+fn expect_error(args: &[&str], want: &str) {
+    let out = odocal(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.starts_with("odocal: error: "), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(err.contains(want), "{args:?}: expected {want:?} in {err}");
+}
+
+#[test]
+fn cli_bad_input_exits_with_code_2() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let w = |name: &str, text: &str| {
+        let p = d.join(name);
+        std::fs::write(&p, text).expect("write");
+        p
+    };
+    let lm = |id: u32, x: f64, y: f64| format!(r#"{{"id": {id}, "x_m": {x}, "y_m": {y}}}"#);
+    let good = w(
+        "good.json",
+        &format!(
+            r#"{{"format": "odocal.lrf-map/1", "landmarks": [{}, {}, {}]}}"#,
+            lm(1, 0.0, 0.0),
+            lm(2, 2.0, 0.0),
+            lm(3, 0.0, 2.0)
+        ),
+    );
+    let dup = w(
+        "dup.json",
+        &format!(
+            r#"{{"format": "odocal.lrf-map/1", "landmarks": [{}, {}, {}]}}"#,
+            lm(1, 0.0, 0.0),
+            lm(1, 2.0, 0.0),
+            lm(3, 0.0, 2.0)
+        ),
+    );
+    let few = w(
+        "few.json",
+        &format!(
+            r#"{{"format": "odocal.lrf-map/1", "landmarks": [{}, {}]}}"#,
+            lm(1, 0.0, 0.0),
+            lm(2, 2.0, 0.0)
+        ),
+    );
+    let wrong = w("wrong.json", r#"{"format": "odocal.camera/1"}"#);
+    let scan = w(
+        "scan.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.1\n0.02,1.0,0.1\n",
+    );
+    let nan = w(
+        "nan.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,NaN,0.1\n",
+    );
+    let neg = w(
+        "neg.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,-0.5,0.1\n",
+    );
+    let uneven = w(
+        "uneven.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.1\n0.03,1.0,0.1\n",
+    );
+    let other_step = w(
+        "other.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.02,1.0,0.1\n0.04,1.0,0.1\n",
+    );
+    let out = d.join("p.csv");
+    let loc = |map: &Path, scans: &Path| -> Vec<String> {
+        [
+            "lrf",
+            "localize",
+            "--map",
+            s(map),
+            s(scans),
+            "--out",
+            s(&out),
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
+    };
+    let run = |v: Vec<String>, want: &str| {
+        expect_error(&v.iter().map(|x| x.as_str()).collect::<Vec<_>>(), want)
+    };
+    run(loc(&dup, &scan), "share id 1");
+    run(loc(&few, &scan), "at least 3 are needed");
+    run(loc(&wrong, &scan), "expected \"odocal.lrf-map/1\"");
+    run(loc(&good, &nan), "nan.csv, line 3, column range");
+    run(
+        loc(&good, &neg),
+        "neg.csv, line 3, column range: range is -0.5",
+    );
+    run(
+        loc(&good, &uneven),
+        "uneven.csv, line 4, column angle: mismatched angle step",
+    );
+    let mut v = loc(&good, &scan);
+    v.push(s(&other_step).to_string());
+    run(v, "mismatched angle steps");
+    expect_error(&["lrf", "check-map", s(&dup)], "share id 1");
+    expect_error(
+        &["lrf", "check-map", s(&d.join("missing.json"))],
+        "cannot read",
+    );
+    // The good inputs run (nothing to see in three flat beams: lost).
+    let ok = odocal(
+        &loc(&good, &scan)
+            .iter()
+            .map(|x| x.as_str())
+            .collect::<Vec<_>>(),
+    );
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("1 lost"));
+}
