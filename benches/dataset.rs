@@ -1,2 +1,109 @@
-//! Benchmark: dataset (in progress).
-fn main() {}
+//! Benchmark: building the dataset from trajectories (131 runs of the default experiment).
+//! Times parsing alone (baseline), the full build sequentially and in parallel (rayon), as
+//! medians of several repetitions, and prints ratios against the baseline.
+
+use std::time::Instant;
+
+use odocal_dataset::build::{assemble, process_recording, BuildOptions, Recording};
+use odocal_dataset::{OdometryLog, Trajectory, TrajectoryRow};
+use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
+use rayon::prelude::*;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time(reps: usize, mut f: impl FnMut()) -> f64 {
+    median(
+        (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
+}
+
+fn main() {
+    let cfg = RobotSimConfig::default();
+    let runs = 131;
+    let t_sim = Instant::now();
+    // (odometry CSV, trajectory CSV) per run, as `synth experiment --frames none` writes them.
+    let files: Vec<(String, String)> = (0..runs)
+        .into_par_iter()
+        .map(|r| {
+            let rec =
+                simulate_recording(&cfg, &[cfg.speed_of_run(r)], 1, r as u64).expect("simulate");
+            let log = OdometryLog::from_ticks(
+                rec.log.iter().map(|x| rec.log_time_s(x)).collect(),
+                rec.log.iter().map(|x| x.left_ticks).collect(),
+                rec.log.iter().map(|x| x.right_ticks).collect(),
+            )
+            .expect("log");
+            let rows = rec
+                .camera_trajectory(&cfg.camera, 1, (1 << 32) + r as u64)
+                .into_iter()
+                .map(|(t, pose)| TrajectoryRow {
+                    t_s: t,
+                    pose,
+                    quality: 1.0,
+                })
+                .collect();
+            (
+                log.to_csv(),
+                Trajectory::new(rows).expect("trajectory").to_csv(),
+            )
+        })
+        .collect();
+    println!(
+        "simulated {runs} runs in {:.3} s",
+        t_sim.elapsed().as_secs_f64()
+    );
+    let frames: usize = files.iter().map(|f| f.1.lines().count() - 1).sum();
+    let opts = BuildOptions::default();
+    let parse = |f: &(String, String)| {
+        (
+            OdometryLog::parse_csv(&f.0, "log").expect("log"),
+            Trajectory::parse_csv(&f.1, "trajectory").expect("trajectory"),
+        )
+    };
+    let one = |f: &(String, String)| {
+        let (log, cam) = parse(f);
+        let rec = Recording {
+            id: "r",
+            speed_mps: None,
+            log: &log,
+            camera: &cam,
+        };
+        process_recording(&rec, &opts).expect("build")
+    };
+    let reps = 5;
+    let t_parse = time(reps, || {
+        let n: usize = files.iter().map(|f| parse(f).1.rows.len()).sum();
+        assert_eq!(n, frames);
+    });
+    let t_seq = time(reps, || {
+        let ds = assemble(opts.robot, files.iter().map(one).collect());
+        assert_eq!(ds.samples.len(), runs);
+    });
+    let t_par = time(reps, || {
+        let ds = assemble(opts.robot, files.par_iter().map(one).collect());
+        assert_eq!(ds.samples.len(), runs);
+    });
+    println!("dataset from trajectories: {runs} runs, {frames} camera frames, median of {reps}");
+    println!("  parse CSV only (baseline) {:8.1} ms", 1e3 * t_parse);
+    println!(
+        "  build, sequential         {:8.1} ms  ({:.1} ms/run, {:.1}x baseline)",
+        1e3 * t_seq,
+        1e3 * t_seq / runs as f64,
+        t_seq / t_parse
+    );
+    println!(
+        "  build, parallel ({} thr)   {:8.1} ms  ({:.2}x faster than sequential)",
+        rayon::current_num_threads(),
+        1e3 * t_par,
+        t_seq / t_par
+    );
+}

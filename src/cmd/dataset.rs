@@ -1,10 +1,145 @@
-//! `odocal dataset` (not yet available).
+//! `odocal dataset`: builds the training set (dataset.json) from a run manifest — odometry
+//! logs plus camera trajectories (or videos, tracked first).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use odocal_dataset::build::{
+    assemble, process_recording, samples_csv, BuildOptions, Recording, RunOutcome,
+};
+use odocal_dataset::{Manifest, ManifestRow, OdometryLog, RobotParams, Trajectory};
+use rayon::prelude::*;
+
+use crate::output::{progress, write_atomic, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Run manifest (JSON "odocal.manifest/1" or CSV id,video,trajectory,odometry,speed_mps).
+    #[arg(long)]
+    pub manifest: PathBuf,
+    /// Camera calibration (camera.json), needed for rows with a video.
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    /// Output dataset.json.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the samples as CSV.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Robot parameters JSON ("format": "odocal.robot/1"); default: the source's robot.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Shortest stop, seconds, that splits a recording into separate runs.
+    #[arg(long, default_value_t = odocal_dataset::build::DEFAULT_MIN_GAP_S)]
+    pub min_gap_s: f64,
+}
+
+/// Hook for video rows: tracks `video` with the calibration `camera` into a trajectory.
+/// The integrator wires this to the tracker (`odocal track`).
+pub fn trajectory_from_video(
+    row: &ManifestRow,
+    video: &Path,
+    camera: Option<&Path>,
+) -> anyhow::Result<Trajectory> {
+    let _ = camera;
+    bail!(
+        "run \"{}\": {} is a video, and tracking videos is not wired into `odocal dataset` yet; \
+         track it with `odocal track` and list the trajectory CSV in the manifest instead",
+        row.id,
+        video.display()
+    )
+}
+
+fn one_row(
+    m: &Manifest,
+    row: &ManifestRow,
+    camera: Option<&Path>,
+    opts: &BuildOptions,
+) -> anyhow::Result<Vec<RunOutcome>> {
+    let log = OdometryLog::read_csv(&m.resolve(&row.odometry))?;
+    let traj = match (&row.trajectory, &row.video) {
+        (Some(t), _) => Trajectory::read_csv(&m.resolve(t))?,
+        (None, Some(v)) => trajectory_from_video(row, &m.resolve(v), camera)?,
+        (None, None) => bail!("run \"{}\": no video and no trajectory", row.id),
+    };
+    let rec = Recording {
+        id: &row.id,
+        speed_mps: row.speed_mps,
+        log: &log,
+        camera: &traj,
+    };
+    Ok(process_recording(&rec, opts)?)
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("this command is not available yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if !(args.min_gap_s.is_finite() && args.min_gap_s > 0.0) {
+        bail!("--min-gap-s must be a positive number of seconds");
+    }
+    let manifest = Manifest::read(&args.manifest)?;
+    manifest.check_files()?;
+    if manifest.runs.iter().any(|r| r.video.is_some()) {
+        match &args.camera {
+            None => {
+                bail!("the manifest lists videos: give the calibration with --camera camera.json")
+            }
+            Some(c) if !c.is_file() => bail!("camera calibration {} does not exist", c.display()),
+            _ => {}
+        }
+    }
+    let robot = match &args.robot {
+        Some(p) => RobotParams::read(p)?,
+        None => RobotParams::default(),
+    };
+    let opts = BuildOptions {
+        robot,
+        min_gap_s: args.min_gap_s,
+        ..BuildOptions::default()
+    };
+    let bar = progress(manifest.runs.len() as u64, "dataset");
+    let results: Vec<anyhow::Result<Vec<RunOutcome>>> = manifest
+        .runs
+        .par_iter()
+        .map(|row| {
+            let r = one_row(&manifest, row, args.camera.as_deref(), &opts);
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut outcomes = Vec::with_capacity(results.len());
+    for r in results {
+        outcomes.push(r?);
+    }
+    let ds = assemble(robot, outcomes);
+    write_json(&args.out, &ds).with_context(|| format!("writing {}", args.out.display()))?;
+    if let Some(csv) = &args.csv {
+        write_atomic(csv, samples_csv(&ds).as_bytes())?;
+    }
+    let s = &ds.summary;
+    println!(
+        "dataset: {} samples from {} runs in {} recordings ({} rejected) -> {}",
+        ds.samples.len(),
+        s.runs,
+        s.recordings,
+        ds.rejected.len(),
+        args.out.display()
+    );
+    for r in &ds.rejected {
+        println!("  rejected {}: {}", r.run_id, r.reason);
+    }
+    if !ds.samples.is_empty() {
+        println!(
+            "raw odometry end-point error: {:.2} % of path length (RMS {:.1} mm, mean path {:.3} m)",
+            100.0 * s.raw_relative_error,
+            1e3 * s.raw_rms_error_m,
+            s.mean_path_length_m
+        );
+        println!(
+            "largest alignment residual: {:.4} m/s",
+            s.max_alignment_residual_mps
+        );
+    }
+    Ok(())
 }

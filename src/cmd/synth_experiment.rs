@@ -1,10 +1,299 @@
-//! `odocal synth_experiment` (not yet available).
+//! `odocal synth experiment`: the whole odometry experiment of source A with known truth —
+//! a run manifest, per recording a 200 ms tick log and a ceiling video (or, with
+//! `--frames none`, the camera trajectory taken from the truth), and the truth itself.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use odocal_dataset::manifest::{Manifest, ManifestRow};
+use odocal_dataset::oracle::{OracleFile, OracleRun};
+use odocal_dataset::{OdometryLog, Trajectory, TrajectoryRow, WheelGeometry};
+use odocal_fixtures::robot::{
+    simulate_recording, CameraTiming, Recording, RobotSimConfig, RunTruth, ROBOT_SIM_FORMAT,
+};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::output::{progress, write_atomic, write_json};
+
+/// What stands for the camera.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Frames {
+    /// Render ceiling videos (tracked later by `odocal dataset`).
+    Video,
+    /// No video: the true trajectory at the camera's frame times (with its clock offset and
+    /// the configured mm-level noise) is written as the camera trajectory.
+    None,
+}
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of runs.
+    #[arg(long, default_value_t = 131)]
+    pub runs: usize,
+    /// Random seed (same seed, same bytes).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Camera source: rendered videos or trajectories from the truth.
+    #[arg(long, value_enum, default_value_t = Frames::Video)]
+    pub frames: Frames,
+    /// Runs per recording: more than 1 puts several runs, separated by stops and carrying the
+    /// robot back, in one log and one video (`odocal dataset` splits them by motion).
+    #[arg(long, default_value_t = 1)]
+    pub runs_per_recording: usize,
+    /// Simulator configuration JSON ("format": "odocal.robotsim/1"; absent fields take defaults).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// Truth of one recording, as written to truth/experiment.json.
+#[derive(Serialize)]
+struct RecordingTruth {
+    id: String,
+    clock_offset_s: f64,
+    camera_end_s: f64,
+    runs: Vec<NamedRun>,
+}
+
+#[derive(Serialize)]
+struct NamedRun {
+    run_id: String,
+    #[serde(flatten)]
+    truth: RunTruth,
+}
+
+#[derive(Serialize)]
+struct ExperimentTruth<'a> {
+    format: &'static str,
+    seed: u64,
+    frames: Frames,
+    runs: usize,
+    runs_per_recording: usize,
+    config: &'a RobotSimConfig,
+    recordings: Vec<RecordingTruth>,
+}
+
+/// Hook for `--frames video`: renders the ceiling video of one recording to `path`.
+///
+/// Frame k is at camera time k / `camera.fps` for k / fps <= `rec.camera_end_s`; the robot's
+/// true floor pose at a camera time is `rec.pose_at_camera_time(t)` (None while the robot is
+/// carried: the tag is hidden). The integrator wires this to the renderer (fixtures::scene)
+/// and the camera of `synth calib`.
+pub fn render_video(rec: &Recording, camera: &CameraTiming, path: &Path) -> anyhow::Result<()> {
+    let _ = (rec, camera);
+    bail!(
+        "rendering videos is not wired into `synth experiment` yet (would write {}); use --frames none",
+        path.display()
+    )
+}
+
+fn load_config(path: &Path) -> anyhow::Result<RobotSimConfig> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: invalid JSON", path.display()))?;
+    match v.get("format").and_then(|f| f.as_str()) {
+        Some(ROBOT_SIM_FORMAT) => {}
+        other => bail!(
+            "{}: format is {:?}, expected \"{ROBOT_SIM_FORMAT}\"; is this a simulator config?",
+            path.display(),
+            other.unwrap_or("missing")
+        ),
+    }
+    let cfg: RobotSimConfig =
+        serde_json::from_value(v).with_context(|| format!("{}", path.display()))?;
+    cfg.validate()?;
+    Ok(cfg)
+}
 
 /// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("this command is not available yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.runs == 0 {
+        bail!("--runs must be at least 1");
+    }
+    if args.runs_per_recording == 0 {
+        bail!("--runs-per-recording must be at least 1");
+    }
+    let cfg = match &args.config {
+        Some(p) => load_config(p)?,
+        None => RobotSimConfig::default(),
+    };
+    let per = args.runs_per_recording;
+    let n_rec = args.runs.div_ceil(per);
+    let out = &args.out;
+    std::fs::create_dir_all(out.join("runs"))
+        .with_context(|| format!("cannot create {}", out.display()))?;
+    std::fs::create_dir_all(out.join("truth"))
+        .with_context(|| format!("cannot create {}", out.display()))?;
+    let bar = progress(n_rec as u64, "simulate");
+    let results: Vec<anyhow::Result<(ManifestRow, RecordingTruth, Vec<OracleRun>)>> = (0..n_rec)
+        .into_par_iter()
+        .map(|r| {
+            let res = one_recording(&args, &cfg, r, per);
+            bar.inc(1);
+            res
+        })
+        .collect();
+    bar.finish_and_clear();
+    let mut rows = Vec::with_capacity(n_rec);
+    let mut truths = Vec::with_capacity(n_rec);
+    let mut oracle = Vec::with_capacity(args.runs);
+    for res in results {
+        let (row, truth, orc) = res?;
+        rows.push(row);
+        truths.push(truth);
+        oracle.extend(orc);
+    }
+    let manifest = Manifest::new(rows, out);
+    write_atomic(
+        &out.join("manifest.json"),
+        format!("{}\n", manifest.to_json()).as_bytes(),
+    )?;
+    write_json(
+        &out.join("truth").join("oracle.json"),
+        &OracleFile::new(oracle),
+    )?;
+    write_json(&out.join("truth").join("simulator.json"), &cfg)?;
+    write_json(
+        &out.join("truth").join("experiment.json"),
+        &ExperimentTruth {
+            format: "odocal.experiment-truth/1",
+            seed: args.seed,
+            frames: args.frames,
+            runs: args.runs,
+            runs_per_recording: per,
+            config: &cfg,
+            recordings: truths,
+        },
+    )?;
+    println!(
+        "synth experiment: {} runs in {} recordings (seed {}, frames {}) -> {}",
+        args.runs,
+        n_rec,
+        args.seed,
+        match args.frames {
+            Frames::Video => "video",
+            Frames::None => "none",
+        },
+        out.join("manifest.json").display()
+    );
+    Ok(())
+}
+
+fn one_recording(
+    args: &Args,
+    cfg: &RobotSimConfig,
+    r: usize,
+    per: usize,
+) -> anyhow::Result<(ManifestRow, RecordingTruth, Vec<OracleRun>)> {
+    let first = r * per;
+    let last = (first + per).min(args.runs);
+    let speeds: Vec<f64> = (first..last).map(|i| cfg.speed_of_run(i)).collect();
+    let id = if per == 1 {
+        format!("run{:03}", r + 1)
+    } else {
+        format!("rec{:03}", r + 1)
+    };
+    let rec = simulate_recording(cfg, &speeds, args.seed, r as u64)?;
+    if rec.runs.len() != speeds.len() {
+        bail!(
+            "recording {id}: simulated {} of {} runs",
+            rec.runs.len(),
+            speeds.len()
+        );
+    }
+    let log = OdometryLog::from_ticks(
+        rec.log.iter().map(|row| rec.log_time_s(row)).collect(),
+        rec.log.iter().map(|row| row.left_ticks).collect(),
+        rec.log.iter().map(|row| row.right_ticks).collect(),
+    )?;
+    let odo_rel = format!("runs/{id}.odometry.csv");
+    write_atomic(&args.out.join(&odo_rel), log.to_csv().as_bytes())?;
+    let (video, trajectory) = match args.frames {
+        Frames::None => {
+            let rows = rec
+                .camera_trajectory(&cfg.camera, args.seed, (1u64 << 32) + r as u64)
+                .into_iter()
+                .map(|(t, pose)| TrajectoryRow {
+                    t_s: t,
+                    pose,
+                    quality: 1.0,
+                })
+                .collect();
+            let traj = Trajectory::new(rows)?;
+            let rel = format!("runs/{id}.trajectory.csv");
+            write_atomic(&args.out.join(&rel), traj.to_csv().as_bytes())?;
+            (None, Some(rel))
+        }
+        Frames::Video => {
+            let rel = format!("runs/{id}.mp4");
+            render_video(&rec, &cfg.camera, &args.out.join(&rel))?;
+            (Some(rel), None)
+        }
+    };
+    // True trajectory at 100 Hz on both clocks.
+    let mut csv = String::from("t_robot,t_camera,x,y,theta,visible\n");
+    for p in rec.truth.iter().step_by(2) {
+        csv.push_str(&format!(
+            "{:.3},{:.6},{:.6},{:.6},{:.6},{}\n",
+            p.t_robot_s,
+            p.t_robot_s + rec.clock_offset_s,
+            p.pose.x_m,
+            p.pose.y_m,
+            p.pose.theta_rad,
+            u8::from(p.visible)
+        ));
+    }
+    write_atomic(
+        &args.out.join("truth").join(format!("{id}.true.csv")),
+        csv.as_bytes(),
+    )?;
+    let names: Vec<String> = (0..rec.runs.len())
+        .map(|j| {
+            if per == 1 {
+                id.clone()
+            } else {
+                format!("{id}.{}", j + 1)
+            }
+        })
+        .collect();
+    let oracle = rec
+        .runs
+        .iter()
+        .zip(&names)
+        .map(|(t, name)| OracleRun {
+            run_id: name.clone(),
+            geometry: WheelGeometry {
+                left_wheel_diameter_m: t.effective.left_wheel_diameter_m,
+                right_wheel_diameter_m: t.effective.right_wheel_diameter_m,
+                wheel_base_m: t.effective.wheel_base_m,
+            },
+            true_end_m: [t.end_in_start_frame.x_m, t.end_in_start_frame.y_m],
+            clock_offset_s: rec.clock_offset_s,
+        })
+        .collect();
+    let row = ManifestRow {
+        id: id.clone(),
+        video,
+        trajectory,
+        odometry: odo_rel,
+        speed_mps: if per == 1 { Some(speeds[0]) } else { None },
+    };
+    let truth = RecordingTruth {
+        id,
+        clock_offset_s: rec.clock_offset_s,
+        camera_end_s: rec.camera_end_s,
+        runs: rec
+            .runs
+            .iter()
+            .zip(names)
+            .map(|(t, run_id)| NamedRun { run_id, truth: *t })
+            .collect(),
+    };
+    Ok((row, truth, oracle))
 }

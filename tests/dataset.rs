@@ -1,0 +1,224 @@
+//! End-to-end tests of `odocal synth experiment` and `odocal dataset` (issue 4), without video.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use odocal_dataset::{Dataset, OracleFile};
+
+fn odocal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(args)
+        .output()
+        .expect("run odocal")
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = odocal(args);
+    assert!(
+        o.status.success(),
+        "odocal {args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Runs odocal expecting exit code 2 and a one-line error; returns the message.
+fn fails(args: &[&str]) -> String {
+    let o = odocal(args);
+    assert_eq!(o.status.code(), Some(2), "odocal {args:?} should fail");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(err.starts_with("odocal: error: "), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    err
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("utf-8 path")
+}
+
+fn synth(dir: &Path, runs: usize, seed: u64, per: usize) {
+    ok(&[
+        "synth",
+        "experiment",
+        "--out",
+        p(dir),
+        "--runs",
+        &runs.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "--frames",
+        "none",
+        "--runs-per-recording",
+        &per.to_string(),
+    ]);
+}
+
+fn build(dir: &Path) -> Dataset {
+    let out = dir.join("dataset.json");
+    ok(&[
+        "dataset",
+        "--manifest",
+        p(&dir.join("manifest.json")),
+        "--out",
+        p(&out),
+        "--csv",
+        p(&dir.join("dataset.csv")),
+    ]);
+    Dataset::read(&out).expect("dataset.json")
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+}
+
+/// The acceptance experiment itself: 131 runs, seed 1, trajectories instead of video.
+#[test]
+fn default_experiment_meets_the_acceptance_bounds() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), 131, 1, 1);
+    let ds = build(dir.path());
+    let oracle = OracleFile::read(&dir.path().join("truth/oracle.json")).unwrap();
+    assert_eq!(ds.samples.len(), 131, "rejected: {:?}", ds.rejected);
+    assert!(ds.rejected.is_empty());
+    let mut target_err = Vec::new();
+    let mut offset_err = Vec::new();
+    let mut oracle_rel = Vec::new();
+    for s in &ds.samples {
+        let t = oracle.get(&s.run_id).expect("truth of run");
+        target_err.push((s.target_m[0] - t.true_end_m[0]).hypot(s.target_m[1] - t.true_end_m[1]));
+        offset_err.push(s.clock_offset_s - t.clock_offset_s);
+        let e = oracle.end_m(s).unwrap();
+        oracle_rel.push((e[0] - s.target_m[0]).hypot(e[1] - s.target_m[1]) / s.path_length_m);
+    }
+    let target_rms = rms(&target_err);
+    assert!(target_rms <= 0.0025, "target RMS {target_rms} m");
+    let off_rms = rms(&offset_err);
+    let off_max = offset_err.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    assert!(off_rms <= 0.005, "clock offset RMS error {off_rms} s");
+    // Slow runs carry little timing information at 12 counts/rev and 200 ms rows.
+    assert!(off_max <= 0.02, "largest clock offset error {off_max} s");
+    let rel = ds.summary.raw_relative_error;
+    assert!((0.08..=0.10).contains(&rel), "raw relative error {rel}");
+    // The oracle (true effective geometry) is far better than raw odometry.
+    let orc = oracle_rel.iter().sum::<f64>() / oracle_rel.len() as f64;
+    assert!(orc < 0.6 * rel, "oracle {orc} vs raw {rel}");
+    // Three speeds, path lengths about 1.5 m, 18 inputs each.
+    for s in &ds.samples {
+        assert_eq!(s.inputs.len(), 18);
+        assert!((s.path_length_m - 1.48).abs() < 0.1, "{}", s.path_length_m);
+        assert!([0.2, 0.5, 0.7].contains(&s.speed_mps));
+    }
+    let csv = std::fs::read_to_string(dir.path().join("dataset.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 132);
+}
+
+/// Several runs per recording (one log, one trajectory) are split by motion detection.
+#[test]
+fn long_recordings_are_split_into_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), 12, 5, 3);
+    let ds = build(dir.path());
+    let oracle = OracleFile::read(&dir.path().join("truth/oracle.json")).unwrap();
+    assert_eq!(ds.summary.recordings, 4);
+    assert_eq!(ds.samples.len(), 12, "rejected: {:?}", ds.rejected);
+    assert_eq!(ds.samples[4].run_id, "rec002.2");
+    let err: Vec<f64> = ds
+        .samples
+        .iter()
+        .map(|s| {
+            let t = oracle.get(&s.run_id).expect("truth of run");
+            (s.target_m[0] - t.true_end_m[0]).hypot(s.target_m[1] - t.true_end_m[1])
+        })
+        .collect();
+    assert!(rms(&err) <= 0.0025, "target RMS {}", rms(&err));
+}
+
+#[test]
+fn same_seed_same_bytes() {
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    synth(a.path(), 3, 9, 1);
+    synth(b.path(), 3, 9, 1);
+    for f in [
+        "runs/run002.odometry.csv",
+        "runs/run002.trajectory.csv",
+        "truth/oracle.json",
+    ] {
+        assert_eq!(
+            std::fs::read(a.path().join(f)).unwrap(),
+            std::fs::read(b.path().join(f)).unwrap(),
+            "{f}"
+        );
+    }
+}
+
+#[test]
+fn bad_input_gives_clear_errors_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 2, 4, 1);
+    let manifest = d.join("manifest.json");
+    let out = d.join("ds.json");
+    let run = |m: &Path| fails(&["dataset", "--manifest", p(m), "--out", p(&out)]);
+
+    // Malformed odometry CSV: line and column.
+    let log = d.join("runs/run001.odometry.csv");
+    let good = std::fs::read_to_string(&log).unwrap();
+    let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+    lines[3] = "0.6,abc,4".into();
+    std::fs::write(&log, lines.join("\n")).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("run001.odometry.csv:4:2: \"abc\" is not a number"),
+        "{e}"
+    );
+    // Duplicated timestamp.
+    let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+    lines[3] = lines[2].clone();
+    std::fs::write(&log, lines.join("\n")).unwrap();
+    assert!(run(&manifest).contains(":4:1: duplicated timestamp"));
+    // NaN.
+    let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+    lines[5] = "1,NaN,0".into();
+    std::fs::write(&log, lines.join("\n")).unwrap();
+    assert!(run(&manifest).contains(":6:2:"));
+    std::fs::write(&log, &good).unwrap();
+
+    // A trajectory that cannot overlap its log.
+    let traj = d.join("runs/run002.trajectory.csv");
+    let full = std::fs::read_to_string(&traj).unwrap();
+    let short: Vec<&str> = full.lines().take(20).collect();
+    std::fs::write(&traj, short.join("\n")).unwrap();
+    assert!(run(&manifest).contains("cannot overlap"));
+    std::fs::write(&traj, &full).unwrap();
+
+    // Missing file, video rows, wrong format.
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let m2 = d.join("m2.json");
+    std::fs::write(&m2, text.replace("run002.trajectory.csv", "missing.csv")).unwrap();
+    assert!(run(&m2).contains("missing.csv listed in the manifest does not exist"));
+    let m3 = d.join("m3.csv");
+    std::fs::write(
+        &m3,
+        "id,video,odometry\nv1,runs/run001.odometry.csv,runs/run001.odometry.csv\n",
+    )
+    .unwrap();
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&m3),
+        "--camera",
+        p(&m3),
+        "--out",
+        p(&out),
+    ]);
+    assert!(e.contains("is a video"), "{e}");
+    let m4 = d.join("m4.json");
+    std::fs::write(&m4, r#"{"format":"odocal.dataset/1","runs":[]}"#).unwrap();
+    assert!(run(&m4).contains("expected \"odocal.manifest/1\""));
+    assert!(!out.exists(), "nothing half-written");
+
+    // And the intact experiment still builds.
+    ok(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    assert_eq!(Dataset::read(&out).unwrap().samples.len(), 2);
+}
