@@ -433,6 +433,57 @@ mod tests {
     }
 
     #[test]
+    fn wheel_speed_logs_align_too() {
+        // Speeds as a robot computes them from its (quantised) encoders, m/s per interval.
+        let (ticks, cam) = synthetic(1.2345, false);
+        let circ = std::f64::consts::PI * 0.043 / 12.0;
+        let v: Vec<f64> = (0..ticks.len())
+            .map(|k| {
+                if k == 0 {
+                    0.0
+                } else {
+                    (ticks.left[k] - ticks.left[k - 1]) * circ / 0.2
+                }
+            })
+            .collect();
+        let log = OdometryLog::from_speeds(ticks.t_s.clone(), v.clone(), v).unwrap();
+        let rec = Recording {
+            id: "s1",
+            speed_mps: None,
+            log: &log,
+            camera: &cam,
+        };
+        let out = process_recording(&rec, &BuildOptions::default()).unwrap();
+        let RunOutcome::Sample(s) = &out[0] else {
+            panic!("rejected: {out:?}")
+        };
+        assert!(
+            (s.clock_offset_s - 1.2345).abs() < 0.02,
+            "offset {}",
+            s.clock_offset_s
+        );
+        assert!((s.target_m[0] - 1.5).abs() < 1e-6);
+        assert!((s.odometry_speed_mps - 0.5).abs() < 0.05);
+    }
+
+    #[test]
+    fn robot_params_file_round_trips() {
+        let dir = std::env::temp_dir().join(format!("odocal-robot-{}", std::process::id()));
+        let r = RobotParams {
+            wheel_base_m: 0.11,
+            ..RobotParams::default()
+        };
+        std::fs::write(&dir, r.to_json()).unwrap();
+        assert_eq!(RobotParams::read(&dir).unwrap(), r);
+        std::fs::write(&dir, r#"{"format":"odocal.robot/1","wheel_diameter_m":-1,"ticks_per_rev":12,"wheel_base_m":0.1,"period_s":0.2}"#).unwrap();
+        assert!(RobotParams::read(&dir)
+            .unwrap_err()
+            .to_string()
+            .contains("positive"));
+        let _ = std::fs::remove_file(&dir);
+    }
+
+    #[test]
     fn unusable_runs_are_rejected_and_mismatches_fail() {
         let (log, cam) = synthetic(0.5, true);
         let rec = Recording {
