@@ -1,1 +1,24 @@
-//! odocal-tracker (in progress).
+//! odocal-tracker: the robot's trajectory on the floor from ceiling-camera
+//! frames. Frame sources (videos through OpenCV/FFmpeg, image folders),
+//! AprilTag detection, the planar floor pose of a horizontal marker at a known
+//! height (solvePnP as a cross-check), ROI tracking with full-frame fallback,
+//! per-frame quality, gaps and jump rejection, and overlays. Trajectory files
+//! are `odocal_dataset::Trajectory` (CSV `t,x,y,theta,quality`, TUM export).
+
+pub mod detect;
+mod error;
+pub mod overlay;
+pub mod pose;
+pub mod source;
+pub mod track;
+
+pub use detect::{Roi, TagDetection, TagDetector};
+pub use error::TrackError;
+pub use odocal_dataset::{Trajectory, TrajectoryRow};
+pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
+pub use source::{
+    open_source, Frame, FrameSource, GrayFrame, MemorySource, SourceInfo, SourceOptions,
+};
+pub use track::{
+    track_source, Fix, FrameRecord, Gap, GapReason, Outcome, TrackOptions, TrackResult, Tracker,
+};

@@ -1,0 +1,419 @@
+//! End-to-end tests of `odocal synth track` and `odocal track`.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use nalgebra::Point2;
+use odocal_dataset::Trajectory;
+use odocal_fixtures::scene::{nadir, render_video, straight_trajectory, SceneConfig, VideoFormat};
+use odocal_geometry::wrap_angle;
+
+fn odocal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(args)
+        .output()
+        .expect("run odocal")
+}
+
+fn ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "odocal failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
+
+/// Exit code 2, exactly one `odocal: error:` line containing `needle`.
+fn fails_with(out: &Output, needle: &str) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "expected exit 2, stderr: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
+    assert!(lines[0].starts_with("odocal: error: "), "{err}");
+    assert!(lines[0].contains(needle), "expected {needle:?} in: {err}");
+    err
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("utf-8 temp path")
+}
+
+/// Position and heading RMS of `est` against `truth` at the same timestamps.
+fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
+    let (mut sp, mut sh, mut n) = (0.0, 0.0, 0);
+    for r in &est.rows {
+        let t = truth
+            .rows
+            .iter()
+            .find(|t| (t.t_s - r.t_s).abs() < 1e-6)
+            .expect("every tracked frame has a truth row");
+        sp += (r.pose.position() - t.pose.position()).norm_squared();
+        sh += wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
+        n += 1;
+    }
+    ((sp / n as f64).sqrt(), (sh / n as f64).sqrt(), n)
+}
+
+#[test]
+fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        "45",
+        "--seed",
+        "3",
+        "--video",
+        "avi",
+    ]));
+    for f in ["video.avi", "camera.json", "truth.csv", "scene.json"] {
+        assert!(d.join(f).is_file(), "{f} missing");
+    }
+    let out = d.join("traj.csv");
+    let tum = d.join("traj.tum");
+    let overlay = d.join("overlay");
+    let report = d.join("report.json");
+    let cam = d.join("camera.json");
+    let video = d.join("video.avi");
+    ok(&odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&cam),
+        "--tag-id",
+        "0",
+        "--tag-size",
+        "0.08",
+        "--marker-height",
+        "0.08",
+        "--out",
+        p(&out),
+        "--tum",
+        p(&tum),
+        "--overlay",
+        p(&overlay),
+        "--report",
+        p(&report),
+        "--pnp-check",
+    ]));
+    let est = Trajectory::read_csv(&out).unwrap();
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let (pos, head, n) = errors(&est, &truth);
+    eprintln!(
+        "MJPG AVI via CLI: {n}/45 frames, position RMS {:.3} mm, heading RMS {:.3} deg",
+        pos * 1e3,
+        head.to_degrees()
+    );
+    assert!(n >= 45 * 995 / 1000, "tracked only {n} of 45 frames");
+    assert!(pos <= 1.0e-3, "position RMS {:.3} mm", pos * 1e3);
+    assert!(
+        head.to_degrees() <= 0.3,
+        "heading RMS {:.3}°",
+        head.to_degrees()
+    );
+    let tum_text = std::fs::read_to_string(&tum).unwrap();
+    assert_eq!(tum_text.lines().filter(|l| !l.starts_with('#')).count(), n);
+    assert_eq!(std::fs::read_dir(&overlay).unwrap().count(), 45);
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(rep["format"], "odocal.track-report/1");
+    assert_eq!(rep["frames"], 45);
+    assert_eq!(rep["per_frame"].as_array().unwrap().len(), 45);
+    // The PnP cross-check agrees with the planar estimate on the heading.
+    for f in rep["per_frame"].as_array().unwrap() {
+        if let Some(dh) = f["pnp_heading_diff_deg"].as_f64() {
+            assert!(dh.abs() < 5.0, "PnP heading differs by {dh}°");
+        }
+    }
+    // Same seed, same bytes.
+    let d2 = d.join("again");
+    ok(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(&d2),
+        "--frames",
+        "45",
+        "--seed",
+        "3",
+        "--video",
+        "avi",
+    ]));
+    assert_eq!(
+        std::fs::read(&video).unwrap(),
+        std::fs::read(d2.join("video.avi")).unwrap()
+    );
+}
+
+#[test]
+fn png_sequence_and_mp4_are_tracked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        "20",
+        "--seed",
+        "4",
+        "--video",
+        "png",
+    ]));
+    let frames = d.join("frames");
+    assert!(frames.join("timestamps.csv").is_file());
+    let out = d.join("traj.csv");
+    ok(&odocal(&[
+        "track",
+        p(&frames),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&out),
+    ]));
+    let est = Trajectory::read_csv(&out).unwrap();
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let (pos, head, n) = errors(&est, &truth);
+    assert_eq!(n, 20);
+    assert!(
+        pos <= 1.0e-3 && head.to_degrees() <= 0.3,
+        "PNG: {pos} m, {head} rad"
+    );
+    // Fixed frame rate instead of the timestamp file: times are k / fps.
+    let out2 = d.join("traj_fps.csv");
+    ok(&odocal(&[
+        "track",
+        p(&frames),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--fps",
+        "10",
+        "--out",
+        p(&out2),
+    ]));
+    let est2 = Trajectory::read_csv(&out2).unwrap();
+    assert!((est2.rows[3].t_s - 0.3).abs() < 1e-9);
+
+    let dm = d.join("mp4");
+    let synth = odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(&dm),
+        "--frames",
+        "20",
+        "--seed",
+        "4",
+        "--video",
+        "mp4",
+    ]);
+    if !synth.status.success() {
+        // This OpenCV build cannot encode H.264: nothing more to check here.
+        fails_with(&synth, "video");
+        return;
+    }
+    let out3 = d.join("traj_mp4.csv");
+    ok(&odocal(&[
+        "track",
+        p(&dm.join("video.mp4")),
+        "--camera",
+        p(&dm.join("camera.json")),
+        "--out",
+        p(&out3),
+    ]));
+    let est3 = Trajectory::read_csv(&out3).unwrap();
+    let (pos, _, n) = errors(&est3, &Trajectory::read_csv(&dm.join("truth.csv")).unwrap());
+    eprintln!("MP4: {n}/20 frames, position RMS {:.3} mm", pos * 1e3);
+    assert!(n >= 19 && pos <= 2.0e-3, "MP4: {n} frames, {pos} m");
+}
+
+#[test]
+fn marker_leaving_the_view_gives_gaps_not_guesses() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cfg = SceneConfig::default();
+    let c = nadir(&cfg.floor);
+    // Drive out of the image to the right at 0.7 m/s and stop outside.
+    let traj = straight_trajectory(
+        Point2::new(c.x + 1.0, c.y),
+        Point2::new(c.x + 2.0, c.y),
+        0.7,
+    );
+    let frames = d.join("frames");
+    let truths = render_video(&frames, VideoFormat::Png, &cfg, &traj, 15.0, 9).unwrap();
+    let visible = truths.iter().filter(|t| t.tag_visible).count();
+    assert!(
+        visible >= 5 && visible + 5 <= truths.len(),
+        "{visible} of {}",
+        truths.len()
+    );
+    let cam_json = d.join("camera.json");
+    let floor = odocal_calib::FloorPlane {
+        floor_to_camera: cfg.floor,
+        plane_rms_m: 0.0,
+        camera_height_m: 2.2,
+        views: vec![],
+    };
+    std::fs::write(
+        &cam_json,
+        serde_json::to_string(&odocal_calib::CameraFile::from_model(
+            cfg.camera,
+            Some(floor),
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    let out = d.join("traj.csv");
+    let report = d.join("report.json");
+    ok(&odocal(&[
+        "track",
+        p(&frames),
+        "--camera",
+        p(&cam_json),
+        "--out",
+        p(&out),
+        "--report",
+        p(&report),
+    ]));
+    let est = Trajectory::read_csv(&out).unwrap();
+    // Every fully visible frame is tracked; partly visible ones may or may not be,
+    // but whatever is written is right, and nothing is written once the tag is gone.
+    assert!(
+        est.rows.len() >= visible,
+        "{} rows for {visible} visible frames",
+        est.rows.len()
+    );
+    for r in &est.rows {
+        let t = truths
+            .iter()
+            .find(|t| (t.t_s - r.t_s).abs() < 1e-6)
+            .unwrap();
+        assert!(
+            (r.pose.position() - t.pose.position()).norm() < 3e-3,
+            "frame at {} s is wrong",
+            r.t_s
+        );
+    }
+    assert!(est.rows.len() < truths.len());
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let gaps = rep["gaps"].as_array().unwrap();
+    assert_eq!(gaps.len(), 1, "{gaps:?}");
+    assert_eq!(
+        gaps[0]["last_frame"].as_u64().unwrap() as usize,
+        truths.len() - 1
+    );
+}
+
+#[test]
+fn bad_inputs_fail_clearly_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        "8",
+        "--seed",
+        "5",
+    ]));
+    let cam = d.join("camera.json");
+    let video = d.join("video.avi");
+    let out = d.join("traj.csv");
+
+    // Missing file.
+    let e = fails_with(
+        &odocal(&[
+            "track",
+            p(&d.join("nope.avi")),
+            "--camera",
+            p(&cam),
+            "--out",
+            p(&out),
+        ]),
+        "nope.avi",
+    );
+    assert!(e.contains("cannot read"), "{e}");
+    // Empty file and garbage file.
+    let empty = d.join("empty.avi");
+    std::fs::write(&empty, b"").unwrap();
+    fails_with(
+        &odocal(&["track", p(&empty), "--camera", p(&cam), "--out", p(&out)]),
+        "empty.avi",
+    );
+    let junk = d.join("junk.mp4");
+    std::fs::write(&junk, b"this is not a video at all, just text").unwrap();
+    fails_with(
+        &odocal(&["track", p(&junk), "--camera", p(&cam), "--out", p(&out)]),
+        "junk.mp4",
+    );
+    // Empty folder.
+    let empty_dir = d.join("nothing");
+    std::fs::create_dir(&empty_dir).unwrap();
+    fails_with(
+        &odocal(&[
+            "track",
+            p(&empty_dir),
+            "--camera",
+            p(&cam),
+            "--out",
+            p(&out),
+        ]),
+        "no PNG/JPEG",
+    );
+    // camera.json for another image size.
+    let mut cj: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+    cj["camera"]["width"] = serde_json::json!(640);
+    cj["camera"]["height"] = serde_json::json!(480);
+    let small = d.join("camera_640.json");
+    std::fs::write(&small, cj.to_string()).unwrap();
+    fails_with(
+        &odocal(&["track", p(&video), "--camera", p(&small), "--out", p(&out)]),
+        "640×480",
+    );
+    // Not a camera file.
+    let wrong = d.join("scene.json");
+    fails_with(
+        &odocal(&["track", p(&video), "--camera", p(&wrong), "--out", p(&out)]),
+        "odocal.camera/1",
+    );
+    // A tag id that never appears: say which ids were seen.
+    let e = fails_with(
+        &odocal(&[
+            "track",
+            p(&video),
+            "--camera",
+            p(&cam),
+            "--tag-id",
+            "7",
+            "--out",
+            p(&out),
+        ]),
+        "ids seen: 0 (",
+    );
+    assert!(e.contains("tag 7"), "{e}");
+    // Unknown family.
+    fails_with(
+        &odocal(&[
+            "track",
+            p(&video),
+            "--camera",
+            p(&cam),
+            "--family",
+            "tag99h1",
+            "--out",
+            p(&out),
+        ]),
+        "tag99h1",
+    );
+    assert!(!out.exists(), "no partial output after fatal errors");
+}

@@ -1,0 +1,175 @@
+//! AprilTag detection (the `apriltag` crate, i.e. the reference C library) on a
+//! whole frame or a region of interest, with corners in OpenCV's pixel
+//! convention (pixel centres at integer coordinates).
+
+use std::str::FromStr;
+
+use apriltag::{Detector, DetectorBuilder, Family, Image};
+use nalgebra::Point2;
+
+use crate::source::GrayFrame;
+use crate::TrackError;
+
+/// A rectangle of pixels: columns x0..x0+width, rows y0..y0+height.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Roi {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+}
+
+impl Roi {
+    /// A square of half-size `half_px` around `centre`, clipped to a `w`×`h`
+    /// image; `None` if nothing of it is inside.
+    pub fn around(centre: Point2<f64>, half_px: f64, w: u32, h: u32) -> Option<Self> {
+        let x0 = (centre.x - half_px).floor().max(0.0);
+        let y0 = (centre.y - half_px).floor().max(0.0);
+        let x1 = (centre.x + half_px).ceil().min(w as f64);
+        let y1 = (centre.y + half_px).ceil().min(h as f64);
+        (x1 - x0 >= 16.0 && y1 - y0 >= 16.0).then(|| Self {
+            x0: x0 as u32,
+            y0: y0 as u32,
+            width: (x1 - x0) as u32,
+            height: (y1 - y0) as u32,
+        })
+    }
+}
+
+/// One detected tag.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TagDetection {
+    /// Tag id within the family.
+    pub id: u32,
+    /// Bits corrected while decoding.
+    pub hamming: u32,
+    /// The detector's decision margin (higher is more certain).
+    pub decision_margin: f32,
+    /// Corners of the black square in full-frame pixels (OpenCV convention), in
+    /// the detector's order: counter-clockwise in the tag's own frame (x right,
+    /// y up the printed tag) starting at the bottom-left corner.
+    pub corners_px: [Point2<f64>; 4],
+}
+
+impl TagDetection {
+    /// Centre of the four corners, pixels.
+    pub fn centre_px(&self) -> Point2<f64> {
+        let s = self
+            .corners_px
+            .iter()
+            .fold(nalgebra::Vector2::zeros(), |a, p| a + p.coords);
+        Point2::from(s / 4.0)
+    }
+
+    /// Mean side length of the quad, pixels.
+    pub fn side_px(&self) -> f64 {
+        (0..4)
+            .map(|i| (self.corners_px[(i + 1) % 4] - self.corners_px[i]).norm())
+            .sum::<f64>()
+            / 4.0
+    }
+}
+
+/// An AprilTag detector for one family. Not shared between threads: make one
+/// per thread.
+pub struct TagDetector {
+    det: Detector,
+    decimate: f32,
+    /// Scratch image reused between calls of the same size.
+    scratch: Option<Image>,
+}
+
+// SAFETY: the C detector has no thread affinity; it is only used through
+// `&mut self`, so never from two threads at once.
+unsafe impl Send for TagDetector {}
+
+impl TagDetector {
+    /// A detector for `family` (e.g. "tag36h11") correcting up to `max_bits`
+    /// bit errors, with quad decimation `decimate` (1 = full resolution).
+    pub fn new(family: &str, max_bits: usize, decimate: f32) -> Result<Self, TrackError> {
+        let fam = Family::from_str(family).map_err(|_| {
+            TrackError::Options(format!(
+                "unknown tag family {family:?}: use tag36h11, tag25h9, tag16h5, tagStandard41h12, tagStandard52h13, tagCircle21h7, tagCircle49h12 or tagCustom48h12"
+            ))
+        })?;
+        let mut det = DetectorBuilder::new()
+            .add_family_bits(fam, max_bits)
+            .build()
+            .map_err(|e| TrackError::Options(format!("cannot create the tag detector: {e}")))?;
+        det.set_thread_number(1);
+        det.set_decimation(decimate);
+        det.set_sigma(0.0);
+        det.set_refine_edges(true);
+        det.set_shapening(0.25);
+        Ok(Self {
+            det,
+            decimate,
+            scratch: None,
+        })
+    }
+
+    /// Quad decimation in use.
+    pub fn decimate(&self) -> f32 {
+        self.decimate
+    }
+
+    /// Changes the quad decimation.
+    pub fn set_decimate(&mut self, decimate: f32) {
+        if decimate != self.decimate {
+            self.det.set_decimation(decimate);
+            self.decimate = decimate;
+        }
+    }
+
+    /// Detects tags in `frame`, restricted to `roi` if given. Corners are in
+    /// full-frame pixel coordinates.
+    pub fn detect(
+        &mut self,
+        frame: &GrayFrame,
+        roi: Option<Roi>,
+    ) -> Result<Vec<TagDetection>, TrackError> {
+        let r = roi.unwrap_or(Roi {
+            x0: 0,
+            y0: 0,
+            width: frame.width,
+            height: frame.height,
+        });
+        let (w, h) = (r.width as usize, r.height as usize);
+        let reuse = matches!(&self.scratch, Some(im) if im.width() == w && im.height() == h);
+        if !reuse {
+            self.scratch = Some(Image::zeros_with_alignment(w, h, 96).map_err(|e| {
+                TrackError::Options(format!("cannot allocate a detector image: {e}"))
+            })?);
+        }
+        let Some(img) = self.scratch.as_mut() else {
+            return Ok(vec![]);
+        };
+        let stride = img.stride();
+        let buf = img.as_slice_mut();
+        let fw = frame.width as usize;
+        for row in 0..h {
+            let src = (r.y0 as usize + row) * fw + r.x0 as usize;
+            buf[row * stride..row * stride + w].copy_from_slice(&frame.data[src..src + w]);
+        }
+        let img = &*img;
+        let dets = self.det.detect(img);
+        // The C library puts pixel centres at +0.5; OpenCV at integers.
+        let (ox, oy) = (r.x0 as f64 - 0.5, r.y0 as f64 - 0.5);
+        Ok(dets
+            .iter()
+            .map(|d| {
+                let c = d.corners();
+                TagDetection {
+                    id: d.id() as u32,
+                    hamming: d.hamming() as u32,
+                    decision_margin: d.decision_margin(),
+                    corners_px: c.map(|p| Point2::new(p[0] + ox, p[1] + oy)),
+                }
+            })
+            .collect())
+    }
+}

@@ -1,0 +1,142 @@
+//! From tag corners to the marker's floor pose.
+//!
+//! The marker is horizontal at a known height, so the estimate is planar: each
+//! corner's undistorted ray is intersected with the plane z = marker height and
+//! the tag's square is fitted to the four floor points by a least-squares 2-D
+//! rigid fit. OpenCV's 6-DoF solvePnP (IPPE_SQUARE) is computed only as a
+//! cross-check of the planar assumption.
+
+use nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
+use odocal_calib::{CameraModel, FloorToCamera};
+use odocal_geometry::{fit_rigid, wrap_angle, Pose2};
+use opencv::calib3d;
+use opencv::core::{Mat, Point2d, Point3d, Vector};
+use opencv::prelude::*;
+
+use crate::TrackError;
+
+/// The tag's corners in its own frame (x right, y up the printed tag), in the
+/// detector's corner order, for a tag whose black square is `tag_size_m` wide.
+pub fn tag_model(tag_size_m: f64) -> [Point2<f64>; 4] {
+    let h = tag_size_m / 2.0;
+    [
+        Point2::new(-h, -h),
+        Point2::new(h, -h),
+        Point2::new(h, h),
+        Point2::new(-h, h),
+    ]
+}
+
+/// The planar floor pose of a tag.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanarPose {
+    /// Tag frame → floor frame.
+    pub pose: Pose2,
+    /// RMS distance between the fitted square and the floor points, metres.
+    pub fit_rms_m: f64,
+    /// RMS distance between the detected corners and the fitted square
+    /// reprojected into the image, pixels.
+    pub reprojection_rms_px: f64,
+}
+
+/// Planar pose of a tag whose corners were detected at `corners_px`.
+pub fn planar_pose(
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    corners_px: &[Point2<f64>; 4],
+    tag_size_m: f64,
+    marker_height_m: f64,
+) -> Option<PlanarPose> {
+    let mut on_floor = [Point2::origin(); 4];
+    for (q, c) in on_floor.iter_mut().zip(corners_px) {
+        *q = camera.pixel_to_floor(floor, c, marker_height_m)?;
+    }
+    let model = tag_model(tag_size_m);
+    let fit = fit_rigid(&model, &on_floor).ok()?;
+    let mut sq = 0.0;
+    for (m, c) in model.iter().zip(corners_px) {
+        let p = camera.floor_to_pixel(floor, &fit.pose.transform_point(m), marker_height_m)?;
+        sq += (p - c).norm_squared();
+    }
+    Some(PlanarPose {
+        pose: Pose2::new(fit.pose.x_m, fit.pose.y_m, wrap_angle(fit.pose.theta_rad)),
+        fit_rms_m: fit.rms,
+        reprojection_rms_px: (sq / 4.0).sqrt(),
+    })
+}
+
+/// The 6-DoF cross-check of a planar pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PnpCheck {
+    /// Tag centre height above the floor by solvePnP, metres.
+    pub height_m: f64,
+    /// Tilt of the tag's normal from the floor normal, radians.
+    pub tilt_rad: f64,
+    /// Floor position of the PnP tag centre minus the planar one, metres (horizontal distance).
+    pub position_diff_m: f64,
+    /// PnP heading minus planar heading, radians (wrapped).
+    pub heading_diff_rad: f64,
+}
+
+/// solvePnP (IPPE_SQUARE) on the same corners, compared with `planar`.
+pub fn pnp_cross_check(
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    corners_px: &[Point2<f64>; 4],
+    tag_size_m: f64,
+    planar: &PlanarPose,
+) -> Result<PnpCheck, TrackError> {
+    // IPPE_SQUARE wants (-s,+s), (+s,+s), (+s,-s), (-s,-s): detector corners 3, 2, 1, 0.
+    let h = tag_size_m / 2.0;
+    let object = Vector::<Point3d>::from_slice(&[
+        Point3d::new(-h, h, 0.0),
+        Point3d::new(h, h, 0.0),
+        Point3d::new(h, -h, 0.0),
+        Point3d::new(-h, -h, 0.0),
+    ]);
+    let image = Vector::<Point2d>::from_iter(
+        [3, 2, 1, 0].map(|i| Point2d::new(corners_px[i].x, corners_px[i].y)),
+    );
+    let k = camera.intrinsics;
+    let kmat = Mat::from_slice_2d(&[[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]])?;
+    let coeffs = camera.distortion.to_opencv();
+    let dist = Mat::from_slice(&coeffs)?;
+    let mut rvec = Mat::default();
+    let mut tvec = Mat::default();
+    let ok = calib3d::solve_pnp(
+        &object,
+        &image,
+        &kmat,
+        &dist,
+        &mut rvec,
+        &mut tvec,
+        false,
+        calib3d::SOLVEPNP_IPPE_SQUARE,
+    )?;
+    if !ok {
+        return Err(TrackError::Options("solvePnP failed".into()));
+    }
+    let r: [f64; 3] = [
+        *rvec.at::<f64>(0)?,
+        *rvec.at::<f64>(1)?,
+        *rvec.at::<f64>(2)?,
+    ];
+    let t: [f64; 3] = [
+        *tvec.at::<f64>(0)?,
+        *tvec.at::<f64>(1)?,
+        *tvec.at::<f64>(2)?,
+    ];
+    let r_tc = Rotation3::new(Vector3::new(r[0], r[1], r[2]));
+    let cam_to_floor = floor.0.inverse();
+    let centre = cam_to_floor * Point3::new(t[0], t[1], t[2]);
+    let r_tf: Matrix3<f64> = cam_to_floor.rotation.to_rotation_matrix().matrix() * r_tc.matrix();
+    let x_axis = r_tf.column(0);
+    let normal = r_tf.column(2);
+    let heading = x_axis.y.atan2(x_axis.x);
+    Ok(PnpCheck {
+        height_m: centre.z,
+        tilt_rad: normal.z.abs().clamp(-1.0, 1.0).acos(),
+        position_diff_m: (Point2::new(centre.x, centre.y) - planar.pose.position()).norm(),
+        heading_diff_rad: wrap_angle(heading - planar.pose.theta_rad),
+    })
+}

@@ -1,0 +1,538 @@
+//! Frame-by-frame tracking: search the tag in a region of interest around the
+//! predicted position (full frame when lost), turn the corners into a planar
+//! floor pose, grade it, reject impossible jumps, and never invent a pose for a
+//! frame without a confident detection.
+
+use std::collections::BTreeMap;
+use std::sync::mpsc;
+
+use nalgebra::Point2;
+use odocal_calib::{CameraModel, FloorToCamera};
+use odocal_dataset::{Trajectory, TrajectoryRow};
+use odocal_geometry::{wrap_angle, Pose2};
+
+use crate::detect::{Roi, TagDetection, TagDetector};
+use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
+use crate::source::{Frame, FrameSource};
+use crate::TrackError;
+
+/// Tracking settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackOptions {
+    /// Tag family, e.g. "tag36h11".
+    pub family: String,
+    /// Id of the robot's tag.
+    pub tag_id: u32,
+    /// Side of the tag's black square, metres.
+    pub tag_size_m: f64,
+    /// Height of the marker plane above the floor, metres.
+    pub marker_height_m: f64,
+    /// Search a region of interest around the prediction (false: every frame full-frame).
+    pub use_roi: bool,
+    /// Quad decimation of the full-frame search while ROI tracking (the fix is
+    /// then refined at full resolution in a ROI); 1 disables.
+    pub search_decimate: f32,
+    /// Largest number of corrected bits accepted.
+    pub max_hamming: u32,
+    /// Smallest decision margin accepted.
+    pub min_decision_margin: f32,
+    /// Largest reprojection RMS accepted, pixels.
+    pub max_reprojection_px: f64,
+    /// Fastest plausible robot speed, m/s (faster apparent motion is a jump).
+    pub max_speed_mps: f64,
+    /// Fastest plausible turn rate, rad/s.
+    pub max_turn_rate_rad_s: f64,
+    /// Run the solvePnP (IPPE_SQUARE) cross-check on every fix.
+    pub pnp_cross_check: bool,
+}
+
+impl Default for TrackOptions {
+    fn default() -> Self {
+        Self {
+            family: "tag36h11".into(),
+            tag_id: 0,
+            tag_size_m: 0.08,
+            marker_height_m: 0.08,
+            use_roi: true,
+            search_decimate: 2.0,
+            max_hamming: 1,
+            min_decision_margin: 20.0,
+            max_reprojection_px: 1.5,
+            max_speed_mps: 2.0,
+            max_turn_rate_rad_s: 8.0,
+            pnp_cross_check: false,
+        }
+    }
+}
+
+/// Why a frame has no pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum GapReason {
+    /// No tag of the requested id was found.
+    NotDetected,
+    /// Found, but with too many corrected bits or too small a decision margin.
+    LowConfidence,
+    /// Found, but its corners do not fit a horizontal square at the marker height.
+    BadGeometry,
+    /// Found, but it moved impossibly far since the last fix.
+    Jump,
+}
+
+impl GapReason {
+    /// A short name for reports.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::NotDetected => "not detected",
+            Self::LowConfidence => "low confidence",
+            Self::BadGeometry => "bad geometry",
+            Self::Jump => "impossible jump",
+        }
+    }
+}
+
+/// A confident pose for one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fix {
+    /// Tag frame → floor frame (metres, radians).
+    pub pose: Pose2,
+    /// Quality in (0, 1]: 1 / (1 + reprojection RMS in pixels).
+    pub quality: f64,
+    /// RMS reprojection error of the corners, pixels.
+    pub reprojection_rms_px: f64,
+    /// RMS residual of the planar square fit, metres.
+    pub fit_rms_m: f64,
+    /// The detector's decision margin.
+    pub decision_margin: f32,
+    /// Corrected bits.
+    pub hamming: u32,
+    /// Detected corners, pixels.
+    pub corners_px: [Point2<f64>; 4],
+    /// Whether the fix came from the ROI search (false: full frame).
+    pub from_roi: bool,
+    /// The solvePnP cross-check, if run.
+    pub pnp: Option<PnpCheck>,
+}
+
+/// The outcome of one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Outcome {
+    /// A confident pose.
+    Fix(Fix),
+    /// No pose, and why.
+    Gap(GapReason),
+}
+
+/// One frame's record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameRecord {
+    /// Frame index in the source.
+    pub index: usize,
+    /// Frame time, seconds.
+    pub t_s: f64,
+    /// Fix or gap.
+    pub outcome: Outcome,
+}
+
+/// A run of consecutive frames without a pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gap {
+    /// First frame of the gap.
+    pub first_index: usize,
+    /// Last frame of the gap.
+    pub last_index: usize,
+    /// Time of the first frame, seconds.
+    pub start_s: f64,
+    /// Time of the last frame, seconds.
+    pub end_s: f64,
+    /// Reasons and how many frames each.
+    pub reasons: BTreeMap<&'static str, usize>,
+}
+
+/// The tracker's state for one video.
+pub struct Tracker {
+    camera: CameraModel,
+    floor: FloorToCamera,
+    opts: TrackOptions,
+    detector: TagDetector,
+    /// Last accepted fixes (time, pose, side in pixels), newest last, at most 2.
+    history: Vec<(f64, Pose2, f64)>,
+    /// Index of the frame of the last fix.
+    last_fix_index: Option<usize>,
+    consecutive_jumps: usize,
+    seen: BTreeMap<u32, usize>,
+}
+
+impl Tracker {
+    /// A tracker for frames of `camera` above `floor`.
+    pub fn new(
+        camera: CameraModel,
+        floor: FloorToCamera,
+        opts: TrackOptions,
+    ) -> Result<Self, TrackError> {
+        if !(opts.tag_size_m > 0.0 && opts.tag_size_m.is_finite()) {
+            return Err(TrackError::Options(format!(
+                "tag size must be positive, got {} m",
+                opts.tag_size_m
+            )));
+        }
+        if !opts.marker_height_m.is_finite() {
+            return Err(TrackError::Options(
+                "marker height must be a finite number of metres".into(),
+            ));
+        }
+        let detector = TagDetector::new(&opts.family, opts.max_hamming.min(3) as usize, 1.0)?;
+        Ok(Self {
+            camera,
+            floor,
+            opts,
+            detector,
+            history: Vec::with_capacity(3),
+            last_fix_index: None,
+            consecutive_jumps: 0,
+            seen: BTreeMap::new(),
+        })
+    }
+
+    /// Ids seen so far (any id of the family) and in how many frames.
+    pub fn seen_ids(&self) -> &BTreeMap<u32, usize> {
+        &self.seen
+    }
+
+    fn predict(&self, t_s: f64) -> Option<(Pose2, f64, f64)> {
+        let &(t1, p1, side) = self.history.last()?;
+        if self.history.len() >= 2 {
+            let (t0, p0, _) = self.history[self.history.len() - 2];
+            if t1 - t0 > 1e-6 && t1 - t0 < 0.5 {
+                let w = (t_s - t1) / (t1 - t0);
+                let p = Pose2::new(
+                    p1.x_m + w * (p1.x_m - p0.x_m),
+                    p1.y_m + w * (p1.y_m - p0.y_m),
+                    wrap_angle(p1.theta_rad + w * wrap_angle(p1.theta_rad - p0.theta_rad)),
+                );
+                let step = (p1.position() - p0.position()).norm() * w.abs();
+                return Some((p, side, step));
+            }
+        }
+        Some((p1, side, 0.0))
+    }
+
+    fn roi_around(&self, pose: &Pose2, side_px: f64, extra_px: f64, w: u32, h: u32) -> Option<Roi> {
+        let c =
+            self.camera
+                .floor_to_pixel(&self.floor, &pose.position(), self.opts.marker_height_m)?;
+        Roi::around(c, 1.1 * side_px + extra_px + 12.0, w, h)
+    }
+
+    fn pick(&self, dets: &[TagDetection], near: Option<Point2<f64>>) -> Option<TagDetection> {
+        let mut best: Option<(f64, TagDetection)> = None;
+        for d in dets.iter().filter(|d| d.id == self.opts.tag_id) {
+            let score = match near {
+                Some(p) => (d.centre_px() - p).norm(),
+                None => -(d.decision_margin as f64),
+            };
+            if best.as_ref().is_none_or(|(s, _)| score < *s) {
+                best = Some((score, *d));
+            }
+        }
+        best.map(|(_, d)| d)
+    }
+
+    /// Tracks one frame.
+    pub fn process(&mut self, frame: &Frame) -> Result<FrameRecord, TrackError> {
+        let (w, h) = (frame.image.width, frame.image.height);
+        let recent = self
+            .last_fix_index
+            .is_some_and(|i| frame.index.saturating_sub(i) <= 5);
+        let prediction = if recent {
+            self.predict(frame.t_s)
+        } else {
+            None
+        };
+        let mut ids_in_frame: Vec<u32> = Vec::new();
+        let mut found: Option<(TagDetection, bool)> = None;
+        if self.opts.use_roi {
+            if let Some((pose, side, step)) = prediction {
+                let px_per_m = side / self.opts.tag_size_m;
+                if let Some(roi) = self.roi_around(&pose, side, 0.5 * step * px_per_m, w, h) {
+                    let dets = self.detector.detect(&frame.image, Some(roi))?;
+                    ids_in_frame.extend(dets.iter().map(|d| d.id));
+                    found = self.pick(&dets, None).map(|d| (d, true));
+                }
+            }
+            if found.is_none() {
+                // Lost: search the whole frame (decimated), then refine in a ROI at full resolution.
+                self.detector
+                    .set_decimate(self.opts.search_decimate.max(1.0));
+                let dets = self.detector.detect(&frame.image, None);
+                self.detector.set_decimate(1.0);
+                let dets = dets?;
+                ids_in_frame.extend(dets.iter().map(|d| d.id));
+                if let Some(coarse) = self.pick(&dets, None) {
+                    found = Some((coarse, false));
+                    if self.opts.search_decimate > 1.0 {
+                        if let Some(roi) =
+                            Roi::around(coarse.centre_px(), 1.1 * coarse.side_px() + 12.0, w, h)
+                        {
+                            let fine = self.detector.detect(&frame.image, Some(roi))?;
+                            if let Some(d) = self.pick(&fine, Some(coarse.centre_px())) {
+                                found = Some((d, false));
+                            }
+                        }
+                    }
+                }
+            }
+        } else {
+            let dets = self.detector.detect(&frame.image, None)?;
+            ids_in_frame.extend(dets.iter().map(|d| d.id));
+            found = self.pick(&dets, None).map(|d| (d, false));
+        }
+        ids_in_frame.sort_unstable();
+        ids_in_frame.dedup();
+        for id in ids_in_frame {
+            *self.seen.entry(id).or_insert(0) += 1;
+        }
+        let outcome = match found {
+            None => Outcome::Gap(GapReason::NotDetected),
+            Some((d, from_roi)) => self.grade(frame, d, from_roi)?,
+        };
+        Ok(FrameRecord {
+            index: frame.index,
+            t_s: frame.t_s,
+            outcome,
+        })
+    }
+
+    fn grade(
+        &mut self,
+        frame: &Frame,
+        d: TagDetection,
+        from_roi: bool,
+    ) -> Result<Outcome, TrackError> {
+        let o = &self.opts;
+        if d.hamming > o.max_hamming || d.decision_margin < o.min_decision_margin {
+            return Ok(Outcome::Gap(GapReason::LowConfidence));
+        }
+        let Some(planar) = planar_pose(
+            &self.camera,
+            &self.floor,
+            &d.corners_px,
+            o.tag_size_m,
+            o.marker_height_m,
+        ) else {
+            return Ok(Outcome::Gap(GapReason::BadGeometry));
+        };
+        if !(planar.reprojection_rms_px <= o.max_reprojection_px) {
+            return Ok(Outcome::Gap(GapReason::BadGeometry));
+        }
+        if let Some(&(t_last, p_last, _)) = self.history.last() {
+            let dt = (frame.t_s - t_last).abs();
+            let dist = (planar.pose.position() - p_last.position()).norm();
+            let turn = wrap_angle(planar.pose.theta_rad - p_last.theta_rad).abs();
+            if dist > o.max_speed_mps * dt + 0.02 || turn > o.max_turn_rate_rad_s * dt + 0.2 {
+                self.consecutive_jumps += 1;
+                if self.consecutive_jumps >= 3 {
+                    // The old track was the outlier: start again from here.
+                    self.history.clear();
+                    self.consecutive_jumps = 0;
+                }
+                return Ok(Outcome::Gap(GapReason::Jump));
+            }
+        }
+        self.consecutive_jumps = 0;
+        let pnp = if o.pnp_cross_check {
+            pnp_cross_check(
+                &self.camera,
+                &self.floor,
+                &d.corners_px,
+                o.tag_size_m,
+                &planar,
+            )
+            .ok()
+        } else {
+            None
+        };
+        self.history.push((frame.t_s, planar.pose, d.side_px()));
+        if self.history.len() > 2 {
+            self.history.remove(0);
+        }
+        self.last_fix_index = Some(frame.index);
+        Ok(Outcome::Fix(Fix {
+            pose: planar.pose,
+            quality: 1.0 / (1.0 + planar.reprojection_rms_px),
+            reprojection_rms_px: planar.reprojection_rms_px,
+            fit_rms_m: planar.fit_rms_m,
+            decision_margin: d.decision_margin,
+            hamming: d.hamming,
+            corners_px: d.corners_px,
+            from_roi,
+            pnp,
+        }))
+    }
+}
+
+/// Everything a tracking run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackResult {
+    /// One record per frame, in order.
+    pub records: Vec<FrameRecord>,
+    /// Ids seen (any id of the family) and in how many frames.
+    pub seen_ids: BTreeMap<u32, usize>,
+    /// Frame size, pixels.
+    pub frame_size: (u32, u32),
+}
+
+impl TrackResult {
+    /// The fixes only.
+    pub fn fixes(&self) -> impl Iterator<Item = (&FrameRecord, &Fix)> {
+        self.records.iter().filter_map(|r| match &r.outcome {
+            Outcome::Fix(f) => Some((r, f)),
+            Outcome::Gap(_) => None,
+        })
+    }
+
+    /// The trajectory file contents: one row per fix, gaps absent.
+    pub fn trajectory(&self) -> Result<Trajectory, TrackError> {
+        let rows = self
+            .fixes()
+            .map(|(r, f)| TrajectoryRow {
+                t_s: r.t_s,
+                pose: f.pose,
+                quality: f.quality,
+            })
+            .collect();
+        Trajectory::new(rows).map_err(|e| TrackError::Mismatch(format!("frame timestamps: {e}")))
+    }
+
+    /// Runs of frames without a pose.
+    pub fn gaps(&self) -> Vec<Gap> {
+        let mut gaps: Vec<Gap> = Vec::new();
+        let mut prev_gap = false;
+        for r in &self.records {
+            if let Outcome::Gap(reason) = r.outcome {
+                if prev_gap {
+                    if let Some(g) = gaps.last_mut() {
+                        g.last_index = r.index;
+                        g.end_s = r.t_s;
+                        *g.reasons.entry(reason.as_str()).or_insert(0) += 1;
+                    }
+                } else {
+                    gaps.push(Gap {
+                        first_index: r.index,
+                        last_index: r.index,
+                        start_s: r.t_s,
+                        end_s: r.t_s,
+                        reasons: BTreeMap::from([(reason.as_str(), 1)]),
+                    });
+                }
+                prev_gap = true;
+            } else {
+                prev_gap = false;
+            }
+        }
+        gaps
+    }
+
+    /// Describes the ids seen, for error messages ("ids seen: 3 (120 frames), 7 (2 frames)").
+    pub fn seen_ids_text(&self) -> String {
+        if self.seen_ids.is_empty() {
+            return "no tag of this family was seen at all".into();
+        }
+        let list: Vec<String> = self
+            .seen_ids
+            .iter()
+            .map(|(id, n)| format!("{id} ({n} frames)"))
+            .collect();
+        format!("ids seen: {}", list.join(", "))
+    }
+}
+
+/// Tracks a whole source: frames are decoded on a separate thread (and in
+/// parallel within a batch where the source allows) while this thread tracks.
+/// `on_frame` is called for every frame in order (progress, overlays). Fails
+/// if the frame size differs from the camera's, or if the tag never gives a
+/// confident fix (naming the ids that were seen).
+pub fn track_source(
+    mut source: Box<dyn FrameSource>,
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    opts: &TrackOptions,
+    on_frame: &mut dyn FnMut(&Frame, &FrameRecord) -> Result<(), TrackError>,
+) -> Result<TrackResult, TrackError> {
+    let info = source.info().clone();
+    if (info.width, info.height) != (camera.width, camera.height) {
+        return Err(TrackError::Mismatch(format!(
+            "{} is {}×{} but the camera file describes {}×{} images: use the camera.json calibrated for this camera at this resolution",
+            info.path.display(),
+            info.width,
+            info.height,
+            camera.width,
+            camera.height
+        )));
+    }
+    let mut tracker = Tracker::new(*camera, *floor, opts.clone())?;
+    let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
+    let records = std::thread::scope(|scope| -> Result<Vec<FrameRecord>, TrackError> {
+        scope.spawn(move || loop {
+            let batch = source.next_batch(16);
+            let stop = !matches!(&batch, Ok(b) if !b.is_empty());
+            if tx.send(batch).is_err() || stop {
+                break;
+            }
+        });
+        let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
+        for batch in rx {
+            let batch = batch?;
+            if batch.is_empty() {
+                break;
+            }
+            for frame in &batch {
+                if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
+                    return Err(TrackError::Mismatch(format!(
+                        "frame {} of {} is {}×{}, the camera file describes {}×{} images",
+                        frame.index,
+                        info.path.display(),
+                        frame.image.width,
+                        frame.image.height,
+                        camera.width,
+                        camera.height
+                    )));
+                }
+                let rec = tracker.process(frame)?;
+                on_frame(frame, &rec)?;
+                records.push(rec);
+            }
+        }
+        Ok(records)
+    })?;
+    if records.is_empty() {
+        return Err(TrackError::bad_input(&info.path, "contains no frames"));
+    }
+    let result = TrackResult {
+        records,
+        seen_ids: tracker.seen_ids().clone(),
+        frame_size: (info.width, info.height),
+    };
+    if result.fixes().next().is_none() {
+        let detected = result.seen_ids.contains_key(&opts.tag_id);
+        let msg = if detected {
+            format!(
+                "tag {} ({}) was detected but never confidently (all {} frames rejected); {}",
+                opts.tag_id,
+                opts.family,
+                result.records.len(),
+                result.seen_ids_text()
+            )
+        } else {
+            format!(
+                "tag {} ({}) was never seen in {} frames of {}; {}: check --tag-id and --family",
+                opts.tag_id,
+                opts.family,
+                result.records.len(),
+                info.path.display(),
+                result.seen_ids_text()
+            )
+        };
+        return Err(TrackError::TagNeverSeen(msg));
+    }
+    Ok(result)
+}
