@@ -1,2 +1,97 @@
-//! Benchmark: calib (in progress).
-fn main() {}
+//! Benchmark of calibration: board detection per view (one thread and all
+//! cores) and Zhang calibration of 20 views, on the default 1280x720 scene.
+//! Run with `cargo bench --bench calib`.
+
+use std::time::Instant;
+
+use odocal_calib::{calibrate, detect_file, fit_floor, BoardView, Detection};
+use odocal_fixtures::board::{draw_views, render_view, CalibScene};
+use odocal_fixtures::raycast::RayGrid;
+use rayon::prelude::*;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let scene = CalibScene::default();
+    let truth = draw_views(&scene, 1);
+    let dir = std::env::temp_dir().join(format!("odocal-bench-calib-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let grid = RayGrid::new(&truth.camera, scene.supersample);
+    let t = Instant::now();
+    let mut paths = Vec::new();
+    for (i, v) in truth.views.iter().chain(&truth.floor_views).enumerate() {
+        let floor = (i >= truth.views.len()).then_some(&truth.floor_to_camera);
+        let img = render_view(&grid, &scene, &v.board_to_camera, floor, i as u64);
+        let p = dir.join(&v.image);
+        img.save(&p).expect("write view");
+        paths.push(p);
+    }
+    let render_s = t.elapsed().as_secs_f64();
+    let (hand, floor) = paths.split_at(truth.views.len());
+
+    let detect = |p: &std::path::PathBuf| match detect_file(p, &scene.board) {
+        Ok(Detection::Found(v)) => Some(v),
+        _ => None,
+    };
+    let mut seq = Vec::new();
+    let mut par = Vec::new();
+    let mut views: Vec<BoardView> = Vec::new();
+    for _ in 0..3 {
+        let t = Instant::now();
+        views = hand.iter().filter_map(detect).collect();
+        seq.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        let _: Vec<BoardView> = hand.par_iter().filter_map(detect).collect();
+        par.push(t.elapsed().as_secs_f64());
+    }
+    let (seq, par) = (median(seq), median(par));
+    let mut cal_t = Vec::new();
+    let mut cal = None;
+    for _ in 0..3 {
+        let t = Instant::now();
+        cal = calibrate(&views, &scene.board).ok();
+        cal_t.push(t.elapsed().as_secs_f64());
+    }
+    let floor_views: Vec<BoardView> = floor.iter().filter_map(detect).collect();
+    let t = Instant::now();
+    if let Some(c) = &cal {
+        let _ = fit_floor(&c.camera, &floor_views, &scene.board);
+    }
+    let floor_s = t.elapsed().as_secs_f64();
+    let n = hand.len() as f64;
+    println!(
+        "calibration benchmark, {} views of {}x{} (rendering them took {render_s:.1} s)",
+        hand.len(),
+        scene.width,
+        scene.height
+    );
+    println!(
+        "  board detection, 1 thread:  {:8.1} ms per view",
+        seq / n * 1e3
+    );
+    println!(
+        "  board detection, {} threads: {:8.1} ms per view ({:.2}x the 1-thread rate)",
+        rayon::current_num_threads(),
+        par / n * 1e3,
+        seq / par
+    );
+    println!(
+        "  Zhang calibration, {} views: {:8.1} ms total",
+        views.len(),
+        median(cal_t) * 1e3
+    );
+    println!(
+        "  floor plane, {} views:       {:8.1} ms",
+        floor_views.len(),
+        floor_s * 1e3
+    );
+    println!(
+        "  detect + calibrate, all cores: {:.2} s for {} views",
+        par + median(cal_t),
+        hand.len()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

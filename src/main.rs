@@ -39,6 +39,8 @@ enum Command {
 enum SynthCommand {
     /// Checkerboard views (and floor views) from a known camera.
     Calib(cmd::synth_calib::Args),
+    /// Compare a camera.json with the truth of `synth calib`.
+    CheckCalib(cmd::synth_calib::CheckArgs),
     /// A ceiling video of a robot carrying an AprilTag, with the true trajectory.
     Track(cmd::synth_track::Args),
     /// The whole odometry experiment: runs, logs, videos and truth.
@@ -51,6 +53,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Synth(SynthCommand::Calib(a)) => cmd::synth_calib::run(a),
+        Command::Synth(SynthCommand::CheckCalib(a)) => cmd::synth_calib::run_check(a),
         Command::Synth(SynthCommand::Track(a)) => cmd::synth_track::run(a),
         Command::Synth(SynthCommand::Experiment(a)) => cmd::synth_experiment::run(a),
         Command::Synth(SynthCommand::Lrf(a)) => cmd::synth_lrf::run(a),

@@ -4,9 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardToCamera, CameraFile};
-use odocal_fixtures::board::{render_view, CalibScene, CalibTruth};
+use odocal_fixtures::board::{calibration_errors, render_view, CalibScene, CalibTruth};
 use odocal_fixtures::raycast::RayGrid;
 
 fn odocal(args: &[&str]) -> Output {
@@ -38,12 +38,7 @@ fn images(dir: &Path, prefix: &str) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .filter(|p| {
-            p.file_name()
-                .unwrap()
-                .to_string_lossy()
-                .starts_with(prefix)
-        })
+        .filter(|p| p.file_name().unwrap().to_string_lossy().starts_with(prefix))
         .map(|p| p.to_string_lossy().into_owned())
         .collect();
     v.sort();
@@ -55,7 +50,14 @@ fn calibrate(dir: &Path, out: &Path, board: &str, square: &str) -> Output {
     let floors = images(dir, "floor_");
     let mut args: Vec<&str> = vec!["calibrate"];
     args.extend(views.iter().map(|s| s.as_str()));
-    args.extend(["--board", board, "--square", square, "--out", out.to_str().unwrap()]);
+    args.extend([
+        "--board",
+        board,
+        "--square",
+        square,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     if !floors.is_empty() {
         args.push("--floor");
         args.extend(floors.iter().map(|s| s.as_str()));
@@ -74,64 +76,50 @@ fn calibration_matches_truth_for_several_seeds() {
         let res = calibrate(dir.path(), &out, "9x6", "0.05");
         ok(&res);
         let cam = CameraFile::load(&out).unwrap();
-        let (k, t) = (cam.camera.intrinsics, truth.camera.intrinsics);
-        let efx = (k.fx - t.fx).abs() / t.fx;
-        let efy = (k.fy - t.fy).abs() / t.fy;
-        let (ecx, ecy) = ((k.cx - t.cx).abs(), (k.cy - t.cy).abs());
-        let floor_err = floor_error_m(&cam, &truth);
+        let e = calibration_errors(
+            &cam.camera,
+            cam.floor.as_ref().map(|f| &f.floor_to_camera),
+            &truth.camera,
+            &truth.floor_to_camera,
+        );
+        let floor_err = e.floor_max_m.expect("floor plane estimated");
         println!(
-            "seed {seed}: fx err {:.4} %, fy err {:.4} %, cx err {ecx:.3} px, cy err {ecy:.3} px, RMS {:.3} px, floor max err {:.3} mm",
-            efx * 100.0,
-            efy * 100.0,
+            "seed {seed}: fx err {:.4} %, fy err {:.4} %, cx err {:.3} px, cy err {:.3} px, RMS {:.3} px, floor max err {:.3} mm",
+            e.fx_rel * 100.0,
+            e.fy_rel * 100.0,
+            e.cx_px,
+            e.cy_px,
             cam.rms_px,
             floor_err * 1000.0
         );
-        assert!(efx <= 0.002 && efy <= 0.002, "seed {seed}: focal error {efx} {efy}");
-        assert!(ecx <= 1.0 && ecy <= 1.0, "seed {seed}: principal point error {ecx} {ecy}");
+        assert!(
+            e.fx_rel <= 0.002 && e.fy_rel <= 0.002,
+            "seed {seed}: focal error {e:?}"
+        );
+        assert!(
+            e.cx_px <= 1.0 && e.cy_px <= 1.0,
+            "seed {seed}: principal point error {e:?}"
+        );
         assert!(cam.rms_px <= 0.2, "seed {seed}: RMS {}", cam.rms_px);
         assert!(floor_err <= 0.002, "seed {seed}: floor error {floor_err} m");
         assert_eq!(cam.views.len(), 20);
     }
 }
 
-/// Largest error of pixel -> floor mapping over the central 2.5 m x 1.5 m
-/// of the floor (centred under the image centre), in metres.
-fn floor_error_m(cam: &CameraFile, truth: &CalibTruth) -> f64 {
-    let est_floor = cam.floor.as_ref().expect("floor plane").floor_to_camera;
-    let tc = &truth.camera;
-    let centre = tc
-        .pixel_to_floor(
-            &truth.floor_to_camera,
-            &Point2::new(tc.intrinsics.cx, tc.intrinsics.cy),
-            0.0,
-        )
-        .unwrap();
-    let mut worst: f64 = 0.0;
-    let mut n = 0;
-    for i in 0..=25 {
-        for j in 0..=15 {
-            let p = Point2::new(
-                centre.x - 1.25 + i as f64 * 0.1,
-                centre.y - 0.75 + j as f64 * 0.1,
-            );
-            let pix = tc.floor_to_pixel(&truth.floor_to_camera, &p, 0.0).unwrap();
-            if pix.x < 0.0 || pix.y < 0.0 || pix.x > tc.width as f64 - 1.0 || pix.y > tc.height as f64 - 1.0 {
-                continue;
-            }
-            let est = cam.camera.pixel_to_floor(&est_floor, &pix, 0.0).unwrap();
-            worst = worst.max((est - p).norm());
-            n += 1;
-        }
-    }
-    assert!(n > 300, "grid mostly inside the image ({n} points)");
-    worst
-}
-
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();
     let b = tempfile::tempdir().unwrap();
-    let small = ["--width", "320", "--height", "180", "--views", "3", "--floor-views", "1"];
+    let small = [
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--views",
+        "3",
+        "--floor-views",
+        "1",
+    ];
     synth(a.path(), 7, &small);
     synth(b.path(), 7, &small);
     for name in ["view_00.png", "view_02.png", "floor_00.png", "truth.json"] {
@@ -144,13 +132,33 @@ fn same_seed_same_bytes() {
 }
 
 fn small_set(dir: &Path) -> CalibTruth {
-    synth(dir, 5, &["--width", "640", "--height", "360", "--views", "6", "--floor-views", "1"])
+    synth(
+        dir,
+        5,
+        &[
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--views",
+            "6",
+            "--floor-views",
+            "0",
+        ],
+    )
 }
 
 fn assert_fails(out: &Output, needle: &str, camera: &Path) {
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "expected exit code 2, stderr: {err}");
-    assert!(err.contains(needle), "stderr should mention {needle:?}: {err}");
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "expected exit code 2, stderr: {err}"
+    );
+    assert!(
+        err.contains(needle),
+        "stderr should mention {needle:?}: {err}"
+    );
     assert!(!err.contains("panicked"), "must not panic: {err}");
     assert!(!camera.exists(), "no camera.json may be written on failure");
 }
@@ -187,13 +195,24 @@ fn view_without_board_is_skipped_and_too_few_views_fail() {
     let res = calibrate(dir.path(), &out, "9x6", "0.05");
     ok(&res);
     let err = String::from_utf8_lossy(&res.stderr);
-    assert!(err.contains("skipped") && err.contains("view_99.png"), "{err}");
+    assert!(
+        err.contains("skipped") && err.contains("view_99.png"),
+        "{err}"
+    );
     let cam = CameraFile::load(&out).unwrap();
     assert_eq!(cam.skipped.len(), 1);
 
     let out2 = dir.path().join("camera2.json");
     let v = images(dir.path(), "view_0");
-    let res = odocal(&["calibrate", &v[0], &v[1], "--square", "0.05", "--out", out2.to_str().unwrap()]);
+    let res = odocal(&[
+        "calibrate",
+        &v[0],
+        &v[1],
+        "--square",
+        "0.05",
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
     assert_fails(&res, "at least 3", &out2);
 }
 
@@ -202,8 +221,25 @@ fn mixed_image_sizes_fail() {
     let dir = tempfile::tempdir().unwrap();
     small_set(dir.path());
     let other = tempfile::tempdir().unwrap();
-    synth(other.path(), 6, &["--width", "480", "--height", "270", "--views", "3", "--floor-views", "0"]);
-    std::fs::copy(other.path().join("view_00.png"), dir.path().join("view_50.png")).unwrap();
+    synth(
+        other.path(),
+        6,
+        &[
+            "--width",
+            "480",
+            "--height",
+            "270",
+            "--views",
+            "3",
+            "--floor-views",
+            "0",
+        ],
+    );
+    std::fs::copy(
+        other.path().join("view_00.png"),
+        dir.path().join("view_50.png"),
+    )
+    .unwrap();
     let out = dir.path().join("camera.json");
     let res = calibrate(dir.path(), &out, "9x6", "0.05");
     assert_fails(&res, "one resolution", &out);
@@ -219,9 +255,14 @@ fn fronto_parallel_views_are_degenerate() {
     };
     let camera = scene.camera();
     let grid = RayGrid::new(&camera, 2);
-    for (i, (x, y, z)) in [(-0.3, -0.15, 1.0), (0.0, 0.0, 1.1), (-0.25, 0.0, 0.9), (-0.1, -0.2, 1.2)]
-        .iter()
-        .enumerate()
+    for (i, (x, y, z)) in [
+        (-0.3, -0.15, 1.0),
+        (0.0, 0.0, 1.1),
+        (-0.25, 0.0, 0.9),
+        (-0.1, -0.2, 1.2),
+    ]
+    .iter()
+    .enumerate()
     {
         let pose = BoardToCamera(Isometry3::from_parts(
             Translation3::new(*x, *y, *z),
@@ -240,7 +281,14 @@ fn fronto_parallel_views_are_degenerate() {
 fn missing_file_and_wrong_camera_json() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("camera.json");
-    let res = odocal(&["calibrate", "/nonexistent/a.png", "--square", "0.05", "--out", out.to_str().unwrap()]);
+    let res = odocal(&[
+        "calibrate",
+        "/nonexistent/a.png",
+        "--square",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert_fails(&res, "no such file", &out);
     let bogus: PathBuf = dir.path().join("bogus.json");
     std::fs::write(&bogus, r#"{"format": "odocal.model/1"}"#).unwrap();

@@ -45,6 +45,15 @@ pub struct ViewResidual {
     pub rms_px: f64,
 }
 
+/// A calibration image that was not used, and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SkippedView {
+    /// The image file.
+    pub image: String,
+    /// Why it was skipped.
+    pub reason: String,
+}
+
 /// The floor plane: where the floor frame (origin and axes fixed by the first
 /// floor view, z up towards the camera) sits in the camera frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -73,7 +82,7 @@ pub struct CameraFile {
     /// Per-view reprojection errors.
     pub views: Vec<ViewResidual>,
     /// Views that were skipped, with the reason.
-    pub skipped: Vec<ViewResidual>,
+    pub skipped: Vec<SkippedView>,
     /// The calibration board.
     pub board: Option<BoardSpec>,
     /// The floor plane, if floor views were given.

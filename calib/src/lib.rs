@@ -12,7 +12,7 @@ pub mod model;
 
 pub use calibrate::{board_points, calibrate, Calibration};
 pub use camera_file::{
-    BoardSpec, CameraFile, FloorPlane, IntrinsicsStd, ViewResidual, CAMERA_FORMAT,
+    BoardSpec, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual, CAMERA_FORMAT,
 };
 pub use detect::{detect_file, BoardView, Detection};
 pub use error::CalibError;

@@ -8,7 +8,7 @@ use clap::Args as ClapArgs;
 use odocal_calib::detect::guess_board_size;
 use odocal_calib::export::{write_opencv_yaml, write_ros_yaml};
 use odocal_calib::{
-    calibrate, detect_file, fit_floor, BoardSpec, BoardView, CameraFile, Detection, ViewResidual,
+    calibrate, detect_file, fit_floor, BoardSpec, BoardView, CameraFile, Detection, SkippedView,
     CAMERA_FORMAT,
 };
 use rayon::prelude::*;
@@ -57,7 +57,12 @@ fn detect_all(paths: &[PathBuf], board: &BoardSpec, what: &str) -> anyhow::Resul
     Ok(found?)
 }
 
-fn split(detections: Vec<Detection>) -> (Vec<BoardView>, Vec<ViewResidual>, Vec<(String, (u32, u32))>) {
+type Sizes = Vec<(String, (u32, u32))>;
+
+fn split(
+    detections: Vec<Detection>,
+    board: &BoardSpec,
+) -> (Vec<BoardView>, Vec<SkippedView>, Sizes) {
     let mut views = Vec::new();
     let mut skipped = Vec::new();
     let mut sizes = Vec::new();
@@ -69,9 +74,9 @@ fn split(detections: Vec<Detection>) -> (Vec<BoardView>, Vec<ViewResidual>, Vec<
             }
             Detection::NotFound { image, size } => {
                 sizes.push((image.clone(), size));
-                skipped.push(ViewResidual {
+                skipped.push(SkippedView {
                     image,
-                    rms_px: f64::NAN,
+                    reason: format!("no {}x{} checkerboard found", board.cols, board.rows),
                 });
             }
         }
@@ -118,10 +123,10 @@ fn no_board_error(paths: &[PathBuf], board: &BoardSpec, what: &str) -> anyhow::E
 pub fn run(a: Args) -> anyhow::Result<()> {
     let board = parse_board(&a.board, a.square)?;
     let detections = detect_all(&a.images, &board, "detecting")?;
-    let (views, skipped, sizes) = split(detections);
+    let (views, skipped, sizes) = split(detections, &board);
     check_sizes(&sizes)?;
     for s in &skipped {
-        eprintln!("skipped {}: no {}x{} checkerboard found", s.image, board.cols, board.rows);
+        eprintln!("skipped {}: {}", s.image, s.reason);
     }
     if views.is_empty() {
         return Err(no_board_error(&a.images, &board, "calibration"));
@@ -132,10 +137,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None
     } else {
         let fd = detect_all(&a.floor, &board, "floor views")?;
-        let (fviews, fskipped, fsizes) = split(fd);
+        let (fviews, fskipped, fsizes) = split(fd, &board);
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         for s in &fskipped {
-            eprintln!("skipped floor view {}: no checkerboard found", s.image);
+            eprintln!("skipped floor view {}: {}", s.image, s.reason);
         }
         if fviews.is_empty() {
             return Err(no_board_error(&a.floor, &board, "floor"));
@@ -158,7 +163,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         write_opencv_yaml(&file, p).with_context(|| format!("writing {}", p.display()))?;
     }
     if let Some(p) = &a.yaml_ros {
-        write_ros_yaml(&file, p, "odocal_ceiling").with_context(|| format!("writing {}", p.display()))?;
+        write_ros_yaml(&file, p, "odocal_ceiling")
+            .with_context(|| format!("writing {}", p.display()))?;
     }
     print_summary(&file, &a.out);
     Ok(())
@@ -183,7 +189,9 @@ pub fn print_summary(f: &CameraFile, out: &Path) {
     println!("  cx = {:10.3} px {}", k.cx, s(sd.map(|x| x.cx)));
     println!("  cy = {:10.3} px {}", k.cy, s(sd.map(|x| x.cy)));
     for (i, name) in ["k1", "k2", "p1", "p2", "k3"].iter().enumerate() {
-        let e = sd.map(|x| format!("± {:.5}", x.distortion[i])).unwrap_or_default();
+        let e = sd
+            .map(|x| format!("± {:.5}", x.distortion[i]))
+            .unwrap_or_default();
         println!("  {name} = {:10.5}    {e}", d[i]);
     }
     println!("  (± is one standard deviation from OpenCV's covariance at the optimum)");
@@ -203,7 +211,9 @@ pub fn print_summary(f: &CameraFile, out: &Path) {
             fl.camera_height_m
         );
     } else {
-        println!("no floor plane (pass --floor images of the board lying on the floor to track robots)");
+        println!(
+            "no floor plane (pass --floor images of the board lying on the floor to track robots)"
+        );
     }
     println!("wrote {}", out.display());
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args as ClapArgs;
 use odocal_calib::{BoardSpec, CameraFile, FloorPlane};
-use odocal_fixtures::board::{draw_views, render_view, CalibScene};
+use odocal_fixtures::board::{calibration_errors, draw_views, render_view, CalibScene, CalibTruth};
 use odocal_fixtures::raycast::RayGrid;
 use rayon::prelude::*;
 
@@ -54,21 +54,36 @@ pub fn parse_board(s: &str, square_m: f64) -> anyhow::Result<BoardSpec> {
     let (c, r) = s
         .split_once(['x', 'X'])
         .with_context(|| format!("--board {s:?}: expected COLSxROWS of inner corners, e.g. 9x6"))?;
-    let cols: u32 = c.trim().parse().with_context(|| format!("--board {s:?}: {c:?} is not a number"))?;
-    let rows: u32 = r.trim().parse().with_context(|| format!("--board {s:?}: {r:?} is not a number"))?;
+    let cols: u32 = c
+        .trim()
+        .parse()
+        .with_context(|| format!("--board {s:?}: {c:?} is not a number"))?;
+    let rows: u32 = r
+        .trim()
+        .parse()
+        .with_context(|| format!("--board {s:?}: {r:?} is not a number"))?;
     if cols < 3 || rows < 3 {
         anyhow::bail!("--board {s}: need at least 3x3 inner corners");
     }
     if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
         anyhow::bail!("--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm");
     }
-    Ok(BoardSpec { cols, rows, square_m })
+    Ok(BoardSpec {
+        cols,
+        rows,
+        square_m,
+    })
 }
 
 /// Runs `odocal synth calib`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.width < 64 || a.height < 48 || !(10.0..170.0).contains(&a.hfov) {
-        anyhow::bail!("image {}x{} with hfov {}°: need at least 64x48 and 10-170°", a.width, a.height, a.hfov);
+        anyhow::bail!(
+            "image {}x{} with hfov {}°: need at least 64x48 and 10-170°",
+            a.width,
+            a.height,
+            a.hfov
+        );
     }
     let scene = CalibScene {
         width: a.width,
@@ -83,26 +98,45 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let truth = draw_views(&scene, a.seed);
     if truth.views.len() < a.views {
-        anyhow::bail!("could only place {} of {} board views in a {}x{} image", truth.views.len(), a.views, a.width, a.height);
+        anyhow::bail!(
+            "could only place {} of {} board views in a {}x{} image",
+            truth.views.len(),
+            a.views,
+            a.width,
+            a.height
+        );
     }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     let grid = RayGrid::new(&truth.camera, scene.supersample);
     let jobs: Vec<_> = truth
         .views
         .iter()
         .map(|v| (v, None))
-        .chain(truth.floor_views.iter().map(|v| (v, Some(&truth.floor_to_camera))))
+        .chain(
+            truth
+                .floor_views
+                .iter()
+                .map(|v| (v, Some(&truth.floor_to_camera))),
+        )
         .enumerate()
         .collect();
     let bar = progress(jobs.len() as u64, "rendering");
-    jobs.par_iter().try_for_each(|(i, (view, floor))| -> anyhow::Result<()> {
-        let img = render_view(&grid, &scene, &view.board_to_camera, *floor, a.seed.wrapping_mul(1000).wrapping_add(*i as u64));
-        let mut png = Vec::new();
-        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
-        write_atomic(&a.out.join(&view.image), &png)?;
-        bar.inc(1);
-        Ok(())
-    })?;
+    jobs.par_iter()
+        .try_for_each(|(i, (view, floor))| -> anyhow::Result<()> {
+            let img = render_view(
+                &grid,
+                &scene,
+                &view.board_to_camera,
+                *floor,
+                a.seed.wrapping_mul(1000).wrapping_add(*i as u64),
+            );
+            let mut png = Vec::new();
+            img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+            write_atomic(&a.out.join(&view.image), &png)?;
+            bar.inc(1);
+            Ok(())
+        })?;
     bar.finish_and_clear();
     write_json(&a.out.join("truth.json"), &truth)?;
     let floor = FloorPlane {
@@ -111,7 +145,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         camera_height_m: scene.camera_height_m,
         views: vec![],
     };
-    write_json(&a.out.join("camera_true.json"), &CameraFile::from_model(truth.camera, Some(floor)))?;
+    write_json(
+        &a.out.join("camera_true.json"),
+        &CameraFile::from_model(truth.camera, Some(floor)),
+    )?;
     let k = truth.camera.intrinsics;
     println!(
         "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
@@ -128,5 +165,51 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "true camera: fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
         k.fx, k.fy, k.cx, k.cy
     );
+    Ok(())
+}
+
+/// Arguments of `odocal synth check-calib`.
+#[derive(ClapArgs)]
+pub struct CheckArgs {
+    /// camera.json written by `odocal calibrate`.
+    #[arg(long)]
+    camera: PathBuf,
+    /// truth.json written by `odocal synth calib`.
+    #[arg(long)]
+    truth: PathBuf,
+}
+
+/// Runs `odocal synth check-calib`: the calibration's error against the truth.
+pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
+    let cam = CameraFile::load(&a.camera)?;
+    let text = std::fs::read_to_string(&a.truth)
+        .with_context(|| format!("cannot read {}", a.truth.display()))?;
+    let truth: CalibTruth = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{} is not a truth.json from `odocal synth calib`",
+            a.truth.display()
+        )
+    })?;
+    let e = calibration_errors(
+        &cam.camera,
+        cam.floor.as_ref().map(|f| &f.floor_to_camera),
+        &truth.camera,
+        &truth.floor_to_camera,
+    );
+    println!(
+        "calibration error against the truth: fx {:.3} %, fy {:.3} %, cx {:.2} px, cy {:.2} px (bounds 0.2 %, 0.2 %, 1 px, 1 px)",
+        e.fx_rel * 100.0,
+        e.fy_rel * 100.0,
+        e.cx_px,
+        e.cy_px
+    );
+    match (e.floor_max_m, e.floor_rms_m) {
+        (Some(max), Some(rms)) => println!(
+            "floor mapping error over the central 2.5 m x 1.5 m: {:.2} mm RMS, {:.2} mm max (bound 2 mm)",
+            rms * 1e3,
+            max * 1e3
+        ),
+        _ => println!("no floor plane in {}", a.camera.display()),
+    }
     Ok(())
 }
