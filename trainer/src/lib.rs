@@ -1,1 +1,22 @@
-//! odocal-trainer (in progress).
+//! The odometry corrector of source A: an 18-k-2 perceptron trained by
+//! Levenberg–Marquardt or back-propagation, its cross-validated experiments
+//! (Tables 1 and 2), baselines on the same folds, and model files.
+
+pub mod baseline;
+pub mod cv;
+pub mod data;
+pub mod error;
+pub mod metrics;
+pub mod model;
+pub mod net;
+pub mod report;
+pub mod train;
+
+pub use baseline::{KinematicCalibration, LinearRegression, RosMultipliers};
+pub use cv::{sweep, SweepReport, SweepSettings};
+pub use data::{parse_dataset, sha256_hex};
+pub use error::TrainError;
+pub use metrics::{MeanSd, Metrics};
+pub use model::{ModelFile, ModelMetrics, MODEL_FORMAT};
+pub use net::{Normalisation, Perceptron};
+pub use train::{train, Method, TrainSettings, TrainedNet};

@@ -1,0 +1,26 @@
+//! Errors of the trainer.
+
+use thiserror::Error;
+
+/// Everything that can go wrong while loading data, training or applying a model.
+#[derive(Debug, Error)]
+pub enum TrainError {
+    /// The dataset is unusable (empty, wrong format, wrong rule, NaN, wrong length...).
+    #[error("dataset: {0}")]
+    Dataset(String),
+    /// A setting is outside its sensible range.
+    #[error("settings: {0}")]
+    Settings(String),
+    /// Too few samples for the requested folds / validation split.
+    #[error("too few samples: {0}")]
+    TooFewSamples(String),
+    /// A model file is unusable or does not fit the data it is applied to.
+    #[error("model: {0}")]
+    Model(String),
+    /// A numerical failure of a fit.
+    #[error("numerical failure: {0}")]
+    Numerical(String),
+    /// JSON (de)serialisation failed.
+    #[error("json: {0}")]
+    Json(#[from] serde_json::Error),
+}

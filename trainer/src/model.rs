@@ -1,0 +1,245 @@
+//! model.json: the trained corrector with everything needed to apply it safely.
+
+use nalgebra::{DMatrix, DVector};
+use odocal_dataset::{RobotParams, FEATURE_RULE, N_INPUTS};
+use serde::{Deserialize, Serialize};
+
+use crate::baseline::KinematicCalibration;
+use crate::error::TrainError;
+use crate::metrics::Metrics;
+use crate::net::{Normalisation, Perceptron};
+use crate::train::{TrainSettings, TrainedNet};
+
+/// The `format` tag of model files.
+pub const MODEL_FORMAT: &str = "odocal.model/1";
+
+/// Weights of the perceptron; matrices as rows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Weights {
+    /// Hidden weights, k rows of 18.
+    pub w1: Vec<Vec<f64>>,
+    /// Hidden biases, k.
+    pub b1: Vec<f64>,
+    /// Output weights, 2 rows of k.
+    pub w2: Vec<Vec<f64>>,
+    /// Output biases, 2.
+    pub b2: Vec<f64>,
+}
+
+/// Metrics recorded with a model (all MSE per coordinate, m^2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelMetrics {
+    /// On the samples the weights were fitted on.
+    pub train: Metrics,
+    /// On the early-stopping validation split (None without one).
+    pub validation: Option<Metrics>,
+    /// Raw odometry on all samples, for comparison.
+    pub raw_odometry: Metrics,
+    /// Cross-validated estimate of this configuration (k folds, one restart), if run.
+    pub cross_validated: Option<Metrics>,
+}
+
+/// Contents of model.json.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelFile {
+    /// Always [`MODEL_FORMAT`].
+    pub format: String,
+    /// Feature rule the inputs must follow.
+    pub feature_rule: String,
+    /// Robot parameters the training logs were dead-reckoned with.
+    pub robot: RobotParams,
+    /// SHA-256 of the dataset file trained on.
+    pub dataset_sha256: String,
+    /// Samples in that dataset.
+    pub n_samples: usize,
+    /// Layer sizes [18, k, 2].
+    pub layer_sizes: [usize; 3],
+    /// Activation functions, for readers: hidden, output.
+    pub activations: [String; 2],
+    /// Weights acting on normalised inputs.
+    pub weights: Weights,
+    /// Input normalisation: x_n = (x - offset) * scale.
+    pub input_normalisation: Normalisation,
+    /// Output normalisation: y = offset + y_n / scale (x, y end position, metres).
+    pub output_normalisation: Normalisation,
+    /// Training settings.
+    pub training: TrainSettings,
+    /// Seed of the training.
+    pub seed: u64,
+    /// Epoch whose weights were kept.
+    pub best_epoch: usize,
+    /// Why training stopped.
+    pub stop_reason: String,
+    /// Metrics.
+    pub metrics: ModelMetrics,
+    /// Kinematic calibration fitted on the same dataset (reference / ROS export).
+    pub kinematic_calibration: Option<KinematicCalibration>,
+}
+
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|r| m.row(r).iter().copied().collect())
+        .collect()
+}
+
+fn matrix(rows: &[Vec<f64>], nr: usize, nc: usize, what: &str) -> Result<DMatrix<f64>, TrainError> {
+    if rows.len() != nr || rows.iter().any(|r| r.len() != nc) {
+        return Err(TrainError::Model(format!("{what} must be {nr} x {nc}")));
+    }
+    Ok(DMatrix::from_fn(nr, nc, |r, c| rows[r][c]))
+}
+
+impl ModelFile {
+    /// Packs a trained net with its provenance.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        net: &TrainedNet,
+        settings: &TrainSettings,
+        seed: u64,
+        robot: RobotParams,
+        dataset_sha256: &str,
+        n_samples: usize,
+        metrics: ModelMetrics,
+        kinematic_calibration: Option<KinematicCalibration>,
+    ) -> Self {
+        Self {
+            format: MODEL_FORMAT.to_string(),
+            feature_rule: FEATURE_RULE.to_string(),
+            robot,
+            dataset_sha256: dataset_sha256.to_string(),
+            n_samples,
+            layer_sizes: [net.net.n_in(), net.net.hidden(), net.net.n_out()],
+            activations: ["logistic sigmoid".into(), "linear".into()],
+            weights: Weights {
+                w1: rows(&net.net.w1),
+                b1: net.net.b1.iter().copied().collect(),
+                w2: rows(&net.net.w2),
+                b2: net.net.b2.iter().copied().collect(),
+            },
+            input_normalisation: net.input_norm.clone(),
+            output_normalisation: net.output_norm.clone(),
+            training: settings.clone(),
+            seed,
+            best_epoch: net.best_epoch,
+            stop_reason: net.stop_reason.clone(),
+            metrics,
+            kinematic_calibration,
+        }
+    }
+
+    /// Parses model.json text, rejecting other formats and inconsistent sizes.
+    pub fn from_json(text: &str) -> Result<Self, TrainError> {
+        let value: serde_json::Value = serde_json::from_str(text)
+            .map_err(|e| TrainError::Model(format!("not valid JSON ({e})")))?;
+        match value.get("format").and_then(|f| f.as_str()) {
+            Some(MODEL_FORMAT) => {}
+            Some(other) => {
+                return Err(TrainError::Model(format!(
+                    "format is '{other}', this build reads '{MODEL_FORMAT}'; retrain with `odocal train`"
+                )))
+            }
+            None => {
+                return Err(TrainError::Model(format!(
+                    "no \"format\" field; expected '{MODEL_FORMAT}'"
+                )))
+            }
+        }
+        let m: ModelFile = serde_json::from_value(value)
+            .map_err(|e| TrainError::Model(format!("does not match {MODEL_FORMAT} ({e})")))?;
+        m.to_net()?;
+        Ok(m)
+    }
+
+    /// Rebuilds the trained net (checks sizes and finiteness).
+    pub fn to_net(&self) -> Result<TrainedNet, TrainError> {
+        let [n, k, o] = self.layer_sizes;
+        if n != N_INPUTS || o != 2 {
+            return Err(TrainError::Model(format!(
+                "layer sizes {:?}: expected [{N_INPUTS}, k, 2]",
+                self.layer_sizes
+            )));
+        }
+        let w = &self.weights;
+        let net = Perceptron {
+            w1: matrix(&w.w1, k, n, "weights.w1")?,
+            b1: DVector::from_vec(w.b1.clone()),
+            w2: matrix(&w.w2, o, k, "weights.w2")?,
+            b2: DVector::from_vec(w.b2.clone()),
+        };
+        if net.b1.len() != k || net.b2.len() != o {
+            return Err(TrainError::Model(
+                "bias lengths do not match layer sizes".into(),
+            ));
+        }
+        let norms = [
+            (&self.input_normalisation, n),
+            (&self.output_normalisation, o),
+        ];
+        for (nm, len) in norms {
+            if nm.offset.len() != len || nm.scale.len() != len {
+                return Err(TrainError::Model(
+                    "normalisation length does not match layer sizes".into(),
+                ));
+            }
+        }
+        let all_finite = net.to_params().iter().all(|v| v.is_finite())
+            && norms
+                .iter()
+                .all(|(nm, _)| nm.offset.iter().chain(&nm.scale).all(|v| v.is_finite()));
+        if !all_finite {
+            return Err(TrainError::Model(
+                "weights or normalisation contain NaN/inf".into(),
+            ));
+        }
+        Ok(TrainedNet {
+            net,
+            input_norm: self.input_normalisation.clone(),
+            output_norm: self.output_normalisation.clone(),
+            best_epoch: self.best_epoch,
+            epochs_run: self.best_epoch,
+            stop_reason: self.stop_reason.clone(),
+            n_fit: self.n_samples,
+        })
+    }
+
+    /// Refuses features built with another rule or logs of another robot.
+    pub fn check_compatible(
+        &self,
+        feature_rule: &str,
+        robot: &RobotParams,
+    ) -> Result<(), TrainError> {
+        if self.feature_rule != feature_rule {
+            return Err(TrainError::Model(format!(
+                "model was trained on feature rule '{}', but the inputs follow '{}'",
+                self.feature_rule, feature_rule
+            )));
+        }
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
+        let m = &self.robot;
+        if !(close(m.wheel_diameter_m, robot.wheel_diameter_m)
+            && close(m.ticks_per_rev, robot.ticks_per_rev)
+            && close(m.wheel_base_m, robot.wheel_base_m)
+            && close(m.period_s, robot.period_s))
+        {
+            return Err(TrainError::Model(format!(
+                "model was trained for robot {:?}, but the log is of robot {:?}",
+                m, robot
+            )));
+        }
+        Ok(())
+    }
+
+    /// Corrected end point (metres, run start frame) for 18 inputs built with the model's rule.
+    pub fn correct(&self, inputs: &[f64]) -> Result<[f64; 2], TrainError> {
+        if inputs.len() != N_INPUTS {
+            return Err(TrainError::Model(format!(
+                "{} inputs, the model takes {N_INPUTS}",
+                inputs.len()
+            )));
+        }
+        if inputs.iter().any(|v| !v.is_finite()) {
+            return Err(TrainError::Model("inputs contain NaN/inf".into()));
+        }
+        Ok(self.to_net()?.predict(inputs))
+    }
+}

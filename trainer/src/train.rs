@@ -1,0 +1,553 @@
+//! Training of the perceptron: Levenberg–Marquardt (default, analytic Jacobian,
+//! the `levenberg-marquardt` crate) or back-propagation with momentum; early
+//! stopping on a validation split, optional weight decay, deterministic per seed.
+
+use std::cell::RefCell;
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
+use nalgebra::{DMatrix, DVector};
+use nalgebra_lm::{Dyn, Owned};
+
+/// Vector / matrix types of the nalgebra version the LM crate uses.
+type LmVector = nalgebra_lm::DVector<f64>;
+type LmMatrix = nalgebra_lm::DMatrix<f64>;
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+use crate::net::{Normalisation, Perceptron};
+
+/// Smallest and largest hidden-layer size accepted.
+pub const HIDDEN_RANGE: std::ops::RangeInclusive<usize> = 1..=64;
+
+/// Default weight decay (normalised units): with 21k+2 parameters against
+/// ~2 x 100 residuals, early stopping alone leaves the net's variance high.
+pub const DEFAULT_WEIGHT_DECAY: f64 = 0.3;
+
+/// Training algorithm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Levenberg–Marquardt of the `levenberg-marquardt` crate (MINPACK trust region, pivoted QR).
+    Lm,
+    /// Levenberg–Marquardt as MATLAB's trainlm: (J'J + mu I) dx = -J'e by Cholesky,
+    /// mu x10 / x0.1; the same objective, an order of magnitude cheaper per epoch.
+    Trainlm,
+    /// Batch gradient descent with momentum (the source's back-propagation).
+    Backprop,
+}
+
+impl std::str::FromStr for Method {
+    type Err = TrainError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "lm" => Ok(Method::Lm),
+            "trainlm" => Ok(Method::Trainlm),
+            "backprop" | "bp" => Ok(Method::Backprop),
+            _ => Err(TrainError::Settings(format!(
+                "unknown method '{s}': use 'lm', 'trainlm' or 'backprop'"
+            ))),
+        }
+    }
+}
+
+/// Settings of one training.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainSettings {
+    /// Hidden-layer size k.
+    pub hidden: usize,
+    /// Training algorithm.
+    pub method: Method,
+    /// Fraction of the training samples held out for early stopping (0 disables it).
+    pub val_fraction: f64,
+    /// Early stopping: epochs without validation improvement before stopping.
+    pub max_fail: usize,
+    /// Upper bound on epochs.
+    pub max_epochs: usize,
+    /// Weight decay: adds lambda * sum(w^2) / 2 over the weights (not biases), normalised units.
+    pub weight_decay: f64,
+    /// Back-propagation learning rate (on the mean error in normalised units).
+    pub learning_rate: f64,
+    /// Back-propagation momentum.
+    pub momentum: f64,
+}
+
+impl TrainSettings {
+    /// Defaults for `method`: 15 % validation split; LM stops after 6 failed validation
+    /// checks (as MATLAB's trainlm), back-propagation after 200; weight decay
+    /// [`DEFAULT_WEIGHT_DECAY`].
+    pub fn new(hidden: usize, method: Method) -> Self {
+        match method {
+            Method::Lm | Method::Trainlm => Self {
+                hidden,
+                method,
+                val_fraction: 0.15,
+                max_fail: 6,
+                max_epochs: 200,
+                weight_decay: DEFAULT_WEIGHT_DECAY,
+                learning_rate: 0.0,
+                momentum: 0.0,
+            },
+            Method::Backprop => Self {
+                hidden,
+                method,
+                val_fraction: 0.15,
+                max_fail: 200,
+                max_epochs: 20_000,
+                weight_decay: DEFAULT_WEIGHT_DECAY,
+                learning_rate: 0.05,
+                momentum: 0.9,
+            },
+        }
+    }
+
+    /// Checks the ranges of all settings.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        if !HIDDEN_RANGE.contains(&self.hidden) {
+            return Err(TrainError::Settings(format!(
+                "hidden size k = {} is outside {}..={}",
+                self.hidden,
+                HIDDEN_RANGE.start(),
+                HIDDEN_RANGE.end()
+            )));
+        }
+        if !(0.0..0.5).contains(&self.val_fraction) {
+            return Err(TrainError::Settings(format!(
+                "validation fraction {} must be in [0, 0.5)",
+                self.val_fraction
+            )));
+        }
+        if !(self.weight_decay >= 0.0 && self.weight_decay.is_finite()) {
+            return Err(TrainError::Settings(format!(
+                "weight decay {} must be a finite number >= 0",
+                self.weight_decay
+            )));
+        }
+        if self.max_epochs == 0 {
+            return Err(TrainError::Settings("max_epochs must be at least 1".into()));
+        }
+        Ok(())
+    }
+}
+
+/// A trained net with its normalisation and training record.
+#[derive(Debug, Clone)]
+pub struct TrainedNet {
+    /// The weights (acting on normalised inputs, producing normalised outputs).
+    pub net: Perceptron,
+    /// Input normalisation.
+    pub input_norm: Normalisation,
+    /// Output normalisation.
+    pub output_norm: Normalisation,
+    /// Epoch whose weights were kept (best validation error).
+    pub best_epoch: usize,
+    /// Epochs run in total.
+    pub epochs_run: usize,
+    /// Why training stopped.
+    pub stop_reason: String,
+    /// Number of samples the weights were fitted on (excluding the validation split).
+    pub n_fit: usize,
+}
+
+impl TrainedNet {
+    /// Predicted end position (metres) for one raw input row.
+    pub fn predict(&self, inputs: &[f64]) -> [f64; 2] {
+        let x: Vec<f64> = inputs
+            .iter()
+            .enumerate()
+            .map(|(c, v)| self.input_norm.forward(c, *v))
+            .collect();
+        let mut y = [0.0; 2];
+        self.net.forward(&x, &mut y);
+        [
+            self.output_norm.inverse(0, y[0]),
+            self.output_norm.inverse(1, y[1]),
+        ]
+    }
+}
+
+/// Normalised design matrices for a subset of samples.
+fn matrices(
+    idx: &[usize],
+    inputs: &[Vec<f64>],
+    targets: &[[f64; 2]],
+    inorm: &Normalisation,
+    onorm: &Normalisation,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let n_in = inorm.offset.len();
+    let xs = DMatrix::from_fn(idx.len(), n_in, |r, c| inorm.forward(c, inputs[idx[r]][c]));
+    let ts = DMatrix::from_fn(idx.len(), 2, |r, c| onorm.forward(c, targets[idx[r]][c]));
+    (xs, ts)
+}
+
+/// Output scale with a guard: a constant target column keeps unit scale.
+fn output_norm(rows: &[&[f64]]) -> Normalisation {
+    let mut n = Normalisation::fit(rows);
+    for s in n.scale.iter_mut() {
+        if *s == 0.0 {
+            *s = 1.0;
+        }
+    }
+    n
+}
+
+/// Bookkeeping of early stopping, shared by both methods.
+#[derive(Debug, Clone)]
+struct EarlyStop {
+    epoch: usize,
+    best_epoch: usize,
+    best_val: f64,
+    best_params: DVector<f64>,
+    fails: usize,
+    reason: Option<String>,
+}
+
+impl EarlyStop {
+    fn new(p: DVector<f64>) -> Self {
+        Self {
+            epoch: 0,
+            best_epoch: 0,
+            best_val: f64::INFINITY,
+            best_params: p,
+            fails: 0,
+            reason: None,
+        }
+    }
+
+    /// Records the state after an epoch; returns false when training must stop.
+    fn check(&mut self, val_err: Option<f64>, p: &DVector<f64>, s: &TrainSettings) -> bool {
+        match val_err {
+            Some(v) if v.is_finite() => {
+                if v < self.best_val {
+                    self.best_val = v;
+                    self.best_epoch = self.epoch;
+                    self.best_params.copy_from(p);
+                    self.fails = 0;
+                } else {
+                    self.fails += 1;
+                }
+            }
+            Some(_) => {
+                self.reason = Some("validation error not finite".into());
+                return false;
+            }
+            None => {
+                self.best_epoch = self.epoch;
+                self.best_params.copy_from(p);
+            }
+        }
+        if self.fails >= s.max_fail {
+            self.reason = Some(format!("validation error rose {} times", s.max_fail));
+            return false;
+        }
+        if self.epoch >= s.max_epochs {
+            self.reason = Some(format!("reached {} epochs", s.max_epochs));
+            return false;
+        }
+        self.epoch += 1;
+        true
+    }
+}
+
+/// Sum of squared residuals of `net` on (xs, ts), normalised units.
+fn sse(net: &Perceptron, xs: &DMatrix<f64>, ts: &DMatrix<f64>) -> f64 {
+    let mut res = vec![0.0; xs.nrows() * ts.ncols()];
+    net.residuals_and_jacobian(xs, ts, &mut res, None);
+    res.iter().map(|r| r * r).sum()
+}
+
+/// The least-squares problem handed to the LM crate.
+struct NetProblem<'a> {
+    net: Perceptron,
+    xs: &'a DMatrix<f64>,
+    ts: &'a DMatrix<f64>,
+    val: Option<(&'a DMatrix<f64>, &'a DMatrix<f64>)>,
+    decay_sqrt: f64,
+    weight_idx: Vec<usize>,
+    settings: &'a TrainSettings,
+    stop: RefCell<EarlyStop>,
+}
+
+impl NetProblem<'_> {
+    fn n_res(&self) -> usize {
+        let decay_rows = if self.decay_sqrt > 0.0 {
+            self.weight_idx.len()
+        } else {
+            0
+        };
+        self.xs.nrows() * self.ts.ncols() + decay_rows
+    }
+
+    fn val_err(&self) -> Option<f64> {
+        self.val.map(|(vx, vt)| sse(&self.net, vx, vt))
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for NetProblem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &LmVector) {
+        self.net
+            .set_params(&DVector::from_column_slice(x.as_slice()));
+    }
+
+    fn params(&self) -> LmVector {
+        LmVector::from_column_slice(self.net.to_params().as_slice())
+    }
+
+    fn residuals(&self) -> Option<LmVector> {
+        let mut r = LmVector::zeros(self.n_res());
+        let base = self.xs.nrows() * self.ts.ncols();
+        self.net
+            .residuals_and_jacobian(self.xs, self.ts, &mut r.as_mut_slice()[..base], None);
+        if self.decay_sqrt > 0.0 {
+            let p = self.net.to_params();
+            for (row, &i) in self.weight_idx.iter().enumerate() {
+                r[base + row] = self.decay_sqrt * p[i];
+            }
+        }
+        Some(r)
+    }
+
+    fn jacobian(&self) -> Option<LmMatrix> {
+        // The crate asks for a Jacobian once per accepted step: one epoch.
+        let p = self.net.to_params();
+        let go_on = self
+            .stop
+            .borrow_mut()
+            .check(self.val_err(), &p, self.settings);
+        if !go_on {
+            return None;
+        }
+        let n_p = p.len();
+        let ld = self.n_res();
+        let mut j = LmMatrix::zeros(ld, n_p);
+        let mut r = vec![0.0; self.xs.nrows() * self.ts.ncols()];
+        self.net
+            .residuals_and_jacobian(self.xs, self.ts, &mut r, Some((j.as_mut_slice(), ld)));
+        if self.decay_sqrt > 0.0 {
+            let base = self.xs.nrows() * self.ts.ncols();
+            for (row, &i) in self.weight_idx.iter().enumerate() {
+                j[(base + row, i)] = self.decay_sqrt;
+            }
+        }
+        Some(j)
+    }
+}
+
+/// Trains an n-k-2 perceptron on `inputs` -> `targets` (metres) with `settings`,
+/// deterministically for `seed`.
+pub fn train(
+    inputs: &[Vec<f64>],
+    targets: &[[f64; 2]],
+    settings: &TrainSettings,
+    seed: u64,
+) -> Result<TrainedNet, TrainError> {
+    settings.validate()?;
+    let n = inputs.len();
+    if n != targets.len() {
+        return Err(TrainError::Dataset(format!(
+            "{} input rows but {} targets",
+            n,
+            targets.len()
+        )));
+    }
+    let n_in = inputs.first().map_or(0, |r| r.len());
+    if n_in == 0 || inputs.iter().any(|r| r.len() != n_in) {
+        return Err(TrainError::Dataset(
+            "input rows are empty or of unequal length".into(),
+        ));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.shuffle(&mut rng);
+    let n_val = if settings.val_fraction > 0.0 {
+        ((n as f64 * settings.val_fraction).round() as usize).max(1)
+    } else {
+        0
+    };
+    if n < n_val + 3 {
+        return Err(TrainError::TooFewSamples(format!(
+            "{n} training samples; need at least {} (3 to fit plus {n_val} for validation)",
+            n_val + 3
+        )));
+    }
+    let (val_idx, fit_idx) = order.split_at(n_val);
+
+    let in_rows: Vec<&[f64]> = inputs.iter().map(|r| r.as_slice()).collect();
+    let out_rows: Vec<&[f64]> = targets.iter().map(|t| t.as_slice()).collect();
+    let inorm = Normalisation::fit(&in_rows);
+    let onorm = output_norm(&out_rows);
+    let (xs, ts) = matrices(fit_idx, inputs, targets, &inorm, &onorm);
+    let (vx, vt) = matrices(val_idx, inputs, targets, &inorm, &onorm);
+    let val = if n_val > 0 { Some((&vx, &vt)) } else { None };
+
+    let mut net = Perceptron::init(n_in, settings.hidden, 2, &mut rng);
+    let weight_idx: Vec<usize> = (0..net.n_params()).filter(|&i| net.is_weight(i)).collect();
+    let (stop, final_params) = match settings.method {
+        Method::Lm => {
+            let problem = NetProblem {
+                stop: RefCell::new(EarlyStop::new(net.to_params())),
+                net: net.clone(),
+                xs: &xs,
+                ts: &ts,
+                val,
+                decay_sqrt: settings.weight_decay.sqrt(),
+                weight_idx,
+                settings,
+            };
+            let (problem, report) = LevenbergMarquardt::new()
+                .with_patience(1000)
+                .minimize(problem);
+            let mut stop = problem.stop.into_inner();
+            let p = problem.net.to_params();
+            match report.termination {
+                TerminationReason::User(_) => {}
+                TerminationReason::Numerical(what) => {
+                    if stop.best_val == f64::INFINITY && val.is_some() {
+                        return Err(TrainError::Numerical(format!("LM failed on {what}")));
+                    }
+                    stop.reason = Some(format!("LM numerical stop ({what})"));
+                }
+                other => {
+                    // Converged: the last accepted point has not been checked yet.
+                    let v = val.map(|(vx, vt)| sse(&problem.net, vx, vt));
+                    let mut relaxed = settings.clone();
+                    relaxed.max_epochs = usize::MAX;
+                    stop.check(v, &p, &relaxed);
+                    stop.reason = Some(format!("LM converged ({other:?})"));
+                }
+            }
+            (stop, p)
+        }
+        Method::Trainlm => {
+            let stop = trainlm(&mut net, &xs, &ts, val, &weight_idx, settings)?;
+            let p = net.to_params();
+            (stop, p)
+        }
+        Method::Backprop => {
+            let mut p = net.to_params();
+            let mut stop = EarlyStop::new(p.clone());
+            let mut vel = DVector::zeros(p.len());
+            let scale = 1.0 / xs.nrows() as f64;
+            loop {
+                let v = val.map(|(vx, vt)| sse(&net, vx, vt));
+                if !stop.check(v, &p, settings) {
+                    break;
+                }
+                let (_, mut g) = net.error_and_gradient(&xs, &ts);
+                g *= scale;
+                if settings.weight_decay > 0.0 {
+                    for &i in &weight_idx {
+                        g[i] += settings.weight_decay * scale * p[i];
+                    }
+                }
+                vel = vel * settings.momentum - g * settings.learning_rate;
+                p += &vel;
+                if p.iter().any(|v| !v.is_finite()) {
+                    return Err(TrainError::Numerical(
+                        "back-propagation diverged; lower the learning rate".into(),
+                    ));
+                }
+                net.set_params(&p);
+            }
+            (stop, p)
+        }
+    };
+    let _ = final_params;
+    net.set_params(&stop.best_params);
+    Ok(TrainedNet {
+        net,
+        input_norm: inorm,
+        output_norm: onorm,
+        best_epoch: stop.best_epoch,
+        epochs_run: stop.epoch,
+        stop_reason: stop.reason.unwrap_or_else(|| "stopped".into()),
+        n_fit: fit_idx.len(),
+    })
+}
+
+/// Marquardt's LM as MATLAB's trainlm, on E = 1/2 |e|^2 + lambda/2 |w|^2 (normalised units).
+fn trainlm(
+    net: &mut Perceptron,
+    xs: &DMatrix<f64>,
+    ts: &DMatrix<f64>,
+    val: Option<(&DMatrix<f64>, &DMatrix<f64>)>,
+    weight_idx: &[usize],
+    settings: &TrainSettings,
+) -> Result<EarlyStop, TrainError> {
+    const MU_MAX: f64 = 1e10;
+    const MIN_GRAD: f64 = 1e-10;
+    let lambda = settings.weight_decay;
+    let n_res = xs.nrows() * ts.ncols();
+    let n_p = net.n_params();
+    let mut mask = DVector::zeros(n_p);
+    for &i in weight_idx {
+        mask[i] = 1.0;
+    }
+    let objective = |net: &Perceptron, p: &DVector<f64>| -> f64 {
+        let decay: f64 = weight_idx.iter().map(|&i| p[i] * p[i]).sum();
+        0.5 * sse(net, xs, ts) + 0.5 * lambda * decay
+    };
+    let mut p = net.to_params();
+    let mut stop = EarlyStop::new(p.clone());
+    let mut mu = 1e-3;
+    let mut jac = DMatrix::zeros(n_res, n_p);
+    let mut res = vec![0.0; n_res];
+    let mut trial = net.clone();
+    loop {
+        let v = val.map(|(vx, vt)| sse(net, vx, vt));
+        if !stop.check(v, &p, settings) {
+            break;
+        }
+        net.residuals_and_jacobian(xs, ts, &mut res, Some((jac.as_mut_slice(), n_res)));
+        let e = DVector::from_column_slice(&res);
+        // J' J through a transposed copy: nalgebra's product then runs on matrixmultiply.
+        let jt = jac.transpose();
+        let mut jj = &jt * &jac;
+        let mut je = &jt * e;
+        for i in 0..n_p {
+            jj[(i, i)] += lambda * mask[i];
+            je[i] += lambda * mask[i] * p[i];
+        }
+        if je.norm() < MIN_GRAD {
+            stop.reason = Some("gradient below 1e-10".into());
+            break;
+        }
+        let f0 = objective(net, &p);
+        let mut accepted = false;
+        while mu <= MU_MAX {
+            let mut a = jj.clone();
+            for i in 0..n_p {
+                a[(i, i)] += mu;
+            }
+            if let Some(ch) = a.cholesky() {
+                let dx = ch.solve(&je);
+                let p2 = &p - dx;
+                trial.set_params(&p2);
+                let f2 = objective(&trial, &p2);
+                if f2.is_finite() && f2 < f0 {
+                    p = p2;
+                    net.set_params(&p);
+                    mu *= 0.1;
+                    accepted = true;
+                    break;
+                }
+            }
+            mu *= 10.0;
+        }
+        if !accepted {
+            stop.reason = Some("mu reached its maximum (no further decrease)".into());
+            let v = val.map(|(vx, vt)| sse(net, vx, vt));
+            let mut relaxed = settings.clone();
+            relaxed.max_epochs = usize::MAX;
+            stop.check(v, &p, &relaxed);
+            break;
+        }
+    }
+    Ok(stop)
+}

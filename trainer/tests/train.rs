@@ -1,0 +1,302 @@
+//! Trainer tests on a stand-in simulator (tests/common): acceptance bounds of the corrector
+//! against raw odometry and the oracle, determinism, baselines, model files and bad input.
+
+mod common;
+
+use nalgebra::{DMatrix, DVector};
+use odocal_dataset::{Dataset, RobotParams};
+use odocal_trainer::cv::{row, KINEMATIC, LINEAR, ORACLE, RAW};
+use odocal_trainer::*;
+use rand::SeedableRng;
+
+fn sweep_of(e: &common::Experiment, method: Method, k: usize, restarts: usize) -> SweepReport {
+    let settings = SweepSettings {
+        hidden_sizes: vec![k],
+        restarts,
+        folds: 5,
+        train: TrainSettings::new(k, method),
+        seed: 3,
+    };
+    sweep(&e.dataset, "test", &settings, Some(&e.oracle), &|| {}).expect("sweep")
+}
+
+fn check_acceptance(r: &SweepReport, k: usize) {
+    let t = &r.table2;
+    let raw = row(t, RAW).expect("raw").rel_error.mean;
+    let net = row(t, &cv::net_method_name(k)).expect("net").rel_error.mean;
+    let oracle = row(t, ORACLE).expect("oracle").rel_error.mean;
+    let kin = row(t, KINEMATIC).expect("kin").rel_error.mean;
+    assert!(row(t, LINEAR).is_some());
+    println!("raw {raw:.4} net {net:.4} oracle {oracle:.4} kin {kin:.4}");
+    assert!(
+        net <= 0.40 * raw,
+        "corrector {net:.4} > 40 % of raw {raw:.4}"
+    );
+    assert!(
+        net <= 1.3 * oracle,
+        "corrector {net:.4} > 1.3 x oracle {oracle:.4}"
+    );
+    // The report names the winner plainly.
+    let winner = if net < kin {
+        "The perceptron wins"
+    } else {
+        "The kinematic calibration wins"
+    };
+    assert!(r.verdict.contains(winner), "verdict: {}", r.verdict);
+}
+
+#[test]
+fn corrector_meets_bounds_with_default_lm() {
+    let e = common::experiment(90, 7, common::Truth::default());
+    let r = sweep_of(&e, Method::Lm, 8, 1);
+    check_acceptance(&r, 8);
+}
+
+#[test]
+fn corrector_meets_bounds_with_trainlm() {
+    let e = common::experiment(90, 11, common::Truth::default());
+    let r = sweep_of(&e, Method::Trainlm, 8, 2);
+    check_acceptance(&r, 8);
+}
+
+#[test]
+fn backprop_learns_the_systematic_error() {
+    let e = common::experiment(90, 5, common::Truth::default());
+    let r = sweep_of(&e, Method::Backprop, 8, 1);
+    let raw = row(&r.table2, RAW).expect("raw").rel_error.mean;
+    let net = row(&r.table2, &cv::net_method_name(8))
+        .expect("net")
+        .rel_error
+        .mean;
+    assert!(net < 0.5 * raw, "backprop {net:.4} vs raw {raw:.4}");
+}
+
+#[test]
+fn kinematic_calibration_recovers_the_wheel_ratio() {
+    let truth = common::Truth::default();
+    let e = common::experiment(60, 2, truth);
+    let all: Vec<_> = e.dataset.samples.iter().collect();
+    let k = KinematicCalibration::fit(&all, &e.dataset.robot).expect("fit");
+    let true_ratio = truth.c_r / truth.c_l;
+    assert!(k.from_wheel_revolutions);
+    assert!(
+        (k.wheel_diameter_ratio - true_ratio).abs() < 0.002,
+        "ratio {} vs {}",
+        k.wheel_diameter_ratio,
+        true_ratio
+    );
+    // Scale: true multipliers times the mean speed-dependent slip (0.03 x 0.47 m/s).
+    let true_scale = 0.5 * (truth.c_l + truth.c_r) * (1.0 - truth.slip_per_mps * 0.4667);
+    assert!(
+        (k.scale - true_scale).abs() < 0.005,
+        "scale {} vs {}",
+        k.scale,
+        true_scale
+    );
+    // The polyline model (no wheel revolutions) finds the same curvature roughly.
+    let mut stripped = e.dataset.samples.clone();
+    for s in &mut stripped {
+        s.odometry = Default::default();
+    }
+    let refs: Vec<_> = stripped.iter().collect();
+    let kp = KinematicCalibration::fit(&refs, &e.dataset.robot).expect("fit");
+    assert!(!kp.from_wheel_revolutions);
+    assert!((kp.curvature_rad_per_m - k.curvature_rad_per_m).abs() < 0.03);
+}
+
+#[test]
+fn training_is_deterministic_per_seed() {
+    let e = common::experiment(45, 4, common::Truth::default());
+    let x: Vec<Vec<f64>> = e.dataset.samples.iter().map(|s| s.inputs.clone()).collect();
+    let t: Vec<[f64; 2]> = e.dataset.samples.iter().map(|s| s.target_m).collect();
+    for m in [Method::Lm, Method::Trainlm, Method::Backprop] {
+        let s = TrainSettings::new(6, m);
+        let a = train(&x, &t, &s, 9).expect("a").net.to_params();
+        let b = train(&x, &t, &s, 9).expect("b").net.to_params();
+        let c = train(&x, &t, &s, 10).expect("c").net.to_params();
+        assert_eq!(a, b, "{m:?} not deterministic");
+        assert_ne!(a, c, "{m:?} ignores the seed");
+    }
+    let settings = SweepSettings {
+        hidden_sizes: vec![6, 7],
+        restarts: 2,
+        folds: 3,
+        train: TrainSettings::new(6, Method::Trainlm),
+        seed: 1,
+    };
+    let r1 = sweep(&e.dataset, "h", &settings, None, &|| {}).expect("sweep");
+    let r2 = sweep(&e.dataset, "h", &settings, None, &|| {}).expect("sweep");
+    assert_eq!(
+        serde_json::to_string(&r1).ok(),
+        serde_json::to_string(&r2).ok()
+    );
+}
+
+#[test]
+fn analytic_jacobian_matches_finite_differences() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let net = Perceptron::init(18, 5, 2, &mut rng);
+    let xs = DMatrix::from_fn(4, 18, |r, c| ((r * 18 + c) as f64 * 0.37).sin());
+    let ts = DMatrix::from_fn(4, 2, |r, c| (r + c) as f64 * 0.1);
+    let np = net.n_params();
+    let mut res = vec![0.0; 8];
+    let mut jac = vec![0.0; 8 * np];
+    net.residuals_and_jacobian(&xs, &ts, &mut res, Some((&mut jac, 8)));
+    let p = net.to_params();
+    let (_, grad) = net.error_and_gradient(&xs, &ts);
+    for i in 0..np {
+        let h = 1e-6;
+        let mut plus = net.clone();
+        let mut minus = net.clone();
+        let mut pp: DVector<f64> = p.clone();
+        pp[i] += h;
+        plus.set_params(&pp);
+        pp[i] -= 2.0 * h;
+        minus.set_params(&pp);
+        let (mut rp, mut rm) = (vec![0.0; 8], vec![0.0; 8]);
+        plus.residuals_and_jacobian(&xs, &ts, &mut rp, None);
+        minus.residuals_and_jacobian(&xs, &ts, &mut rm, None);
+        let mut g = 0.0;
+        for r in 0..8 {
+            let num = (rp[r] - rm[r]) / (2.0 * h);
+            assert!((num - jac[i * 8 + r]).abs() < 1e-6, "param {i} row {r}");
+            g += res[r] * jac[i * 8 + r];
+        }
+        assert!((g - grad[i]).abs() < 1e-8, "gradient {i}");
+    }
+}
+
+#[test]
+fn model_file_round_trips_and_refuses_other_robots() {
+    let e = common::experiment(45, 8, common::Truth::default());
+    let x: Vec<Vec<f64>> = e.dataset.samples.iter().map(|s| s.inputs.clone()).collect();
+    let t: Vec<[f64; 2]> = e.dataset.samples.iter().map(|s| s.target_m).collect();
+    let s = TrainSettings::new(8, Method::Trainlm);
+    let net = train(&x, &t, &s, 1).expect("train");
+    let all: Vec<_> = e.dataset.samples.iter().collect();
+    let m0 = Metrics::of(&all, &t);
+    let metrics = ModelMetrics {
+        train: m0,
+        validation: None,
+        raw_odometry: m0,
+        cross_validated: None,
+    };
+    let model = ModelFile::new(&net, &s, 1, e.dataset.robot, "abc", 45, metrics, None);
+    let text = serde_json::to_string(&model).expect("json");
+    let back = ModelFile::from_json(&text).expect("parse");
+    for xi in &x {
+        let (a, b) = (back.correct(xi).expect("correct"), net.predict(xi));
+        assert!(
+            (a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12,
+            "{a:?} vs {b:?}"
+        );
+    }
+    let robot = RobotParams::default();
+    back.check_compatible(odocal_dataset::FEATURE_RULE, &robot)
+        .expect("same robot");
+    let other = RobotParams {
+        wheel_base_m: 0.2,
+        ..robot
+    };
+    let err = back
+        .check_compatible(odocal_dataset::FEATURE_RULE, &other)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("robot"), "{err}");
+    let err = back
+        .check_compatible("odocal.features/2", &robot)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("feature rule"), "{err}");
+    let wrong = text.replace("odocal.model/1", "odocal.model/2");
+    let err = ModelFile::from_json(&wrong).unwrap_err().to_string();
+    assert!(err.contains("odocal.model/2"), "{err}");
+    assert!(back.correct(&[f64::NAN; 18]).is_err());
+    assert!(back.correct(&[0.0; 17]).is_err());
+}
+
+fn dataset_json(ds: &Dataset) -> Vec<u8> {
+    serde_json::to_vec(ds).expect("json")
+}
+
+#[test]
+fn bad_datasets_and_settings_are_clear_errors() {
+    let e = common::experiment(30, 9, common::Truth::default());
+    let ok = dataset_json(&e.dataset);
+    assert!(parse_dataset(&ok).is_ok());
+
+    let mut empty = e.dataset.clone();
+    empty.samples.clear();
+    let err = parse_dataset(&dataset_json(&empty))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no samples"), "{err}");
+
+    let mut short = e.dataset.clone();
+    short.samples[3].inputs.pop();
+    let err = parse_dataset(&dataset_json(&short))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("17 inputs") && err.contains("sample 3"),
+        "{err}"
+    );
+
+    // NaN is not valid JSON; a null in its place must be refused too.
+    let mut v: serde_json::Value = serde_json::from_slice(&ok).expect("value");
+    v["samples"][2]["inputs"][5] = serde_json::Value::Null;
+    let err = parse_dataset(&serde_json::to_vec(&v).expect("json"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("dataset"), "{err}");
+    let mut nan = e.dataset.clone();
+    nan.samples[1].inputs[4] = f64::NAN;
+    let err = data::check_dataset(&nan).unwrap_err().to_string();
+    assert!(err.contains("not a finite number"), "{err}");
+
+    let mut wrong = v.clone();
+    wrong["format"] = "odocal.model/1".into();
+    let err = parse_dataset(&serde_json::to_vec(&wrong).expect("json"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("odocal.model/1"), "{err}");
+
+    let x: Vec<Vec<f64>> = e.dataset.samples.iter().map(|s| s.inputs.clone()).collect();
+    let t: Vec<[f64; 2]> = e.dataset.samples.iter().map(|s| s.target_m).collect();
+    for k in [0, 65] {
+        let err = train(&x, &t, &TrainSettings::new(k, Method::Lm), 1)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("outside"), "{err}");
+    }
+    let few = SweepSettings {
+        hidden_sizes: vec![8],
+        restarts: 1,
+        folds: 20,
+        train: TrainSettings::new(8, Method::Lm),
+        seed: 1,
+    };
+    let err = sweep(&e.dataset, "h", &few, None, &|| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("too few samples"), "{err}");
+    assert!("sgd".parse::<Method>().is_err());
+}
+
+#[test]
+fn linear_regression_is_exact_on_linear_data() {
+    let e = common::experiment(40, 3, common::Truth::default());
+    let mut samples = e.dataset.samples.clone();
+    for s in &mut samples {
+        s.target_m = [
+            0.3 + 1.1 * s.inputs[14] - 0.2 * s.inputs[15],
+            0.05 * s.inputs[13] + s.inputs[15],
+        ];
+    }
+    let refs: Vec<_> = samples.iter().collect();
+    let lr = LinearRegression::fit(&refs).expect("fit");
+    for s in &samples {
+        let p = lr.predict(s);
+        assert!((p[0] - s.target_m[0]).abs() < 1e-4 && (p[1] - s.target_m[1]).abs() < 1e-4);
+    }
+}
