@@ -172,7 +172,6 @@ pub fn capacity_warning(hidden: usize, n_fit: usize) -> Option<String> {
 struct TaskOut {
     hidden: usize,
     restart: usize,
-    fold: usize,
     best_epoch: usize,
     n_fit: usize,
     train_mse_m2: f64,
@@ -330,7 +329,6 @@ pub fn sweep(
             Ok(TaskOut {
                 hidden: k,
                 restart: r,
-                fold: f,
                 best_epoch: net.best_epoch,
                 n_fit: net.n_fit,
                 train_mse_m2: Metrics::of(&fit_s, &fit_p).mse_m2,
@@ -353,7 +351,6 @@ pub fn sweep(
         }
         let ms: Vec<Metrics> = per_restart.iter().map(|p| Metrics::of(&all, p)).collect();
         let n_fit = mine.iter().map(|o| o.n_fit).min().unwrap_or(0);
-        let _ = mine.iter().map(|o| o.fold).max();
         if let Some(w) = capacity_warning(k, n_fit) {
             warnings.push(w);
         }

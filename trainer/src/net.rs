@@ -218,13 +218,13 @@ impl Perceptron {
                 if let Some((jac, ld)) = jac.as_mut() {
                     let ld = *ld;
                     let mut put = |col: usize, v: f64| jac[col * ld + row] = v;
-                    for j in 0..k {
-                        let d = self.w2[(o, j)] * h[j] * (1.0 - h[j]);
+                    for (j, hj) in h.iter().enumerate() {
+                        let d = self.w2[(o, j)] * hj * (1.0 - hj);
                         for (i, xi) in x.iter().enumerate() {
                             put(j * n + i, d * xi);
                         }
                         put(b1_off + j, d);
-                        put(w2_off + o * k + j, h[j]);
+                        put(w2_off + o * k + j, *hj);
                     }
                     for oo in 0..m {
                         // Outputs other than `o` do not depend on this output's weights.

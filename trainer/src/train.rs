@@ -388,7 +388,7 @@ pub fn train(
 
     let mut net = Perceptron::init(n_in, settings.hidden, 2, &mut rng);
     let weight_idx: Vec<usize> = (0..net.n_params()).filter(|&i| net.is_weight(i)).collect();
-    let (stop, final_params) = match settings.method {
+    let stop = match settings.method {
         Method::Lm => {
             let problem = NetProblem {
                 stop: RefCell::new(EarlyStop::new(net.to_params())),
@@ -405,6 +405,7 @@ pub fn train(
                 .minimize(problem);
             let mut stop = problem.stop.into_inner();
             let p = problem.net.to_params();
+            net = problem.net.clone();
             match report.termination {
                 TerminationReason::User(_) => {}
                 TerminationReason::Numerical(what) => {
@@ -422,13 +423,9 @@ pub fn train(
                     stop.reason = Some(format!("LM converged ({other:?})"));
                 }
             }
-            (stop, p)
+            stop
         }
-        Method::Trainlm => {
-            let stop = trainlm(&mut net, &xs, &ts, val, &weight_idx, settings)?;
-            let p = net.to_params();
-            (stop, p)
-        }
+        Method::Trainlm => trainlm(&mut net, &xs, &ts, val, &weight_idx, settings)?,
         Method::Backprop => {
             let mut p = net.to_params();
             let mut stop = EarlyStop::new(p.clone());
@@ -455,10 +452,9 @@ pub fn train(
                 }
                 net.set_params(&p);
             }
-            (stop, p)
+            stop
         }
     };
-    let _ = final_params;
     net.set_params(&stop.best_params);
     Ok(TrainedNet {
         net,

@@ -47,14 +47,14 @@ fn check_acceptance(r: &SweepReport, k: usize) {
 
 #[test]
 fn corrector_meets_bounds_with_default_lm() {
-    let e = common::experiment(90, 7, common::Truth::default());
-    let r = sweep_of(&e, Method::Lm, 8, 1);
+    let e = common::experiment(131, 7, common::Truth::default());
+    let r = sweep_of(&e, Method::Lm, 8, 2);
     check_acceptance(&r, 8);
 }
 
 #[test]
 fn corrector_meets_bounds_with_trainlm() {
-    let e = common::experiment(90, 11, common::Truth::default());
+    let e = common::experiment(131, 11, common::Truth::default());
     let r = sweep_of(&e, Method::Trainlm, 8, 2);
     check_acceptance(&r, 8);
 }
