@@ -166,3 +166,29 @@ fn tracker_follows_motion() {
         assert!((r.pose.unwrap().position() - truth.position()).norm() < 0.01);
     }
 }
+
+#[test]
+fn history_resolves_a_symmetric_start() {
+    // A square (4-fold ambiguous) and one landmark that only comes into view
+    // as the sensor drives towards it.
+    let loc = Localizer::new(
+        map_of(&[(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0), (-0.5, -5.0)]),
+        LocalizerConfig::default(),
+    );
+    let mut tr = Tracker::new(&loc);
+    let mut statuses = Vec::new();
+    for k in 0..40 {
+        let truth = Pose2::new(-1.5, 1.0 - 0.04 * k as f64, 0.0);
+        let r = tr.process(&scan_of(&loc.map, &truth, &[], &[]), k as f64 * 0.1);
+        if r.status == Status::Ok {
+            let p = r.pose.unwrap();
+            assert!(
+                (p.position() - truth.position()).norm() < 0.03,
+                "scan {k}: confident wrong {p:?}"
+            );
+        }
+        statuses.push(r.status);
+    }
+    assert_eq!(statuses[0], Status::Ambiguous);
+    assert_eq!(*statuses.last().unwrap(), Status::Ok, "{statuses:?}");
+}

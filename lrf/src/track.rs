@@ -89,8 +89,8 @@ impl<'a> Tracker<'a> {
                 (h.pose.y_m - tr.pose.y_m) / dt,
                 wrap_angle(h.pose.theta_rad - tr.pose.theta_rad) / dt,
             ];
-            for k in 0..3 {
-                tr.vel[k] = 0.5 * tr.vel[k] + 0.5 * v[k];
+            for (w, vk) in tr.vel.iter_mut().zip(v) {
+                *w = 0.5 * *w + 0.5 * vk;
             }
         }
         tr.pose = h.pose;

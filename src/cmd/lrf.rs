@@ -46,7 +46,7 @@ pub struct LocalizeArgs {
     /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`), in time order.
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
-    /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan.
+    /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan (x,y,theta empty when lost).
     #[arg(long)]
     pub out: PathBuf,
     /// True poses (CSV t,x,y,theta[,n_detected]) to report the error against.
