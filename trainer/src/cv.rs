@@ -45,7 +45,7 @@ pub struct Table1Row {
     pub n_residuals: usize,
     /// Epoch of the kept weights, over restarts x folds.
     pub epochs: MeanSd,
-    /// Training MSE per coordinate, m^2, over restarts x folds.
+    /// Training MSE per coordinate (samples fitted, without the early-stopping split), m^2, over restarts x folds.
     pub train_mse_m2: MeanSd,
     /// Cross-validated (held-out fold) MSE per coordinate, m^2, over restarts.
     pub val_mse_m2: MeanSd,
@@ -322,8 +322,12 @@ pub fn sweep(
             let ftg: Vec<[f64; 2]> = fit.iter().map(|&i| targets[i]).collect();
             let seed = derive_seed(settings.seed, &[k as u64, r as u64, f as u64]);
             let net = train(&fin, &ftg, &ts, seed)?;
-            let fit_s: Vec<&Sample> = fit.iter().map(|&i| &samples[i]).collect();
-            let fit_p: Vec<[f64; 2]> = fin.iter().map(|x| net.predict(x)).collect();
+            let fit_s: Vec<&Sample> = net.fit_indices.iter().map(|&j| &samples[fit[j]]).collect();
+            let fit_p: Vec<[f64; 2]> = net
+                .fit_indices
+                .iter()
+                .map(|&j| net.predict(&fin[j]))
+                .collect();
             let pred = test.iter().map(|&i| (i, net.predict(&inputs[i]))).collect();
             tick();
             Ok(TaskOut {

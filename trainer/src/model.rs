@@ -199,6 +199,8 @@ impl ModelFile {
             epochs_run: self.best_epoch,
             stop_reason: self.stop_reason.clone(),
             n_fit: self.n_samples,
+            fit_indices: Vec::new(),
+            validation_indices: Vec::new(),
         })
     }
 

@@ -149,6 +149,10 @@ pub struct TrainedNet {
     pub stop_reason: String,
     /// Number of samples the weights were fitted on (excluding the validation split).
     pub n_fit: usize,
+    /// Indices (into the training rows) of the samples the weights were fitted on.
+    pub fit_indices: Vec<usize>,
+    /// Indices (into the training rows) of the early-stopping validation split.
+    pub validation_indices: Vec<usize>,
 }
 
 impl TrainedNet {
@@ -464,6 +468,8 @@ pub fn train(
         epochs_run: stop.epoch,
         stop_reason: stop.reason.unwrap_or_else(|| "stopped".into()),
         n_fit: fit_idx.len(),
+        fit_indices: fit_idx.to_vec(),
+        validation_indices: val_idx.to_vec(),
     })
 }
 
