@@ -419,12 +419,21 @@ fn verdict(t: &[MethodRow], best: usize) -> String {
         pct(net),
         100.0 * net.rel_error.mean / raw.rel_error.mean
     );
+    let margin = (net.rel_error.mean - kin.rel_error.mean).abs();
+    let tie = margin <= net.rel_error.sd.max(0.02 * kin.rel_error.mean);
     if net.rel_error.mean < kin.rel_error.mean {
         s += &format!(
             "The perceptron wins over the kinematic calibration ({:.2} % vs {:.2} %).",
             pct(net),
             pct(kin)
         );
+        if tie {
+            s += &format!(
+                " The margin ({:.2} points) is within the restart-to-restart spread (sd {:.2} points): in practice a tie, and the three-parameter calibration is the simpler tool.",
+                100.0 * margin,
+                100.0 * net.rel_error.sd
+            );
+        }
     } else {
         s += &format!(
             "The kinematic calibration wins over the perceptron ({:.2} % vs {:.2} %): three physical parameters do at least as well as the net.",

@@ -125,8 +125,9 @@ pub fn markdown(r: &SweepReport) -> String {
         let _ = writeln!(
             s,
             "Note: the wheel separation multiplier {c_b:.3} is not physically plausible. Straight runs barely determine the \
-             wheel base (UMBMark uses square paths with turns); the fit uses it to damp quantised heading noise. For a ROS \
-             diff_drive_controller keep wheel_separation_multiplier at 1.0 and use only the radius multipliers.\n"
+             wheel base (UMBMark uses square paths with turns); the fit uses it to damp quantised heading noise, and the \
+             diameter ratio then compensates (only their quotient, the curvature, is well determined). Do not copy these \
+             multipliers into a ROS diff_drive_controller without a calibration run that includes turns.\n"
         );
     }
     let _ = writeln!(s, "**Verdict.** {}\n", r.verdict);
