@@ -417,3 +417,83 @@ fn bad_inputs_fail_clearly_without_output() {
     );
     assert!(!out.exists(), "no partial output after fatal errors");
 }
+
+#[test]
+fn calibrated_camera_meets_accuracy() {
+    // The whole chain: calibrate the synthetic camera from checkerboard views, then
+    // track a video of the same camera with that calibration (not the truth).
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let calib = d.join("calib");
+    ok(&odocal(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&calib),
+        "--seed",
+        "1",
+        "--views",
+        "12",
+        "--floor-views",
+        "2",
+    ]));
+    let mut views = Vec::new();
+    let mut floors = Vec::new();
+    for e in std::fs::read_dir(&calib).unwrap() {
+        let path = e.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if name.ends_with(".png") {
+            if name.starts_with("view_") {
+                views.push(path.to_string_lossy().into_owned());
+            } else if name.starts_with("floor_") {
+                floors.push(path.to_string_lossy().into_owned());
+            }
+        }
+    }
+    views.sort();
+    floors.sort();
+    let cam = d.join("camera.json");
+    let mut args: Vec<&str> = vec!["calibrate"];
+    args.extend(views.iter().map(|s| s.as_str()));
+    args.extend([
+        "--board",
+        "9x6",
+        "--square",
+        "0.05",
+        "--out",
+        p(&cam),
+        "--floor",
+    ]);
+    args.extend(floors.iter().map(|s| s.as_str()));
+    ok(&odocal(&args));
+    let trk = d.join("track");
+    ok(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(&trk),
+        "--frames",
+        "30",
+        "--seed",
+        "6",
+    ]));
+    let out = d.join("traj.csv");
+    ok(&odocal(&[
+        "track",
+        p(&trk.join("video.avi")),
+        "--camera",
+        p(&cam),
+        "--out",
+        p(&out),
+    ]));
+    let est = Trajectory::read_csv(&out).unwrap();
+    let truth = Trajectory::read_csv(&trk.join("truth.csv")).unwrap();
+    let (pos, head, n) = errors(&est, &truth);
+    eprintln!(
+        "calibrated camera: {n}/30 frames, position RMS {:.3} mm, heading RMS {:.3} deg",
+        pos * 1e3,
+        head.to_degrees()
+    );
+    assert!(n >= 30 * 995 / 1000, "tracked only {n} of 30 frames");
+    assert!(pos <= 2.5e-3, "position RMS {:.3} mm > 2.5 mm", pos * 1e3);
+}

@@ -31,7 +31,7 @@ impl Roi {
         let y0 = (centre.y - half_px).floor().max(0.0);
         let x1 = (centre.x + half_px).ceil().min(w as f64);
         let y1 = (centre.y + half_px).ceil().min(h as f64);
-        (x1 - x0 >= 16.0 && y1 - y0 >= 16.0).then(|| Self {
+        (x1 - x0 >= 16.0 && y1 - y0 >= 16.0).then_some(Self {
             x0: x0 as u32,
             y0: y0 as u32,
             width: (x1 - x0) as u32,

@@ -321,7 +321,9 @@ impl Tracker {
         ) else {
             return Ok(Outcome::Gap(GapReason::BadGeometry));
         };
-        if !(planar.reprojection_rms_px <= o.max_reprojection_px) {
+        // NaN never passes.
+        if planar.reprojection_rms_px.is_nan() || planar.reprojection_rms_px > o.max_reprojection_px
+        {
             return Ok(Outcome::Gap(GapReason::BadGeometry));
         }
         if let Some(&(t_last, p_last, _)) = self.history.last() {
