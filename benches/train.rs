@@ -1,2 +1,153 @@
-//! Benchmark: train (in progress).
-fn main() {}
+//! Benchmark of the trainer: one training of 18-8-2 on 131 samples (targets < 50 ms) and
+//! the full sweep 7 sizes x 10 restarts x 5 folds (target < 10 s on 2 cores), with each
+//! method, against a baseline in the same process (fitting the linear regression).
+//!
+//! The 131 samples come from the robot simulator of `odocal synth experiment` (seed 1), with
+//! the true end points as targets (no camera, no alignment): the trainer's work is the same.
+
+use std::time::{Duration, Instant};
+
+use odocal_dataset::{features_from_log, Dataset, OdometryLog, RobotParams, Sample};
+use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
+use odocal_trainer::{sweep, train, LinearRegression, Method, SweepSettings, TrainSettings};
+
+fn sim_dataset(n: usize, seed: u64) -> Dataset {
+    let cfg = RobotSimConfig::default();
+    let robot = RobotParams::default();
+    let mut samples = Vec::new();
+    for i in 0..n {
+        let Ok(rec) = simulate_recording(&cfg, &[cfg.speed_of_run(i)], seed, i as u64) else {
+            continue;
+        };
+        let Ok(log) = OdometryLog::from_ticks(
+            rec.log.iter().map(|r| rec.log_time_s(r)).collect(),
+            rec.log.iter().map(|r| r.left_ticks).collect(),
+            rec.log.iter().map(|r| r.right_ticks).collect(),
+        ) else {
+            continue;
+        };
+        let (Ok(f), Some(run)) = (features_from_log(&log, &robot), rec.runs.first()) else {
+            continue;
+        };
+        samples.push(Sample {
+            run_id: format!("run{:03}", i + 1),
+            speed_mps: run.speed_mps,
+            inputs: f.inputs.to_vec(),
+            target_m: [run.end_in_start_frame.x_m, run.end_in_start_frame.y_m],
+            raw_end_m: f.raw_end_m,
+            path_length_m: run.path_length_m,
+            odometry: f.odometry,
+            ..Default::default()
+        });
+    }
+    Dataset::new(robot, samples, Vec::new(), n)
+}
+
+/// CPU seconds used by this process so far (user + system, from /proc; 0 where unavailable).
+fn cpu_s() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the command name: state is field 3, utime 14, stime 15 (clock ticks, 100 Hz).
+    let rest = stat.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(11) + tick(12)) / 100.0
+}
+
+/// The 1-minute load average (other work on the machine inflates wall times).
+fn load_avg() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "?".into())
+}
+
+fn median(mut v: Vec<Duration>) -> Duration {
+    v.sort();
+    v[v.len() / 2]
+}
+
+fn time<F: FnMut()>(reps: usize, mut f: F) -> Duration {
+    median(
+        (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed()
+            })
+            .collect(),
+    )
+}
+
+fn main() {
+    let ds = sim_dataset(131, 1);
+    let x: Vec<Vec<f64>> = ds.samples.iter().map(|s| s.inputs.clone()).collect();
+    let t: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.target_m).collect();
+    println!(
+        "dataset: {} samples from the robot simulator (seed 1)",
+        ds.samples.len()
+    );
+    let refs: Vec<&Sample> = ds.samples.iter().collect();
+    let base = time(20, || {
+        let _ = LinearRegression::fit(&refs);
+    });
+    println!(
+        "baseline: linear regression fit {:.3} ms",
+        base.as_secs_f64() * 1e3
+    );
+
+    for m in [Method::Lm, Method::Trainlm, Method::Backprop] {
+        let s = TrainSettings::new(8, m);
+        let mut epochs = Vec::new();
+        let mut seed = 0;
+        let c0 = cpu_s();
+        let d = time(7, || {
+            seed += 1;
+            if let Ok(net) = train(&x, &t, &s, seed) {
+                epochs.push(net.epochs_run);
+            }
+        });
+        let cpu_ms = (cpu_s() - c0) / 7.0 * 1e3;
+        println!(
+            "one training 18-8-2, {:?}: median wall {:.1} ms over 7 seeds (mean CPU {:.1} ms; epochs run {:?}) = {:.0}x baseline; target < 50 ms: {}",
+            m,
+            d.as_secs_f64() * 1e3,
+            cpu_ms,
+            epochs,
+            d.as_secs_f64() / base.as_secs_f64(),
+            if d.as_secs_f64() < 0.05 { "met" } else { "MISSED" }
+        );
+    }
+
+    let threads = rayon::current_num_threads();
+    for (m, restarts) in [(Method::Trainlm, 10), (Method::Lm, 2)] {
+        let settings = SweepSettings {
+            hidden_sizes: (6..=12).collect(),
+            restarts,
+            folds: 5,
+            train: TrainSettings::new(8, m),
+            seed: 1,
+        };
+        let t0 = Instant::now();
+        let c0 = cpu_s();
+        let ok = sweep(&ds, "bench", &settings, None, &|| {}).is_ok();
+        let d = t0.elapsed().as_secs_f64();
+        let cpu = cpu_s() - c0;
+        let full = d * 10.0 / restarts as f64;
+        let full_cpu = cpu * 10.0 / restarts as f64;
+        println!(
+            "sweep 7 sizes x {restarts} restarts x 5 folds, {:?}, {threads} threads: wall {:.2} s, CPU {:.2} s{} \
+             (full 10 restarts: wall {:.1} s, CPU {:.1} s = {:.1} s on 2 idle cores); load average {}; target < 10 s: {}",
+            m,
+            d,
+            cpu,
+            if ok { "" } else { " (failed)" },
+            full,
+            full_cpu,
+            full_cpu / 2.0,
+            load_avg(),
+            if full < 10.0 { "met" } else if full_cpu / 2.0 < 10.0 { "met on CPU time, wall time inflated by load" } else { "MISSED" }
+        );
+    }
+}
