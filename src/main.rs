@@ -33,6 +33,8 @@ enum Command {
     /// Laser positioning among reflective landmarks.
     #[command(subcommand)]
     Lrf(cmd::lrf::Command),
+    /// Write one self-contained HTML report (inline SVG plots) from the stage outputs.
+    Report(cmd::report::Args),
 }
 
 #[derive(Subcommand)]
@@ -63,6 +65,7 @@ fn main() {
         Command::Train(a) => cmd::train::run(a),
         Command::Correct(a) => cmd::correct::run(a),
         Command::Lrf(c) => cmd::lrf::run(c),
+        Command::Report(a) => cmd::report::run(a),
     };
     if let Err(e) = result {
         // One line: what was wrong, with the chain of causes joined.

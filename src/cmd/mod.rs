@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod correct;
 pub mod dataset;
 pub mod lrf;
+pub mod report;
 pub mod synth_calib;
 pub mod synth_experiment;
 pub mod synth_lrf;

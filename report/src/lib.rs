@@ -1,0 +1,35 @@
+//! One self-contained HTML report of the odocal pipeline: calibration residuals and coverage,
+//! real vs odometry vs corrected trajectories, heading oscillation, the corrector's fit across
+//! runs, the trainer's Tables 1 and 2, and laser poses against the truth. Plots are inline SVG
+//! made with `plotters`; the page has no scripts and loads nothing.
+
+pub mod chart;
+pub mod html;
+pub mod inputs;
+pub mod sections;
+
+pub use chart::{Chart, Mark, Series};
+pub use html::{Block, Report, Section, Table};
+pub use inputs::{parse_laser_poses, parse_track_csv, Clock, LaserPose, TrackFile};
+pub use sections::{
+    calibration_section, corrector_section, heading_section, laser_section, pick_runs,
+    training_section, trajectory_section, CalibInput, CalibView, LaserInput, RunView,
+};
+
+/// Errors of report building.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A plot could not be drawn.
+    #[error("plot {0}")]
+    Plot(String),
+    /// An input file is malformed: file, line, what is wrong.
+    #[error("{path}: line {line}: {message}")]
+    Input {
+        /// File name.
+        path: String,
+        /// 1-based line number (0 = whole file).
+        line: usize,
+        /// What is wrong and what to do.
+        message: String,
+    },
+}

@@ -1,0 +1,480 @@
+//! End-to-end tests of `odocal report` (issue 7): a report from small synthetic stage outputs,
+//! opened in headless Chromium (Debian's `chromium`, installed by `make test`): the screenshot
+//! is not blank, every plot has drawn content, and the page logs no script errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn odocal(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(args)
+        .output()
+        .expect("run odocal")
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = odocal(args);
+    assert!(
+        o.status.success(),
+        "odocal {args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Runs odocal expecting exit code 2 and a one-line error; returns the message.
+fn fails(args: &[&str]) -> String {
+    let o = odocal(args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "odocal {args:?} should fail: {err}"
+    );
+    assert!(err.starts_with("odocal: error: "), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    err
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("utf-8 path")
+}
+
+fn sorted_files(dir: &Path, prefix: &str) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .expect("read dir")
+        .map(|e| e.expect("dir entry").path())
+        .filter(|f| {
+            f.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with(prefix))
+        })
+        .map(|f| f.to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Every stage's output, small, in the layout of scripts/demo.sh.
+fn demo_outputs(d: &Path) {
+    let calib = d.join("calib");
+    ok(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&calib),
+        "--seed",
+        "3",
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--views",
+        "8",
+        "--floor-views",
+        "1",
+    ]);
+    let mut args: Vec<String> = vec!["calibrate".into()];
+    args.extend(sorted_files(&calib, "view_"));
+    // The floor view is too small at 640x360 to be found; the report does not need the floor.
+    args.extend(["--board", "9x6", "--square", "0.05"].map(String::from));
+    args.extend([
+        "--out".to_string(),
+        d.join("camera.json").to_string_lossy().into_owned(),
+    ]);
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+
+    let exp = d.join("experiment");
+    ok(&[
+        "synth",
+        "experiment",
+        "--out",
+        p(&exp),
+        "--runs",
+        "24",
+        "--seed",
+        "2",
+        "--frames",
+        "none",
+    ]);
+    let ds = d.join("dataset.json");
+    ok(&[
+        "dataset",
+        "--manifest",
+        p(&exp.join("manifest.json")),
+        "--out",
+        p(&ds),
+    ]);
+    ok(&[
+        "train",
+        p(&ds),
+        "--sweep",
+        "2..3",
+        "--restarts",
+        "1",
+        "--folds",
+        "3",
+        "--method",
+        "trainlm",
+        "--report",
+        p(&d.join("train")),
+    ]);
+    ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&d.join("model.json")),
+        "--hidden",
+        "3",
+        "--method",
+        "trainlm",
+    ]);
+
+    let lrf = d.join("lrf");
+    ok(&[
+        "synth",
+        "lrf",
+        "--out",
+        p(&lrf),
+        "--scans",
+        "40",
+        "--seed",
+        "4",
+    ]);
+    ok(&[
+        "lrf",
+        "localize",
+        "--map",
+        p(&lrf.join("map.json")),
+        p(&lrf.join("scans.csv")),
+        "--out",
+        p(&lrf.join("poses.csv")),
+    ]);
+}
+
+fn chromium() -> PathBuf {
+    for name in ["chromium", "chromium-browser"] {
+        if let Ok(o) = Command::new("sh")
+            .args(["-c", &format!("command -v {name}")])
+            .output()
+        {
+            let s = String::from_utf8_lossy(&o.stdout).trim().to_string();
+            if o.status.success() && !s.is_empty() {
+                return PathBuf::from(s);
+            }
+        }
+    }
+    panic!(
+        "chromium is not installed, so the report cannot be checked in a browser: run `make test` \
+         (it installs Debian's chromium through scripts/install-deps.sh) or `apt-get install chromium`"
+    );
+}
+
+/// Runs headless Chromium on `url` with `extra` flags; returns (stdout, stderr).
+fn run_chromium(url: &str, extra: &[String]) -> (String, String) {
+    let profile = tempfile::tempdir().expect("profile dir");
+    let o = Command::new(chromium())
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--disable-dev-shm-usage",
+            "--enable-logging=stderr",
+            "--v=0",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .args(extra)
+        .arg(url)
+        .output()
+        .expect("run chromium");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "chromium failed: {err}");
+    (String::from_utf8_lossy(&o.stdout).into_owned(), err)
+}
+
+/// The value of attribute `name` in the start tag `tag`.
+fn attr<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
+    let key = format!(" {name}=\"");
+    let i = tag.find(&key)? + key.len();
+    let j = tag[i..].find('"')?;
+    Some(&tag[i..i + j])
+}
+
+/// Start tags `<name ...>` inside `svg`.
+fn tags<'a>(svg: &'a str, name: &str) -> Vec<&'a str> {
+    let open = format!("<{name} ");
+    let mut out = Vec::new();
+    let mut rest = svg;
+    while let Some(i) = rest.find(&open) {
+        let t = &rest[i..];
+        let end = t.find('>').unwrap_or(t.len());
+        out.push(&t[..end]);
+        rest = &t[end..];
+    }
+    out
+}
+
+/// Checks that an SVG (as the browser serialised it) has drawn data: data lines (stroke width 2)
+/// with distinct points or dots, inside the view box, spanning more than a few pixels.
+fn check_svg(svg: &str, what: &str) {
+    let head = &svg[..svg.find('>').unwrap_or(0)];
+    let w: f64 = attr(head, "width")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.0);
+    let h: f64 = attr(head, "height")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.0);
+    assert!(w > 100.0 && h > 100.0, "{what}: svg size {w} x {h}");
+    let inside = |x: f64, y: f64| {
+        x.is_finite() && y.is_finite() && (0.0..=w).contains(&x) && (0.0..=h).contains(&y)
+    };
+    let mut pts: Vec<(f64, f64)> = Vec::new();
+    for t in tags(svg, "polyline") {
+        if attr(t, "stroke-width") != Some("2") {
+            continue; // axes and ticks
+        }
+        let line: Vec<(f64, f64)> = attr(t, "points")
+            .unwrap_or("")
+            .split_whitespace()
+            .filter_map(|xy| {
+                let (x, y) = xy.split_once(',')?;
+                Some((x.parse().ok()?, y.parse().ok()?))
+            })
+            .collect();
+        assert!(
+            line.iter().all(|&(x, y)| inside(x, y)),
+            "{what}: line outside the plot: {t}"
+        );
+        if line.windows(2).any(|p| p[0] != p[1]) {
+            pts.extend(line);
+        }
+    }
+    for t in tags(svg, "circle") {
+        let x: f64 = attr(t, "cx")
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(f64::NAN);
+        let y: f64 = attr(t, "cy")
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(f64::NAN);
+        assert!(inside(x, y), "{what}: dot outside the plot: {t}");
+        pts.push((x, y));
+    }
+    assert!(!pts.is_empty(), "{what}: no data drawn");
+    let span = |f: fn(&(f64, f64)) -> f64| {
+        let v: Vec<f64> = pts.iter().map(f).collect();
+        v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    assert!(
+        span(|p| p.0) > 5.0 || span(|p| p.1) > 5.0,
+        "{what}: degenerate data (all within 5 px)"
+    );
+    // Every plot has a title and axis labels with units.
+    let texts = tags(svg, "text").len();
+    assert!(
+        texts >= 5,
+        "{what}: {texts} text elements (title, axis labels, ticks expected)"
+    );
+    assert!(
+        svg.contains('(') && svg.contains(')'),
+        "{what}: no unit in the axis labels"
+    );
+}
+
+fn svgs(html: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let mut rest = html;
+    while let Some(i) = rest.find("<svg") {
+        let t = &rest[i..];
+        let end = t.find("</svg>").map_or(t.len(), |e| e + 6);
+        out.push(&t[..end]);
+        rest = &t[end..];
+    }
+    out
+}
+
+#[test]
+fn report_renders_in_headless_chromium() {
+    let browser = chromium(); // fail early and clearly when it is absent
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    demo_outputs(d);
+    let html_path = d.join("report.html");
+    let svg_dir = d.join("plots");
+    let out = ok(&[
+        "report",
+        "--demo-dir",
+        p(d),
+        "--out",
+        p(&html_path),
+        "--svg-dir",
+        p(&svg_dir),
+    ]);
+    assert!(out.contains("report:"), "{out}");
+    assert!(
+        !out.contains("left out"),
+        "every section has inputs here: {out}"
+    );
+
+    let html = std::fs::read_to_string(&html_path).expect("report.html");
+    // Self-contained: no scripts, nothing loaded from anywhere.
+    assert!(!html.contains("<script"), "the report has a script");
+    for a in ["src=\"", "href=\"http", "url("] {
+        assert!(
+            !html.contains(a),
+            "the report refers to an external resource ({a})"
+        );
+    }
+    // Every section the issue lists, and every plot also as its own SVG file.
+    for id in [
+        "calibration",
+        "trajectories",
+        "heading",
+        "corrector",
+        "training",
+        "laser",
+    ] {
+        assert!(
+            html.contains(&format!("<section id=\"{id}\">")),
+            "section {id} missing"
+        );
+    }
+    for fig in [
+        "calib-residuals",
+        "calib-coverage",
+        "errors-x",
+        "errors-y",
+        "table1-mse",
+        "laser-poses",
+        "laser-error",
+    ] {
+        assert!(
+            html.contains(&format!("id=\"fig-{fig}\"")),
+            "figure {fig} missing"
+        );
+        assert!(
+            svg_dir.join(format!("{fig}.svg")).is_file(),
+            "{fig}.svg not written"
+        );
+    }
+    for fig in ["fig-trajectory-", "fig-heading-"] {
+        assert!(
+            html.matches(fig).count() >= 3,
+            "fewer than 3 {fig} figures (one per speed)"
+        );
+    }
+    for t in ["Table 1", "Table 2", "perceptron", "(cm²)", "(px)", "(mm)"] {
+        assert!(html.contains(t), "'{t}' missing from the report");
+    }
+    let n_svg = svgs(&html).len();
+    assert!(n_svg >= 13, "{n_svg} plots");
+
+    // The DOM as the browser built it: every plot parsed and has drawn content; no script errors.
+    let url = format!("file://{}", html_path.display());
+    let (dom, log) = run_chromium(
+        &url,
+        &["--dump-dom".into(), "--virtual-time-budget=3000".into()],
+    );
+    let dom_svgs = svgs(&dom);
+    assert_eq!(dom_svgs.len(), n_svg, "the browser's DOM lost plots");
+    for (i, s) in dom_svgs.iter().enumerate() {
+        check_svg(s, &format!("plot {} of {n_svg}", i + 1));
+    }
+    for bad in ["Uncaught", "SyntaxError", "TypeError", "ReferenceError"] {
+        assert!(!log.contains(bad), "script error in the browser log: {log}");
+    }
+    assert!(
+        log.lines()
+            .all(|l| !(l.contains("CONSOLE") && l.contains("ERROR"))),
+        "console error: {log}"
+    );
+
+    // The screenshot is not blank: enough non-white pixels and real variance.
+    let png = d.join("report.png");
+    run_chromium(
+        &url,
+        &[
+            format!("--screenshot={}", png.display()),
+            "--window-size=1280,4000".into(),
+        ],
+    );
+    let img = image::open(&png).expect("screenshot PNG").to_luma8();
+    assert_eq!(img.dimensions(), (1280, 4000));
+    let px: Vec<f64> = img.pixels().map(|p| f64::from(p.0[0])).collect();
+    let m = px.iter().sum::<f64>() / px.len() as f64;
+    let var = px.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / px.len() as f64;
+    let ink = px.iter().filter(|v| **v < 200.0).count() as f64 / px.len() as f64;
+    assert!(var > 100.0, "screenshot looks blank: variance {var:.1}");
+    assert!(
+        ink > 0.01,
+        "screenshot has {:.2} % dark pixels",
+        100.0 * ink
+    );
+    if let Ok(keep) = std::env::var("ODOCAL_KEEP_REPORT") {
+        let _ = std::fs::create_dir_all(&keep);
+        let _ = std::fs::copy(&html_path, Path::new(&keep).join("report.html"));
+        let _ = std::fs::copy(&png, Path::new(&keep).join("report.png"));
+    }
+    let _ = browser;
+}
+
+#[test]
+fn missing_inputs_are_left_out_with_a_note() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let html = d.join("r.html");
+    let out = ok(&["report", "--out", p(&html)]);
+    assert!(out.contains("0 plots"), "{out}");
+    for t in [
+        "Camera calibration",
+        "Figures 4–7",
+        "Tables 1 and 2",
+        "Laser positioning",
+    ] {
+        assert!(out.contains(t), "no note for {t}: {out}");
+    }
+    let text = std::fs::read_to_string(&html).expect("html");
+    assert!(text.contains("Sections left out"));
+    // A demo folder with nothing in it is the same, not an error.
+    let out = ok(&["report", "--demo-dir", p(d), "--out", p(&html)]);
+    assert!(out.contains("left out: Camera calibration"), "{out}");
+}
+
+#[test]
+fn malformed_inputs_are_one_line_errors() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let html = d.join("r.html");
+    let bad_json = d.join("dataset.json");
+    std::fs::write(
+        &bad_json,
+        "{\"format\": \"odocal.dataset/1\", \"samples\": [",
+    )
+    .expect("write");
+    let e = fails(&["report", "--out", p(&html), "--dataset", p(&bad_json)]);
+    assert!(e.contains("dataset.json"), "{e}");
+    let wrong = d.join("report.json");
+    std::fs::write(&wrong, "{\"format\": \"odocal.model/1\"}").expect("write");
+    let e = fails(&["report", "--out", p(&html), "--train-report", p(&wrong)]);
+    assert!(e.contains("odocal.train-report/1"), "{e}");
+    let poses = d.join("poses.csv");
+    std::fs::write(
+        &poses,
+        "t,x,y,theta,status,n_landmarks\n0.1,1,2,0.3,ok,4\n0.2,1,x,0.3,ok,4\n",
+    )
+    .expect("write");
+    let e = fails(&["report", "--out", p(&html), "--lrf-poses", p(&poses)]);
+    assert!(e.contains("line 3"), "{e}");
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--camera",
+        p(&d.join("nope.json")),
+    ]);
+    assert!(e.contains("nope.json"), "{e}");
+    assert!(!html.exists(), "a failed report must not leave a file");
+}
