@@ -155,6 +155,7 @@ impl Chart {
                 .light_line_style(RGBColor(238, 238, 238))
                 .max_light_lines(4)
                 .axis_desc_style(("sans-serif", 15))
+                .label_style(("sans-serif", 13))
                 .draw()
                 .map_err(|e| err(&e))?;
             let mut any_label = false;
