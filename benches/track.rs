@@ -15,11 +15,25 @@ use odocal_fixtures::scene::{
 };
 use odocal_geometry::wrap_angle;
 use odocal_tracker::{
-    open_source, track_source, Frame, FrameSource, GrayFrame, MemorySource, Outcome, SourceOptions,
+    open_source, track_source, Frame, FrameSource, GrayFrame, MemorySource, SourceOptions,
     TrackOptions, TrackResult,
 };
 
 const REPS: usize = 3;
+
+/// CPU time (user + system) this process has used so far, seconds (Linux /proc).
+fn cpu_s() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // After the command name (in parentheses) come fields 3.. of proc(5):
+    // utime (field 14) and stime (field 15), in clock ticks of 1/100 s.
+    let rest = stat.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok());
+    match (tick(11), tick(12)) {
+        (Some(u), Some(s)) => (u + s) / 100.0,
+        _ => f64::NAN,
+    }
+}
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -46,18 +60,36 @@ fn run(
     make: &dyn Fn() -> Box<dyn FrameSource>,
     opts: &TrackOptions,
     reps: usize,
-) -> (f64, TrackResult) {
+) -> (f64, f64, TrackResult) {
     let mut times = Vec::new();
+    let mut cpus = Vec::new();
     let mut last = None;
     for _ in 0..reps {
         let src = make();
+        let c0 = cpu_s();
         let t0 = Instant::now();
         let r = track_source(src, &cfg.camera, &cfg.floor, opts, &mut |_, _| Ok(()))
             .expect("tracking failed");
         times.push(t0.elapsed().as_secs_f64());
+        cpus.push(cpu_s() - c0);
         last = Some(r);
     }
-    (median(times), last.expect("at least one repetition"))
+    (
+        median(times),
+        median(cpus),
+        last.expect("at least one repetition"),
+    )
+}
+
+/// "wall frames/s (CPU ms/frame -> frames/s on 2 free cores)".
+fn rate(frames: usize, wall_s: f64, cpu_s: f64) -> String {
+    let cpu_ms = cpu_s * 1e3 / frames as f64;
+    format!(
+        "{:8.1} frames/s wall  (CPU {:.2} ms/frame -> {:.0} frames/s on 2 free cores)",
+        frames as f64 / wall_s,
+        cpu_ms,
+        2000.0 / cpu_ms
+    )
 }
 
 fn main() {
@@ -112,23 +144,25 @@ fn main() {
         move || -> Box<dyn FrameSource> { Box::new(MemorySource::new("memory", f.clone())) }
     };
     let memsrc = mem(&frames);
-    let (t_roi, r_roi) = run(&cfg, &memsrc, &roi, REPS);
-    let (t_full, r_full) = run(&cfg, &memsrc, &full, 1);
+    let (t_roi, c_roi, r_roi) = run(&cfg, &memsrc, &roi, REPS);
+    let (t_full, c_full, r_full) = run(&cfg, &memsrc, &full, 1);
     let (pr, hr, nr) = accuracy(&r_roi, &truths);
     let (pf, hf, nf) = accuracy(&r_full, &truths);
     println!("tracking alone (frames in memory), ROI median of {REPS}, full frame 1 run:");
+    println!("  ROI        {}", rate(n, t_roi, c_roi));
+    println!("             pos RMS {pr:.3} mm  heading RMS {hr:.3} deg  fixes {nr}/{n}");
+    println!("  full frame {}", rate(n, t_full, c_full));
+    println!("             pos RMS {pf:.3} mm  heading RMS {hf:.3} deg  fixes {nf}/{n}");
     println!(
-        "  ROI        {:8.1} frames/s   pos RMS {pr:.3} mm  heading RMS {hr:.3} deg  fixes {nr}/{n}",
-        n as f64 / t_roi
+        "  ROI speed-up over full frame: {:.1}x wall, {:.1}x CPU",
+        t_full / t_roi,
+        c_full / c_roi
     );
-    println!(
-        "  full frame {:8.1} frames/s   pos RMS {pf:.3} mm  heading RMS {hf:.3} deg  fixes {nf}/{n}",
-        n as f64 / t_full
-    );
-    println!("  ROI speed-up over full frame: {:.1}x", t_full / t_roi);
 
     let mut decode_times = Vec::new();
+    let mut decode_cpu = Vec::new();
     for _ in 0..REPS {
+        let c0 = cpu_s();
         let t0 = Instant::now();
         let mut s = open_source(&avi, &SourceOptions::default()).expect("open avi");
         let mut k = 0;
@@ -141,35 +175,40 @@ fn main() {
         }
         assert_eq!(k, n_video);
         decode_times.push(t0.elapsed().as_secs_f64());
+        decode_cpu.push(cpu_s() - c0);
     }
     println!(
-        "decode alone (MJPG AVI): {:8.1} frames/s",
-        n_video as f64 / median(decode_times)
+        "decode alone (MJPG AVI):   {}",
+        rate(n_video, median(decode_times), median(decode_cpu))
     );
     let avi_src = || -> Box<dyn FrameSource> {
         open_source(&avi, &SourceOptions::default()).expect("open avi")
     };
-    let (t_droi, r_droi) = run(&cfg, &avi_src, &roi, REPS);
-    let (t_dfull, _) = run(&cfg, &avi_src, &full, 1);
+    let (t_droi, c_droi, r_droi) = run(&cfg, &avi_src, &roi, REPS);
+    let (t_dfull, c_dfull, _) = run(&cfg, &avi_src, &full, 1);
     let (pd, hd, nd) = accuracy(&r_droi, &truths_avi);
     println!("decode + tracking (MJPG AVI), ROI median of {REPS}, full frame 1 run:");
-    println!(
-        "  ROI        {:8.1} frames/s   pos RMS {pd:.3} mm  heading RMS {hd:.3} deg  fixes {nd}/{n_video}",
-        n_video as f64 / t_droi
-    );
-    println!("  full frame {:8.1} frames/s", n_video as f64 / t_dfull);
+    println!("  ROI        {}", rate(n_video, t_droi, c_droi));
+    println!("             pos RMS {pd:.3} mm  heading RMS {hd:.3} deg  fixes {nd}/{n_video}");
+    println!("  full frame {}", rate(n_video, t_dfull, c_dfull));
     if have_mp4 {
         let mp4_src = || -> Box<dyn FrameSource> {
             open_source(&mp4, &SourceOptions::default()).expect("open mp4")
         };
-        let (t_m, r_m) = run(&cfg, &mp4_src, &roi, REPS);
+        let (t_m, c_m, r_m) = run(&cfg, &mp4_src, &roi, REPS);
         let (pm, hm, nm) = accuracy(&r_m, &truths_avi);
         println!(
-            "decode + tracking (MP4/H.264) ROI {:8.1} frames/s   pos RMS {pm:.3} mm  heading RMS {hm:.3} deg  fixes {nm}/{n_video}",
-            n_video as f64 / t_m
+            "decode + tracking (MP4/H.264) ROI {}",
+            rate(n_video, t_m, c_m)
         );
+        println!("             pos RMS {pm:.3} mm  heading RMS {hm:.3} deg  fixes {nm}/{n_video}");
     } else {
         println!("MP4/H.264: this OpenCV cannot write it; skipped");
     }
-    let _ = Outcome::Gap;
+    println!(
+        "load average while running: {}",
+        std::fs::read_to_string("/proc/loadavg")
+            .unwrap_or_default()
+            .trim()
+    );
 }

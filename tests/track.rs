@@ -80,7 +80,7 @@ fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
     let report = d.join("report.json");
     let cam = d.join("camera.json");
     let video = d.join("video.avi");
-    ok(&odocal(&[
+    let run = odocal(&[
         "track",
         p(&video),
         "--camera",
@@ -100,7 +100,15 @@ fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
         "--report",
         p(&report),
         "--pnp-check",
-    ]));
+        "--truth",
+        p(&d.join("truth.csv")),
+    ]);
+    ok(&run);
+    let said = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        said.contains("position RMS") && said.contains("over 45 frames"),
+        "{said}"
+    );
     let est = Trajectory::read_csv(&out).unwrap();
     let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
     let (pos, head, n) = errors(&est, &truth);

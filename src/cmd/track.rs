@@ -60,6 +60,29 @@ pub struct Args {
     /// Run the solvePnP (IPPE_SQUARE) cross-check on every fix and report it.
     #[arg(long)]
     pub pnp_check: bool,
+    /// A reference trajectory CSV (e.g. `synth track`'s truth.csv): print the
+    /// position and heading RMS error against it (rows matched by timestamp).
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+}
+
+/// Position RMS (m), heading RMS (rad) and matched rows of `est` against `truth`;
+/// rows are matched by timestamp (within 0.1 ms).
+fn errors_against(
+    est: &odocal_tracker::Trajectory,
+    truth: &odocal_tracker::Trajectory,
+) -> (f64, f64, usize) {
+    let (mut sp, mut sh, mut n) = (0.0, 0.0, 0usize);
+    for r in &est.rows {
+        let i = truth.rows.partition_point(|t| t.t_s < r.t_s - 1e-4);
+        if let Some(t) = truth.rows.get(i).filter(|t| (t.t_s - r.t_s).abs() <= 1e-4) {
+            sp += (r.pose.position() - t.pose.position()).norm_squared();
+            sh += odocal_geometry::wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
+            n += 1;
+        }
+    }
+    let k = n.max(1) as f64;
+    ((sp / k).sqrt(), (sh / k).sqrt(), n)
 }
 
 #[derive(serde::Serialize)]
@@ -166,6 +189,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let camera_file = CameraFile::load(&args.camera)?;
+    let truth = match &args.truth {
+        Some(path) => Some(odocal_tracker::Trajectory::read_csv(path)?),
+        None => None,
+    };
     let floor = *camera_file.require_floor(&args.camera)?;
     let source = open_source(
         &args.video,
@@ -231,5 +258,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         result.seen_ids_text(),
         args.out.display()
     );
+    if let (Some(truth), Some(path)) = (&truth, &args.truth) {
+        let (pos, head, n) = errors_against(&trajectory, truth);
+        if n == 0 {
+            anyhow::bail!(
+                "{}: no row has the timestamp of a tracked frame",
+                path.display()
+            );
+        }
+        println!(
+            "against {}: position RMS {:.3} mm, heading RMS {:.3} deg over {n} frames",
+            path.display(),
+            pos * 1e3,
+            head.to_degrees()
+        );
+    }
     Ok(())
 }

@@ -173,3 +173,31 @@ impl TagDetector {
             .collect())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roi_is_clipped_to_the_image() {
+        let r = Roi::around(Point2::new(5.0, 700.0), 40.0, 1280, 720).unwrap();
+        assert_eq!((r.x0, r.y0, r.width, r.height), (0, 660, 45, 60));
+        assert!(Roi::around(Point2::new(-100.0, 10.0), 40.0, 1280, 720).is_none());
+    }
+
+    #[test]
+    fn blank_frames_have_no_tags_and_unknown_families_are_refused() {
+        let mut d = TagDetector::new("tag36h11", 1, 1.0).unwrap();
+        let frame = GrayFrame {
+            width: 64,
+            height: 48,
+            data: vec![128; 64 * 48],
+        };
+        assert!(d.detect(&frame, None).unwrap().is_empty());
+        let e = TagDetector::new("tag99h1", 1, 1.0)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("tag99h1"), "{e}");
+    }
+}

@@ -140,3 +140,65 @@ pub fn pnp_cross_check(
         heading_diff_rad: wrap_angle(heading - planar.pose.theta_rad),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+    use odocal_calib::Distortion;
+
+    fn setup() -> (CameraModel, FloorToCamera) {
+        let mut cam = CameraModel::from_hfov(1280, 720, 70.0);
+        cam.distortion = Distortion {
+            k1: -0.1,
+            k2: 0.04,
+            p1: 3e-4,
+            p2: -2e-4,
+            k3: 0.0,
+        };
+        let rot = UnitQuaternion::from_euler_angles(0.02, -0.015, 0.3)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        let c = Vector3::new(0.1, -0.2, 2.2);
+        let floor = FloorToCamera(Isometry3::from_parts(Translation3::from(-(rot * c)), rot));
+        (cam, floor)
+    }
+
+    fn corners(cam: &CameraModel, floor: &FloorToCamera, pose: &Pose2, h: f64) -> [Point2<f64>; 4] {
+        tag_model(0.08).map(|m| {
+            cam.floor_to_pixel(floor, &pose.transform_point(&m), h)
+                .unwrap()
+        })
+    }
+
+    #[test]
+    fn exact_corners_give_the_exact_pose() {
+        let (cam, floor) = setup();
+        for pose in [Pose2::new(0.3, 0.1, 0.7), Pose2::new(-1.1, 0.6, -2.9)] {
+            let c = corners(&cam, &floor, &pose, 0.08);
+            let p = planar_pose(&cam, &floor, &c, 0.08, 0.08).unwrap();
+            assert!((p.pose.position() - pose.position()).norm() < 1e-9);
+            assert!(wrap_angle(p.pose.theta_rad - pose.theta_rad).abs() < 1e-9);
+            assert!(p.reprojection_rms_px < 1e-6 && p.fit_rms_m < 1e-9);
+            let chk = pnp_cross_check(&cam, &floor, &c, 0.08, &p).unwrap();
+            assert!((chk.height_m - 0.08).abs() < 1e-4, "{chk:?}");
+            assert!(
+                chk.position_diff_m < 1e-4
+                    && chk.heading_diff_rad.abs() < 1e-4
+                    && chk.tilt_rad < 1e-3,
+                "{chk:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_wrong_marker_height_shows_in_the_fit() {
+        // Corners of a tag at 0.12 m read as if at 0.08 m: the square comes out
+        // too large, which the rigid fit's residual shows.
+        let (cam, floor) = setup();
+        let pose = Pose2::new(0.9, -0.4, 0.2);
+        let c = corners(&cam, &floor, &pose, 0.12);
+        let p = planar_pose(&cam, &floor, &c, 0.08, 0.08).unwrap();
+        assert!(p.fit_rms_m > 1e-3, "{p:?}");
+        assert!(p.reprojection_rms_px > 0.3, "{p:?}");
+    }
+}

@@ -527,3 +527,66 @@ impl FrameSource for MemorySource {
         Ok(self.frames.drain(..k).collect())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn files(n: usize) -> Vec<PathBuf> {
+        (0..n)
+            .map(|i| PathBuf::from(format!("/x/frame_{i:02}.png")))
+            .collect()
+    }
+
+    fn ts(text: &str, n: usize) -> Result<Vec<f64>, TrackError> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("ts.csv");
+        std::fs::write(&p, text).unwrap();
+        read_timestamps(&p, &files(n))
+    }
+
+    #[test]
+    fn timestamps_by_name_or_by_order() {
+        let t = ts("file,t\nframe_01.png,0.5\nframe_00.png,0.25\n", 2).unwrap();
+        assert_eq!(t, vec![0.25, 0.5]);
+        assert_eq!(ts("t\n1\n2\n3\n", 3).unwrap(), vec![1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn bad_timestamp_files_say_where() {
+        let e = ts("time\n1\n", 1).unwrap_err().to_string();
+        assert!(
+            e.contains("line 1") && e.contains("expected \"file,t\""),
+            "{e}"
+        );
+        let e = ts("file,t\nframe_00.png,abc\n", 1).unwrap_err().to_string();
+        assert!(e.contains("line 2, column 2") && e.contains("abc"), "{e}");
+        let e = ts("file,t\nframe_00.png,1\n", 2).unwrap_err().to_string();
+        assert!(e.contains("no timestamp for image frame_01.png"), "{e}");
+        let e = ts("t\n1\n1\n", 2).unwrap_err().to_string();
+        assert!(e.contains("must increase"), "{e}");
+        let e = ts("t\n1\n", 2).unwrap_err().to_string();
+        assert!(e.contains("1 timestamps for 2 images"), "{e}");
+    }
+
+    #[test]
+    fn memory_source_batches_in_order() {
+        let frames: Vec<Frame> = (0..5)
+            .map(|i| Frame {
+                index: i,
+                t_s: i as f64,
+                image: GrayFrame {
+                    width: 2,
+                    height: 1,
+                    data: vec![0, 1],
+                },
+            })
+            .collect();
+        let mut s = MemorySource::new("m", frames);
+        assert_eq!((s.info().width, s.info().height), (2, 1));
+        assert_eq!(s.next_batch(3).unwrap().len(), 3);
+        let b = s.next_batch(3).unwrap();
+        assert_eq!(b.iter().map(|f| f.index).collect::<Vec<_>>(), vec![3, 4]);
+        assert!(s.next_batch(3).unwrap().is_empty());
+    }
+}

@@ -220,7 +220,7 @@ impl Tracker {
         let c =
             self.camera
                 .floor_to_pixel(&self.floor, &pose.position(), self.opts.marker_height_m)?;
-        Roi::around(c, 1.1 * side_px + extra_px + 12.0, w, h)
+        Roi::around(c, 0.95 * side_px + extra_px + 6.0, w, h)
     }
 
     fn pick(&self, dets: &[TagDetection], near: Option<Point2<f64>>) -> Option<TagDetection> {
