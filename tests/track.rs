@@ -355,7 +355,7 @@ fn bad_inputs_fail_clearly_without_output() {
     std::fs::write(&empty, b"").unwrap();
     fails_with(
         &odocal(&["track", p(&empty), "--camera", p(&cam), "--out", p(&out)]),
-        "empty.avi",
+        "empty.avi: the file is empty",
     );
     let junk = d.join("junk.mp4");
     std::fs::write(&junk, b"this is not a video at all, just text").unwrap();

@@ -163,7 +163,14 @@ fn fourcc_string(code: i32) -> String {
 impl VideoSource {
     /// Opens `path` with the FFmpeg backend.
     pub fn open(path: &Path, opts: &SourceOptions) -> Result<Self, TrackError> {
-        std::fs::File::open(path).map_err(|e| TrackError::io(path, format!("cannot read: {e}")))?;
+        let file = std::fs::File::open(path)
+            .map_err(|e| TrackError::io(path, format!("cannot read: {e}")))?;
+        if file.metadata().map(|m| m.len()).unwrap_or(0) == 0 {
+            return Err(TrackError::bad_input(
+                path,
+                "the file is empty (0 bytes): the recording did not complete",
+            ));
+        }
         let cap = videoio::VideoCapture::from_file(path, videoio::CAP_FFMPEG)?;
         if !cap.is_opened()? {
             return Err(TrackError::bad_input(
