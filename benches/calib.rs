@@ -55,6 +55,7 @@ fn main() {
         cal = calibrate(&views, &scene.board).ok();
         cal_t.push(t.elapsed().as_secs_f64());
     }
+    let cal_s = median(cal_t);
     let floor_views: Vec<BoardView> = floor.iter().filter_map(detect).collect();
     let t = Instant::now();
     if let Some(c) = &cal {
@@ -81,7 +82,7 @@ fn main() {
     println!(
         "  Zhang calibration, {} views: {:8.1} ms total",
         views.len(),
-        median(cal_t) * 1e3
+        cal_s * 1e3
     );
     println!(
         "  floor plane, {} views:       {:8.1} ms",
@@ -90,7 +91,7 @@ fn main() {
     );
     println!(
         "  detect + calibrate, all cores: {:.2} s for {} views",
-        par + median(cal_t),
+        par + cal_s,
         hand.len()
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -4,10 +4,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use odocal_calib::CameraFile;
 use odocal_dataset::build::{
     assemble, process_recording, samples_csv, BuildOptions, Recording, RunOutcome,
 };
 use odocal_dataset::{Manifest, ManifestRow, OdometryLog, RobotParams, Trajectory};
+use odocal_tracker::{open_source, track_source, SourceOptions, TrackOptions};
 use rayon::prelude::*;
 
 use crate::output::{progress, write_atomic, write_json};
@@ -35,32 +37,52 @@ pub struct Args {
     pub min_gap_s: f64,
 }
 
-/// Hook for video rows: tracks `video` with the calibration `camera` into a trajectory.
-/// The integrator wires this to the tracker (`odocal track`).
+/// Tracks the robot's tag through a run's video into its floor trajectory,
+/// with the tracker's defaults (tag36h11 id 0, 8 cm, 8 cm above the floor).
 pub fn trajectory_from_video(
     row: &ManifestRow,
     video: &Path,
-    camera: Option<&Path>,
+    camera: &CameraFile,
 ) -> anyhow::Result<Trajectory> {
-    let _ = camera;
-    bail!(
-        "run \"{}\": {} is a video, and tracking videos is not wired into `odocal dataset` yet; \
-         track it with `odocal track` and list the trajectory CSV in the manifest instead",
-        row.id,
-        video.display()
+    let floor = camera
+        .floor
+        .as_ref()
+        .map(|f| f.floor_to_camera)
+        .with_context(|| {
+            format!(
+                "run \"{}\": the camera calibration has no floor plane (calibrate with --floor)",
+                row.id
+            )
+        })?;
+    let source = open_source(video, &SourceOptions::default())
+        .with_context(|| format!("run \"{}\"", row.id))?;
+    let result = track_source(
+        source,
+        &camera.camera,
+        &floor,
+        &TrackOptions::default(),
+        &mut |_, _| Ok(()),
     )
+    .with_context(|| format!("run \"{}\": tracking {}", row.id, video.display()))?;
+    Ok(result.trajectory()?)
 }
 
 fn one_row(
     m: &Manifest,
     row: &ManifestRow,
-    camera: Option<&Path>,
+    camera: Option<&CameraFile>,
     opts: &BuildOptions,
 ) -> anyhow::Result<Vec<RunOutcome>> {
     let log = OdometryLog::read_csv(&m.resolve(&row.odometry))?;
     let traj = match (&row.trajectory, &row.video) {
         (Some(t), _) => Trajectory::read_csv(&m.resolve(t))?,
-        (None, Some(v)) => trajectory_from_video(row, &m.resolve(v), camera)?,
+        (None, Some(v)) => match camera {
+            Some(c) => trajectory_from_video(row, &m.resolve(v), c)?,
+            None => bail!(
+                "run \"{}\" has a video: give the calibration with --camera camera.json",
+                row.id
+            ),
+        },
         (None, None) => bail!("run \"{}\": no video and no trajectory", row.id),
     };
     let rec = Recording {
@@ -88,6 +110,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => {}
         }
     }
+    let camera = match &args.camera {
+        Some(p) => Some(CameraFile::load(p)?),
+        None => None,
+    };
     let robot = match &args.robot {
         Some(p) => RobotParams::read(p)?,
         None => RobotParams::default(),
@@ -102,7 +128,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .runs
         .par_iter()
         .map(|row| {
-            let r = one_row(&manifest, row, args.camera.as_deref(), &opts);
+            let r = one_row(&manifest, row, camera.as_ref(), &opts);
             bar.inc(1);
             r
         })

@@ -1,6 +1,6 @@
 //! `odocal synth calib`: checkerboard and floor views from a known camera.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
@@ -75,6 +75,64 @@ pub fn parse_board(s: &str, square_m: f64) -> anyhow::Result<BoardSpec> {
     })
 }
 
+/// Renders a calibration session (board views, floor views, truth.json and
+/// camera_true.json) into `out`.
+pub fn write_calib_set(out: &Path, scene: &CalibScene, seed: u64) -> anyhow::Result<CalibTruth> {
+    let truth = draw_views(scene, seed);
+    if truth.views.len() < scene.views {
+        anyhow::bail!(
+            "could only place {} of {} board views in a {}x{} image",
+            truth.views.len(),
+            scene.views,
+            scene.width,
+            scene.height
+        );
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let grid = RayGrid::new(&truth.camera, scene.supersample);
+    let jobs: Vec<_> = truth
+        .views
+        .iter()
+        .map(|v| (v, None))
+        .chain(
+            truth
+                .floor_views
+                .iter()
+                .map(|v| (v, Some(&truth.floor_to_camera))),
+        )
+        .enumerate()
+        .collect();
+    let bar = progress(jobs.len() as u64, "rendering");
+    jobs.par_iter()
+        .try_for_each(|(i, (view, floor))| -> anyhow::Result<()> {
+            let img = render_view(
+                &grid,
+                scene,
+                &view.board_to_camera,
+                *floor,
+                seed.wrapping_mul(1000).wrapping_add(*i as u64),
+            );
+            let mut png = Vec::new();
+            img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+            write_atomic(&out.join(&view.image), &png)?;
+            bar.inc(1);
+            Ok(())
+        })?;
+    bar.finish_and_clear();
+    write_json(&out.join("truth.json"), &truth)?;
+    let floor = FloorPlane {
+        floor_to_camera: truth.floor_to_camera,
+        plane_rms_m: 0.0,
+        camera_height_m: scene.camera_height_m,
+        views: vec![],
+    };
+    write_json(
+        &out.join("camera_true.json"),
+        &CameraFile::from_model(truth.camera, Some(floor)),
+    )?;
+    Ok(truth)
+}
+
 /// Runs `odocal synth calib`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.width < 64 || a.height < 48 || !(10.0..170.0).contains(&a.hfov) {
@@ -96,59 +154,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         blur_px: a.blur,
         ..CalibScene::default()
     };
-    let truth = draw_views(&scene, a.seed);
-    if truth.views.len() < a.views {
-        anyhow::bail!(
-            "could only place {} of {} board views in a {}x{} image",
-            truth.views.len(),
-            a.views,
-            a.width,
-            a.height
-        );
-    }
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    let grid = RayGrid::new(&truth.camera, scene.supersample);
-    let jobs: Vec<_> = truth
-        .views
-        .iter()
-        .map(|v| (v, None))
-        .chain(
-            truth
-                .floor_views
-                .iter()
-                .map(|v| (v, Some(&truth.floor_to_camera))),
-        )
-        .enumerate()
-        .collect();
-    let bar = progress(jobs.len() as u64, "rendering");
-    jobs.par_iter()
-        .try_for_each(|(i, (view, floor))| -> anyhow::Result<()> {
-            let img = render_view(
-                &grid,
-                &scene,
-                &view.board_to_camera,
-                *floor,
-                a.seed.wrapping_mul(1000).wrapping_add(*i as u64),
-            );
-            let mut png = Vec::new();
-            img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
-            write_atomic(&a.out.join(&view.image), &png)?;
-            bar.inc(1);
-            Ok(())
-        })?;
-    bar.finish_and_clear();
-    write_json(&a.out.join("truth.json"), &truth)?;
-    let floor = FloorPlane {
-        floor_to_camera: truth.floor_to_camera,
-        plane_rms_m: 0.0,
-        camera_height_m: scene.camera_height_m,
-        views: vec![],
-    };
-    write_json(
-        &a.out.join("camera_true.json"),
-        &CameraFile::from_model(truth.camera, Some(floor)),
-    )?;
+    let truth = write_calib_set(&a.out, &scene, a.seed)?;
     let k = truth.camera.intrinsics;
     println!(
         "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",

@@ -8,9 +8,12 @@ use anyhow::{bail, Context};
 use odocal_dataset::manifest::{Manifest, ManifestRow};
 use odocal_dataset::oracle::{OracleFile, OracleRun};
 use odocal_dataset::{OdometryLog, Trajectory, TrajectoryRow, WheelGeometry};
+use odocal_fixtures::board::CalibScene;
 use odocal_fixtures::robot::{
     simulate_recording, CameraTiming, Recording, RobotSimConfig, RunTruth, ROBOT_SIM_FORMAT,
 };
+use odocal_fixtures::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
+use odocal_geometry::Pose2;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -78,18 +81,35 @@ struct ExperimentTruth<'a> {
     recordings: Vec<RecordingTruth>,
 }
 
-/// Hook for `--frames video`: renders the ceiling video of one recording to `path`.
-///
-/// Frame k is at camera time k / `camera.fps` for k / fps <= `rec.camera_end_s`; the robot's
-/// true floor pose at a camera time is `rec.pose_at_camera_time(t)` (None while the robot is
-/// carried: the tag is hidden). The integrator wires this to the renderer (fixtures::scene)
-/// and the camera of `synth calib`.
-pub fn render_video(rec: &Recording, camera: &CameraTiming, path: &Path) -> anyhow::Result<()> {
-    let _ = (rec, camera);
-    bail!(
-        "rendering videos is not wired into `synth experiment` yet (would write {}); use --frames none",
-        path.display()
-    )
+/// Renders the ceiling video of one recording to `path` (MJPG AVI): frame k
+/// at camera time k / fps, the robot at its true floor pose, seen by the same
+/// camera as `synth calib` renders.
+pub fn render_video(
+    rec: &Recording,
+    camera: &CameraTiming,
+    path: &Path,
+    seed: u64,
+) -> anyhow::Result<()> {
+    let times = rec.frame_times(camera.fps);
+    let trajectory: Vec<(f64, Pose2)> = times
+        .iter()
+        .filter_map(|&t| rec.pose_at_camera_time(t).map(|p| (t, p)))
+        .collect();
+    if trajectory.len() != times.len() {
+        bail!(
+            "--frames video renders one run per recording (the robot is carried between runs); \
+             use --runs-per-recording 1 or --frames none"
+        );
+    }
+    render_scene_video(
+        path,
+        VideoFormat::Avi,
+        &SceneConfig::default(),
+        &trajectory,
+        camera.fps,
+        seed,
+    )?;
+    Ok(())
 }
 
 fn load_config(path: &Path) -> anyhow::Result<RobotSimConfig> {
@@ -124,6 +144,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => RobotSimConfig::default(),
     };
     let per = args.runs_per_recording;
+    if args.frames == Frames::Video && per > 1 {
+        bail!("--frames video renders one run per recording: use --runs-per-recording 1 or --frames none");
+    }
     let n_rec = args.runs.div_ceil(per);
     let out = &args.out;
     std::fs::create_dir_all(out.join("runs"))
@@ -148,6 +171,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rows.push(row);
         truths.push(truth);
         oracle.extend(orc);
+    }
+    if args.frames == Frames::Video {
+        // The calibration views of the same camera, so the videos can be tracked.
+        crate::cmd::synth_calib::write_calib_set(
+            &out.join("calib"),
+            &CalibScene::default(),
+            args.seed,
+        )?;
     }
     let manifest = Manifest::new(rows, out);
     write_atomic(
@@ -231,8 +262,9 @@ fn one_recording(
             (None, Some(rel))
         }
         Frames::Video => {
-            let rel = format!("runs/{id}.mp4");
-            render_video(&rec, &cfg.camera, &args.out.join(&rel))?;
+            let rel = format!("runs/{id}.avi");
+            let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(r as u64);
+            render_video(&rec, &cfg.camera, &args.out.join(&rel), seed)?;
             (Some(rel), None)
         }
     };
