@@ -1,18 +1,77 @@
 #!/usr/bin/env bash
 # The whole odocal pipeline on synthetic data with known truth.
 # Usage: scripts/demo.sh [OUT_DIR]   (run through `make demo`)
+# DEMO_VIDEO_RUNS (default 6) sets how many runs of the experiment are also
+# rendered as 1280x720 ceiling videos and tracked; the other figures use all
+# 131 runs with the camera trajectory taken from the truth.
 set -euo pipefail
 out=${1:-demo-out}
 odocal=${ODOCAL:-target/release/odocal}
-mkdir -p "$out"
-stage() { printf '\n== %s ==\n' "$*"; }
-timed() { local t0=$SECONDS; "$@"; echo "   ($(( SECONDS - t0 )) s)"; }
+video_runs=${DEMO_VIDEO_RUNS:-6}
+rm -rf "$out"
+mkdir -p "$out/logs"
+start=$SECONDS
+stage() { printf '\n== %s ==\n' "$1"; }
+# run NAME CMD...: runs a stage, keeps its output in logs/NAME.txt, and times it.
+run() {
+  local name=$1 t0=$SECONDS; shift
+  "$@" 2>&1 | tee "$out/logs/$name.txt"
+  echo "$name $(( SECONDS - t0 ))" >> "$out/logs/times.txt"
+}
 
-stage "1. calibration views from a known camera (synth calib)"
-timed "$odocal" synth calib --out "$out/calib" --seed 1
-stage "2. Zhang calibration and floor plane (calibrate)"
-timed "$odocal" calibrate "$out"/calib/view_*.png --board 9x6 --square 0.05 \
+stage "1/8 calibration views from a known camera (synth calib)"
+run synth-calib "$odocal" synth calib --out "$out/calib" --seed 1
+stage "2/8 Zhang calibration and floor plane (calibrate), and its error against the truth"
+run calibrate "$odocal" calibrate "$out"/calib/view_*.png --board 9x6 --square 0.05 \
   --floor "$out"/calib/floor_*.png --out "$out/camera.json" \
   --yaml-opencv "$out/camera-opencv.yaml" --yaml-ros "$out/camera-ros.yaml"
-stage "calibration against the truth"
-"$odocal" synth check-calib --camera "$out/camera.json" --truth "$out/calib/truth.json"
+run check-calib "$odocal" synth check-calib --camera "$out/camera.json" --truth "$out/calib/truth.json"
+
+stage "3/8 ground truth: a 1280x720 ceiling video of the robot, tracked with the calibrated camera"
+run synth-track "$odocal" synth track --out "$out/track" --seed 1
+run track "$odocal" track "$out/track/video.avi" --camera "$out/camera.json" \
+  --out "$out/track/traj.csv" --tum "$out/track/traj.tum" --report "$out/track/report.json" \
+  --truth "$out/track/truth.csv"
+
+stage "4/8 the odometry experiment: $video_runs runs as videos, tracked into a dataset"
+run synth-video "$odocal" synth experiment --out "$out/video-experiment" --runs "$video_runs" --seed 2 --frames video
+run dataset-video "$odocal" dataset --manifest "$out/video-experiment/manifest.json" \
+  --camera "$out/camera.json" --out "$out/video-dataset.json"
+
+stage "5/8 the reference experiment: 131 straight runs at 0.2/0.5/0.7 m/s into dataset.json"
+run synth-experiment "$odocal" synth experiment --out "$out/experiment" --runs 131 --seed 1 --frames none
+run dataset "$odocal" dataset --manifest "$out/experiment/manifest.json" --out "$out/dataset.json" \
+  --csv "$out/dataset.csv"
+
+stage "6/8 the corrector: sweep k = 6..12 (Tables 1 and 2), train k = 8, correct a new log"
+run sweep "$odocal" train "$out/dataset.json" --sweep 6..12 --restarts 10 --folds 5 \
+  --oracle "$out/experiment/truth/oracle.json" --report "$out/train"
+run train "$odocal" train "$out/dataset.json" --out "$out/model.json" --hidden 8
+"$odocal" synth experiment --out "$out/heldout" --runs 3 --seed 99 --frames none > /dev/null
+run correct "$odocal" correct --model "$out/model.json" "$out/heldout/runs/run002.odometry.csv" \
+  --out "$out/heldout/run002.corrected.csv"
+
+stage "7/8 laser positioning among 30 reflectors (synth lrf, lrf localize)"
+run synth-lrf "$odocal" synth lrf --out "$out/lrf" --seed 1
+run lrf "$odocal" lrf localize --map "$out/lrf/map.json" "$out/lrf/scans.csv" \
+  --out "$out/lrf/poses.csv" --truth "$out/lrf/truth.csv"
+
+stage "8/8 report"
+run report "$odocal" report --demo-dir "$out" --out "$out/report.html" --svg-dir "$out/plots"
+
+stage "summary"
+pick() { grep -h -E "$2" "$out/logs/$1.txt" | head -n "${3:-1}" | sed 's/^ */  /'; }
+echo "calibration (truth: synth calib):"
+pick check-calib "calibration error|floor mapping" 2
+echo "ground truth from the ceiling camera (tracked video vs renderer's truth):"
+pick track "RMS|position" 2
+echo "dataset from $video_runs tracked videos:"
+pick dataset-video "samples|odometry" 2
+echo "dataset, corrector and baselines (131 runs):"
+pick dataset "samples|raw odometry" 2
+grep -h -iE "verdict|winner|wins|perceptron|oracle|kinematic|raw odometry" "$out/train/report.md" 2>/dev/null | head -n 8 | sed 's/^ */  /' || true
+echo "laser positioning:"
+pick lrf "vs truth|lrf localize" 2
+echo
+echo "time per stage (s): $(tr '\n' ' ' < "$out/logs/times.txt")"
+echo "total: $(( SECONDS - start )) s; report: $out/report.html (plots also in $out/plots/)"

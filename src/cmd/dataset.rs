@@ -124,15 +124,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..BuildOptions::default()
     };
     let bar = progress(manifest.runs.len() as u64, "dataset");
-    let results: Vec<anyhow::Result<Vec<RunOutcome>>> = manifest
-        .runs
-        .par_iter()
-        .map(|row| {
-            let r = one_row(&manifest, row, camera.as_ref(), &opts);
-            bar.inc(1);
-            r
-        })
-        .collect();
+    let work = |row: &ManifestRow| {
+        let r = one_row(&manifest, row, camera.as_ref(), &opts);
+        bar.inc(1);
+        r
+    };
+    // Tracking a video already uses every core (and rayon inside the frame
+    // decoder), so videos go one after another; trajectories in parallel.
+    let results: Vec<anyhow::Result<Vec<RunOutcome>>> = if camera.is_some() {
+        manifest.runs.iter().map(work).collect()
+    } else {
+        manifest.runs.par_iter().map(work).collect()
+    };
     bar.finish_and_clear();
     let mut outcomes = Vec::with_capacity(results.len());
     for r in results {
