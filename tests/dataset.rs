@@ -212,7 +212,7 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         "--out",
         p(&out),
     ]);
-    assert!(e.contains("is a video"), "{e}");
+    assert!(e.contains("expected a camera.json"), "{e}");
     let m4 = d.join("m4.json");
     std::fs::write(&m4, r#"{"format":"odocal.dataset/1","runs":[]}"#).unwrap();
     assert!(run(&m4).contains("expected \"odocal.manifest/1\""));

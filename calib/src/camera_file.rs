@@ -113,7 +113,9 @@ impl CameraFile {
         let value: serde_json::Value =
             serde_json::from_str(&text).map_err(|e| CalibError::BadFile {
                 path: path.display().to_string(),
-                reason: e.to_string(),
+                reason: format!(
+                    "is not valid JSON ({e}); expected a camera.json written by `odocal calibrate`"
+                ),
             })?;
         let format = value.get("format").and_then(|f| f.as_str()).unwrap_or("");
         if format != CAMERA_FORMAT {
