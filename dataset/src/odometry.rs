@@ -96,12 +96,7 @@ impl OdometryLog {
 
     /// Parses log CSV text; `name` is used in error messages.
     pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
-        let mut rdr = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .flexible(true)
-            .trim(csv::Trim::All)
-            .comment(Some(b'#'))
-            .from_reader(text.as_bytes());
+        let mut rdr = csv_reader(text);
         let mut kind = None;
         let mut t_s = Vec::new();
         let mut left = Vec::new();
@@ -132,41 +127,16 @@ impl OdometryLog {
                 });
                 continue;
             };
-            if rec.len() != 3 {
-                return Err(DatasetError::parse(
-                    name,
-                    line,
-                    rec.len().min(3) as u64 + 1,
-                    format!("expected 3 fields, found {}", rec.len()),
-                ));
-            }
-            let mut vals = [0.0; 3];
-            for (c, field) in rec.iter().enumerate() {
-                let v: f64 = field.parse().map_err(|_| {
-                    DatasetError::parse(
-                        name,
-                        line,
-                        c as u64 + 1,
-                        format!("\"{field}\" is not a number"),
-                    )
-                })?;
-                if !v.is_finite() {
+            let vals: [f64; 3] = numeric_row(name, line, &rec)?;
+            if k == LogKind::Ticks {
+                if let Some(c) = (1..3).find(|&c| vals[c].fract() != 0.0) {
                     return Err(DatasetError::parse(
                         name,
                         line,
                         c as u64 + 1,
-                        format!("\"{field}\" is not a finite number"),
+                        format!("\"{}\" is not a whole tick count", &rec[c]),
                     ));
                 }
-                if c > 0 && k == LogKind::Ticks && v.fract() != 0.0 {
-                    return Err(DatasetError::parse(
-                        name,
-                        line,
-                        c as u64 + 1,
-                        format!("\"{field}\" is not a whole tick count"),
-                    ));
-                }
-                vals[c] = v;
             }
             t_s.push(vals[0]);
             left.push(vals[1]);
@@ -306,6 +276,50 @@ impl OdometryLog {
             rev,
         }
     }
+}
+
+/// The CSV reader of odocal's numeric files: the header is checked by the
+/// caller, fields are trimmed, blank lines and `#` comments are skipped.
+pub(crate) fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes())
+}
+
+/// Parses a data row of exactly `N` finite numbers; errors name the line and column.
+pub(crate) fn numeric_row<const N: usize>(
+    name: &str,
+    line: u64,
+    rec: &csv::StringRecord,
+) -> Result<[f64; N], DatasetError> {
+    if rec.len() != N {
+        return Err(DatasetError::parse(
+            name,
+            line,
+            rec.len().min(N) as u64 + 1,
+            format!("expected {N} fields, found {}", rec.len()),
+        ));
+    }
+    let mut vals = [0.0; N];
+    for (c, field) in rec.iter().enumerate() {
+        let col = c as u64 + 1;
+        let v: f64 = field.parse().map_err(|_| {
+            DatasetError::parse(name, line, col, format!("\"{field}\" is not a number"))
+        })?;
+        if !v.is_finite() {
+            return Err(DatasetError::parse(
+                name,
+                line,
+                col,
+                format!("\"{field}\" is not a finite number"),
+            ));
+        }
+        vals[c] = v;
+    }
+    Ok(vals)
 }
 
 /// Maps a csv crate error to a positioned parse error.

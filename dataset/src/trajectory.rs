@@ -8,7 +8,7 @@ use nalgebra::Point2;
 use odocal_geometry::{wrap_angle, Pose2};
 
 use crate::error::{read_text, DatasetError};
-use crate::odometry::csv_error;
+use crate::odometry::{csv_error, csv_reader, numeric_row};
 
 /// Header of a trajectory CSV.
 pub const TRAJECTORY_HEADER: [&str; 5] = ["t", "x", "y", "theta", "quality"];
@@ -47,12 +47,7 @@ impl Trajectory {
 
     /// Parses trajectory CSV text; `name` is used in error messages.
     pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
-        let mut rdr = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .flexible(true)
-            .trim(csv::Trim::All)
-            .comment(Some(b'#'))
-            .from_reader(text.as_bytes());
+        let mut rdr = csv_reader(text);
         let mut header_seen = false;
         let mut rows = Vec::new();
         let mut lines = Vec::new();
@@ -78,34 +73,7 @@ impl Trajectory {
                 header_seen = true;
                 continue;
             }
-            if rec.len() != 5 {
-                return Err(DatasetError::parse(
-                    name,
-                    line,
-                    rec.len().min(5) as u64 + 1,
-                    format!("expected 5 fields, found {}", rec.len()),
-                ));
-            }
-            let mut v = [0.0; 5];
-            for (c, field) in rec.iter().enumerate() {
-                let x: f64 = field.parse().map_err(|_| {
-                    DatasetError::parse(
-                        name,
-                        line,
-                        c as u64 + 1,
-                        format!("\"{field}\" is not a number"),
-                    )
-                })?;
-                if !x.is_finite() {
-                    return Err(DatasetError::parse(
-                        name,
-                        line,
-                        c as u64 + 1,
-                        format!("\"{field}\" is not a finite number"),
-                    ));
-                }
-                v[c] = x;
-            }
+            let v: [f64; 5] = numeric_row(name, line, &rec)?;
             rows.push(TrajectoryRow {
                 t_s: v[0],
                 pose: Pose2::new(v[1], v[2], v[3]),
