@@ -3,10 +3,10 @@
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::DMatrix;
-use nalgebra_lm::{Dyn, Owned};
+use nalgebra::{Dyn, Owned};
 
-type LmVector = nalgebra_lm::DVector<f64>;
-type LmMatrix = nalgebra_lm::DMatrix<f64>;
+type LmVector = nalgebra::DVector<f64>;
+type LmMatrix = nalgebra::DMatrix<f64>;
 use odocal_dataset::{RobotParams, Sample, WheelGeometry};
 use serde::{Deserialize, Serialize};
 

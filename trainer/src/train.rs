@@ -6,11 +6,11 @@ use std::cell::RefCell;
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector};
-use nalgebra_lm::{Dyn, Owned};
+use nalgebra::{Dyn, Owned};
 
 /// Vector / matrix types of the nalgebra version the LM crate uses.
-type LmVector = nalgebra_lm::DVector<f64>;
-type LmMatrix = nalgebra_lm::DMatrix<f64>;
+type LmVector = nalgebra::DVector<f64>;
+type LmMatrix = nalgebra::DMatrix<f64>;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
