@@ -53,10 +53,43 @@ fn corrector_meets_bounds_with_default_lm() {
 }
 
 #[test]
-fn corrector_meets_bounds_with_trainlm() {
+fn corrector_meets_bounds_with_default_lm_on_another_seed() {
     let e = common::experiment(131, 11, common::Truth::default());
-    let r = sweep_of(&e, Method::Trainlm, 8, 2);
+    let r = sweep_of(&e, Method::Lm, 8, 2);
     check_acceptance(&r, 8);
+}
+
+#[test]
+fn lm_stops_after_max_fail_validation_rises() {
+    let e = common::experiment(131, 6, common::Truth::default());
+    let x: Vec<Vec<f64>> = e.dataset.samples.iter().map(|s| s.inputs.clone()).collect();
+    let t: Vec<[f64; 2]> = e.dataset.samples.iter().map(|s| s.target_m).collect();
+    for (max_fail, weight_decay) in [(1, 0.3), (2, 0.0), (4, 0.3)] {
+        let mut s = TrainSettings::new(8, Method::Lm);
+        s.max_fail = max_fail;
+        s.weight_decay = weight_decay;
+        let mut stopped_by_validation = 0;
+        for seed in 1..=4 {
+            let net = train(&x, &t, &s, seed).expect("train");
+            assert!(net.best_epoch <= net.epochs_run);
+            if net.stop_reason.starts_with("validation error rose") {
+                stopped_by_validation += 1;
+                assert_eq!(
+                    net.epochs_run,
+                    net.best_epoch + max_fail,
+                    "seed {seed}: {}",
+                    net.stop_reason
+                );
+            }
+        }
+        assert!(
+            stopped_by_validation > 0,
+            "max_fail {max_fail}: never stopped early"
+        );
+    }
+    let mut s = TrainSettings::new(8, Method::Lm);
+    s.max_fail = 0;
+    assert!(train(&x, &t, &s, 1).is_err());
 }
 
 #[test]
@@ -109,7 +142,7 @@ fn training_is_deterministic_per_seed() {
     let e = common::experiment(45, 4, common::Truth::default());
     let x: Vec<Vec<f64>> = e.dataset.samples.iter().map(|s| s.inputs.clone()).collect();
     let t: Vec<[f64; 2]> = e.dataset.samples.iter().map(|s| s.target_m).collect();
-    for m in [Method::Lm, Method::Trainlm, Method::Backprop] {
+    for m in [Method::Lm, Method::Backprop] {
         let s = TrainSettings::new(6, m);
         let a = train(&x, &t, &s, 9).expect("a").net.to_params();
         let b = train(&x, &t, &s, 9).expect("b").net.to_params();
@@ -121,7 +154,7 @@ fn training_is_deterministic_per_seed() {
         hidden_sizes: vec![6, 7],
         restarts: 2,
         folds: 3,
-        train: TrainSettings::new(6, Method::Trainlm),
+        train: TrainSettings::new(6, Method::Lm),
         seed: 1,
     };
     let r1 = sweep(&e.dataset, "h", &settings, None, &|| {}).expect("sweep");
@@ -171,7 +204,7 @@ fn model_file_round_trips_and_refuses_other_robots() {
     let e = common::experiment(45, 8, common::Truth::default());
     let x: Vec<Vec<f64>> = e.dataset.samples.iter().map(|s| s.inputs.clone()).collect();
     let t: Vec<[f64; 2]> = e.dataset.samples.iter().map(|s| s.target_m).collect();
-    let s = TrainSettings::new(8, Method::Trainlm);
+    let s = TrainSettings::new(8, Method::Lm);
     let net = train(&x, &t, &s, 1).expect("train");
     let all: Vec<_> = e.dataset.samples.iter().collect();
     let m0 = Metrics::of(&all, &t);
@@ -281,6 +314,7 @@ fn bad_datasets_and_settings_are_clear_errors() {
         .to_string();
     assert!(err.contains("too few samples"), "{err}");
     assert!("sgd".parse::<Method>().is_err());
+    assert!("lm".parse::<Method>().is_ok() && "backprop".parse::<Method>().is_ok());
 }
 
 #[test]
