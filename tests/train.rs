@@ -134,7 +134,7 @@ fn train_then_correct_a_log() {
         "--hidden",
         "6",
         "--method",
-        "trainlm",
+        "lm",
         "--seed",
         "4",
     ]);
@@ -154,7 +154,7 @@ fn train_then_correct_a_log() {
         "--hidden",
         "6",
         "--method",
-        "trainlm",
+        "lm",
         "--seed",
         "4",
     ]);
@@ -203,6 +203,7 @@ fn bad_input_is_a_clear_error() {
     assert!(
         fails(&["train", p(&ds), "--out", "m.json", "--method", "sgd"]).contains("unknown method")
     );
+    assert!(fails(&["train", p(&ds), "--out", "m.json", "--max-fail", "0"]).contains("max_fail"));
     let text = std::fs::read_to_string(&ds).expect("dataset");
     let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
     v["samples"] = serde_json::json!([]);

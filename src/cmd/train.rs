@@ -25,7 +25,7 @@ pub struct Args {
     /// Hidden neurons k (the source chose 8).
     #[arg(long, default_value_t = 8)]
     pub hidden: usize,
-    /// Training method: lm (levenberg-marquardt crate), trainlm (MATLAB-style LM, faster) or backprop.
+    /// Training method: lm (Levenberg–Marquardt, the levenberg-marquardt crate) or backprop.
     #[arg(long, default_value = "lm")]
     pub method: String,
     /// Random seed (initial weights, validation split, folds).
@@ -55,6 +55,10 @@ pub struct Args {
     /// Upper bound on training epochs.
     #[arg(long)]
     pub max_epochs: Option<usize>,
+    /// Early stopping: epochs without validation improvement before stopping
+    /// (default 2 for lm, 200 for backprop).
+    #[arg(long)]
+    pub max_fail: Option<usize>,
 }
 
 fn parse_range(s: &str) -> anyhow::Result<Vec<usize>> {
@@ -80,6 +84,9 @@ fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
     }
     if let Some(v) = args.max_epochs {
         s.max_epochs = v;
+    }
+    if let Some(v) = args.max_fail {
+        s.max_fail = v;
     }
     s.validate()?;
     Ok(s)
