@@ -59,6 +59,10 @@ pub struct Args {
     /// (default 2 for lm, 200 for backprop).
     #[arg(long)]
     pub max_fail: Option<usize>,
+    /// Early stopping: smallest relative decrease of the validation error that counts as
+    /// an improvement (default 0.03 for lm, 0 for backprop).
+    #[arg(long)]
+    pub min_improvement: Option<f64>,
 }
 
 fn parse_range(s: &str) -> anyhow::Result<Vec<usize>> {
@@ -87,6 +91,9 @@ fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
     }
     if let Some(v) = args.max_fail {
         s.max_fail = v;
+    }
+    if let Some(v) = args.min_improvement {
+        s.min_improvement = v;
     }
     s.validate()?;
     Ok(s)
