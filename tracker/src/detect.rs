@@ -159,7 +159,7 @@ impl TagDetector {
         let dets = self.det.detect(img);
         // The C library puts pixel centres at +0.5; OpenCV at integers.
         let (ox, oy) = (r.x0 as f64 - 0.5, r.y0 as f64 - 0.5);
-        Ok(dets
+        let mut out: Vec<TagDetection> = dets
             .iter()
             .map(|d| {
                 let c = d.corners();
@@ -170,7 +170,14 @@ impl TagDetector {
                     corners_px: c.map(|p| Point2::new(p[0] + ox, p[1] + oy)),
                 }
             })
-            .collect())
+            .collect();
+        // The C library's quad fit is biased by up to a tenth of a pixel; refit the sides.
+        for d in &mut out {
+            if let Some(c) = crate::edges::refine_corners(frame, &d.corners_px) {
+                d.corners_px = c;
+            }
+        }
+        Ok(out)
     }
 }
 

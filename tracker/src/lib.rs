@@ -6,6 +6,7 @@
 //! are `odocal_dataset::Trajectory` (CSV `t,x,y,theta,quality`, TUM export).
 
 pub mod detect;
+mod edges;
 mod error;
 pub mod overlay;
 pub mod pose;
