@@ -21,8 +21,12 @@
 //!
 //! A shell block without a marker fails the test, so no new example can silently go unrun.
 //! When a block fails, the message names its line in README.md, shows its output (with the
-//! command's stderr) and keeps the working directory for inspection. Run
-//! `README_TEST_SHOW=1 cargo test --test readme -- --nocapture` to print every block's real
+//! command's stderr) and keeps the working directory for inspection.
+//!
+//! Shown lines whose figures differ from the real run are listed on stderr (seen with
+//! `-- --nocapture`; the test still passes). `README_TEST_UPDATE=1 cargo test --test readme` writes the real lines into README.md
+//! (in lines with an inline `...` only the numbers), so the figures shown stay those of real runs;
+//! `README_TEST_SHOW=1 cargo test --test readme -- --nocapture` prints every block's whole real
 //! output (to paste into README.md after a deliberate change of a command's output).
 
 use std::fs::File;
@@ -261,74 +265,124 @@ fn compile(shown: &str) -> Vec<Pat> {
     pats
 }
 
-fn match_pats(pats: &[Pat], s: &str) -> bool {
+/// Does `s` match `pats`? On success `nums` holds the numbers of `s` that matched `Pat::Num`.
+fn match_pats<'a>(pats: &[Pat], s: &'a str, nums: &mut Vec<&'a str>) -> bool {
     let Some((p, rest)) = pats.split_first() else {
         return s.is_empty();
     };
     match p {
-        Pat::Lit(c) => s.strip_prefix(*c).is_some_and(|s| match_pats(rest, s)),
+        Pat::Lit(c) => s
+            .strip_prefix(*c)
+            .is_some_and(|s| match_pats(rest, s, nums)),
         Pat::Num => {
             let n = number_len(s);
-            n > 0 && match_pats(rest, &s[n..])
+            if n == 0 {
+                return false;
+            }
+            nums.push(&s[..n]);
+            let ok = match_pats(rest, &s[n..], nums);
+            if !ok {
+                nums.pop();
+            }
+            ok
         }
         Pat::Space => {
             let t = s.trim_start();
-            t.len() < s.len() && match_pats(rest, t)
+            t.len() < s.len() && match_pats(rest, t, nums)
         }
         Pat::Any => s
             .char_indices()
             .map(|(i, _)| i)
             .chain(std::iter::once(s.len()))
-            .any(|i| match_pats(rest, &s[i..])),
+            .any(|i| match_pats(rest, &s[i..], nums)),
     }
+}
+
+/// The real line's numbers in the places of the shown line's numbers, if the lines match.
+fn matched_numbers<'a>(shown: &str, real: &'a str) -> Option<Vec<&'a str>> {
+    let mut nums = Vec::new();
+    match_pats(&compile(shown), real.trim_end(), &mut nums).then_some(nums)
 }
 
 /// Does one real output line match one shown line?
 fn line_matches(shown: &str, real: &str) -> bool {
-    match_pats(&compile(shown), real.trim_end())
+    matched_numbers(shown, real).is_some()
+}
+
+/// The shown line with its numbers replaced, in order, by `nums`.
+fn with_numbers(shown: &str, nums: &[&str]) -> String {
+    let mut out = String::new();
+    let mut nums = nums.iter();
+    let mut rest = shown.trim_end();
+    while let Some(c) = rest.chars().next() {
+        if let Some(r) = rest.strip_prefix("...") {
+            out.push_str("...");
+            rest = r;
+            continue;
+        }
+        let n = number_len(rest);
+        if n > 0 {
+            out.push_str(nums.next().copied().unwrap_or(&rest[..n]));
+            rest = &rest[n..];
+        } else {
+            out.push(c);
+            rest = &rest[c.len_utf8()..];
+        }
+    }
+    out
 }
 
 fn is_elision(shown: &str) -> bool {
     shown.trim() == "..."
 }
 
-/// Matches shown lines against real lines; on failure returns the index of the furthest shown
-/// line that could not be matched.
-fn match_lines(shown: &[String], real: &[&str]) -> Result<(), usize> {
-    fn go(
-        shown: &[String],
-        si: usize,
-        real: &[&str],
-        ri: usize,
-        failed: &mut std::collections::HashSet<(usize, usize)>,
-        furthest: &mut usize,
-    ) -> bool {
-        if failed.contains(&(si, ri)) {
+/// Matches shown lines against real lines: for each shown line the index of the real line it
+/// matched (`None` for a `...` line); on failure the index of the furthest shown line that could
+/// not be matched.
+fn match_lines(shown: &[String], real: &[&str]) -> Result<Vec<Option<usize>>, usize> {
+    struct State {
+        failed: std::collections::HashSet<(usize, usize)>,
+        furthest: usize,
+        matched: Vec<Option<usize>>,
+    }
+    fn go(shown: &[String], si: usize, real: &[&str], ri: usize, st: &mut State) -> bool {
+        if st.failed.contains(&(si, ri)) {
             return false;
         }
-        *furthest = (*furthest).max(si);
+        st.furthest = st.furthest.max(si);
         let ok = if si == shown.len() {
             ri == real.len()
         } else if is_elision(&shown[si]) {
-            (ri..=real.len()).any(|r| go(shown, si + 1, real, r, failed, furthest))
+            (ri..=real.len()).any(|r| go(shown, si + 1, real, r, st))
         } else {
-            ri < real.len()
+            let ok = ri < real.len()
                 && line_matches(&shown[si], real[ri])
-                && go(shown, si + 1, real, ri + 1, failed, furthest)
+                && go(shown, si + 1, real, ri + 1, st);
+            if ok {
+                st.matched[si] = Some(ri);
+            }
+            ok
         };
         if !ok {
-            failed.insert((si, ri));
+            st.failed.insert((si, ri));
         }
         ok
     }
-    let mut failed = std::collections::HashSet::new();
-    let mut furthest = 0;
-    if go(shown, 0, real, 0, &mut failed, &mut furthest) {
-        Ok(())
+    let mut st = State {
+        failed: std::collections::HashSet::new(),
+        furthest: 0,
+        matched: vec![None; shown.len()],
+    };
+    if go(shown, 0, real, 0, &mut st) {
+        Ok(st.matched)
     } else {
-        Err(furthest)
+        Err(st.furthest)
     }
 }
+
+/// A shown output line whose figures differ from the real output: (line in the file, shown
+/// text, real text).
+type Refresh = (usize, String, String);
 
 fn tail(text: &str, n: usize) -> String {
     let lines: Vec<&str> = text.lines().collect();
@@ -353,9 +407,14 @@ fn run_block(script: &str, dir: &Path, path_env: &str, log: &Path) -> (bool, Str
 }
 
 /// Runs the examples of the Markdown text `md` (named `name` in messages) in order in one
-/// temporary directory; returns how many ran, or the message of the first failure. On failure
-/// the working directory is kept (and named in the message) if `keep_on_failure`.
-fn run_examples(md: &str, name: &str, keep_on_failure: bool) -> Result<usize, String> {
+/// temporary directory; returns how many ran and the shown lines (without `...`) whose figures
+/// differ from the real output, or the message of the first failure. On failure the working
+/// directory is kept (and named in the message) if `keep_on_failure`.
+fn run_examples(
+    md: &str,
+    name: &str,
+    keep_on_failure: bool,
+) -> Result<(usize, Vec<Refresh>), String> {
     let blocks = parse_blocks(md, name)?;
     let examples = examples(&blocks, name)?;
     let bin = Path::new(env!("CARGO_BIN_EXE_odocal"));
@@ -371,6 +430,7 @@ fn run_examples(md: &str, name: &str, keep_on_failure: bool) -> Result<usize, St
     let logs = tempfile::tempdir().expect("temporary directory for outputs");
     let show = std::env::var_os("README_TEST_SHOW").is_some();
     let t_all = Instant::now();
+    let mut refresh = Vec::new();
     let kept = |work: tempfile::TempDir| {
         if keep_on_failure {
             format!("\n--- working directory kept: {}", work.keep().display())
@@ -404,18 +464,34 @@ fn run_examples(md: &str, name: &str, keep_on_failure: bool) -> Result<usize, St
         }
         if let Some((shown_line, shown)) = &ex.shown {
             let real: Vec<&str> = output.lines().collect();
-            if let Err(k) = match_lines(shown, &real) {
-                let at = shown
-                    .get(k)
-                    .map(|s| format!("line {} (`{s}`)", shown_line + 1 + k))
-                    .unwrap_or_else(|| "its end (the real output has more lines)".into());
-                return Err(format!(
-                    "{name} line {shown_line}: the output shown for the example at line {} \
+            match match_lines(shown, &real) {
+                Ok(matched) => {
+                    for (k, m) in matched.iter().enumerate() {
+                        let Some(r) = m else { continue };
+                        let new = if shown[k].contains("...") {
+                            let nums = matched_numbers(&shown[k], real[*r]).unwrap_or_default();
+                            with_numbers(&shown[k], &nums)
+                        } else {
+                            real[*r].trim_end().to_string()
+                        };
+                        if shown[k].trim_end() != new {
+                            refresh.push((shown_line + 1 + k, shown[k].clone(), new));
+                        }
+                    }
+                }
+                Err(k) => {
+                    let at = shown
+                        .get(k)
+                        .map(|s| format!("line {} (`{s}`)", shown_line + 1 + k))
+                        .unwrap_or_else(|| "its end (the real output has more lines)".into());
+                    return Err(format!(
+                        "{name} line {shown_line}: the output shown for the example at line {} \
                      does not match what it printed, from {name} {at} on \
                      (numbers may differ, `...` elides):\n--- real output ---\n{output}{}",
-                    ex.line,
-                    kept(work)
-                ));
+                        ex.line,
+                        kept(work)
+                    ));
+                }
             }
         }
     }
@@ -424,14 +500,46 @@ fn run_examples(md: &str, name: &str, keep_on_failure: bool) -> Result<usize, St
         examples.len(),
         t_all.elapsed().as_secs_f64()
     );
-    Ok(examples.len())
+    Ok((examples.len(), refresh))
+}
+
+/// Replaces shown output lines of `path` by the real ones (README_TEST_UPDATE=1).
+fn apply_refresh(path: &Path, refresh: &[Refresh]) -> Result<(), String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    for (n, old, new) in refresh {
+        match lines.get_mut(n - 1) {
+            Some(l) if l == old => *l = new.clone(),
+            _ => {
+                return Err(format!(
+                    "{} line {n} changed meanwhile: not updated",
+                    path.display()
+                ))
+            }
+        }
+    }
+    let mut out = lines.join("\n");
+    if text.ends_with('\n') {
+        out.push('\n');
+    }
+    std::fs::write(path, out).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 #[test]
 fn readme_examples_run_and_print_what_the_readme_shows() {
     let readme_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md");
     let readme = std::fs::read_to_string(&readme_path).expect("read README.md");
-    let n = run_examples(&readme, "README.md", true).unwrap_or_else(|e| panic!("{e}"));
+    let (n, refresh) = run_examples(&readme, "README.md", true).unwrap_or_else(|e| panic!("{e}"));
+    for (line, old, new) in &refresh {
+        eprintln!("README.md line {line}: figures differ\n  shown: {old}\n  real:  {new}");
+    }
+    if std::env::var_os("README_TEST_UPDATE").is_some() {
+        apply_refresh(&readme_path, &refresh).unwrap_or_else(|e| panic!("{e}"));
+        eprintln!(
+            "README.md: {} output line(s) refreshed from the real runs",
+            refresh.len()
+        );
+    }
     assert!(
         n >= 10,
         "README.md has only {n} run blocks: the user's guide should be runnable"
@@ -442,7 +550,13 @@ fn readme_examples_run_and_print_what_the_readme_shows() {
 fn a_failing_or_stale_example_is_reported_with_its_line_and_output() {
     let ok = "<!-- readme-test: run -->\n```sh\nodocal --version\n```\n\
               <!-- readme-test: output -->\n```text\nodocal 0.1.0\n```\n";
-    assert_eq!(run_examples(ok, "t.md", false), Ok(1));
+    assert_eq!(run_examples(ok, "t.md", false), Ok((1, vec![])));
+    let figures = "<!-- readme-test: run -->\n```sh\necho x 1.5\n```\n\
+                   <!-- readme-test: output -->\n```text\nx 2.0\n```\n";
+    assert_eq!(
+        run_examples(figures, "t.md", false),
+        Ok((1, vec![(7, "x 2.0".into(), "x 1.5".into())]))
+    );
 
     let failing = "intro\n\n<!-- readme-test: run -->\n```sh\necho made > a.txt\n```\n\
                    <!-- readme-test: run -->\n```sh\ncat a.txt\nodocal track missing.avi --camera c.json --out t.csv\necho never\n```\n";
@@ -481,12 +595,31 @@ fn shown_output_matching_rules() {
     assert!(!m("0.5 px", "px"));
     assert!(!m("a b", "ab"));
     assert!(!m("x 1 m", "x 1 m extra"));
+    let shown = "best 18-12-2 4.39 % ... (48 % of raw)";
+    let nums = matched_numbers(shown, "best 18-8-2 4.4 % wins (50 % of raw)").expect("match");
+    assert_eq!(nums, ["18", "-8", "-2", "4.4", "50"]);
+    assert_eq!(
+        with_numbers(shown, &nums),
+        "best 18-8-2 4.4 % ... (50 % of raw)"
+    );
 
     let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
-    assert_eq!(match_lines(&s(&["a 1", "b"]), &["a 2", "b"]), Ok(()));
-    assert_eq!(match_lines(&s(&["a", "..."]), &["a", "b", "c"]), Ok(()));
-    assert_eq!(match_lines(&s(&["...", "c"]), &["a", "b", "c"]), Ok(()));
-    assert_eq!(match_lines(&s(&["a", "...", "b"]), &["a", "b"]), Ok(()));
+    assert_eq!(
+        match_lines(&s(&["a 1", "b"]), &["a 2", "b"]),
+        Ok(vec![Some(0), Some(1)])
+    );
+    assert_eq!(
+        match_lines(&s(&["a", "..."]), &["a", "b", "c"]),
+        Ok(vec![Some(0), None])
+    );
+    assert_eq!(
+        match_lines(&s(&["...", "c"]), &["a", "b", "c"]),
+        Ok(vec![None, Some(2)])
+    );
+    assert_eq!(
+        match_lines(&s(&["a", "...", "b"]), &["a", "b"]),
+        Ok(vec![Some(0), None, Some(1)])
+    );
     assert_eq!(match_lines(&s(&["a", "c"]), &["a", "b", "c"]), Err(1));
     assert_eq!(match_lines(&s(&["a"]), &["a", "b"]), Err(1));
     assert_eq!(match_lines(&s(&["b", "a"]), &["a", "b"]), Err(0));
