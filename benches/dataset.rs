@@ -1,12 +1,19 @@
-//! Benchmark: building the dataset from trajectories (131 runs of the default experiment).
-//! Times parsing alone (baseline), the full build sequentially and in parallel (rayon), as
-//! medians of several repetitions, and prints ratios against the baseline.
+//! Benchmark: building the dataset from trajectories (131 runs of the default experiment) and
+//! from ceiling videos (a few rendered runs).
+//!
+//! Trajectories: parsing alone (baseline), the full build sequentially and in parallel (rayon),
+//! as medians of several repetitions, with ratios against the baseline. Videos: decoding the
+//! frames alone (baseline) against `odocal dataset --camera` (decode, track, align, build), in
+//! frames per second of video.
 
+use std::path::Path;
+use std::process::Command;
 use std::time::Instant;
 
 use odocal_dataset::build::{assemble, process_recording, BuildOptions, Recording};
 use odocal_dataset::{OdometryLog, Trajectory, TrajectoryRow};
 use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
+use odocal_tracker::{open_source, SourceOptions};
 use rayon::prelude::*;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -105,5 +112,90 @@ fn main() {
         rayon::current_num_threads(),
         1e3 * t_par,
         t_seq / t_par
+    );
+    videos();
+}
+
+fn odocal(args: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(args)
+        .output()
+        .expect("run odocal");
+    assert!(
+        out.status.success(),
+        "odocal {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Frames in the videos of `dir`/runs, decoding them all (the baseline's work).
+fn decode_all(dir: &Path) -> usize {
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir.join("runs")).expect("runs") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "avi") {
+            let mut src = open_source(&path, &SourceOptions::default()).expect("video");
+            loop {
+                let batch = src.next_batch(32).expect("frames");
+                if batch.is_empty() {
+                    break;
+                }
+                n += batch.len();
+            }
+        }
+    }
+    n
+}
+
+fn videos() {
+    let runs = 3;
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let d = dir.path();
+    let p = |x: &Path| x.to_str().expect("utf-8 path").to_string();
+    let t = Instant::now();
+    odocal(&[
+        "synth",
+        "experiment",
+        "--out",
+        &p(d),
+        "--runs",
+        &runs.to_string(),
+        "--seed",
+        "3",
+        "--frames",
+        "video",
+    ]);
+    println!(
+        "\nrendered {runs} runs as 1280x720 videos in {:.1} s (not timed below)",
+        t.elapsed().as_secs_f64()
+    );
+    let reps = 3;
+    let mut frames = 0;
+    let t_decode = time(reps, || frames = decode_all(d));
+    let camera = p(&d.join("calib/camera_true.json"));
+    let manifest = p(&d.join("manifest.json"));
+    let out = p(&d.join("dataset.json"));
+    let t_build = time(reps, || {
+        odocal(&[
+            "dataset",
+            "--manifest",
+            &manifest,
+            "--camera",
+            &camera,
+            "--out",
+            &out,
+        ])
+    });
+    println!("dataset from videos: {runs} runs, {frames} frames, median of {reps}");
+    println!(
+        "  decode only (baseline)    {:8.1} ms  ({:.0} frames/s)",
+        1e3 * t_decode,
+        frames as f64 / t_decode
+    );
+    println!(
+        "  odocal dataset --camera   {:8.1} ms  ({:.0} frames/s, {:.2}x the baseline's time)",
+        1e3 * t_build,
+        frames as f64 / t_build,
+        t_build / t_decode
     );
 }
