@@ -38,9 +38,12 @@ pub const LM_MAX_FAIL: usize = 2;
 /// (131-run experiment: same error, about 10 % less time in the sweep).
 pub const LM_MIN_IMPROVEMENT: f64 = 0.03;
 
-/// Initial trust region of LM as a multiple of the scaled weight norm (MINPACK's `factor`,
-/// the crate's `stepbound`). MINPACK's 100 lets the first steps of a freshly initialised
-/// net overshoot and be rejected; 1 saves those evaluations at equal or lower error.
+/// Initial trust region of LM as a multiple of the weight norm (MINPACK's `factor`, the
+/// crate's `stepbound`). MINPACK's 100 lets the first steps of a freshly initialised net
+/// overshoot and be rejected; 1 saves those evaluations at equal or lower error. The
+/// damping is the identity, as in MATLAB's trainlm (the crate's `scale_diag` off): the
+/// inputs are normalised, and on the tests' simulator it took 10 epochs instead of 14 and
+/// reached 1.17x the oracle instead of 1.2x (131-run experiment: same error and time).
 pub const LM_STEP_BOUND: f64 = 1.0;
 
 /// Training algorithm.
@@ -442,6 +445,7 @@ pub fn train(
             let (problem, report) = LevenbergMarquardt::new()
                 .with_patience(1000)
                 .with_stepbound(LM_STEP_BOUND)
+                .with_scale_diag(false)
                 .minimize(problem);
             let mut stop = problem.stop.into_inner();
             let p = problem.net.to_params();
