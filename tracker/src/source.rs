@@ -75,6 +75,24 @@ impl GrayFrame {
     }
 }
 
+/// The threads that decode frames in parallel.
+///
+/// They are not rayon's global pool: a tracker called from inside a parallel loop blocks its
+/// worker while it waits for frames, and decoding queued behind it on the same pool would wait
+/// for that worker for ever. With a pool of their own, frame sources work from any thread.
+fn decode_pool() -> &'static rayon::ThreadPool {
+    static POOL: std::sync::OnceLock<rayon::ThreadPool> = std::sync::OnceLock::new();
+    POOL.get_or_init(|| {
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("odocal-decode-{i}"))
+            .build()
+            .or_else(|_| rayon::ThreadPoolBuilder::new().num_threads(1).build())
+            .unwrap_or_else(|e| panic!("cannot start a frame-decoding thread: {e}"))
+    })
+}
+
 /// One frame with its timestamp.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
@@ -244,24 +262,26 @@ impl VideoSource {
                 self.next_index += 1;
             }
             let fps = self.fps;
-            packets
-                .into_par_iter()
-                .map(|(index, bytes)| {
-                    let buf = Vector::<u8>::from_slice(&bytes);
-                    let mat = imgcodecs::imdecode(&buf, imgcodecs::IMREAD_GRAYSCALE)?;
-                    if mat.empty() {
-                        return Err(TrackError::bad_input(
-                            &path,
-                            format!("frame {index} is corrupt (JPEG cannot be decoded)"),
-                        ));
-                    }
-                    Ok(Frame {
-                        index,
-                        t_s: index as f64 / fps,
-                        image: GrayFrame::from_mat(&mat)?,
+            decode_pool().install(|| {
+                packets
+                    .into_par_iter()
+                    .map(|(index, bytes)| {
+                        let buf = Vector::<u8>::from_slice(&bytes);
+                        let mat = imgcodecs::imdecode(&buf, imgcodecs::IMREAD_GRAYSCALE)?;
+                        if mat.empty() {
+                            return Err(TrackError::bad_input(
+                                &path,
+                                format!("frame {index} is corrupt (JPEG cannot be decoded)"),
+                            ));
+                        }
+                        Ok(Frame {
+                            index,
+                            t_s: index as f64 / fps,
+                            image: GrayFrame::from_mat(&mat)?,
+                        })
                     })
-                })
-                .collect()
+                    .collect()
+            })
         } else {
             let mut out = Vec::with_capacity(n);
             let mut m = Mat::default();
@@ -467,31 +487,33 @@ impl FrameSource for FolderSource {
     fn next_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
         let end = (self.next + n).min(self.files.len());
         let (w, h) = (self.info.width, self.info.height);
-        let batch: Result<Vec<Frame>, TrackError> = (self.next..end)
-            .into_par_iter()
-            .map(|index| {
-                let (path, t_s) = &self.files[index];
-                let mat = imgcodecs::imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
-                if mat.empty() {
-                    return Err(TrackError::bad_input(path, "cannot decode this image"));
-                }
-                let image = GrayFrame::from_mat(&mat)?;
-                if (image.width, image.height) != (w, h) {
-                    return Err(TrackError::bad_input(
-                        path,
-                        format!(
+        let batch: Result<Vec<Frame>, TrackError> = decode_pool().install(|| {
+            (self.next..end)
+                .into_par_iter()
+                .map(|index| {
+                    let (path, t_s) = &self.files[index];
+                    let mat = imgcodecs::imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
+                    if mat.empty() {
+                        return Err(TrackError::bad_input(path, "cannot decode this image"));
+                    }
+                    let image = GrayFrame::from_mat(&mat)?;
+                    if (image.width, image.height) != (w, h) {
+                        return Err(TrackError::bad_input(
+                            path,
+                            format!(
                             "is {}×{}, the first image is {w}×{h}: all frames must have one size",
                             image.width, image.height
                         ),
-                    ));
-                }
-                Ok(Frame {
-                    index,
-                    t_s: *t_s,
-                    image,
+                        ));
+                    }
+                    Ok(Frame {
+                        index,
+                        t_s: *t_s,
+                        image,
+                    })
                 })
-            })
-            .collect();
+                .collect()
+        });
         self.next = end;
         batch
     }
