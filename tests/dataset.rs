@@ -1,40 +1,11 @@
 //! End-to-end tests of `odocal synth experiment` and `odocal dataset` (issue 4), without video.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output};
 
+use common::{fails, ok, p, rms};
 use odocal_dataset::{Dataset, OracleFile};
-
-fn odocal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_odocal"))
-        .args(args)
-        .output()
-        .expect("run odocal")
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = odocal(args);
-    assert!(
-        o.status.success(),
-        "odocal {args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Runs odocal expecting exit code 2 and a one-line error; returns the message.
-fn fails(args: &[&str]) -> String {
-    let o = odocal(args);
-    assert_eq!(o.status.code(), Some(2), "odocal {args:?} should fail");
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(err.starts_with("odocal: error: "), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    err
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("utf-8 path")
-}
 
 fn synth(dir: &Path, runs: usize, seed: u64, per: usize) {
     ok(&[
@@ -65,10 +36,6 @@ fn build(dir: &Path) -> Dataset {
         p(&dir.join("dataset.csv")),
     ]);
     Dataset::read(&out).expect("dataset.json")
-}
-
-fn rms(v: &[f64]) -> f64 {
-    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
 
 /// The acceptance experiment itself: 131 runs, seed 1, trajectories instead of video.

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{parse_json_with_format, read_text, DatasetError};
-use crate::odometry::csv_error;
+use crate::odometry::csv_table;
 
 /// The `format` tag of manifest JSON files.
 pub const MANIFEST_FORMAT: &str = "odocal.manifest/1";
@@ -150,36 +150,24 @@ impl Manifest {
 }
 
 fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
-    let mut header: Option<Vec<String>> = None;
+    let Some(table) = csv_table(text, name)? else {
+        return Ok((Manifest::new(Vec::new(), Path::new("")), Vec::new()));
+    };
+    let (line, header) = &table.header;
+    let h: Vec<String> = header.iter().map(str::to_string).collect();
+    for need in ["id", "odometry"] {
+        if !h.iter().any(|c| c == need) {
+            return Err(DatasetError::parse(
+                name,
+                *line,
+                1,
+                format!("header lacks column \"{need}\" (expected id,video,trajectory,odometry,speed_mps)"),
+            ));
+        }
+    }
     let mut runs = Vec::new();
     let mut lines = Vec::new();
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| csv_error(name, &e))?;
-        let line = rec.position().map(|p| p.line()).unwrap_or(0);
-        if rec.iter().all(|f| f.is_empty()) {
-            continue;
-        }
-        let Some(h) = &header else {
-            let h: Vec<String> = rec.iter().map(str::to_string).collect();
-            for need in ["id", "odometry"] {
-                if !h.iter().any(|c| c == need) {
-                    return Err(DatasetError::parse(
-                        name,
-                        line,
-                        1,
-                        format!("header lacks column \"{need}\" (expected id,video,trajectory,odometry,speed_mps)"),
-                    ));
-                }
-            }
-            header = Some(h);
-            continue;
-        };
+    for &(line, ref rec) in &table.rows {
         if rec.len() != h.len() {
             return Err(DatasetError::parse(
                 name,

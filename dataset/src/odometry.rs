@@ -96,39 +96,36 @@ impl OdometryLog {
 
     /// Parses log CSV text; `name` is used in error messages.
     pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
-        let mut rdr = csv_reader(text);
-        let mut kind = None;
+        let Some(table) = csv_table(text, name)? else {
+            return Err(DatasetError::content(
+                name,
+                "empty odometry log (no header, no rows)",
+            ));
+        };
+        let (line, header) = &table.header;
+        let fields: Vec<&str> = header.iter().collect();
+        let kind = if fields == TICKS_HEADER {
+            LogKind::Ticks
+        } else if fields == SPEEDS_HEADER {
+            LogKind::Speeds
+        } else {
+            return Err(DatasetError::parse(
+                name,
+                *line,
+                1,
+                format!(
+                    "header is \"{}\", expected \"t,left_ticks,right_ticks\" or \"t,v_left,v_right\"",
+                    fields.join(",")
+                ),
+            ));
+        };
         let mut t_s = Vec::new();
         let mut left = Vec::new();
         let mut right = Vec::new();
         let mut lines = Vec::new();
-        for rec in rdr.records() {
-            let rec = rec.map_err(|e| csv_error(name, &e))?;
-            let line = rec.position().map(|p| p.line()).unwrap_or(0);
-            if rec.iter().all(|f| f.is_empty()) {
-                continue;
-            }
-            let Some(k) = kind else {
-                let fields: Vec<&str> = rec.iter().collect();
-                kind = Some(if fields == TICKS_HEADER {
-                    LogKind::Ticks
-                } else if fields == SPEEDS_HEADER {
-                    LogKind::Speeds
-                } else {
-                    return Err(DatasetError::parse(
-                        name,
-                        line,
-                        1,
-                        format!(
-                            "header is \"{}\", expected \"t,left_ticks,right_ticks\" or \"t,v_left,v_right\"",
-                            fields.join(",")
-                        ),
-                    ));
-                });
-                continue;
-            };
-            let vals: [f64; 3] = numeric_row(name, line, &rec)?;
-            if k == LogKind::Ticks {
+        for &(line, ref rec) in &table.rows {
+            let vals: [f64; 3] = numeric_row(name, line, rec)?;
+            if kind == LogKind::Ticks {
                 if let Some(c) = (1..3).find(|&c| vals[c].fract() != 0.0) {
                     return Err(DatasetError::parse(
                         name,
@@ -143,12 +140,6 @@ impl OdometryLog {
             right.push(vals[2]);
             lines.push(line);
         }
-        let Some(kind) = kind else {
-            return Err(DatasetError::content(
-                name,
-                "empty odometry log (no header, no rows)",
-            ));
-        };
         let log = Self {
             kind,
             t_s,
@@ -278,15 +269,36 @@ impl OdometryLog {
     }
 }
 
-/// The CSV reader of odocal's numeric files: the header is checked by the
-/// caller, fields are trimmed, blank lines and `#` comments are skipped.
-pub(crate) fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
-    csv::ReaderBuilder::new()
+/// A CSV text split into its header and data rows, each with its line number (blank rows and
+/// `#` comments skipped, fields trimmed, rows of any length).
+pub(crate) struct CsvTable {
+    /// Line and fields of the header.
+    pub header: (u64, csv::StringRecord),
+    /// Line and fields of each data row.
+    pub rows: Vec<(u64, csv::StringRecord)>,
+}
+
+/// Reads `text` as a [`CsvTable`]; `None` when it has no header (an empty file).
+pub(crate) fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, DatasetError> {
+    let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
-        .from_reader(text.as_bytes())
+        .from_reader(text.as_bytes());
+    let mut rows = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| csv_error(name, &e))?;
+        if rec.iter().all(|f| f.is_empty()) {
+            continue;
+        }
+        rows.push((rec.position().map(|p| p.line()).unwrap_or(0), rec));
+    }
+    if rows.is_empty() {
+        return Ok(None);
+    }
+    let header = rows.remove(0);
+    Ok(Some(CsvTable { header, rows }))
 }
 
 /// Parses a data row of exactly `N` finite numbers; errors name the line and column.

@@ -8,7 +8,7 @@ use nalgebra::Point2;
 use odocal_geometry::{wrap_angle, Pose2};
 
 use crate::error::{read_text, DatasetError};
-use crate::odometry::{csv_error, csv_reader, numeric_row};
+use crate::odometry::{csv_table, numeric_row};
 
 /// Header of a trajectory CSV.
 pub const TRAJECTORY_HEADER: [&str; 5] = ["t", "x", "y", "theta", "quality"];
@@ -47,45 +47,35 @@ impl Trajectory {
 
     /// Parses trajectory CSV text; `name` is used in error messages.
     pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
-        let mut rdr = csv_reader(text);
-        let mut header_seen = false;
+        let Some(table) = csv_table(text, name)? else {
+            return Err(DatasetError::content(
+                name,
+                "empty trajectory file (no header)",
+            ));
+        };
+        let (line, header) = &table.header;
+        let fields: Vec<&str> = header.iter().collect();
+        if fields != TRAJECTORY_HEADER {
+            return Err(DatasetError::parse(
+                name,
+                *line,
+                1,
+                format!(
+                    "header is \"{}\", expected \"t,x,y,theta,quality\"",
+                    fields.join(",")
+                ),
+            ));
+        }
         let mut rows = Vec::new();
         let mut lines = Vec::new();
-        for rec in rdr.records() {
-            let rec = rec.map_err(|e| csv_error(name, &e))?;
-            let line = rec.position().map(|p| p.line()).unwrap_or(0);
-            if rec.iter().all(|f| f.is_empty()) {
-                continue;
-            }
-            if !header_seen {
-                let fields: Vec<&str> = rec.iter().collect();
-                if fields != TRAJECTORY_HEADER {
-                    return Err(DatasetError::parse(
-                        name,
-                        line,
-                        1,
-                        format!(
-                            "header is \"{}\", expected \"t,x,y,theta,quality\"",
-                            fields.join(",")
-                        ),
-                    ));
-                }
-                header_seen = true;
-                continue;
-            }
-            let v: [f64; 5] = numeric_row(name, line, &rec)?;
+        for &(line, ref rec) in &table.rows {
+            let v: [f64; 5] = numeric_row(name, line, rec)?;
             rows.push(TrajectoryRow {
                 t_s: v[0],
                 pose: Pose2::new(v[1], v[2], v[3]),
                 quality: v[4],
             });
             lines.push(line);
-        }
-        if !header_seen {
-            return Err(DatasetError::content(
-                name,
-                "empty trajectory file (no header)",
-            ));
         }
         let t = Self { rows };
         t.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
