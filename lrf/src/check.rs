@@ -143,32 +143,7 @@ fn facing_matches(map: &Map, i: usize, j: usize, theta: f64, kind: AmbiguityKind
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{LandmarkSpec, MapFile, MAP_FORMAT};
-
-    fn map(pts: &[(f64, f64)]) -> Map {
-        let landmarks = pts
-            .iter()
-            .enumerate()
-            .map(|(k, &(x, y))| LandmarkSpec {
-                id: k as u32,
-                x_m: x,
-                y_m: y,
-                facing_rad: None,
-                half_fov_rad: None,
-                visibility_line: None,
-            })
-            .collect();
-        Map::from_file(
-            &MapFile {
-                format: MAP_FORMAT.into(),
-                reflector_width_m: 0.08,
-                landmarks,
-                walls: vec![],
-            },
-            "t",
-        )
-        .unwrap()
-    }
+    use crate::tests::map_of as map;
 
     #[test]
     fn finds_a_repeated_triangle_and_not_a_random_one() {

@@ -6,7 +6,8 @@ use odocal_geometry::{wrap_angle, Pose2};
 
 use crate::*;
 
-fn map_of(pts: &[(f64, f64)]) -> Map {
+/// A map of point landmarks (ids from 1) without facing or visibility limits.
+pub(crate) fn map_of(pts: &[(f64, f64)]) -> Map {
     let landmarks = pts
         .iter()
         .enumerate()
