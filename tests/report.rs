@@ -113,8 +113,6 @@ fn demo_outputs(d: &Path) {
         "1",
         "--folds",
         "3",
-        "--method",
-        "trainlm",
         "--report",
         p(&d.join("train")),
     ]);
@@ -125,8 +123,6 @@ fn demo_outputs(d: &Path) {
         p(&d.join("model.json")),
         "--hidden",
         "3",
-        "--method",
-        "trainlm",
     ]);
 
     let lrf = d.join("lrf");
