@@ -2,43 +2,12 @@
 //! opened in headless Chromium (Debian's `chromium`, installed by `make test`): the screenshot
 //! is not blank, every plot has drawn content, and the page logs no script errors.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn odocal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_odocal"))
-        .args(args)
-        .output()
-        .expect("run odocal")
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = odocal(args);
-    assert!(
-        o.status.success(),
-        "odocal {args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Runs odocal expecting exit code 2 and a one-line error; returns the message.
-fn fails(args: &[&str]) -> String {
-    let o = odocal(args);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "odocal {args:?} should fail: {err}"
-    );
-    assert!(err.starts_with("odocal: error: "), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    err
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("utf-8 path")
-}
+use common::{fails, ok, p};
 
 fn sorted_files(dir: &Path, prefix: &str) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)

@@ -1,39 +1,11 @@
 //! End-to-end tests of `odocal train` and `odocal correct` (issue 5) on the robot simulator
 //! of `odocal synth experiment` (no video: camera trajectories from the truth).
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn odocal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_odocal"))
-        .args(args)
-        .output()
-        .expect("run odocal")
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = odocal(args);
-    assert!(
-        o.status.success(),
-        "odocal {args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Runs odocal expecting exit code 2 and a one-line error; returns the message.
-fn fails(args: &[&str]) -> String {
-    let o = odocal(args);
-    assert_eq!(o.status.code(), Some(2), "odocal {args:?} should fail");
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(err.starts_with("odocal: error: "), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    err
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("utf-8 path")
-}
+use common::{fails, ok, p};
 
 /// Simulates `runs` runs (seed) and builds dataset.json; returns its path.
 fn experiment(dir: &Path, runs: usize, seed: u64) -> std::path::PathBuf {

@@ -26,8 +26,12 @@ pub fn ok(args: &[&str]) -> String {
 /// Runs odocal expecting exit code 2 and a one-line error; returns the message.
 pub fn fails(args: &[&str]) -> String {
     let o = odocal(args);
-    assert_eq!(o.status.code(), Some(2), "odocal {args:?} should fail");
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "odocal {args:?} should fail: {err}"
+    );
     assert!(err.starts_with("odocal: error: "), "{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     err
