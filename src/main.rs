@@ -68,12 +68,16 @@ fn main() {
         Command::Report(a) => cmd::report::run(a),
     };
     if let Err(e) = result {
-        // One line: what was wrong, with the chain of causes joined.
-        let msg = e
-            .chain()
-            .map(|c| c.to_string())
-            .collect::<Vec<_>>()
-            .join(": ");
+        // One line: what was wrong, with the chain of causes joined (a cause that the
+        // message already quotes, as typed errors quote their I/O source, only once).
+        let mut msg = String::new();
+        for cause in e.chain().map(|c| c.to_string()) {
+            if msg.is_empty() {
+                msg = cause;
+            } else if !msg.contains(&cause) {
+                msg = format!("{msg}: {cause}");
+            }
+        }
         eprintln!("odocal: error: {msg}");
         std::process::exit(2);
     }
