@@ -8,6 +8,7 @@ use odocal_calib::CameraFile;
 use odocal_dataset::build::{
     assemble, process_recording, samples_csv, BuildOptions, Recording, RunOutcome,
 };
+use odocal_dataset::oracle::OracleFile;
 use odocal_dataset::{Manifest, ManifestRow, OdometryLog, RobotParams, Trajectory};
 use odocal_tracker::{open_source, track_source, SourceOptions, TrackOptions};
 use rayon::prelude::*;
@@ -35,6 +36,10 @@ pub struct Args {
     /// Shortest stop, seconds, that splits a recording into separate runs.
     #[arg(long, default_value_t = odocal_dataset::build::DEFAULT_MIN_GAP_S)]
     pub min_gap_s: f64,
+    /// Truth of a synthetic experiment (truth/oracle.json from `odocal synth experiment`):
+    /// also print the targets' and clock offsets' errors against it.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
 }
 
 /// Tracks the robot's tag through a run's video into its floor trajectory,
@@ -129,10 +134,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bar.inc(1);
         r
     };
-    // Tracking a video already uses every core (and rayon inside the frame
-    // decoder), so videos go one after another; trajectories in parallel.
     let results: Vec<anyhow::Result<Vec<RunOutcome>>> = if camera.is_some() {
-        manifest.runs.iter().map(work).collect()
+        // Videos are tracked on plain threads, one video per core at a time
+        // (each tracker also runs a decoder thread of its own, so tracking
+        // never waits on a busy rayon pool).
+        let threads = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+            .min(manifest.runs.len().max(1));
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let mut slots: Vec<Option<anyhow::Result<Vec<RunOutcome>>>> =
+            (0..manifest.runs.len()).map(|_| None).collect();
+        let done = std::sync::Mutex::new(&mut slots);
+        std::thread::scope(|scope| {
+            for _ in 0..threads {
+                scope.spawn(|| loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(row) = manifest.runs.get(i) else {
+                        break;
+                    };
+                    let r = work(row);
+                    done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
+                });
+            }
+        });
+        slots
+            .into_iter()
+            .zip(&manifest.runs)
+            .map(|(r, row)| {
+                r.unwrap_or_else(|| Err(anyhow::anyhow!("run \"{}\" was not processed", row.id)))
+            })
+            .collect()
     } else {
         manifest.runs.par_iter().map(work).collect()
     };
@@ -169,6 +201,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "largest alignment residual: {:.4} m/s",
             s.max_alignment_residual_mps
         );
+    }
+    if let Some(path) = &args.truth {
+        let oracle = OracleFile::read(path)?;
+        let (mut target, mut offset) = (Vec::new(), Vec::new());
+        for sample in &ds.samples {
+            let t = oracle.get(&sample.run_id).with_context(|| {
+                format!(
+                    "{}: no truth for run \"{}\"; is this the experiment's truth/oracle.json?",
+                    path.display(),
+                    sample.run_id
+                )
+            })?;
+            target.push(
+                (sample.target_m[0] - t.true_end_m[0]).hypot(sample.target_m[1] - t.true_end_m[1]),
+            );
+            offset.push((sample.clock_offset_s - t.clock_offset_s).abs());
+        }
+        if !target.is_empty() {
+            let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
+            let max = |v: &[f64]| v.iter().fold(0.0f64, |m, e| m.max(*e));
+            println!(
+                "against the truth: end-point targets RMS {:.2} mm (max {:.2} mm), clock offsets RMS {:.2} ms (max {:.2} ms) over {} samples",
+                1e3 * rms(&target),
+                1e3 * max(&target),
+                1e3 * rms(&offset),
+                1e3 * max(&offset),
+                target.len()
+            );
+        }
     }
     Ok(())
 }

@@ -52,6 +52,10 @@ pub struct Args {
     /// Simulator configuration JSON ("format": "odocal.robotsim/1"; absent fields take defaults).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// With --frames video, do not also write the calibration views (calib/), e.g. when
+    /// `odocal synth calib` has already written them (same camera, any seed works).
+    #[arg(long)]
+    pub no_calib_views: bool,
 }
 
 /// Truth of one recording, as written to truth/experiment.json.
@@ -172,7 +176,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         truths.push(truth);
         oracle.extend(orc);
     }
-    if args.frames == Frames::Video {
+    if args.frames == Frames::Video && !args.no_calib_views {
         // The calibration views of the same camera, so the videos can be tracked.
         crate::cmd::synth_calib::write_calib_set(
             &out.join("calib"),
