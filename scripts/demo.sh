@@ -64,7 +64,7 @@ pick check-calib "calibration error|floor mapping" 2
 echo "ground truth from the ceiling camera (tracked video vs renderer's truth):"
 pick track "RMS|position" 2
 echo "dataset from $runs tracked videos (targets: real end points from the camera; truth: the simulator):"
-pick dataset "samples|rejected|raw odometry|against the truth" 8
+pick dataset "^dataset:|rejected|raw odometry|against the truth" 8
 echo "corrector and baselines (cross-validated on the samples of dataset.json):"
 echo "  Table 2 (cross-validated, 5 folds): method | MSE m² | MSE cm² | relative error % | RMS end error cm | samples | distance m"
 grep -h -E "^\| (raw odometry|kinematic calibration|linear regression|perceptron|oracle)" "$out/train/report.md" | head -n 5 | sed 's/^/  /'
