@@ -40,3 +40,12 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
     s.push('\n');
     write_atomic(path, s.as_bytes())
 }
+
+/// "1 run", "3 runs": a count with its noun in the right number.
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}

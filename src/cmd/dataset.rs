@@ -13,7 +13,7 @@ use odocal_dataset::{Manifest, ManifestRow, OdometryLog, RobotParams, Trajectory
 use odocal_tracker::{open_source, track_source, SourceOptions, TrackOptions};
 use rayon::prelude::*;
 
-use crate::output::{progress, write_atomic, write_json};
+use crate::output::{count, progress, write_atomic, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -180,10 +180,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let s = &ds.summary;
     println!(
-        "dataset: {} samples from {} runs in {} recordings ({} rejected) -> {}",
-        ds.samples.len(),
-        s.runs,
-        s.recordings,
+        "dataset: {} from {} in {} ({} rejected) -> {}",
+        count(ds.samples.len(), "sample"),
+        count(s.runs, "run"),
+        count(s.recordings, "recording"),
         ds.rejected.len(),
         args.out.display()
     );

@@ -17,7 +17,7 @@ use odocal_geometry::Pose2;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::output::{progress, write_atomic, write_json};
+use crate::output::{count, progress, write_atomic, write_json};
 
 /// What stands for the camera.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -207,9 +207,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     )?;
     println!(
-        "synth experiment: {} runs in {} recordings (seed {}, frames {}) -> {}",
-        args.runs,
-        n_rec,
+        "synth experiment: {} in {} (seed {}, frames {}) -> {}",
+        count(args.runs, "run"),
+        count(n_rec, "recording"),
         args.seed,
         match args.frames {
             Frames::Video => "video",
