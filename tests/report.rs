@@ -325,6 +325,12 @@ fn report_renders_in_headless_chromium() {
             "{fig}.svg not written"
         );
     }
+    // The coverage plot shows the corners calibrate detected (stored in camera.json), as it
+    // would for real photographs, not the synthetic truth's.
+    assert!(
+        html.contains("corners as detected, from camera.json"),
+        "coverage not from the detected corners"
+    );
     for fig in ["fig-trajectory-", "fig-heading-"] {
         assert!(
             html.matches(fig).count() >= 3,

@@ -131,6 +131,7 @@ pub fn calibrate(views: &[BoardView], board: &BoardSpec) -> Result<Calibration, 
         .map(|(i, v)| ViewResidual {
             image: v.image.clone(),
             rms_px: errs.get(i).copied().unwrap_or(f64::NAN),
+            corners_px: v.corners.iter().map(|p| [p.x, p.y]).collect(),
         })
         .collect();
     if !camera.intrinsics.fx.is_finite() || camera.intrinsics.fx <= 0.0 || !rms.is_finite() {

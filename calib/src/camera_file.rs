@@ -43,6 +43,10 @@ pub struct ViewResidual {
     pub image: String,
     /// RMS reprojection error of its corners, pixels.
     pub rms_px: f64,
+    /// The detected inner corners (u, v), pixels: where the views covered the image (absent in
+    /// files written before odocal stored them).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub corners_px: Vec<[f64; 2]>,
 }
 
 /// A calibration image that was not used, and why.

@@ -115,7 +115,7 @@ pub fn calibration_section(c: &CalibInput) -> Result<Section, ReportError> {
         .collect();
     if with_corners.is_empty() || w <= 0.0 || h <= 0.0 {
         s.blocks.push(Block::Note(
-            "Corner coverage is not shown: camera.json does not store corner positions; pass the synthetic truth (--calib-truth) to plot them."
+            "Corner coverage is not shown: this camera.json has no corner positions (files from before odocal stored them); run odocal calibrate again to get them."
                 .into(),
         ));
     } else {

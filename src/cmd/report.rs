@@ -115,17 +115,21 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
         .views
         .iter()
         .map(|v| {
-            let corners_px = truth.and_then(|t| {
-                t.views
-                    .iter()
-                    .chain(&t.floor_views)
-                    .find(|tv| file_name(&tv.image) == file_name(&v.image))
-                    .map(|tv| {
-                        true_corners(&t.camera, &tv.board_to_camera, &t.scene.board)
-                            .iter()
-                            .map(|p| (p.x, p.y))
-                            .collect()
-                    })
+            let detected = (!v.corners_px.is_empty())
+                .then(|| v.corners_px.iter().map(|p| (p[0], p[1])).collect());
+            let corners_px = detected.or_else(|| {
+                truth.and_then(|t| {
+                    t.views
+                        .iter()
+                        .chain(&t.floor_views)
+                        .find(|tv| file_name(&tv.image) == file_name(&v.image))
+                        .map(|tv| {
+                            true_corners(&t.camera, &tv.board_to_camera, &t.scene.board)
+                                .iter()
+                                .map(|p| (p.x, p.y))
+                                .collect()
+                        })
+                })
             });
             CalibView {
                 image: v.image.clone(),
@@ -165,6 +169,7 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
         ));
     }
     let any_corners = views.iter().any(|v| v.corners_px.is_some());
+    let detected = cam.views.iter().any(|v| !v.corners_px.is_empty());
     CalibInput {
         image_size_px: (cam.camera.width, cam.camera.height),
         rms_px: cam.rms_px,
@@ -174,8 +179,13 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
             .iter()
             .map(|s| (s.image.clone(), s.reason.clone()))
             .collect(),
-        corners_source: any_corners
-            .then(|| "true corner positions from the synthetic truth".to_string()),
+        corners_source: any_corners.then(|| {
+            if detected {
+                "corners as detected, from camera.json".to_string()
+            } else {
+                "true corner positions from the synthetic truth".to_string()
+            }
+        }),
         facts,
     }
 }
