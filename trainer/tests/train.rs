@@ -143,17 +143,25 @@ fn kinematic_calibration_finds_the_systematic_error() {
             .sum::<f64>()
             / n
     };
-    let true_scale = 0.5
-        * (eff(sys.left_wheel_diameter_m, sys.left_slip_per_mps)
-            + eff(sys.right_wheel_diameter_m, sys.right_slip_per_mps));
+    let c_l = eff(sys.left_wheel_diameter_m, sys.left_slip_per_mps);
+    let c_r = eff(sys.right_wheel_diameter_m, sys.right_slip_per_mps);
+    let ros = k.ros;
+    println!("multipliers {ros:?}, true left {c_l:.4} right {c_r:.4}");
     assert!(
-        (k.scale - true_scale).abs() < 0.005,
-        "scale {} vs {true_scale}",
-        k.scale
+        (ros.left_wheel_radius_multiplier - c_l).abs() < 0.005,
+        "left {} vs {c_l}",
+        ros.left_wheel_radius_multiplier
     );
-    // The curvature is more than the wheels' difference (the slave wheel's PID also turns the
-    // robot as it starts), so it is judged by its end points: as good as the oracle's, which
-    // dead-reckons each run with its true geometry, and far better than raw odometry.
+    assert!(
+        (ros.right_wheel_radius_multiplier - c_r).abs() < 0.005,
+        "right {} vs {c_r}",
+        ros.right_wheel_radius_multiplier
+    );
+    // Straight runs cannot see the wheel base: it stays nominal rather than absorbing noise.
+    assert!((ros.wheel_separation_multiplier - 1.0).abs() < 0.01);
+    let true_scale = 0.5 * (c_l + c_r);
+    // Its end points: as good as the oracle's, which dead-reckons each run with its true
+    // geometry, and far better than raw odometry.
     let rel = |p: [f64; 2], s: &odocal_dataset::Sample| {
         (p[0] - s.target_m[0]).hypot(p[1] - s.target_m[1]) / s.path_length_m
     };
