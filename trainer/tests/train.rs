@@ -160,6 +160,11 @@ fn kinematic_calibration_finds_the_systematic_error() {
     // Straight runs cannot see the wheel base: it stays nominal rather than absorbing noise.
     assert!((ros.wheel_separation_multiplier - 1.0).abs() < 0.01);
     let true_scale = 0.5 * (c_l + c_r);
+    assert!(
+        (k.scale - true_scale).abs() < 0.005,
+        "scale {} vs {true_scale}",
+        k.scale
+    );
     // Its end points: as good as the oracle's, which dead-reckons each run with its true
     // geometry, and far better than raw odometry.
     let rel = |p: [f64; 2], s: &odocal_dataset::Sample| {
