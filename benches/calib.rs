@@ -2,17 +2,15 @@
 //! cores) and Zhang calibration of 20 views, on the default 1280x720 scene.
 //! Run with `cargo bench --bench calib`.
 
+mod common;
+
+use common::median;
 use std::time::Instant;
 
 use odocal_calib::{calibrate, detect_file, fit_floor, BoardView, Detection};
 use odocal_fixtures::board::{draw_views, render_view, CalibScene};
 use odocal_fixtures::raycast::RayGrid;
 use rayon::prelude::*;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 fn main() {
     let scene = CalibScene::default();

@@ -6,31 +6,22 @@
 //! frames alone (baseline) against `odocal dataset --camera` (decode, track, align, build), in
 //! frames per second of video.
 
+mod common;
+
+use common::timed;
 use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
 use odocal_dataset::build::{assemble, process_recording, BuildOptions, Recording};
-use odocal_dataset::{OdometryLog, Trajectory, TrajectoryRow};
+use odocal_dataset::{OdometryLog, Trajectory};
 use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
 use odocal_tracker::{open_source, SourceOptions};
 use rayon::prelude::*;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn time(reps: usize, mut f: impl FnMut()) -> f64 {
-    median(
-        (0..reps)
-            .map(|_| {
-                let t = Instant::now();
-                f();
-                t.elapsed().as_secs_f64()
-            })
-            .collect(),
-    )
+/// Median wall seconds of `f` over `reps` runs.
+fn wall(reps: usize, f: impl FnMut()) -> f64 {
+    timed(reps, f).0
 }
 
 fn main() {
@@ -43,25 +34,11 @@ fn main() {
         .map(|r| {
             let rec =
                 simulate_recording(&cfg, &[cfg.speed_of_run(r)], 1, r as u64).expect("simulate");
-            let log = OdometryLog::from_ticks(
-                rec.log.iter().map(|x| rec.log_time_s(x)).collect(),
-                rec.log.iter().map(|x| x.left_ticks).collect(),
-                rec.log.iter().map(|x| x.right_ticks).collect(),
-            )
-            .expect("log");
-            let rows = rec
-                .camera_trajectory(&cfg.camera, 1, (1 << 32) + r as u64)
-                .into_iter()
-                .map(|(t, pose)| TrajectoryRow {
-                    t_s: t,
-                    pose,
-                    quality: 1.0,
-                })
-                .collect();
-            (
-                log.to_csv(),
-                Trajectory::new(rows).expect("trajectory").to_csv(),
-            )
+            let log = rec.odometry_log().expect("log");
+            let track = rec
+                .camera_track(&cfg.camera, 1, (1 << 32) + r as u64)
+                .expect("trajectory");
+            (log.to_csv(), track.to_csv())
         })
         .collect();
     println!(
@@ -87,15 +64,15 @@ fn main() {
         process_recording(&rec, &opts).expect("build")
     };
     let reps = 5;
-    let t_parse = time(reps, || {
+    let t_parse = wall(reps, || {
         let n: usize = files.iter().map(|f| parse(f).1.rows.len()).sum();
         assert_eq!(n, frames);
     });
-    let t_seq = time(reps, || {
+    let t_seq = wall(reps, || {
         let ds = assemble(opts.robot, files.iter().map(one).collect());
         assert_eq!(ds.samples.len(), runs);
     });
-    let t_par = time(reps, || {
+    let t_par = wall(reps, || {
         let ds = assemble(opts.robot, files.par_iter().map(one).collect());
         assert_eq!(ds.samples.len(), runs);
     });
@@ -171,11 +148,11 @@ fn videos() {
     );
     let reps = 3;
     let mut frames = 0;
-    let t_decode = time(reps, || frames = decode_all(d));
+    let t_decode = wall(reps, || frames = decode_all(d));
     let camera = p(&d.join("calib/camera_true.json"));
     let manifest = p(&d.join("manifest.json"));
     let out = p(&d.join("dataset.json"));
-    let t_build = time(reps, || {
+    let t_build = wall(reps, || {
         odocal(&[
             "dataset",
             "--manifest",

@@ -7,7 +7,9 @@
 //!
 //! Run: `cargo bench --bench render`.
 
-use std::time::Instant;
+mod common;
+
+use common::timed;
 
 use nalgebra::Point2;
 use odocal_fixtures::scene::{
@@ -16,38 +18,6 @@ use odocal_fixtures::scene::{
 use odocal_geometry::Pose2;
 
 const REPS: usize = 3;
-
-/// CPU time (user + system) this process has used so far, seconds (Linux /proc).
-fn cpu_s() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    // After the command name (in parentheses) come fields 3.. of proc(5):
-    // utime (field 14) and stime (field 15), in clock ticks of 1/100 s.
-    let rest = stat.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok());
-    match (tick(11), tick(12)) {
-        (Some(u), Some(s)) => (u + s) / 100.0,
-        _ => f64::NAN,
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Wall and CPU seconds of `f`, median of `reps` runs.
-fn timed(reps: usize, mut f: impl FnMut()) -> (f64, f64) {
-    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
-    for _ in 0..reps {
-        let c0 = cpu_s();
-        let t0 = Instant::now();
-        f();
-        wall.push(t0.elapsed().as_secs_f64());
-        cpu.push(cpu_s() - c0);
-    }
-    (median(wall), median(cpu))
-}
 
 /// One run of the experiment: at rest, a straight 1.5 m at `speed_mps`, at rest.
 fn run_trajectory(start: Point2<f64>, speed_mps: f64) -> Vec<(f64, Pose2)> {

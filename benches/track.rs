@@ -7,6 +7,9 @@
 //! Run: `cargo bench --bench track` (set `TRACK_BENCH_FRAMES` to change the
 //! frame count, default 240).
 
+mod common;
+
+use common::{cpu_s, median};
 use std::time::Instant;
 
 use odocal_fixtures::scene::{
@@ -20,25 +23,6 @@ use odocal_tracker::{
 };
 
 const REPS: usize = 3;
-
-/// CPU time (user + system) this process has used so far, seconds (Linux /proc).
-fn cpu_s() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    // After the command name (in parentheses) come fields 3.. of proc(5):
-    // utime (field 14) and stime (field 15), in clock ticks of 1/100 s.
-    let rest = stat.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok());
-    match (tick(11), tick(12)) {
-        (Some(u), Some(s)) => (u + s) / 100.0,
-        _ => f64::NAN,
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 fn accuracy(r: &TrackResult, truths: &[FrameTruth]) -> (f64, f64, usize) {
     let (mut sp, mut sh, mut n) = (0.0, 0.0, 0);

@@ -8,9 +8,12 @@
 //! The 131 samples come from the robot simulator of `odocal synth experiment` (seed 1), with
 //! the true end points as targets (no camera, no alignment): the trainer's work is the same.
 
+mod common;
+
+use common::cpu_s;
 use std::time::{Duration, Instant};
 
-use odocal_dataset::{features_from_log, Dataset, OdometryLog, RobotParams, Sample};
+use odocal_dataset::{features_from_log, Dataset, RobotParams, Sample};
 use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
 use odocal_trainer::{sweep, train, LinearRegression, Method, SweepSettings, TrainSettings};
 
@@ -22,11 +25,7 @@ fn sim_dataset(n: usize, seed: u64) -> Dataset {
         let Ok(rec) = simulate_recording(&cfg, &[cfg.speed_of_run(i)], seed, i as u64) else {
             continue;
         };
-        let Ok(log) = OdometryLog::from_ticks(
-            rec.log.iter().map(|r| rec.log_time_s(r)).collect(),
-            rec.log.iter().map(|r| r.left_ticks).collect(),
-            rec.log.iter().map(|r| r.right_ticks).collect(),
-        ) else {
+        let Ok(log) = rec.odometry_log() else {
             continue;
         };
         let (Ok(f), Some(run)) = (features_from_log(&log, &robot), rec.runs.first()) else {
@@ -44,18 +43,6 @@ fn sim_dataset(n: usize, seed: u64) -> Dataset {
         });
     }
     Dataset::new(robot, samples, Vec::new(), n)
-}
-
-/// CPU seconds used by this process so far (user + system, from /proc; 0 where unavailable).
-fn cpu_s() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    // Fields after the command name: state is field 3, utime 14, stime 15 (clock ticks, 100 Hz).
-    let rest = stat.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (tick(11) + tick(12)) / 100.0
 }
 
 /// The 1-minute load average (other work on the machine inflates wall times).

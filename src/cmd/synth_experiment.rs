@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use odocal_dataset::manifest::{Manifest, ManifestRow};
 use odocal_dataset::oracle::{OracleFile, OracleRun};
-use odocal_dataset::{OdometryLog, Trajectory, TrajectoryRow, WheelGeometry};
+use odocal_dataset::WheelGeometry;
 use odocal_fixtures::board::CalibScene;
 use odocal_fixtures::robot::{
     simulate_recording, CameraTiming, Recording, RobotSimConfig, RunTruth, ROBOT_SIM_FORMAT,
@@ -242,25 +242,12 @@ fn one_recording(
             speeds.len()
         );
     }
-    let log = OdometryLog::from_ticks(
-        rec.log.iter().map(|row| rec.log_time_s(row)).collect(),
-        rec.log.iter().map(|row| row.left_ticks).collect(),
-        rec.log.iter().map(|row| row.right_ticks).collect(),
-    )?;
+    let log = rec.odometry_log()?;
     let odo_rel = format!("runs/{id}.odometry.csv");
     write_atomic(&args.out.join(&odo_rel), log.to_csv().as_bytes())?;
     let (video, trajectory) = match args.frames {
         Frames::None => {
-            let rows = rec
-                .camera_trajectory(&cfg.camera, args.seed, (1u64 << 32) + r as u64)
-                .into_iter()
-                .map(|(t, pose)| TrajectoryRow {
-                    t_s: t,
-                    pose,
-                    quality: 1.0,
-                })
-                .collect();
-            let traj = Trajectory::new(rows)?;
+            let traj = rec.camera_track(&cfg.camera, args.seed, (1u64 << 32) + r as u64)?;
             let rel = format!("runs/{id}.trajectory.csv");
             write_atomic(&args.out.join(&rel), traj.to_csv().as_bytes())?;
             (None, Some(rel))

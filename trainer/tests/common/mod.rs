@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 
 use odocal_dataset::build::{assemble, process_recording, BuildOptions, Recording};
-use odocal_dataset::{Dataset, OdometryLog, Trajectory, TrajectoryRow, WheelGeometry};
+use odocal_dataset::{Dataset, WheelGeometry};
 use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
 use rayon::prelude::*;
 
@@ -31,22 +31,10 @@ pub fn experiment(n_runs: usize, seed: u64) -> Experiment {
             let id = format!("run{:03}", r + 1);
             let speed = config.speed_of_run(r);
             let rec = simulate_recording(&config, &[speed], seed, r as u64).expect("simulate");
-            let log = OdometryLog::from_ticks(
-                rec.log.iter().map(|x| rec.log_time_s(x)).collect(),
-                rec.log.iter().map(|x| x.left_ticks).collect(),
-                rec.log.iter().map(|x| x.right_ticks).collect(),
-            )
-            .expect("log");
-            let rows = rec
-                .camera_trajectory(&config.camera, seed, (1 << 32) + r as u64)
-                .into_iter()
-                .map(|(t_s, pose)| TrajectoryRow {
-                    t_s,
-                    pose,
-                    quality: 1.0,
-                })
-                .collect();
-            let camera = Trajectory::new(rows).expect("trajectory");
+            let log = rec.odometry_log().expect("log");
+            let camera = rec
+                .camera_track(&config.camera, seed, (1 << 32) + r as u64)
+                .expect("trajectory");
             let outcomes = process_recording(
                 &Recording {
                     id: &id,
