@@ -183,6 +183,17 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let m4 = d.join("m4.json");
     std::fs::write(&m4, r#"{"format":"odocal.dataset/1","runs":[]}"#).unwrap();
     assert!(run(&m4).contains("expected \"odocal.manifest/1\""));
+    // A truth file that is not the experiment's oracle: refused before any work.
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&out),
+        "--truth",
+        p(&manifest),
+    ]);
+    assert!(e.contains("odocal.oracle/1"), "{e}");
     assert!(!out.exists(), "nothing half-written");
 
     // And the intact experiment still builds.

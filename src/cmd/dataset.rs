@@ -105,6 +105,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--min-gap-s must be a positive number of seconds");
     }
     let manifest = Manifest::read(&args.manifest)?;
+    // A wrong truth file is found before the work, not after the dataset is written.
+    let oracle = args.truth.as_deref().map(OracleFile::read).transpose()?;
     manifest.check_files()?;
     if manifest.runs.iter().any(|r| r.video.is_some()) {
         match &args.camera {
@@ -202,8 +204,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             s.max_alignment_residual_mps
         );
     }
-    if let Some(path) = &args.truth {
-        let oracle = OracleFile::read(path)?;
+    if let (Some(path), Some(oracle)) = (&args.truth, &oracle) {
         let (mut target, mut offset) = (Vec::new(), Vec::new());
         for sample in &ds.samples {
             let t = oracle.get(&sample.run_id).with_context(|| {
