@@ -3,11 +3,13 @@
 //! The quad fit of the AprilTag C library places corners to about a tenth of a pixel, with an
 //! error that depends on where the edges fall on the pixel grid. On a 35-pixel tag (8 cm seen
 //! from 2.2 m) that is 1.5–5 mrad of heading at a given pose, and the error does not average
-//! away over frames at rest; a 1.5 m run turns it into several millimetres at its end. Here each
-//! side's outer edge (black square against the tag's white border) is fitted to the pixels
-//! around it: grey = dark + (light − dark) · logistic(signed distance / width), whose parameters
-//! (edge angle and offset, the two levels, the width) are found by Levenberg–Marquardt over some
-//! 150 pixels per side. The corners are the intersections of the fitted lines.
+//! away over frames at rest; a 1.5 m run turns it into several millimetres at its end. Here the
+//! outer edges of the four sides (black square against the tag's white border) are fitted to
+//! the pixels around them, some 500 in all: a pixel averages a straight edge over its area, so
+//! its grey level ramps linearly from dark to light across the edge over the pixel's extent
+//! along the edge's normal (widened by optical blur, one parameter shared by the four sides).
+//! Edge angles and offsets, the two levels and the blur are found by Levenberg–Marquardt; the
+//! corners are the intersections of the fitted lines.
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{Dyn, Owned, Point2, Vector2, U11};
