@@ -1,36 +1,24 @@
 //! End-to-end tests of `odocal synth calib` and `odocal calibrate` against the
 //! renderer's truth (issue: foundation and Zhang calibration).
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+
+use common::{odocal, succeeded};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardToCamera, CameraFile};
 use odocal_fixtures::board::{calibration_errors, render_view, CalibScene, CalibTruth};
 use odocal_fixtures::raycast::RayGrid;
 
-fn odocal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_odocal"))
-        .args(args)
-        .output()
-        .expect("the odocal binary runs")
-}
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "odocal failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-}
-
 fn synth(dir: &Path, seed: u64, extra: &[&str]) -> CalibTruth {
     let d = dir.to_str().unwrap();
     let seed = seed.to_string();
     let mut args = vec!["synth", "calib", "--out", d, "--seed", &seed];
     args.extend_from_slice(extra);
-    ok(&odocal(&args));
+    succeeded(&odocal(&args));
     serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap()
 }
 
@@ -74,7 +62,7 @@ fn calibration_matches_truth_for_several_seeds() {
         let truth = synth(dir.path(), seed, &[]);
         let out = dir.path().join("camera.json");
         let res = calibrate(dir.path(), &out, "9x6", "0.05");
-        ok(&res);
+        succeeded(&res);
         let cam = CameraFile::load(&out).unwrap();
         let e = calibration_errors(
             &cam.camera,
@@ -148,6 +136,7 @@ fn small_set(dir: &Path) -> CalibTruth {
     )
 }
 
+/// Exit code 2 with an error mentioning `needle` (the skipped views are listed before it).
 fn assert_fails(out: &Output, needle: &str, camera: &Path) {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(
@@ -155,9 +144,11 @@ fn assert_fails(out: &Output, needle: &str, camera: &Path) {
         Some(2),
         "expected exit code 2, stderr: {err}"
     );
+    let last = err.trim_end().lines().last().unwrap_or("");
+    assert!(last.starts_with("odocal: error: "), "{err}");
     assert!(
-        err.contains(needle),
-        "stderr should mention {needle:?}: {err}"
+        last.contains(needle),
+        "the error should mention {needle:?}: {err}"
     );
     assert!(!err.contains("panicked"), "must not panic: {err}");
     assert!(!camera.exists(), "no camera.json may be written on failure");
@@ -193,7 +184,7 @@ fn view_without_board_is_skipped_and_too_few_views_fail() {
         .unwrap();
     let out = dir.path().join("camera.json");
     let res = calibrate(dir.path(), &out, "9x6", "0.05");
-    ok(&res);
+    succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(
         err.contains("skipped") && err.contains("view_99.png"),

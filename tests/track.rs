@@ -1,43 +1,12 @@
 //! End-to-end tests of `odocal synth track` and `odocal track`.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
+use common::{fails_with, odocal, p, succeeded};
 use nalgebra::Point2;
 use odocal_dataset::Trajectory;
 use odocal_fixtures::scene::{nadir, render_video, straight_trajectory, SceneConfig, VideoFormat};
 use odocal_geometry::wrap_angle;
-
-fn odocal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_odocal"))
-        .args(args)
-        .output()
-        .expect("run odocal")
-}
-
-fn ok(out: &Output) {
-    assert!(
-        out.status.success(),
-        "odocal failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-}
-
-/// Exit code 2, exactly one `odocal: error:` line containing `needle`.
-fn fails_with(out: &Output, needle: &str) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(2), "expected exit 2, stderr: {err}");
-    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
-    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
-    assert!(lines[0].starts_with("odocal: error: "), "{err}");
-    assert!(lines[0].contains(needle), "expected {needle:?} in: {err}");
-    err
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("utf-8 temp path")
-}
 
 /// Position and heading RMS of `est` against `truth` at the same timestamps.
 fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
@@ -59,7 +28,7 @@ fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
 fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "synth",
         "track",
         "--out",
@@ -103,7 +72,7 @@ fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
         "--truth",
         p(&d.join("truth.csv")),
     ]);
-    ok(&run);
+    succeeded(&run);
     let said = String::from_utf8_lossy(&run.stdout);
     assert!(
         said.contains("position RMS") && said.contains("over 45 frames"),
@@ -140,7 +109,7 @@ fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
     }
     // Same seed, same bytes.
     let d2 = d.join("again");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "synth",
         "track",
         "--out",
@@ -162,7 +131,7 @@ fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
 fn png_sequence_and_mp4_are_tracked() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "synth",
         "track",
         "--out",
@@ -177,7 +146,7 @@ fn png_sequence_and_mp4_are_tracked() {
     let frames = d.join("frames");
     assert!(frames.join("timestamps.csv").is_file());
     let out = d.join("traj.csv");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "track",
         p(&frames),
         "--camera",
@@ -195,7 +164,7 @@ fn png_sequence_and_mp4_are_tracked() {
     );
     // Fixed frame rate instead of the timestamp file: times are k / fps.
     let out2 = d.join("traj_fps.csv");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "track",
         p(&frames),
         "--camera",
@@ -227,7 +196,7 @@ fn png_sequence_and_mp4_are_tracked() {
         return;
     }
     let out3 = d.join("traj_mp4.csv");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "track",
         p(&dm.join("video.mp4")),
         "--camera",
@@ -279,7 +248,7 @@ fn marker_leaving_the_view_gives_gaps_not_guesses() {
     .unwrap();
     let out = d.join("traj.csv");
     let report = d.join("report.json");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "track",
         p(&frames),
         "--camera",
@@ -323,7 +292,7 @@ fn marker_leaving_the_view_gives_gaps_not_guesses() {
 fn bad_inputs_fail_clearly_without_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "synth",
         "track",
         "--out",
@@ -433,7 +402,7 @@ fn calibrated_camera_meets_accuracy() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let calib = d.join("calib");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "synth",
         "calib",
         "--out",
@@ -473,9 +442,9 @@ fn calibrated_camera_meets_accuracy() {
         "--floor",
     ]);
     args.extend(floors.iter().map(|s| s.as_str()));
-    ok(&odocal(&args));
+    succeeded(&odocal(&args));
     let trk = d.join("track");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "synth",
         "track",
         "--out",
@@ -486,7 +455,7 @@ fn calibrated_camera_meets_accuracy() {
         "6",
     ]));
     let out = d.join("traj.csv");
-    ok(&odocal(&[
+    succeeded(&odocal(&[
         "track",
         p(&trk.join("video.avi")),
         "--camera",

@@ -37,6 +37,28 @@ pub fn fails(args: &[&str]) -> String {
     err
 }
 
+/// Asserts that a run of odocal succeeded, showing its output if not.
+pub fn succeeded(out: &Output) {
+    assert!(
+        out.status.success(),
+        "odocal failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
+
+/// Asserts exit code 2 and exactly one `odocal: error:` line containing `needle`; returns
+/// standard error.
+pub fn fails_with(out: &Output, needle: &str) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "expected exit 2, stderr: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line, got: {err}");
+    assert!(lines[0].starts_with("odocal: error: "), "{err}");
+    assert!(lines[0].contains(needle), "expected {needle:?} in: {err}");
+    err
+}
+
 /// A path as a command-line argument.
 pub fn p(path: &Path) -> &str {
     path.to_str().expect("utf-8 path")
