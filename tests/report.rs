@@ -7,7 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{fails, ok, p};
+use common::{experiment_dataset, fails, ok, p};
 
 fn sorted_files(dir: &Path, prefix: &str) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
@@ -53,26 +53,8 @@ fn demo_outputs(d: &Path) {
     ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
 
     let exp = d.join("experiment");
-    ok(&[
-        "synth",
-        "experiment",
-        "--out",
-        p(&exp),
-        "--runs",
-        "24",
-        "--seed",
-        "2",
-        "--frames",
-        "none",
-    ]);
     let ds = d.join("dataset.json");
-    ok(&[
-        "dataset",
-        "--manifest",
-        p(&exp.join("manifest.json")),
-        "--out",
-        p(&ds),
-    ]);
+    experiment_dataset(&exp, &ds, 24, 2);
     ok(&[
         "train",
         p(&ds),

@@ -5,31 +5,12 @@ mod common;
 
 use std::path::Path;
 
-use common::{fails, ok, p};
+use common::{experiment_dataset, fails, ok, p};
 
-/// Simulates `runs` runs (seed) and builds dataset.json; returns its path.
+/// Simulates `runs` runs (seed) into `dir`/exp and builds `dir`/dataset.json; returns its path.
 fn experiment(dir: &Path, runs: usize, seed: u64) -> std::path::PathBuf {
-    let exp = dir.join("exp");
-    ok(&[
-        "synth",
-        "experiment",
-        "--out",
-        p(&exp),
-        "--runs",
-        &runs.to_string(),
-        "--seed",
-        &seed.to_string(),
-        "--frames",
-        "none",
-    ]);
     let ds = dir.join("dataset.json");
-    ok(&[
-        "dataset",
-        "--manifest",
-        p(&exp.join("manifest.json")),
-        "--out",
-        p(&ds),
-    ]);
+    experiment_dataset(&dir.join("exp"), &ds, runs, seed);
     ds
 }
 

@@ -59,6 +59,30 @@ pub fn fails_with(out: &Output, needle: &str) -> String {
     err
 }
 
+/// Simulates `runs` runs (`--frames none`) into the folder `exp` and builds `dataset` from
+/// them, as `odocal synth experiment` and `odocal dataset` do.
+pub fn experiment_dataset(exp: &Path, dataset: &Path, runs: usize, seed: u64) {
+    ok(&[
+        "synth",
+        "experiment",
+        "--out",
+        p(exp),
+        "--runs",
+        &runs.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "--frames",
+        "none",
+    ]);
+    ok(&[
+        "dataset",
+        "--manifest",
+        p(&exp.join("manifest.json")),
+        "--out",
+        p(dataset),
+    ]);
+}
+
 /// A path as a command-line argument.
 pub fn p(path: &Path) -> &str {
     path.to_str().expect("utf-8 path")
