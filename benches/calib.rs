@@ -8,8 +8,8 @@ use common::median;
 use std::time::Instant;
 
 use odocal_calib::{calibrate, detect_file, fit_floor, BoardView, Detection};
-use odocal_fixtures::board::{draw_views, render_view, CalibScene};
-use odocal_fixtures::raycast::RayGrid;
+use odocal_synth::board::{draw_views, render_view, CalibScene};
+use odocal_synth::raycast::RayGrid;
 use rayon::prelude::*;
 
 fn main() {

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use odocal_dataset::build::{assemble, process_recording, BuildOptions, Recording};
 use odocal_dataset::{OdometryLog, Trajectory};
-use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
+use odocal_synth::robot::{simulate_recording, RobotSimConfig};
 use odocal_tracker::{open_source, SourceOptions};
 use rayon::prelude::*;
 

@@ -7,8 +7,8 @@
 
 use std::time::{Duration, Instant};
 
-use odocal_fixtures::lrf_sim::{simulate, LrfSimConfig};
 use odocal_lrf::{Detection, Localizer, LocalizerConfig, Map, Scan, Status, Tracker};
+use odocal_synth::lrf_sim::{simulate, LrfSimConfig};
 
 /// Median over `reps` runs of `f`'s time divided by `per`.
 fn median_per(reps: usize, per: usize, mut f: impl FnMut()) -> Duration {

@@ -12,10 +12,10 @@ mod common;
 use common::timed;
 
 use nalgebra::Point2;
-use odocal_fixtures::scene::{
+use odocal_core::Pose2;
+use odocal_synth::scene::{
     frame_times, nadir, render_video, straight_trajectory, SceneConfig, SceneRenderer, VideoFormat,
 };
-use odocal_geometry::Pose2;
 
 const REPS: usize = 3;
 

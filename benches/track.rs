@@ -12,11 +12,11 @@ mod common;
 use common::{cpu_s, median};
 use std::time::Instant;
 
-use odocal_fixtures::scene::{
+use odocal_core::wrap_angle;
+use odocal_synth::scene::{
     demo_trajectory, frame_times, nadir, render_video, FrameTruth, SceneConfig, SceneRenderer,
     VideoFormat,
 };
-use odocal_geometry::wrap_angle;
 use odocal_tracker::{
     open_source, track_source, Frame, FrameSource, GrayFrame, MemorySource, SourceOptions,
     TrackOptions, TrackResult,

@@ -14,7 +14,7 @@ use common::cpu_s;
 use std::time::{Duration, Instant};
 
 use odocal_dataset::{features_from_log, Dataset, RobotParams, Sample};
-use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
+use odocal_synth::robot::{simulate_recording, RobotSimConfig};
 use odocal_trainer::{sweep, train, LinearRegression, Method, SweepSettings, TrainSettings};
 
 fn sim_dataset(n: usize, seed: u64) -> Dataset {

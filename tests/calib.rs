@@ -10,8 +10,8 @@ use common::{odocal, succeeded};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardToCamera, CameraFile};
-use odocal_fixtures::board::{calibration_errors, render_view, CalibScene, CalibTruth};
-use odocal_fixtures::raycast::RayGrid;
+use odocal_synth::board::{calibration_errors, render_view, CalibScene, CalibTruth};
+use odocal_synth::raycast::RayGrid;
 
 fn synth(dir: &Path, seed: u64, extra: &[&str]) -> CalibTruth {
     let d = dir.to_str().unwrap();

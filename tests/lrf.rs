@@ -4,10 +4,10 @@
 use std::path::Path;
 use std::process::Command;
 
-use odocal_fixtures::lrf_sim::{simulate, LrfSim, LrfSimConfig};
 use odocal_lrf::{
     evaluate, Evaluation, Localizer, LocalizerConfig, Map, Scan, Status, Tracker, TruthPose,
 };
+use odocal_synth::lrf_sim::{simulate, LrfSim, LrfSimConfig};
 
 fn scans_of(sim: &LrfSim) -> Vec<Scan> {
     sim.scans

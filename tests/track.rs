@@ -4,9 +4,9 @@ mod common;
 
 use common::{fails_with, odocal, p, succeeded};
 use nalgebra::Point2;
+use odocal_core::wrap_angle;
 use odocal_dataset::Trajectory;
-use odocal_fixtures::scene::{nadir, render_video, straight_trajectory, SceneConfig, VideoFormat};
-use odocal_geometry::wrap_angle;
+use odocal_synth::scene::{nadir, render_video, straight_trajectory, SceneConfig, VideoFormat};
 
 /// Position and heading RMS of `est` against `truth` at the same timestamps.
 fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {

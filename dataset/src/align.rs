@@ -21,7 +21,7 @@
 //! Residuals are reported in metres (travel fit) and m/s (speed per log interval).
 
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
-use odocal_geometry::wrap_angle;
+use odocal_core::wrap_angle;
 
 use crate::error::DatasetError;
 use crate::kinematics::WheelGeometry;

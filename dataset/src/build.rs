@@ -1,7 +1,7 @@
 //! Turning recordings (an odometry log and a camera trajectory) into training samples.
 
 use nalgebra::Point2;
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::align::{coarse_offset, refine_offset, AlignOptions};
 use crate::error::DatasetError;

@@ -6,7 +6,7 @@
 //! Per step: d_trans = (v_l + v_r) / 2, x += d_trans cos(theta + d_rot / 2),
 //! y += d_trans sin(theta + d_rot / 2), theta += d_rot.
 
-use odocal_geometry::Pose2;
+use odocal_core::Pose2;
 use serde::{Deserialize, Serialize};
 
 use crate::{RobotParams, N_INPUTS};

@@ -1,6 +1,6 @@
 //! The `dataset.json` contract shared by the dataset builder and the trainer.
 
-use odocal_geometry::Pose2;
+use odocal_core::Pose2;
 use serde::{Deserialize, Serialize};
 
 use crate::kinematics::RunOdometry;

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use nalgebra::Point2;
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::error::{read_text, DatasetError};
 use crate::odometry::{csv_table, numeric_row};

@@ -3,7 +3,7 @@
 //! confuse.
 
 use nalgebra::{Point2, Rotation2, Vector2};
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::Map;
 

@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::{LrfError, Status};
 

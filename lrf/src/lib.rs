@@ -10,7 +10,7 @@
 //! (matching near the predicted pose, falling back to global search, keeping
 //! several hypotheses until the motion resolves them).
 //!
-//! Poses are [`odocal_geometry::Pose2`] of the *sensor in the map frame*:
+//! Poses are [`odocal_core::Pose2`] of the *sensor in the map frame*:
 //! they map points from the sensor frame (x along the scan's 0 rad beam,
 //! angles counter-clockwise) into the map frame.
 

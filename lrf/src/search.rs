@@ -2,7 +2,7 @@
 //! chained search, and the robust global search with negative evidence.
 
 use nalgebra::{Point2, Rotation2, Vector2};
-use odocal_geometry::{fit_helmert, fit_rigid, wrap_angle, Pose2};
+use odocal_core::{fit_helmert, fit_rigid, wrap_angle, Pose2};
 
 use crate::{extract_detections, Detection, Map, Scan, SensorConfig};
 

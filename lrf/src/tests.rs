@@ -1,8 +1,8 @@
 //! Unit tests of search and tracking on a tiny local generator (perfect
-//! geometry, beams set only where reflectors are; no fixtures dependency).
+//! geometry, beams set only where reflectors are; no synth dependency).
 
 use nalgebra::Point2;
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::*;
 

@@ -2,7 +2,7 @@
 //! back to global search, and keep several hypotheses until the motion
 //! resolves them.
 
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::{Hypothesis, Localizer, Scan, Status};
 

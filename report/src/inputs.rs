@@ -1,8 +1,8 @@
 //! Readers for the report's inputs that no other crate reads: tracks in either the camera
 //! trajectory format or the simulator's truth format, and `lrf localize`'s pose CSV.
 
+use odocal_core::Pose2;
 use odocal_dataset::Trajectory;
-use odocal_geometry::Pose2;
 
 use crate::ReportError;
 

@@ -1,7 +1,7 @@
 //! The report's sections, each built from the outputs of one pipeline stage.
 
+use odocal_core::{wrap_angle, Pose2};
 use odocal_dataset::{RobotParams, Sample, WheelGeometry};
-use odocal_geometry::{wrap_angle, Pose2};
 use odocal_lrf::TruthPose;
 use odocal_trainer::SweepReport;
 

@@ -6,12 +6,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use odocal_calib::CameraFile;
 use odocal_dataset::Dataset;
-use odocal_fixtures::board::{true_corners, CalibTruth, CALIB_TRUTH_FORMAT};
 use odocal_report::{
     calibration_section, corrector_section, heading_section, laser_section, parse_laser_poses,
     parse_track_csv, pick_runs, training_section, trajectory_section, CalibInput, CalibView,
     LaserInput, Report, RunView, TrackFile,
 };
+use odocal_synth::board::{true_corners, CalibTruth, CALIB_TRUTH_FORMAT};
 use odocal_trainer::{ModelFile, SweepReport};
 
 use crate::output::write_atomic;

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args as ClapArgs;
 use odocal_calib::{BoardSpec, CameraFile, FloorPlane};
-use odocal_fixtures::board::{calibration_errors, draw_views, render_view, CalibScene, CalibTruth};
-use odocal_fixtures::raycast::RayGrid;
+use odocal_synth::board::{calibration_errors, draw_views, render_view, CalibScene, CalibTruth};
+use odocal_synth::raycast::RayGrid;
 use rayon::prelude::*;
 
 use crate::output::{progress, write_atomic, write_json};

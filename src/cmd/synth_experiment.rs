@@ -5,15 +5,15 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use odocal_core::Pose2;
 use odocal_dataset::manifest::{Manifest, ManifestRow};
 use odocal_dataset::oracle::{OracleFile, OracleRun};
 use odocal_dataset::WheelGeometry;
-use odocal_fixtures::board::CalibScene;
-use odocal_fixtures::robot::{
+use odocal_synth::board::CalibScene;
+use odocal_synth::robot::{
     simulate_recording, CameraTiming, Recording, RobotSimConfig, RunTruth, ROBOT_SIM_FORMAT,
 };
-use odocal_fixtures::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
-use odocal_geometry::Pose2;
+use odocal_synth::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
 use rayon::prelude::*;
 use serde::Serialize;
 

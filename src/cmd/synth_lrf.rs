@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use odocal_fixtures::lrf_sim::{simulate, LrfSimConfig};
+use odocal_synth::lrf_sim::{simulate, LrfSimConfig};
 
 use crate::output::write_atomic;
 

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use odocal_calib::{CameraFile, FloorPlane};
-use odocal_fixtures::scene::{
+use odocal_synth::scene::{
     demo_trajectory, nadir, render_video_with_progress, truth_csv, SceneConfig, VideoFormat,
 };
 

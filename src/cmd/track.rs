@@ -77,7 +77,7 @@ fn errors_against(
         let i = truth.rows.partition_point(|t| t.t_s < r.t_s - 1e-4);
         if let Some(t) = truth.rows.get(i).filter(|t| (t.t_s - r.t_s).abs() <= 1e-4) {
             sp += (r.pose.position() - t.pose.position()).norm_squared();
-            sh += odocal_geometry::wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
+            sh += odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
             n += 1;
         }
     }

@@ -8,7 +8,7 @@
 
 use nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
 use odocal_calib::{CameraModel, FloorToCamera};
-use odocal_geometry::{fit_rigid, wrap_angle, Pose2};
+use odocal_core::{fit_rigid, wrap_angle, Pose2};
 use opencv::calib3d;
 use opencv::core::{Mat, Point2d, Point3d, Vector};
 use opencv::prelude::*;

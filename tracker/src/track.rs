@@ -8,8 +8,8 @@ use std::sync::mpsc;
 
 use nalgebra::Point2;
 use odocal_calib::{CameraModel, FloorToCamera};
+use odocal_core::{wrap_angle, Pose2};
 use odocal_dataset::{Trajectory, TrajectoryRow};
-use odocal_geometry::{wrap_angle, Pose2};
 
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};

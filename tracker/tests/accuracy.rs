@@ -3,11 +3,11 @@
 //! 4 ms motion blur, lighting change), with the true camera.
 
 use nalgebra::Point2;
-use odocal_fixtures::scene::{
+use odocal_core::{wrap_angle, Pose2};
+use odocal_synth::scene::{
     demo_trajectory, frame_times, nadir, straight_trajectory, FrameTruth, SceneConfig,
     SceneRenderer,
 };
-use odocal_geometry::{wrap_angle, Pose2};
 use odocal_tracker::{
     track_source, Frame, GapReason, GrayFrame, MemorySource, Outcome, TrackOptions, TrackResult,
 };

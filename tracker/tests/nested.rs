@@ -5,7 +5,7 @@
 use std::sync::mpsc;
 use std::time::Duration;
 
-use odocal_fixtures::scene::{demo_trajectory, nadir, render_video, SceneConfig, VideoFormat};
+use odocal_synth::scene::{demo_trajectory, nadir, render_video, SceneConfig, VideoFormat};
 use odocal_tracker::{open_source, track_source, SourceOptions, TrackOptions};
 use rayon::prelude::*;
 

@@ -3,8 +3,8 @@
 //! away over frames, so it is checked pose by pose across the floor and across angles near
 //! the pixel grid's axes, where the corner fit of a small tag is worst.
 
-use odocal_fixtures::scene::{SceneConfig, SceneRenderer};
-use odocal_geometry::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2};
+use odocal_synth::scene::{SceneConfig, SceneRenderer};
 use odocal_tracker::{track_source, Frame, GrayFrame, MemorySource, Outcome, TrackOptions};
 
 #[test]

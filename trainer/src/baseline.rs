@@ -150,7 +150,7 @@ fn segments(s: &Sample) -> [(f64, f64, f64); 9] {
     // Headings continuous along the path (no jumps of 2 pi).
     for k in 1..9 {
         let prev = out[k - 1].1;
-        out[k].1 = prev + odocal_geometry::wrap_angle(out[k].1 - prev);
+        out[k].1 = prev + odocal_core::wrap_angle(out[k].1 - prev);
     }
     out
 }

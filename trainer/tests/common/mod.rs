@@ -1,4 +1,4 @@
-//! The trainer's test experiments: straight runs of odocal's robot simulator (fixtures), their
+//! The trainer's test experiments: straight runs of odocal's robot simulator (odocal-synth), their
 //! odometry logs and camera trajectories turned into a dataset by the dataset crate, as
 //! `odocal synth experiment --frames none` and `odocal dataset` do, at test sizes.
 
@@ -8,7 +8,7 @@ use std::collections::HashMap;
 
 use odocal_dataset::build::{assemble, process_recording, BuildOptions, Recording};
 use odocal_dataset::{Dataset, WheelGeometry};
-use odocal_fixtures::robot::{simulate_recording, RobotSimConfig};
+use odocal_synth::robot::{simulate_recording, RobotSimConfig};
 use rayon::prelude::*;
 
 /// A simulated experiment: the dataset, the oracle's end point of each run (its odometry
