@@ -1,11 +1,21 @@
-//! Shared 2-D geometry: planar poses, angle wrapping and the least-squares
-//! rigid / Helmert fit used by both dataset alignment and laser positioning.
+//! The bottom of odocal: planar poses and angle wrapping, the least-squares rigid / Helmert
+//! fit used by both dataset alignment and laser positioning, and the file formats every stage
+//! shares (trajectory CSV, CSV tables of numbers, JSON files tagged with their format).
+//! ARCHITECTURE.md at the repository root shows where this crate sits.
 //!
 //! Convention, stated once for all of odocal: x forward/right on the floor,
 //! y to the left of x, z up; angles counter-clockwise positive, in radians.
 
+mod file_error;
 mod fit;
 mod pose;
+mod table;
+mod tagged_json;
+mod trajectory;
 
+pub use file_error::{read_text, FileError};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};
 pub use pose::{wrap_angle, Pose2};
+pub use table::{csv_error, csv_table, numeric_row, CsvTable};
+pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json};
+pub use trajectory::{mean_pose, Trajectory, TrajectoryRow, TRAJECTORY_HEADER};

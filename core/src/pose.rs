@@ -68,6 +68,19 @@ impl Pose2 {
         Pose2::from_isometry(&self.isometry().inverse())
     }
 
+    /// Linear interpolation from `self` (w = 0) to `other` (w = 1); w outside [0, 1]
+    /// extrapolates. Position is interpolated on a straight line, heading the shortest way
+    /// round; the heading continues from `self.theta_rad` and is not re-wrapped, so a
+    /// continuous (unwrapped) heading stays continuous: wrap it where a canonical angle is
+    /// needed.
+    pub fn lerp(&self, other: &Pose2, w: f64) -> Pose2 {
+        Pose2::new(
+            self.x_m + w * (other.x_m - self.x_m),
+            self.y_m + w * (other.y_m - self.y_m),
+            self.theta_rad + w * wrap_angle(other.theta_rad - self.theta_rad),
+        )
+    }
+
     /// This pose expressed relative to `origin` (i.e. origin⁻¹ · self).
     pub fn relative_to(&self, origin: &Pose2) -> Pose2 {
         origin.inverse().compose(self)
@@ -91,6 +104,24 @@ mod tests {
             );
         }
         assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn lerp_takes_the_short_way_across_pi() {
+        let a = Pose2::new(0.0, 1.0, PI - 0.1);
+        let b = Pose2::new(2.0, -1.0, -PI + 0.1);
+        let m = a.lerp(&b, 0.5);
+        assert!((m.x_m - 1.0).abs() < 1e-12 && m.y_m.abs() < 1e-12);
+        // Halfway between 179.4 deg and -179.4 deg is 180 deg, not 0.
+        assert!((m.theta_rad - PI).abs() < 1e-12, "{}", m.theta_rad);
+        let q = a.lerp(&b, 0.75);
+        assert!((wrap_angle(q.theta_rad) - (-PI + 0.05)).abs() < 1e-12);
+        // And the other way round.
+        let m = b.lerp(&a, 0.5);
+        assert!((wrap_angle(m.theta_rad).abs() - PI).abs() < 1e-12);
+        // Extrapolation continues the motion.
+        let e = Pose2::new(0.0, 0.0, 0.0).lerp(&Pose2::new(1.0, 0.0, 0.2), 2.0);
+        assert!((e.x_m - 2.0).abs() < 1e-12 && (e.theta_rad - 0.4).abs() < 1e-12);
     }
 
     #[test]

@@ -27,7 +27,7 @@ use crate::error::DatasetError;
 use crate::kinematics::WheelGeometry;
 use crate::odometry::{LogKind, OdometryLog, WheelRevs};
 use crate::segment::RunSegment;
-use crate::trajectory::Trajectory;
+use odocal_core::Trajectory;
 use crate::RobotParams;
 
 /// Settings of the time alignment.

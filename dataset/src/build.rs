@@ -8,7 +8,7 @@ use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
 use crate::odometry::OdometryLog;
 use crate::segment::{split_runs, RunSegment};
-use crate::trajectory::{mean_pose, Trajectory, TrajectoryRow};
+use odocal_core::{mean_pose, Trajectory, TrajectoryRow};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
 
 /// Shortest rest, seconds, that separates two runs in one log.

@@ -59,12 +59,30 @@ impl DatasetError {
     }
 }
 
+impl From<odocal_core::FileError> for DatasetError {
+    fn from(e: odocal_core::FileError) -> Self {
+        use odocal_core::FileError as F;
+        match e {
+            F::Io { path, source } => Self::Io { path, source },
+            F::Parse {
+                path,
+                line,
+                column,
+                message,
+            } => Self::Parse {
+                path,
+                line,
+                column,
+                message,
+            },
+            F::Content { path, message } => Self::Content { path, message },
+        }
+    }
+}
+
 /// Reads a whole text file, mapping the error to [`DatasetError::Io`].
 pub(crate) fn read_text(path: &std::path::Path) -> Result<String, DatasetError> {
-    std::fs::read_to_string(path).map_err(|source| DatasetError::Io {
-        path: path.display().to_string(),
-        source,
-    })
+    Ok(odocal_core::read_text(path)?)
 }
 
 /// Parses a JSON document carrying `"format": "<expected>"`, rejecting other formats clearly.
@@ -73,29 +91,10 @@ pub(crate) fn parse_json_with_format<T: serde::de::DeserializeOwned>(
     name: &str,
     expected: &str,
 ) -> Result<T, DatasetError> {
-    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
-        DatasetError::parse(
-            name,
-            e.line() as u64,
-            e.column() as u64,
-            format!("invalid JSON: {e}"),
-        )
-    })?;
-    match value.get("format").and_then(|f| f.as_str()) {
-        Some(f) if f == expected => {}
-        Some(f) => {
-            return Err(DatasetError::content(
-                name,
-                format!("format is \"{f}\", expected \"{expected}\"; is this the right file?"),
-            ))
-        }
-        None => {
-            return Err(DatasetError::content(
-                name,
-                format!("no \"format\" field, expected \"{expected}\"; is this the right file?"),
-            ))
-        }
-    }
-    serde_json::from_str(text)
-        .map_err(|e| DatasetError::parse(name, e.line() as u64, e.column() as u64, format!("{e}")))
+    Ok(odocal_core::parse_tagged_json(
+        text,
+        name,
+        expected,
+        "is this the right file?",
+    )?)
 }

@@ -10,7 +10,6 @@ pub mod odometry;
 pub mod oracle;
 pub mod sample;
 pub mod segment;
-pub mod trajectory;
 
 pub use build::{
     assemble, features_from_log, process_recording, BuildOptions, Recording, RunFeatures,
@@ -25,4 +24,4 @@ pub use sample::{
     relative_end_error, Dataset, DatasetSummary, RejectedRun, RobotParams, Sample, DATASET_FORMAT,
     FEATURE_RULE, N_INPUTS,
 };
-pub use trajectory::{Trajectory, TrajectoryRow};
+pub use odocal_core::{Trajectory, TrajectoryRow};

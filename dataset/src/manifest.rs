@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{parse_json_with_format, read_text, DatasetError};
-use crate::odometry::csv_table;
+use odocal_core::csv_table;
 
 /// The `format` tag of manifest JSON files.
 pub const MANIFEST_FORMAT: &str = "odocal.manifest/1";

@@ -3,6 +3,8 @@
 
 use std::path::Path;
 
+use odocal_core::{csv_table, numeric_row};
+
 use crate::error::{read_text, DatasetError};
 use crate::RobotParams;
 
@@ -267,77 +269,6 @@ impl OdometryLog {
             rev,
         }
     }
-}
-
-/// A CSV text split into its header and data rows, each with its line number (blank rows and
-/// `#` comments skipped, fields trimmed, rows of any length).
-pub(crate) struct CsvTable {
-    /// Line and fields of the header.
-    pub header: (u64, csv::StringRecord),
-    /// Line and fields of each data row.
-    pub rows: Vec<(u64, csv::StringRecord)>,
-}
-
-/// Reads `text` as a [`CsvTable`]; `None` when it has no header (an empty file).
-pub(crate) fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, DatasetError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
-    let mut rows = Vec::new();
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| csv_error(name, &e))?;
-        if rec.iter().all(|f| f.is_empty()) {
-            continue;
-        }
-        rows.push((rec.position().map(|p| p.line()).unwrap_or(0), rec));
-    }
-    if rows.is_empty() {
-        return Ok(None);
-    }
-    let header = rows.remove(0);
-    Ok(Some(CsvTable { header, rows }))
-}
-
-/// Parses a data row of exactly `N` finite numbers; errors name the line and column.
-pub(crate) fn numeric_row<const N: usize>(
-    name: &str,
-    line: u64,
-    rec: &csv::StringRecord,
-) -> Result<[f64; N], DatasetError> {
-    if rec.len() != N {
-        return Err(DatasetError::parse(
-            name,
-            line,
-            rec.len().min(N) as u64 + 1,
-            format!("expected {N} fields, found {}", rec.len()),
-        ));
-    }
-    let mut vals = [0.0; N];
-    for (c, field) in rec.iter().enumerate() {
-        let col = c as u64 + 1;
-        let v: f64 = field.parse().map_err(|_| {
-            DatasetError::parse(name, line, col, format!("\"{field}\" is not a number"))
-        })?;
-        if !v.is_finite() {
-            return Err(DatasetError::parse(
-                name,
-                line,
-                col,
-                format!("\"{field}\" is not a finite number"),
-            ));
-        }
-        vals[c] = v;
-    }
-    Ok(vals)
-}
-
-/// Maps a csv crate error to a positioned parse error.
-pub(crate) fn csv_error(name: &str, e: &csv::Error) -> DatasetError {
-    let line = e.position().map(|p| p.line()).unwrap_or(0);
-    DatasetError::parse(name, line, 1, format!("malformed CSV: {e}"))
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! AprilTag detection, the planar floor pose of a horizontal marker at a known
 //! height (solvePnP as a cross-check), ROI tracking with full-frame fallback,
 //! per-frame quality, gaps and jump rejection, and overlays. Trajectory files
-//! are `odocal_dataset::Trajectory` (CSV `t,x,y,theta,quality`, TUM export).
+//! are `odocal_core::Trajectory` (CSV `t,x,y,theta,quality`, TUM export).
 
 pub mod detect;
 mod edges;
@@ -15,7 +15,7 @@ pub mod track;
 
 pub use detect::{Roi, TagDetection, TagDetector};
 pub use error::TrackError;
-pub use odocal_dataset::{Trajectory, TrajectoryRow};
+pub use odocal_core::{Trajectory, TrajectoryRow};
 pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
 pub use source::{
     open_source, Frame, FrameSource, GrayFrame, MemorySource, SourceInfo, SourceOptions,

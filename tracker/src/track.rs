@@ -9,7 +9,7 @@ use std::sync::mpsc;
 use nalgebra::Point2;
 use odocal_calib::{CameraModel, FloorToCamera};
 use odocal_core::{wrap_angle, Pose2};
-use odocal_dataset::{Trajectory, TrajectoryRow};
+use odocal_core::{Trajectory, TrajectoryRow};
 
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
@@ -204,11 +204,9 @@ impl Tracker {
             let (t0, p0, _) = self.history[self.history.len() - 2];
             if t1 - t0 > 1e-6 && t1 - t0 < 0.5 {
                 let w = (t_s - t1) / (t1 - t0);
-                let p = Pose2::new(
-                    p1.x_m + w * (p1.x_m - p0.x_m),
-                    p1.y_m + w * (p1.y_m - p0.y_m),
-                    wrap_angle(p1.theta_rad + w * wrap_angle(p1.theta_rad - p0.theta_rad)),
-                );
+                // Extrapolates the last step: from p1 away from p0.
+                let mut p = p1.lerp(&p0, -w);
+                p.theta_rad = wrap_angle(p.theta_rad);
                 let step = (p1.position() - p0.position()).norm() * w.abs();
                 return Some((p, side, step));
             }

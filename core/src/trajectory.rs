@@ -1,14 +1,13 @@
-//! Trajectory files (DESIGN.md contract): CSV `t,x,y,theta,quality`, floor frame, metres and
-//! radians, one row per frame with a detection; missed frames are absent. Written by the
-//! tracker (or the simulator with `--frames none`), read by the dataset builder.
+//! Trajectory files: CSV `t,x,y,theta,quality`, floor frame, metres and radians, one row per
+//! frame with a detection; missed frames are absent. Written by the tracker (or the simulator
+//! with `--frames none`), read by the dataset builder; see ARCHITECTURE.md for the conventions.
 
 use std::path::Path;
 
 use nalgebra::Point2;
-use odocal_core::{wrap_angle, Pose2};
-
-use crate::error::{read_text, DatasetError};
-use crate::odometry::{csv_table, numeric_row};
+use crate::file_error::{read_text, FileError};
+use crate::pose::{wrap_angle, Pose2};
+use crate::table::{csv_table, numeric_row};
 
 /// Header of a trajectory CSV.
 pub const TRAJECTORY_HEADER: [&str; 5] = ["t", "x", "y", "theta", "quality"];
@@ -33,22 +32,22 @@ pub struct Trajectory {
 
 impl Trajectory {
     /// Builds a trajectory, checking that times increase strictly and values are finite.
-    pub fn new(rows: Vec<TrajectoryRow>) -> Result<Self, DatasetError> {
+    pub fn new(rows: Vec<TrajectoryRow>) -> Result<Self, FileError> {
         let t = Self { rows };
         t.validate("<trajectory>", |i| i as u64 + 2)?;
         Ok(t)
     }
 
     /// Reads a trajectory CSV.
-    pub fn read_csv(path: &Path) -> Result<Self, DatasetError> {
+    pub fn read_csv(path: &Path) -> Result<Self, FileError> {
         let text = read_text(path)?;
         Self::parse_csv(&text, &path.display().to_string())
     }
 
     /// Parses trajectory CSV text; `name` is used in error messages.
-    pub fn parse_csv(text: &str, name: &str) -> Result<Self, DatasetError> {
+    pub fn parse_csv(text: &str, name: &str) -> Result<Self, FileError> {
         let Some(table) = csv_table(text, name)? else {
-            return Err(DatasetError::content(
+            return Err(FileError::content(
                 name,
                 "empty trajectory file (no header)",
             ));
@@ -56,7 +55,7 @@ impl Trajectory {
         let (line, header) = &table.header;
         let fields: Vec<&str> = header.iter().collect();
         if fields != TRAJECTORY_HEADER {
-            return Err(DatasetError::parse(
+            return Err(FileError::parse(
                 name,
                 *line,
                 1,
@@ -82,11 +81,11 @@ impl Trajectory {
         Ok(t)
     }
 
-    fn validate(&self, name: &str, line_of: impl Fn(usize) -> u64) -> Result<(), DatasetError> {
+    fn validate(&self, name: &str, line_of: impl Fn(usize) -> u64) -> Result<(), FileError> {
         for (i, r) in self.rows.iter().enumerate() {
             let vals = [r.t_s, r.pose.x_m, r.pose.y_m, r.pose.theta_rad, r.quality];
             if let Some(c) = vals.iter().position(|v| !v.is_finite()) {
-                return Err(DatasetError::parse(
+                return Err(FileError::parse(
                     name,
                     line_of(i),
                     c as u64 + 1,
@@ -96,7 +95,7 @@ impl Trajectory {
             if i > 0 {
                 let a = self.rows[i - 1].t_s;
                 if r.t_s == a {
-                    return Err(DatasetError::parse(
+                    return Err(FileError::parse(
                         name,
                         line_of(i),
                         1,
@@ -104,7 +103,7 @@ impl Trajectory {
                     ));
                 }
                 if r.t_s < a {
-                    return Err(DatasetError::parse(
+                    return Err(FileError::parse(
                         name,
                         line_of(i),
                         1,
@@ -191,13 +190,7 @@ impl Trajectory {
         if span > max_gap_s {
             return None;
         }
-        let w = (t - a.t_s) / span;
-        let dth = wrap_angle(b.pose.theta_rad - a.pose.theta_rad);
-        Some(Pose2::new(
-            a.pose.x_m + w * (b.pose.x_m - a.pose.x_m),
-            a.pose.y_m + w * (b.pose.y_m - a.pose.y_m),
-            a.pose.theta_rad + w * dth,
-        ))
+        Some(a.pose.lerp(&b.pose, (t - a.t_s) / span))
     }
 
     /// Whether every gap between frames within [t0, t1] is at most `max_gap_s` and the

@@ -1,0 +1,66 @@
+//! The error every shared file reader returns: what was wrong, in which file, and where.
+
+use thiserror::Error;
+
+/// Why reading one of odocal's files failed. Messages start with the file name, then the
+/// 1-based line and column where there is one, then what was wrong and what to do.
+#[derive(Debug, Error)]
+pub enum FileError {
+    /// The file could not be read.
+    #[error("cannot read {path}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A malformed value, with its position (1-based line and column).
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// 1-based line number.
+        line: u64,
+        /// 1-based column (CSV field or JSON character).
+        column: u64,
+        /// What was wrong and what to do.
+        message: String,
+    },
+    /// A file that parses but whose content is unusable (wrong format tag, too few rows, ...).
+    #[error("{path}: {message}")]
+    Content {
+        /// The file.
+        path: String,
+        /// What was wrong and what to do.
+        message: String,
+    },
+}
+
+impl FileError {
+    /// Builds a [`FileError::Parse`].
+    pub fn parse(path: &str, line: u64, column: u64, message: impl Into<String>) -> Self {
+        Self::Parse {
+            path: path.to_string(),
+            line,
+            column,
+            message: message.into(),
+        }
+    }
+
+    /// Builds a [`FileError::Content`].
+    pub fn content(path: &str, message: impl Into<String>) -> Self {
+        Self::Content {
+            path: path.to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Reads a whole text file, mapping the error to [`FileError::Io`] with the file's name.
+pub fn read_text(path: &std::path::Path) -> Result<String, FileError> {
+    std::fs::read_to_string(path).map_err(|source| FileError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}

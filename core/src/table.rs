@@ -1,0 +1,106 @@
+//! CSV tables as odocal's text files use them: a header row, then data rows of numbers.
+//! Blank rows and `#` comments are skipped and fields trimmed, so hand-edited files read
+//! the same as written ones; every error names the line and column.
+
+use crate::file_error::FileError;
+
+/// A CSV text split into its header and data rows, each with its 1-based line number.
+pub struct CsvTable {
+    /// Line and fields of the header.
+    pub header: (u64, csv::StringRecord),
+    /// Line and fields of each data row.
+    pub rows: Vec<(u64, csv::StringRecord)>,
+}
+
+/// Reads `text` as a [`CsvTable`] (rows of any length); `None` when it has no header (an
+/// empty file). `name` is used in error messages.
+pub fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, FileError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let mut rows = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| csv_error(name, &e))?;
+        if rec.iter().all(|f| f.is_empty()) {
+            continue;
+        }
+        rows.push((rec.position().map(|p| p.line()).unwrap_or(0), rec));
+    }
+    if rows.is_empty() {
+        return Ok(None);
+    }
+    let header = rows.remove(0);
+    Ok(Some(CsvTable { header, rows }))
+}
+
+/// Parses a data row of exactly `N` finite numbers; errors name the line and column.
+pub fn numeric_row<const N: usize>(
+    name: &str,
+    line: u64,
+    rec: &csv::StringRecord,
+) -> Result<[f64; N], FileError> {
+    if rec.len() != N {
+        return Err(FileError::parse(
+            name,
+            line,
+            rec.len().min(N) as u64 + 1,
+            format!("expected {N} fields, found {}", rec.len()),
+        ));
+    }
+    let mut vals = [0.0; N];
+    for (c, field) in rec.iter().enumerate() {
+        let col = c as u64 + 1;
+        let v: f64 = field.parse().map_err(|_| {
+            FileError::parse(name, line, col, format!("\"{field}\" is not a number"))
+        })?;
+        if !v.is_finite() {
+            return Err(FileError::parse(
+                name,
+                line,
+                col,
+                format!("\"{field}\" is not a finite number"),
+            ));
+        }
+        vals[c] = v;
+    }
+    Ok(vals)
+}
+
+/// Maps a csv crate error to a positioned parse error.
+pub fn csv_error(name: &str, e: &csv::Error) -> FileError {
+    let line = e.position().map(|p| p.line()).unwrap_or(0);
+    FileError::parse(name, line, 1, format!("malformed CSV: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_keep_their_line_numbers() {
+        let t = csv_table("# comment\na,b\n\n1, 2\n3,4\n", "f.csv")
+            .unwrap()
+            .unwrap();
+        assert_eq!(t.header.0, 2);
+        assert_eq!(t.rows[0].0, 4);
+        let v: [f64; 2] = numeric_row("f.csv", t.rows[0].0, &t.rows[0].1).unwrap();
+        assert_eq!(v, [1.0, 2.0]);
+        assert!(csv_table("\n# only a comment\n", "f.csv").unwrap().is_none());
+    }
+
+    #[test]
+    fn bad_fields_are_located() {
+        let t = csv_table("a,b\n1,x\n1\n1,inf\n", "f.csv").unwrap().unwrap();
+        let e = |i: usize| {
+            numeric_row::<2>("f.csv", t.rows[i].0, &t.rows[i].1)
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(e(0), "f.csv:2:2: \"x\" is not a number");
+        assert_eq!(e(1), "f.csv:3:2: expected 2 fields, found 1");
+        assert_eq!(e(2), "f.csv:4:2: \"inf\" is not a finite number");
+    }
+}

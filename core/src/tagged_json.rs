@@ -1,0 +1,81 @@
+//! JSON files that say what they are: every JSON file odocal writes starts with
+//! `"format": "odocal-…/N"`, and every reader checks it first, so passing the wrong file
+//! (a model where a camera belongs) fails with a message saying so instead of a confusing
+//! "missing field" from deep inside the document.
+
+use serde::de::DeserializeOwned;
+
+use crate::file_error::FileError;
+
+/// Parses JSON `text` that must carry `"format": expected`, then deserialises it into `T`.
+/// `name` (the file) starts every message; `hint` follows a wrong or missing format tag and
+/// should say which file is wanted (e.g. "pass a camera.json written by `odocal calibrate`").
+pub fn parse_tagged_json<T: DeserializeOwned>(
+    text: &str,
+    name: &str,
+    expected: &str,
+    hint: &str,
+) -> Result<T, FileError> {
+    let value = parse_json_value(text, name)?;
+    check_format_tag(&value, name, expected, hint)?;
+    // Parsed again from the text (not the value) so that errors carry line and column.
+    serde_json::from_str(text)
+        .map_err(|e| FileError::parse(name, e.line() as u64, e.column() as u64, format!("{e}")))
+}
+
+/// Parses JSON `text` into a generic value; syntax errors name the line and column.
+pub fn parse_json_value(text: &str, name: &str) -> Result<serde_json::Value, FileError> {
+    serde_json::from_str(text).map_err(|e| {
+        FileError::parse(
+            name,
+            e.line() as u64,
+            e.column() as u64,
+            format!("invalid JSON: {e}"),
+        )
+    })
+}
+
+/// Checks that a parsed JSON document carries `"format": expected` (see [`parse_tagged_json`]).
+pub fn check_format_tag(
+    value: &serde_json::Value,
+    name: &str,
+    expected: &str,
+    hint: &str,
+) -> Result<(), FileError> {
+    match value.get("format").and_then(|f| f.as_str()) {
+        Some(f) if f == expected => Ok(()),
+        Some(f) => Err(FileError::content(
+            name,
+            format!("format is \"{f}\", expected \"{expected}\"; {hint}"),
+        )),
+        None => Err(FileError::content(
+            name,
+            format!("no \"format\" field, expected \"{expected}\"; {hint}"),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(serde::Deserialize, Debug)]
+    struct Doc {
+        n: u32,
+    }
+
+    #[test]
+    fn wrong_or_missing_tag_names_the_file() {
+        let ok: Doc = parse_tagged_json(r#"{"format":"x/1","n":3}"#, "a.json", "x/1", "h").unwrap();
+        assert_eq!(ok.n, 3);
+        let e = parse_tagged_json::<Doc>(r#"{"format":"y/1","n":3}"#, "a.json", "x/1", "pass x")
+            .unwrap_err();
+        assert_eq!(e.to_string(), "a.json: format is \"y/1\", expected \"x/1\"; pass x");
+        let e = parse_tagged_json::<Doc>(r#"{"n":3}"#, "a.json", "x/1", "h").unwrap_err();
+        assert!(e.to_string().contains("no \"format\" field"));
+        let e = parse_tagged_json::<Doc>("{\n\"format\":", "a.json", "x/1", "h").unwrap_err();
+        assert!(e.to_string().starts_with("a.json:2:"), "{e}");
+        let e = parse_tagged_json::<Doc>(r#"{"format":"x/1"}"#, "a.json", "x/1", "h").unwrap_err();
+        assert!(e.to_string().contains("missing field `n`"), "{e}");
+    }
+}
