@@ -15,19 +15,31 @@ pub struct CsvTable {
 /// Reads `text` as a [`CsvTable`] (rows of any length); `None` when it has no header (an
 /// empty file). `name` is used in error messages.
 pub fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, FileError> {
+    // The csv crate leaves `#` comments and blank lines out of its line numbers, so comment
+    // lines are emptied here and a record's line is counted from its byte offset.
+    let uncommented: String = text
+        .split_inclusive('\n')
+        .map(|l| {
+            if l.starts_with('#') {
+                &l[l.trim_end_matches(['\r', '\n']).len()..]
+            } else {
+                l
+            }
+        })
+        .collect();
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
         .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
+        .from_reader(uncommented.as_bytes());
     let mut rows = Vec::new();
     for rec in rdr.records() {
         let rec = rec.map_err(|e| csv_error(name, &e))?;
         if rec.iter().all(|f| f.is_empty()) {
             continue;
         }
-        rows.push((rec.position().map(|p| p.line()).unwrap_or(0), rec));
+        let line = rec.position().map(|p| line_of_byte(&uncommented, p.byte()));
+        rows.push((line.unwrap_or(0), rec));
     }
     if rows.is_empty() {
         return Ok(None);
@@ -69,6 +81,17 @@ pub fn numeric_row<const N: usize>(
     Ok(vals)
 }
 
+/// 1-based line number of the record starting at byte offset `byte` in `text` (the offset
+/// the csv crate gives can point at blank lines before the record).
+fn line_of_byte(text: &str, byte: u64) -> u64 {
+    let bytes = text.as_bytes();
+    let mut end = (byte as usize).min(bytes.len());
+    while end < bytes.len() && matches!(bytes[end], b'\n' | b'\r') {
+        end += 1;
+    }
+    bytes[..end].iter().filter(|&&b| b == b'\n').count() as u64 + 1
+}
+
 /// Maps a csv crate error to a positioned parse error.
 pub fn csv_error(name: &str, e: &csv::Error) -> FileError {
     let line = e.position().map(|p| p.line()).unwrap_or(0);
@@ -88,7 +111,9 @@ mod tests {
         assert_eq!(t.rows[0].0, 4);
         let v: [f64; 2] = numeric_row("f.csv", t.rows[0].0, &t.rows[0].1).unwrap();
         assert_eq!(v, [1.0, 2.0]);
-        assert!(csv_table("\n# only a comment\n", "f.csv").unwrap().is_none());
+        assert!(csv_table("\n# only a comment\n", "f.csv")
+            .unwrap()
+            .is_none());
     }
 
     #[test]

@@ -70,7 +70,10 @@ mod tests {
         assert_eq!(ok.n, 3);
         let e = parse_tagged_json::<Doc>(r#"{"format":"y/1","n":3}"#, "a.json", "x/1", "pass x")
             .unwrap_err();
-        assert_eq!(e.to_string(), "a.json: format is \"y/1\", expected \"x/1\"; pass x");
+        assert_eq!(
+            e.to_string(),
+            "a.json: format is \"y/1\", expected \"x/1\"; pass x"
+        );
         let e = parse_tagged_json::<Doc>(r#"{"n":3}"#, "a.json", "x/1", "h").unwrap_err();
         assert!(e.to_string().contains("no \"format\" field"));
         let e = parse_tagged_json::<Doc>("{\n\"format\":", "a.json", "x/1", "h").unwrap_err();

@@ -4,10 +4,10 @@
 
 use std::path::Path;
 
-use nalgebra::Point2;
 use crate::file_error::{read_text, FileError};
 use crate::pose::{wrap_angle, Pose2};
 use crate::table::{csv_table, numeric_row};
+use nalgebra::Point2;
 
 /// Header of a trajectory CSV.
 pub const TRAJECTORY_HEADER: [&str; 5] = ["t", "x", "y", "theta", "quality"];

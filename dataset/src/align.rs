@@ -27,8 +27,8 @@ use crate::error::DatasetError;
 use crate::kinematics::WheelGeometry;
 use crate::odometry::{LogKind, OdometryLog, WheelRevs};
 use crate::segment::RunSegment;
-use odocal_core::Trajectory;
 use crate::RobotParams;
+use odocal_core::Trajectory;
 
 /// Settings of the time alignment.
 #[derive(Debug, Clone, Copy, PartialEq)]

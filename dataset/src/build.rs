@@ -8,8 +8,8 @@ use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
 use crate::odometry::OdometryLog;
 use crate::segment::{split_runs, RunSegment};
-use odocal_core::{mean_pose, Trajectory, TrajectoryRow};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
+use odocal_core::{mean_pose, Trajectory, TrajectoryRow};
 
 /// Shortest rest, seconds, that separates two runs in one log.
 pub const DEFAULT_MIN_GAP_S: f64 = 1.0;

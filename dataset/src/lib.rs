@@ -18,10 +18,10 @@ pub use build::{
 pub use error::DatasetError;
 pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
 pub use manifest::{Manifest, ManifestRow};
+pub use odocal_core::{Trajectory, TrajectoryRow};
 pub use odometry::{LogKind, OdometryLog};
 pub use oracle::{OracleFile, OracleRun};
 pub use sample::{
     relative_end_error, Dataset, DatasetSummary, RejectedRun, RobotParams, Sample, DATASET_FORMAT,
     FEATURE_RULE, N_INPUTS,
 };
-pub use odocal_core::{Trajectory, TrajectoryRow};
