@@ -1,4 +1,4 @@
-//! Run manifests (DESIGN.md contract): one row per recording with its id, a video or a
+//! Run manifests (the format README.md documents): one row per recording with its id, a video or a
 //! trajectory, an odometry log and the commanded speed. JSON (`"format": "odocal.manifest/1"`,
 //! `runs: [...]`) or CSV (`id,video,trajectory,odometry,speed_mps`, empty cells allowed).
 //! Relative paths are relative to the manifest's directory.

@@ -1,4 +1,4 @@
-//! 200 ms odometry logs (DESIGN.md contract): `t,left_ticks,right_ticks` (cumulative encoder
+//! 200 ms odometry logs (the format README.md documents): `t,left_ticks,right_ticks` (cumulative encoder
 //! counts) or `t,v_left,v_right` (wheel speeds, m/s), `t` in seconds on the robot's clock.
 
 use std::path::Path;

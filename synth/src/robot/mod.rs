@@ -1,4 +1,5 @@
-//! Differential-drive robot simulator for the odometry experiment of source A.
+//! Differential-drive robot simulator for the odometry experiment odocal reproduces (131
+//! straight runs of a small robot, each filmed from the ceiling and logged every 200 ms).
 //!
 //! The robot (wheel Ø 4.3 cm, 12 counts/rev, wheel base ≈ 10 cm) drives straight runs of
 //! ~1.5 m. Control is "PID on one wheel": the left (master) wheel runs open loop at its
@@ -6,7 +7,7 @@
 //! two wheels equal. With 12 counts/rev the tick difference is coarse, so the heading
 //! oscillates, as on small real robots.
 //!
-//! Error model (source A: measured = true + sigma |d| + eps):
+//! Error model (the experiment's: measured = true + sigma |d| + eps):
 //! - systematic: true wheel diameters differ from the nominal one and from each other, the
 //!   effective wheel base differs from the nominal one, and each wheel slips by a fraction that
 //!   grows with speed (slip = k * v);
