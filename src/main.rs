@@ -52,6 +52,12 @@ enum SynthCommand {
 }
 
 fn main() {
+    // Printing into a closed pipe (`odocal synth lrf | head -1`) ends the process quietly, as
+    // for any Unix filter, instead of panicking on the failed write.
+    // SAFETY: restores the default action of one signal before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Synth(SynthCommand::Calib(a)) => cmd::synth_calib::run(a),
@@ -67,7 +73,10 @@ fn main() {
         Command::Lrf(c) => cmd::lrf::run(c),
         Command::Report(a) => cmd::report::run(a),
     };
+    // Outputs appear together when the command succeeds, and not at all when it fails.
+    let result = result.and_then(|()| output::commit());
     if let Err(e) = result {
+        output::discard();
         // One line: what was wrong, with the chain of causes joined (a cause that the
         // message already quotes, as typed errors quote their I/O source, only once).
         let mut msg = String::new();
