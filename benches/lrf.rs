@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use odocal_lrf::{Detection, Localizer, LocalizerConfig, Map, Scan, Status, Tracker};
+use odocal_lrf::{Detection, Localizer, LocalizerConfig, Map, Scan, ScanTracker, Status};
 use odocal_synth::lrf_sim::{simulate, LrfSimConfig};
 
 /// Median over `reps` runs of `f`'s time divided by `per`.
@@ -107,7 +107,7 @@ fn main() {
         let mut n_track_ok = 0;
         let mut n_track_mode = 0;
         let t_track = median_per(5, k, || {
-            let mut tr = Tracker::new(&loc);
+            let mut tr = ScanTracker::new(&loc);
             n_track_ok = 0;
             n_track_mode = 0;
             for s in &scans {

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::Command;
 
 use odocal_lrf::{
-    evaluate, Evaluation, Localizer, LocalizerConfig, Map, Scan, Status, Tracker, TruthPose,
+    evaluate, Evaluation, Localizer, LocalizerConfig, Map, Scan, ScanTracker, Status, TruthPose,
 };
 use odocal_synth::lrf_sim::{simulate, LrfSim, LrfSimConfig};
 
@@ -54,7 +54,7 @@ fn run(cfg: &LrfSimConfig) -> (LrfSim, Localizer, Evaluation, Evaluation) {
             )
         })
         .collect();
-    let mut tracker = Tracker::new(&loc);
+    let mut tracker = ScanTracker::new(&loc);
     let tracked: Vec<_> = scans
         .iter()
         .map(|s| {

@@ -75,14 +75,31 @@ const PARSERS: [(Parser, &str); 10] = [
 fn valid_samples_parse() {
     let dir = tempfile::tempdir().expect("temporary directory");
     for (parse, name) in PARSERS.iter().take(9) {
-        assert!(run(*parse, &sample(name), dir.path(), name), "{name} should parse");
+        assert!(
+            run(*parse, &sample(name), dir.path(), name),
+            "{name} should parse"
+        );
     }
 }
 
 /// Values a hand-edited or corrupted file tends to hold where a number belongs.
 const ODD_VALUES: [&str; 16] = [
-    "", "-", "NaN", "inf", "-inf", "1e308", "-1e308", "1e-320", "0", "-0", "1e300", "-1",
-    "18446744073709551616", "9999999999999", "\"x\"", "null",
+    "",
+    "-",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "1e-320",
+    "0",
+    "-0",
+    "1e300",
+    "-1",
+    "18446744073709551616",
+    "9999999999999",
+    "\"x\"",
+    "null",
 ];
 
 /// A mutation of a valid file: what it does, applied to the text.
@@ -107,7 +124,8 @@ fn mutation() -> impl Strategy<Value = Mutation> {
     prop_oneof![
         (0usize..400, 0..ODD_VALUES.len()).prop_map(|(k, v)| Mutation::Number(k, v)),
         (0.0..1.0f64, 1usize..40).prop_map(|(a, n)| Mutation::Delete(a, n)),
-        (0.0..1.0f64, "[-,.0-9eE\\[\\]{}\":a-z\n ]{0,12}").prop_map(|(a, s)| Mutation::Insert(a, s)),
+        (0.0..1.0f64, "[-,.0-9eE\\[\\]{}\":a-z\n ]{0,12}")
+            .prop_map(|(a, s)| Mutation::Insert(a, s)),
         (0usize..200).prop_map(Mutation::RepeatLine),
         (0usize..200).prop_map(Mutation::DropLine),
         (0usize..200, 0usize..200).prop_map(|(a, b)| Mutation::SwapLines(a, b)),

@@ -6,7 +6,7 @@ use opencv::calib3d;
 use opencv::core::{self, Mat, Size, TermCriteria, Vector};
 use opencv::prelude::*;
 
-use crate::cv::{at, isometry_from_rt, points2f, points3f};
+use crate::opencv_glue::{at, isometry_from_rt, points2f, points3f};
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, Distortion, Intrinsics,
     IntrinsicsStd, ViewResidual,

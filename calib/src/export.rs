@@ -6,7 +6,7 @@ use std::path::Path;
 use opencv::core::{FileStorage, FileStorage_Mode, Mat};
 use opencv::prelude::*;
 
-use crate::cv::{camera_matrix, dist_coeffs};
+use crate::opencv_glue::{camera_matrix, dist_coeffs};
 use crate::{CalibError, CameraFile};
 
 fn temp_beside(path: &Path) -> std::path::PathBuf {

@@ -8,7 +8,7 @@ use opencv::calib3d;
 use opencv::core::Mat;
 
 use crate::calibrate::board_points;
-use crate::cv::{camera_matrix, dist_coeffs, isometry_from_rt, points2f, points3f};
+use crate::opencv_glue::{camera_matrix, dist_coeffs, isometry_from_rt, points2f, points3f};
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorPlane, FloorToCamera,
 };

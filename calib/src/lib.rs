@@ -3,12 +3,12 @@
 
 pub mod calibrate;
 pub mod camera_file;
-mod cv;
 pub mod detect;
 mod error;
 pub mod export;
 pub mod floor;
 pub mod model;
+mod opencv_glue;
 
 pub use calibrate::{board_points, calibrate, Calibration};
 pub use camera_file::{

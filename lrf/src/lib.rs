@@ -6,7 +6,7 @@
 //! [`extract_detections`] (clusters of high-intensity returns) →
 //! [`Localizer::global`] (association without a prior: the source's chained
 //! distance/angle search made robust to missed and spurious reflections, with
-//! negative evidence and ambiguity detection) or [`Tracker::process`]
+//! negative evidence and ambiguity detection) or [`ScanTracker::process`]
 //! (matching near the predicted pose, falling back to global search, keeping
 //! several hypotheses until the motion resolves them).
 //!
@@ -19,8 +19,8 @@ mod error;
 mod eval;
 mod map;
 mod scan;
+mod scan_track;
 mod search;
-mod track;
 
 pub use check::{find_ambiguities, Ambiguity, AmbiguityKind};
 pub use error::LrfError;
@@ -29,8 +29,8 @@ pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FO
 pub use scan::{
     extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, SensorConfig,
 };
+pub use scan_track::{ScanFix, ScanTracker};
 pub use search::{Hypothesis, Localization, Localizer, LocalizerConfig, SearchStats, Status};
-pub use track::{TrackResult, Tracker};
 
 #[cfg(test)]
 mod tests;

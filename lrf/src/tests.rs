@@ -157,7 +157,7 @@ fn too_few_detections_is_lost() {
 #[test]
 fn tracker_follows_motion() {
     let loc = Localizer::new(map_of(&PTS), LocalizerConfig::default());
-    let mut tr = Tracker::new(&loc);
+    let mut tr = ScanTracker::new(&loc);
     for k in 0..20 {
         let t = k as f64 * 0.1;
         let truth = Pose2::new(1.0 + 0.05 * k as f64, 0.5, 0.2 + 0.02 * k as f64);
@@ -176,7 +176,7 @@ fn history_resolves_a_symmetric_start() {
         map_of(&[(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0), (-0.5, -5.0)]),
         LocalizerConfig::default(),
     );
-    let mut tr = Tracker::new(&loc);
+    let mut tr = ScanTracker::new(&loc);
     let mut statuses = Vec::new();
     for k in 0..40 {
         let truth = Pose2::new(-1.5, 1.0 - 0.04 * k as f64, 0.0);

@@ -548,7 +548,7 @@ pub fn training_section(r: &SweepReport) -> Result<Section, ReportError> {
     }
     s.blocks.push(Block::Table(t1));
     if !r.table1.is_empty() {
-        let k = |f: fn(&odocal_trainer::cv::Table1Row) -> f64| -> Vec<(f64, f64)> {
+        let k = |f: fn(&odocal_trainer::crossval::Table1Row) -> f64| -> Vec<(f64, f64)> {
             r.table1
                 .iter()
                 .map(|row| (row.hidden as f64, f(row)))

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     evaluate, find_ambiguities, read_scans_csv, read_truth_csv, AmbiguityKind, Localizer,
-    LocalizerConfig, Map, Scan, SensorConfig, Status, Tracker,
+    LocalizerConfig, Map, Scan, ScanTracker, SensorConfig, Status,
 };
 
 use crate::output::{progress, write_atomic};
@@ -168,7 +168,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         ..LocalizerConfig::default()
     };
     let loc = Localizer::new(map, cfg);
-    let mut tracker = Tracker::new(&loc);
+    let mut tracker = ScanTracker::new(&loc);
     let bar = progress(scans.len() as u64, "localize");
     let mut csv =
         String::from("t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan\n");

@@ -344,7 +344,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let text = read(p)?;
             let v: serde_json::Value = serde_json::from_str(&text)
                 .with_context(|| format!("{}: invalid JSON", p.display()))?;
-            let want = odocal_trainer::cv::REPORT_FORMAT;
+            let want = odocal_trainer::crossval::REPORT_FORMAT;
             match v.get("format").and_then(|f| f.as_str()) {
                 Some(f) if f == want => {}
                 other => bail!(

@@ -11,7 +11,8 @@ use odocal_dataset::oracle::{OracleFile, OracleRun};
 use odocal_dataset::WheelGeometry;
 use odocal_synth::board::CalibScene;
 use odocal_synth::robot::{
-    simulate_recording, CameraTiming, Recording, RobotSimConfig, RunTruth, ROBOT_SIM_FORMAT,
+    simulate_recording, CameraTiming, RobotSimConfig, RunTruth, SimulatedRecording,
+    ROBOT_SIM_FORMAT,
 };
 use odocal_synth::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
 use rayon::prelude::*;
@@ -89,7 +90,7 @@ struct ExperimentTruth<'a> {
 /// at camera time k / fps, the robot at its true floor pose, seen by the same
 /// camera as `synth calib` renders.
 pub fn render_video(
-    rec: &Recording,
+    rec: &SimulatedRecording,
     camera: &CameraTiming,
     path: &Path,
     seed: u64,

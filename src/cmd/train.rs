@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use odocal_dataset::OracleFile;
-use odocal_trainer::cv::{assign_folds, capacity_warning, derive_seed};
+use odocal_trainer::crossval::{assign_folds, capacity_warning, derive_seed};
 use odocal_trainer::{
     report, sweep, train, KinematicCalibration, Method, Metrics, ModelFile, ModelMetrics,
     SweepSettings, TrainSettings,
@@ -204,8 +204,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             bar.finish_and_clear();
             let md = report::table2_markdown(&rep);
             println!("{md}");
-            let name = odocal_trainer::cv::net_method_name(ts.hidden);
-            let r = odocal_trainer::cv::row(&rep.table2, &name)
+            let name = odocal_trainer::crossval::net_method_name(ts.hidden);
+            let r = odocal_trainer::crossval::row(&rep.table2, &name)
                 .context("cross-validation lost its row")?;
             Some(Metrics {
                 mse_m2: r.mse_m2.mean,

@@ -3,7 +3,7 @@
 //! (Tables 1 and 2), baselines on the same folds, and model files.
 
 pub mod baseline;
-pub mod cv;
+pub mod crossval;
 pub mod data;
 pub mod error;
 pub mod metrics;
@@ -13,7 +13,7 @@ pub mod report;
 pub mod train;
 
 pub use baseline::{KinematicCalibration, LinearRegression, RosMultipliers};
-pub use cv::{sweep, SweepReport, SweepSettings};
+pub use crossval::{sweep, SweepReport, SweepSettings};
 pub use data::{parse_dataset, sha256_hex};
 pub use error::TrainError;
 pub use metrics::{MeanSd, Metrics};

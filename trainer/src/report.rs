@@ -2,7 +2,7 @@
 
 use std::fmt::Write;
 
-use crate::cv::SweepReport;
+use crate::crossval::SweepReport;
 use crate::metrics::MeanSd;
 
 fn pm(m: &MeanSd, scale: f64, prec: usize) -> String {

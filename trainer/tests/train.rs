@@ -5,7 +5,7 @@ mod common;
 
 use nalgebra::{DMatrix, DVector};
 use odocal_dataset::{Dataset, RobotParams};
-use odocal_trainer::cv::{row, KINEMATIC, LINEAR, ORACLE, RAW};
+use odocal_trainer::crossval::{row, KINEMATIC, LINEAR, ORACLE, RAW};
 use odocal_trainer::*;
 use rand::SeedableRng;
 

@@ -59,7 +59,7 @@ pub struct TickRow {
 
 /// A simulated recording: one odometry log, one camera span, one or more runs.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Recording {
+pub struct SimulatedRecording {
     /// Clock offset, seconds: t_camera = t_robot + offset.
     pub clock_offset_s: f64,
     /// Camera time of the last frame's span (frames at k / fps for k / fps <= this), seconds.
@@ -76,7 +76,7 @@ pub struct Recording {
     pub runs: Vec<RunTruth>,
 }
 
-impl Recording {
+impl SimulatedRecording {
     /// Log times, seconds on the robot clock.
     pub fn log_time_s(&self, row: &TickRow) -> f64 {
         row.index as f64 * self.log_period_s
@@ -119,7 +119,7 @@ impl Recording {
         )
     }
 
-    /// [`Recording::camera_trajectory`] as the trajectory a tracker would write (quality 1).
+    /// [`SimulatedRecording::camera_trajectory`] as the trajectory a tracker would write (quality 1).
     pub fn camera_track(
         &self,
         camera: &CameraTiming,

@@ -49,7 +49,7 @@ pub fn simulate_recording(
     speeds: &[f64],
     seed: u64,
     stream: u64,
-) -> Result<Recording, RobotSimError> {
+) -> Result<SimulatedRecording, RobotSimError> {
     cfg.validate()?;
     if speeds.is_empty() || speeds.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         return Err(RobotSimError::Invalid(
@@ -263,7 +263,7 @@ pub fn simulate_recording(
             ));
         }
     }
-    Ok(Recording {
+    Ok(SimulatedRecording {
         clock_offset_s: lead,
         camera_end_s: camera_end + lead,
         log_period_s: nom.log_period_s,

@@ -8,7 +8,7 @@ use crate::{Hypothesis, Localizer, Scan, Status};
 
 /// Result of processing one scan of a sequence.
 #[derive(Debug, Clone, PartialEq)]
-pub struct TrackResult {
+pub struct ScanFix {
     /// Time of the scan, seconds.
     pub t_s: f64,
     /// ok / ambiguous / lost.
@@ -43,7 +43,7 @@ struct Track {
 
 /// Sequential localisation with history.
 #[derive(Debug, Clone)]
-pub struct Tracker<'a> {
+pub struct ScanTracker<'a> {
     loc: &'a Localizer,
     tracks: Vec<Track>,
     /// Accumulated-score lead that resolves an ambiguity.
@@ -54,10 +54,10 @@ pub struct Tracker<'a> {
     pub max_coast: u32,
 }
 
-impl<'a> Tracker<'a> {
+impl<'a> ScanTracker<'a> {
     /// A tracker with no prior.
-    pub fn new(loc: &'a Localizer) -> Tracker<'a> {
-        Tracker {
+    pub fn new(loc: &'a Localizer) -> ScanTracker<'a> {
+        ScanTracker {
             loc,
             tracks: Vec::new(),
             history_margin: 3.0,
@@ -113,7 +113,7 @@ impl<'a> Tracker<'a> {
     }
 
     /// Processes the next scan taken at `t_s`.
-    pub fn process(&mut self, scan: &Scan, t_s: f64) -> TrackResult {
+    pub fn process(&mut self, scan: &Scan, t_s: f64) -> ScanFix {
         let dets = self.loc.detections(scan);
         let n_det = dets.len();
         let mut mode = "track";
@@ -171,7 +171,7 @@ impl<'a> Tracker<'a> {
                 }
                 let max_coast = self.max_coast;
                 self.tracks.retain(|t| t.coasting <= max_coast);
-                return TrackResult {
+                return ScanFix {
                     t_s,
                     status: Status::Lost,
                     pose: None,
@@ -208,9 +208,9 @@ impl<'a> Tracker<'a> {
         self.tracks.truncate(self.max_tracks);
     }
 
-    fn report(&self, t_s: f64, n_det: usize, mode: &'static str) -> TrackResult {
+    fn report(&self, t_s: f64, n_det: usize, mode: &'static str) -> ScanFix {
         let Some(best) = self.tracks.first() else {
-            return TrackResult {
+            return ScanFix {
                 t_s,
                 status: Status::Lost,
                 pose: None,
@@ -222,7 +222,7 @@ impl<'a> Tracker<'a> {
             };
         };
         let ok = self.tracks.len() == 1 && best.confirmed && best.last.score >= 1.0;
-        TrackResult {
+        ScanFix {
             t_s,
             status: if ok { Status::Ok } else { Status::Ambiguous },
             pose: Some(best.pose),
