@@ -1,0 +1,117 @@
+//! Laser poses against the truth.
+
+use super::*;
+
+/// What the laser section shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaserInput {
+    /// Poses from `odocal lrf localize`.
+    pub poses: Vec<LaserPose>,
+    /// True sensor poses.
+    pub truth: Vec<TruthPose>,
+    /// Landmark positions of the map (x, y), metres.
+    pub landmarks_m: Vec<(f64, f64)>,
+}
+
+/// Laser positioning: estimated sensor poses against the truth.
+pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
+    let mut s = Section::new("laser", "Laser positioning against the truth");
+    let key = |t: f64| (t * 1e6).round() as i64;
+    let truth: std::collections::HashMap<i64, &TruthPose> =
+        l.truth.iter().map(|p| (key(p.t_s), p)).collect();
+    let count = |st: &str| l.poses.iter().filter(|p| p.status == st).count();
+    let mut pos_err = Vec::new();
+    let mut head_err = Vec::new();
+    let mut err_series = Vec::new();
+    for p in &l.poses {
+        if let (Some(e), Some(tp)) = (p.pose, truth.get(&key(p.t_s))) {
+            if p.status == "ok" {
+                let d = (e.x_m - tp.pose.x_m).hypot(e.y_m - tp.pose.y_m);
+                pos_err.push(d);
+                head_err.push(wrap_angle(e.theta_rad - tp.pose.theta_rad));
+                err_series.push((p.t_s, 1000.0 * d));
+            }
+        }
+    }
+    s.blocks.push(Block::Text(format!(
+        "{} scans: {} ok, {} ambiguous, {} lost. Against the truth ({} ok scans with a true pose): position RMS {:.1} mm (max {:.1} mm), heading RMS {:.3} deg.",
+        l.poses.len(),
+        count("ok"),
+        count("ambiguous"),
+        count("lost"),
+        pos_err.len(),
+        1000.0 * rms(&pos_err),
+        1000.0 * pos_err.iter().fold(0.0f64, |m, e| m.max(*e)),
+        rms(&head_err).to_degrees()
+    )));
+    let mut ch = Chart::new(
+        "Laser sensor positions: estimate vs truth",
+        "x, map frame (m)",
+        "y, map frame (m)",
+    );
+    ch.equal_aspect = true;
+    ch.size_px = (760, 560);
+    for (st, color) in [("ok", 0usize), ("ambiguous", 4usize)] {
+        let pts: Vec<(f64, f64)> = l
+            .poses
+            .iter()
+            .filter(|p| p.status == st)
+            .filter_map(|p| p.pose.map(|q| (q.x_m, q.y_m)))
+            .collect();
+        if !pts.is_empty() {
+            ch.series.push(Series::new(
+                &format!("estimate ({st})"),
+                pts,
+                Mark::Dots,
+                color,
+            ));
+        }
+    }
+    // The true path last, on top of the estimates.
+    if !l.truth.is_empty() {
+        ch.series.push(Series::new(
+            "true path",
+            l.truth.iter().map(|p| (p.pose.x_m, p.pose.y_m)).collect(),
+            Mark::Line,
+            6,
+        ));
+    }
+    if !l.landmarks_m.is_empty() {
+        ch.series.push(Series::new(
+            "landmarks",
+            l.landmarks_m.clone(),
+            Mark::Markers,
+            1,
+        ));
+    }
+    if ch.n_points() > 0 {
+        s.blocks.push(figure(
+            "laser-poses",
+            "Sensor positions in the map frame (metres): the true path, the estimates by status, and the reflective landmarks.",
+            &ch,
+        )?);
+    }
+    if !err_series.is_empty() {
+        let ch = Chart::new(
+            "Laser position error over time",
+            "scan time (s)",
+            "position error (mm)",
+        )
+        .with(Series::new(
+            "|estimate − truth| (ok scans)",
+            err_series,
+            Mark::Dots,
+            0,
+        ));
+        s.blocks.push(figure(
+            "laser-error",
+            "Distance between estimated and true sensor position per ok scan (mm).",
+            &ch,
+        )?);
+    } else {
+        s.blocks.push(Block::Note(
+            "No ok scan has a true pose at its time: no error plot.".into(),
+        ));
+    }
+    Ok(s)
+}
