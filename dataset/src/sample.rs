@@ -172,22 +172,58 @@ impl Dataset {
         }
     }
 
-    /// Reads dataset.json, rejecting other formats and feature rules with a clear message.
+    /// Reads dataset.json (see [`Dataset::parse`]).
     pub fn read(path: &std::path::Path) -> Result<Self, crate::DatasetError> {
         let text = crate::error::read_text(path)?;
-        let name = path.display().to_string();
-        let ds: Dataset = crate::error::parse_json_with_format(&text, &name, DATASET_FORMAT)?;
-        if ds.feature_rule != FEATURE_RULE {
-            return Err(crate::DatasetError::Content {
-                path: name,
-                message: format!(
-                    "feature rule \"{}\" is not this build's \"{FEATURE_RULE}\"",
-                    ds.feature_rule
-                ),
-            });
-        }
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses dataset.json text and checks it ([`Dataset::check`]); `name` starts every
+    /// message. The one reader of dataset.json: the trainer and the report use it too.
+    pub fn parse(text: &str, name: &str) -> Result<Self, crate::DatasetError> {
+        let ds: Dataset = crate::error::parse_json_with_format(text, name, DATASET_FORMAT)?;
+        ds.check().map_err(|message| crate::DatasetError::Content {
+            path: name.to_string(),
+            message,
+        })?;
         Ok(ds)
     }
+
+    /// Checks that the dataset is this build's and physically sensible: the feature rule, the
+    /// robot parameters (positive, finite), and per sample 18 finite inputs, finite target and
+    /// raw end point, a positive path length and a finite speed. The message names the sample.
+    pub fn check(&self) -> Result<(), String> {
+        if self.feature_rule != FEATURE_RULE {
+            return Err(format!(
+                "feature rule \"{}\" is not this build's \"{FEATURE_RULE}\"; rebuild the dataset",
+                self.feature_rule
+            ));
+        }
+        self.robot.check().map_err(|e| format!("robot.{e}"))?;
+        for (i, s) in self.samples.iter().enumerate() {
+            check_sample(s).map_err(|e| format!("sample {i} (run '{}'): {e}", s.run_id))?;
+        }
+        Ok(())
+    }
+}
+
+fn check_sample(s: &Sample) -> Result<(), String> {
+    if s.inputs.len() != N_INPUTS {
+        return Err(format!("{} inputs, expected {N_INPUTS}", s.inputs.len()));
+    }
+    if let Some(c) = s.inputs.iter().position(|v| !v.is_finite()) {
+        return Err(format!("input {c} is not a finite number"));
+    }
+    if s.target_m.iter().chain(s.raw_end_m.iter()).any(|v| !v.is_finite()) {
+        return Err("target or raw end point is not finite".into());
+    }
+    if !(s.path_length_m.is_finite() && s.path_length_m > 0.0) {
+        return Err(format!("path length {} must be > 0", s.path_length_m));
+    }
+    if !s.speed_mps.is_finite() {
+        return Err("speed is not finite".into());
+    }
+    Ok(())
 }
 
 /// The relative end-point error of a set: mean over samples of |end - target| / path length.
@@ -221,22 +257,29 @@ impl RobotParams {
         let text = crate::error::read_text(path)?;
         let f: RobotFile =
             crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
-        let r = f.robot;
-        let ok = [
-            r.wheel_diameter_m,
-            r.ticks_per_rev,
-            r.wheel_base_m,
-            r.period_s,
-        ]
-        .iter()
-        .all(|v| v.is_finite() && *v > 0.0);
-        if !ok {
-            return Err(crate::DatasetError::Content {
+        f.robot
+            .check()
+            .map_err(|e| crate::DatasetError::Content {
                 path: path.display().to_string(),
-                message: "robot parameters must be positive finite numbers".into(),
-            });
+                message: format!("{e}; robot parameters must be positive finite numbers"),
+            })?;
+        Ok(f.robot)
+    }
+
+    /// Checks that every parameter is a positive finite number; the message names the first
+    /// that is not.
+    pub fn check(&self) -> Result<(), String> {
+        for (name, v) in [
+            ("wheel_diameter_m", self.wheel_diameter_m),
+            ("ticks_per_rev", self.ticks_per_rev),
+            ("wheel_base_m", self.wheel_base_m),
+            ("period_s", self.period_s),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} = {v} must be > 0"));
+            }
         }
-        Ok(r)
+        Ok(())
     }
 
     /// The parameters as robot-file JSON (with its format tag).

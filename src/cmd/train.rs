@@ -103,8 +103,7 @@ fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let bytes = std::fs::read(&args.dataset)
         .with_context(|| format!("cannot read {}", args.dataset.display()))?;
-    let (ds, sha) = odocal_trainer::parse_dataset(&bytes)
-        .with_context(|| format!("{}", args.dataset.display()))?;
+    let (ds, sha) = odocal_trainer::parse_dataset(&bytes, &args.dataset.display().to_string())?;
     let ts = settings(&args)?;
     let oracle = match &args.oracle {
         Some(p) => {

@@ -23,7 +23,7 @@ fn sweep_of(e: &common::Experiment, method: Method, k: usize, restarts: usize) -
 fn check_acceptance(r: &SweepReport, k: usize) {
     let t = &r.table2;
     let raw = row(t, RAW).expect("raw").rel_error.mean;
-    let net = row(t, &cv::net_method_name(k)).expect("net").rel_error.mean;
+    let net = row(t, &crossval::net_method_name(k)).expect("net").rel_error.mean;
     let oracle = row(t, ORACLE).expect("oracle").rel_error.mean;
     let kin = row(t, KINEMATIC).expect("kin").rel_error.mean;
     assert!(row(t, LINEAR).is_some());
@@ -120,7 +120,7 @@ fn backprop_learns_the_systematic_error() {
     let e = common::experiment(90, 5);
     let r = sweep_of(&e, Method::Backprop, 8, 1);
     let raw = row(&r.table2, RAW).expect("raw").rel_error.mean;
-    let net = row(&r.table2, &cv::net_method_name(8))
+    let net = row(&r.table2, &crossval::net_method_name(8))
         .expect("net")
         .rel_error
         .mean;
@@ -311,18 +311,18 @@ fn dataset_json(ds: &Dataset) -> Vec<u8> {
 fn bad_datasets_and_settings_are_clear_errors() {
     let e = common::experiment(30, 9);
     let ok = dataset_json(&e.dataset);
-    assert!(parse_dataset(&ok).is_ok());
+    assert!(parse_dataset(&ok, "dataset.json").is_ok());
 
     let mut empty = e.dataset.clone();
     empty.samples.clear();
-    let err = parse_dataset(&dataset_json(&empty))
+    let err = parse_dataset(&dataset_json(&empty), "dataset.json")
         .unwrap_err()
         .to_string();
     assert!(err.contains("no samples"), "{err}");
 
     let mut short = e.dataset.clone();
     short.samples[3].inputs.pop();
-    let err = parse_dataset(&dataset_json(&short))
+    let err = parse_dataset(&dataset_json(&short), "dataset.json")
         .unwrap_err()
         .to_string();
     assert!(
@@ -333,7 +333,7 @@ fn bad_datasets_and_settings_are_clear_errors() {
     // NaN is not valid JSON; a null in its place must be refused too.
     let mut v: serde_json::Value = serde_json::from_slice(&ok).expect("value");
     v["samples"][2]["inputs"][5] = serde_json::Value::Null;
-    let err = parse_dataset(&serde_json::to_vec(&v).expect("json"))
+    let err = parse_dataset(&serde_json::to_vec(&v).expect("json"), "dataset.json")
         .unwrap_err()
         .to_string();
     assert!(err.contains("dataset"), "{err}");
@@ -344,7 +344,7 @@ fn bad_datasets_and_settings_are_clear_errors() {
 
     let mut wrong = v.clone();
     wrong["format"] = "odocal.model/1".into();
-    let err = parse_dataset(&serde_json::to_vec(&wrong).expect("json"))
+    let err = parse_dataset(&serde_json::to_vec(&wrong).expect("json"), "dataset.json")
         .unwrap_err()
         .to_string();
     assert!(err.contains("odocal.model/1"), "{err}");
