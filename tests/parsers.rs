@@ -45,7 +45,7 @@ fn camera(_: &str, path: &Path) -> bool {
     odocal_calib::CameraFile::load(path).is_ok()
 }
 fn model(text: &str, _: &Path) -> bool {
-    odocal_trainer::ModelFile::from_json(text).is_ok()
+    odocal_trainer::ModelFile::parse(text, "model.json").is_ok()
 }
 fn dataset(_: &str, path: &Path) -> bool {
     odocal_dataset::Dataset::read(path).is_ok()

@@ -108,32 +108,73 @@ impl CameraFile {
         }
     }
 
-    /// Reads and validates a camera.json.
+    /// Reads and validates a camera.json ([`CameraFile::check`]); errors name the file.
     pub fn load(path: &Path) -> Result<Self, CalibError> {
-        let text = std::fs::read_to_string(path).map_err(|e| CalibError::Io {
-            path: path.display().to_string(),
-            source: e,
+        let name = path.display().to_string();
+        let file: CameraFile = odocal_core::read_tagged_json(
+            path,
+            CAMERA_FORMAT,
+            "pass a camera.json written by `odocal calibrate`",
+        )?;
+        file.check().map_err(|reason| CalibError::BadFile {
+            path: name,
+            reason: format!("{reason}; recalibrate with `odocal calibrate` or fix the file"),
         })?;
-        let value: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| CalibError::BadFile {
-                path: path.display().to_string(),
-                reason: format!(
-                    "is not valid JSON ({e}); expected a camera.json written by `odocal calibrate`"
-                ),
-            })?;
-        let format = value.get("format").and_then(|f| f.as_str()).unwrap_or("");
-        if format != CAMERA_FORMAT {
-            return Err(CalibError::BadFile {
-                path: path.display().to_string(),
-                reason: format!(
-                    "format is {format:?}, expected {CAMERA_FORMAT:?} (is this a camera.json written by `odocal calibrate`?)"
-                ),
-            });
+        Ok(file)
+    }
+
+    /// Checks the camera for physical sense: image size, focal lengths and principal point,
+    /// finite distortion, and a floor pose with a unit rotation and the camera above the floor.
+    /// The message names the field.
+    pub fn check(&self) -> Result<(), String> {
+        let c = &self.camera;
+        if c.width == 0 || c.height == 0 || c.width > 100_000 || c.height > 100_000 {
+            return Err(format!(
+                "camera size {}x{} px is not a camera's (1..100000 each)",
+                c.width, c.height
+            ));
         }
-        serde_json::from_value(value).map_err(|e| CalibError::BadFile {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        })
+        let k = &c.intrinsics;
+        for (field, v) in [("fx", k.fx), ("fy", k.fy)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "camera.intrinsics.{field} = {v} must be > 0 (pixels)"
+                ));
+            }
+        }
+        for (field, v, size) in [("cx", k.cx, c.width), ("cy", k.cy, c.height)] {
+            if !(v.is_finite() && v >= 0.0 && v <= size as f64) {
+                return Err(format!(
+                    "camera.intrinsics.{field} = {v} is outside the image (0..{size} px)"
+                ));
+            }
+        }
+        if !c.distortion.to_opencv().iter().all(|v| v.is_finite()) {
+            return Err("camera.distortion has a coefficient that is not a finite number".into());
+        }
+        if !(self.rms_px.is_finite() && self.rms_px >= 0.0) {
+            return Err(format!("rms_px = {} must be >= 0", self.rms_px));
+        }
+        if let Some(f) = &self.floor {
+            let iso = &f.floor_to_camera.0;
+            let norm = iso.rotation.quaternion().norm();
+            if !((norm - 1.0).abs() < 1e-6) {
+                return Err(format!(
+                    "floor.floor_to_camera rotation has norm {norm}, not a rotation (a unit quaternion)"
+                ));
+            }
+            let t = &iso.translation.vector;
+            if !t.iter().all(|v| v.is_finite()) {
+                return Err("floor.floor_to_camera translation is not finite".into());
+            }
+            if !(f.camera_height_m.is_finite() && f.camera_height_m > 0.0) {
+                return Err(format!(
+                    "floor.camera_height_m = {} must be > 0 (the camera is above the floor)",
+                    f.camera_height_m
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The floor plane, or an error naming the file if it has none.

@@ -11,6 +11,9 @@ pub enum CalibError {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// A file could not be read or is not what it should be (names the file and position).
+    #[error(transparent)]
+    File(#[from] odocal_core::FileError),
     /// A file exists but is not what it should be.
     #[error("{path}: {reason}")]
     BadFile {

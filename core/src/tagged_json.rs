@@ -23,6 +23,16 @@ pub fn parse_tagged_json<T: DeserializeOwned>(
         .map_err(|e| FileError::parse(name, e.line() as u64, e.column() as u64, format!("{e}")))
 }
 
+/// Reads the JSON file at `path` with [`parse_tagged_json`], naming the file in every message.
+pub fn read_tagged_json<T: DeserializeOwned>(
+    path: &std::path::Path,
+    expected: &str,
+    hint: &str,
+) -> Result<T, FileError> {
+    let text = crate::file_error::read_text(path)?;
+    parse_tagged_json(&text, &path.display().to_string(), expected, hint)
+}
+
 /// Parses JSON `text` into a generic value; syntax errors name the line and column.
 pub fn parse_json_value(text: &str, name: &str) -> Result<serde_json::Value, FileError> {
     serde_json::from_str(text).map_err(|e| {

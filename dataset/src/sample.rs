@@ -214,7 +214,11 @@ fn check_sample(s: &Sample) -> Result<(), String> {
     if let Some(c) = s.inputs.iter().position(|v| !v.is_finite()) {
         return Err(format!("input {c} is not a finite number"));
     }
-    if s.target_m.iter().chain(s.raw_end_m.iter()).any(|v| !v.is_finite()) {
+    if s.target_m
+        .iter()
+        .chain(s.raw_end_m.iter())
+        .any(|v| !v.is_finite())
+    {
         return Err("target or raw end point is not finite".into());
     }
     if !(s.path_length_m.is_finite() && s.path_length_m > 0.0) {
@@ -257,12 +261,10 @@ impl RobotParams {
         let text = crate::error::read_text(path)?;
         let f: RobotFile =
             crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
-        f.robot
-            .check()
-            .map_err(|e| crate::DatasetError::Content {
-                path: path.display().to_string(),
-                message: format!("{e}; robot parameters must be positive finite numbers"),
-            })?;
+        f.robot.check().map_err(|e| crate::DatasetError::Content {
+            path: path.display().to_string(),
+            message: format!("{e}; robot parameters must be positive finite numbers"),
+        })?;
         Ok(f.robot)
     }
 

@@ -11,6 +11,9 @@ pub enum LrfError {
         /// The cause.
         source: std::io::Error,
     },
+    /// A file could not be read or is not what it should be (names the file and position).
+    #[error(transparent)]
+    File(#[from] odocal_core::FileError),
     /// The landmark map is invalid.
     #[error("map {path}: {message}")]
     Map {

@@ -223,41 +223,18 @@ const GRID_CELL_M: f64 = 0.5;
 impl Map {
     /// Reads and validates a map file.
     pub fn read(path: &Path) -> Result<Map, LrfError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| LrfError::Io {
-            path: name.clone(),
-            source,
-        })?;
-        Map::parse(&text, &name)
+        let text = odocal_core::read_text(path)?;
+        Map::parse(&text, &path.display().to_string())
     }
 
     /// Parses and validates map JSON; `name` is used in messages.
     pub fn parse(text: &str, name: &str) -> Result<Map, LrfError> {
-        let err = |message: String| LrfError::Map {
-            path: name.to_string(),
-            message,
-        };
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
-            err(format!(
-                "not valid JSON at line {}, column {}: {e}",
-                e.line(),
-                e.column()
-            ))
-        })?;
-        match value.get("format").and_then(|f| f.as_str()) {
-            Some(MAP_FORMAT) => {}
-            Some(other) => {
-                return Err(err(format!(
-                    "format is \"{other}\", expected \"{MAP_FORMAT}\"; pass a landmark map (e.g. from `odocal synth lrf`)"
-                )))
-            }
-            None => {
-                return Err(err(format!(
-                    "no \"format\" field; a landmark map starts with {{\"format\": \"{MAP_FORMAT}\", …}}"
-                )))
-            }
-        }
-        let file: MapFile = serde_json::from_value(value).map_err(|e| err(format!("{e}")))?;
+        let file: MapFile = odocal_core::parse_tagged_json(
+            text,
+            name,
+            MAP_FORMAT,
+            "pass a landmark map (e.g. from `odocal synth lrf`)",
+        )?;
         Map::from_file(&file, name)
     }
 

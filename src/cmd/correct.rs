@@ -44,9 +44,7 @@ fn median_period_s(t: &[f64]) -> Option<f64> {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(&args.model)
-        .with_context(|| format!("cannot read {}", args.model.display()))?;
-    let model = ModelFile::from_json(&text).with_context(|| format!("{}", args.model.display()))?;
+    let model = ModelFile::read(&args.model)?;
     let robot = match &args.robot {
         Some(p) => RobotParams::read(p)?,
         None => model.robot,

@@ -11,7 +11,7 @@ use odocal_report::{
     parse_track_csv, pick_runs, training_section, trajectory_section, CalibInput, CalibView,
     LaserInput, Report, RunView, TrackFile,
 };
-use odocal_synth::board::{true_corners, CalibTruth, CALIB_TRUTH_FORMAT};
+use odocal_synth::board::{true_corners, CalibTruth};
 use odocal_trainer::{ModelFile, SweepReport};
 
 use crate::output::write_atomic;
@@ -86,21 +86,6 @@ fn input(
 
 fn read(p: &Path) -> anyhow::Result<String> {
     std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))
-}
-
-fn load_calib_truth(p: &Path) -> anyhow::Result<CalibTruth> {
-    let text = read(p)?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: invalid JSON", p.display()))?;
-    match v.get("format").and_then(|f| f.as_str()) {
-        Some(CALIB_TRUTH_FORMAT) => {}
-        other => bail!(
-            "{}: format is {:?}, expected \"{CALIB_TRUTH_FORMAT}\"; is this the truth.json of `odocal synth calib`?",
-            p.display(),
-            other.unwrap_or("missing")
-        ),
-    }
-    serde_json::from_value(v).with_context(|| format!("{}: not a calibration truth", p.display()))
 }
 
 fn file_name(s: &str) -> &str {
@@ -246,7 +231,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     match &camera {
         Some(p) => {
             let cam = CameraFile::load(p)?;
-            let truth = calib_truth.as_deref().map(load_calib_truth).transpose()?;
+            let truth = calib_truth.as_deref().map(CalibTruth::read).transpose()?;
             used.push(format!("camera {}", p.display()));
             if let Some(t) = &calib_truth {
                 used.push(format!("calibration truth {}", t.display()));
@@ -269,7 +254,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .transpose()?;
     let mdl = match &model {
         Some(p) => {
-            let m = ModelFile::from_json(&read(p)?).with_context(|| format!("{}", p.display()))?;
+            let m = ModelFile::read(p)?;
             used.push(format!("model {}", p.display()));
             Some(m)
         }
@@ -341,20 +326,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // Tables 1 and 2.
     match &train_report {
         Some(p) => {
-            let text = read(p)?;
-            let v: serde_json::Value = serde_json::from_str(&text)
-                .with_context(|| format!("{}: invalid JSON", p.display()))?;
-            let want = odocal_trainer::crossval::REPORT_FORMAT;
-            match v.get("format").and_then(|f| f.as_str()) {
-                Some(f) if f == want => {}
-                other => bail!(
-                    "{}: format is {:?}, expected \"{want}\"; is this the report.json of `odocal train --sweep`?",
-                    p.display(),
-                    other.unwrap_or("missing")
-                ),
-            }
-            let rep: SweepReport = serde_json::from_value(v)
-                .with_context(|| format!("{}: not a training report", p.display()))?;
+            let rep = SweepReport::read(p)?;
             used.push(format!("training report {}", p.display()));
             report.sections.push(training_section(&rep)?);
         }

@@ -188,14 +188,7 @@ pub struct CheckArgs {
 /// Runs `odocal synth check-calib`: the calibration's error against the truth.
 pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
     let cam = CameraFile::load(&a.camera)?;
-    let text = std::fs::read_to_string(&a.truth)
-        .with_context(|| format!("cannot read {}", a.truth.display()))?;
-    let truth: CalibTruth = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "{} is not a truth.json from `odocal synth calib`",
-            a.truth.display()
-        )
-    })?;
+    let truth = CalibTruth::read(&a.truth)?;
     let e = calibration_errors(
         &cam.camera,
         cam.floor.as_ref().map(|f| &f.floor_to_camera),

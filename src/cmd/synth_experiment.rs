@@ -12,7 +12,6 @@ use odocal_dataset::WheelGeometry;
 use odocal_synth::board::CalibScene;
 use odocal_synth::robot::{
     simulate_recording, CameraTiming, RobotSimConfig, RunTruth, SimulatedRecording,
-    ROBOT_SIM_FORMAT,
 };
 use odocal_synth::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
 use rayon::prelude::*;
@@ -117,25 +116,6 @@ pub fn render_video(
     Ok(())
 }
 
-fn load_config(path: &Path) -> anyhow::Result<RobotSimConfig> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: invalid JSON", path.display()))?;
-    match v.get("format").and_then(|f| f.as_str()) {
-        Some(ROBOT_SIM_FORMAT) => {}
-        other => bail!(
-            "{}: format is {:?}, expected \"{ROBOT_SIM_FORMAT}\"; is this a simulator config?",
-            path.display(),
-            other.unwrap_or("missing")
-        ),
-    }
-    let cfg: RobotSimConfig =
-        serde_json::from_value(v).with_context(|| format!("{}", path.display()))?;
-    cfg.validate()?;
-    Ok(cfg)
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.runs == 0 {
@@ -145,7 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--runs-per-recording must be at least 1");
     }
     let cfg = match &args.config {
-        Some(p) => load_config(p)?,
+        Some(p) => RobotSimConfig::read(p)?,
         None => RobotSimConfig::default(),
     };
     let per = args.runs_per_recording;

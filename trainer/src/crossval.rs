@@ -110,6 +110,17 @@ pub struct SweepReport {
     pub verdict: String,
 }
 
+impl SweepReport {
+    /// Reads the report.json that `odocal train --sweep --report DIR` writes.
+    pub fn read(path: &std::path::Path) -> Result<Self, TrainError> {
+        Ok(odocal_core::read_tagged_json(
+            path,
+            REPORT_FORMAT,
+            "pass the report.json written by `odocal train --sweep --report DIR`",
+        )?)
+    }
+}
+
 /// Mixes a seed with task coordinates (SplitMix64 finaliser).
 pub fn derive_seed(seed: u64, parts: &[u64]) -> u64 {
     let mut z = seed;

@@ -20,6 +20,9 @@ pub enum TrainError {
     /// A numerical failure of a fit.
     #[error("numerical failure: {0}")]
     Numerical(String),
+    /// A file could not be read or is not what it should be (names the file and position).
+    #[error(transparent)]
+    File(#[from] odocal_core::FileError),
     /// JSON (de)serialisation failed.
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),

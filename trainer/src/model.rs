@@ -127,26 +127,26 @@ impl ModelFile {
         }
     }
 
-    /// Parses model.json text, rejecting other formats and inconsistent sizes.
-    pub fn from_json(text: &str) -> Result<Self, TrainError> {
-        let value: serde_json::Value = serde_json::from_str(text)
-            .map_err(|e| TrainError::Model(format!("not valid JSON ({e})")))?;
-        match value.get("format").and_then(|f| f.as_str()) {
-            Some(MODEL_FORMAT) => {}
-            Some(other) => {
-                return Err(TrainError::Model(format!(
-                    "format is '{other}', this build reads '{MODEL_FORMAT}'; retrain with `odocal train`"
-                )))
-            }
-            None => {
-                return Err(TrainError::Model(format!(
-                    "no \"format\" field; expected '{MODEL_FORMAT}'"
-                )))
-            }
-        }
-        let m: ModelFile = serde_json::from_value(value)
-            .map_err(|e| TrainError::Model(format!("does not match {MODEL_FORMAT} ({e})")))?;
-        m.to_net()?;
+    /// Reads model.json (see [`ModelFile::parse`]).
+    pub fn read(path: &std::path::Path) -> Result<Self, TrainError> {
+        let text = odocal_core::read_text(path)?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses model.json text (`name` starts every message), rejecting other formats,
+    /// inconsistent sizes, non-finite weights and robot parameters without physical sense.
+    pub fn parse(text: &str, name: &str) -> Result<Self, TrainError> {
+        let m: ModelFile = odocal_core::parse_tagged_json(
+            text,
+            name,
+            MODEL_FORMAT,
+            "pass a model.json written by `odocal train` (or retrain with this build)",
+        )?;
+        m.robot
+            .check()
+            .map_err(|e| TrainError::Model(format!("{name}: robot.{e}")))?;
+        m.to_net()
+            .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
         Ok(m)
     }
 

@@ -23,7 +23,10 @@ fn sweep_of(e: &common::Experiment, method: Method, k: usize, restarts: usize) -
 fn check_acceptance(r: &SweepReport, k: usize) {
     let t = &r.table2;
     let raw = row(t, RAW).expect("raw").rel_error.mean;
-    let net = row(t, &crossval::net_method_name(k)).expect("net").rel_error.mean;
+    let net = row(t, &crossval::net_method_name(k))
+        .expect("net")
+        .rel_error
+        .mean;
     let oracle = row(t, ORACLE).expect("oracle").rel_error.mean;
     let kin = row(t, KINEMATIC).expect("kin").rel_error.mean;
     assert!(row(t, LINEAR).is_some());
@@ -271,7 +274,7 @@ fn model_file_round_trips_and_refuses_other_robots() {
     };
     let model = ModelFile::new(&net, &s, 1, e.dataset.robot, "abc", 45, metrics, None);
     let text = serde_json::to_string(&model).expect("json");
-    let back = ModelFile::from_json(&text).expect("parse");
+    let back = ModelFile::parse(&text, "model.json").expect("parse");
     for xi in &x {
         let (a, b) = (back.correct(xi).expect("correct"), net.predict(xi));
         assert!(
@@ -297,8 +300,21 @@ fn model_file_round_trips_and_refuses_other_robots() {
         .to_string();
     assert!(err.contains("feature rule"), "{err}");
     let wrong = text.replace("odocal.model/1", "odocal.model/2");
-    let err = ModelFile::from_json(&wrong).unwrap_err().to_string();
-    assert!(err.contains("odocal.model/2"), "{err}");
+    let err = ModelFile::parse(&wrong, "m.json").unwrap_err().to_string();
+    assert!(
+        err.contains("odocal.model/2") && err.starts_with("m.json"),
+        "{err}"
+    );
+    // A robot without physical sense is refused, naming the file and the field.
+    let negative = text.replace("\"wheel_diameter_m\":0.043", "\"wheel_diameter_m\":-0.043");
+    assert_ne!(negative, text);
+    let err = ModelFile::parse(&negative, "m.json")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("m.json") && err.contains("wheel_diameter_m"),
+        "{err}"
+    );
     assert!(back.correct(&[f64::NAN; 18]).is_err());
     assert!(back.correct(&[0.0; 17]).is_err());
 }

@@ -7,8 +7,11 @@ use super::*;
 pub const ROBOT_SIM_FORMAT: &str = "odocal.robotsim/1";
 
 /// Why a simulator configuration is unusable.
-#[derive(Debug, Error, PartialEq)]
+#[derive(Debug, Error)]
 pub enum RobotSimError {
+    /// The file could not be read or is not a simulator config (names the file).
+    #[error(transparent)]
+    File(#[from] odocal_core::FileError),
     /// A parameter is out of its range.
     #[error("robot simulator config: {0}")]
     Invalid(String),
@@ -254,6 +257,17 @@ fn ratio_ok(a: f64, dt: f64) -> bool {
 }
 
 impl RobotSimConfig {
+    /// Reads and validates a simulator config file (`"format": "odocal.robotsim/1"`).
+    pub fn read(path: &std::path::Path) -> Result<Self, RobotSimError> {
+        let cfg: RobotSimConfig = odocal_core::read_tagged_json(
+            path,
+            ROBOT_SIM_FORMAT,
+            "pass a simulator config for `odocal synth experiment --config` (its truth/simulator.json is one)",
+        )?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
     /// Checks formats and ranges.
     pub fn validate(&self) -> Result<(), RobotSimError> {
         let bad = |m: &str| Err(RobotSimError::Invalid(m.to_string()));
