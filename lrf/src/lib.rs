@@ -17,7 +17,9 @@
 mod check;
 mod error;
 mod eval;
+mod localize;
 mod map;
+mod pose_log;
 mod scan;
 mod scan_track;
 mod search;
@@ -25,10 +27,12 @@ mod search;
 pub use check::{find_ambiguities, Ambiguity, AmbiguityKind};
 pub use error::LrfError;
 pub use eval::{evaluate, read_truth_csv, Evaluation, TruthPose};
+pub use localize::{localize_scans, read_scan_files};
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use scan::{
     extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, SensorConfig,
 };
+pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan_track::{ScanFix, ScanTracker};
 pub use search::{Hypothesis, Localization, Localizer, LocalizerConfig, SearchStats, Status};
 

@@ -1,5 +1,5 @@
-//! Readers for the report's inputs that no other crate reads: tracks in either the camera
-//! trajectory format or the simulator's truth format, and `lrf localize`'s pose CSV.
+//! Tracks for the report's run figures, in either the camera trajectory format or the
+//! simulator's truth format.
 
 use odocal_core::Pose2;
 use odocal_dataset::Trajectory;
@@ -92,92 +92,6 @@ pub fn parse_track_csv(text: &str, name: &str) -> Result<TrackFile, ReportError>
     Ok(out)
 }
 
-/// One row of `odocal lrf localize --out poses.csv`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LaserPose {
-    /// Scan time, seconds.
-    pub t_s: f64,
-    /// Estimated sensor pose in the map frame (None when lost).
-    pub pose: Option<Pose2>,
-    /// ok / ambiguous / lost.
-    pub status: String,
-    /// Landmarks matched.
-    pub n_landmarks: usize,
-}
-
-/// Parses the pose CSV of `odocal lrf localize` (`t,x,y,theta,status,n_landmarks,...`).
-pub fn parse_laser_poses(text: &str, name: &str) -> Result<Vec<LaserPose>, ReportError> {
-    let bad = |line: usize, message: String| ReportError::Input {
-        path: name.to_string(),
-        line,
-        message,
-    };
-    let first = text.lines().next().unwrap_or("");
-    let cols: Vec<&str> = first.split(',').map(str::trim).collect();
-    let col = |n: &str| {
-        cols.iter().position(|c| *c == n).ok_or_else(|| {
-            bad(
-                1,
-                format!("header lacks column '{n}'; is this the --out of `odocal lrf localize`?"),
-            )
-        })
-    };
-    let (it, ix, iy, ith, is, il) = (
-        col("t")?,
-        col("x")?,
-        col("y")?,
-        col("theta")?,
-        col("status")?,
-        col("n_landmarks")?,
-    );
-    let mut out = Vec::new();
-    for (k, line) in text.lines().enumerate().skip(1) {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let get = |i: usize| f.get(i).copied().unwrap_or("");
-        let num = |i: usize, what: &str| {
-            get(i)
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    bad(
-                        k + 1,
-                        format!("column {} ({what}) is not a finite number", i + 1),
-                    )
-                })
-        };
-        let t_s = num(it, "t")?;
-        let pose = if get(ix).is_empty() {
-            None
-        } else {
-            Some(Pose2::new(num(ix, "x")?, num(iy, "y")?, num(ith, "theta")?))
-        };
-        let status = get(is).to_string();
-        if !["ok", "ambiguous", "lost"].contains(&status.as_str()) {
-            return Err(bad(
-                k + 1,
-                format!("status '{status}' is not ok, ambiguous or lost"),
-            ));
-        }
-        let n_landmarks = get(il).parse::<usize>().map_err(|_| {
-            bad(
-                k + 1,
-                format!("column {} (n_landmarks) is not a count", il + 1),
-            )
-        })?;
-        out.push(LaserPose {
-            t_s,
-            pose,
-            status,
-            n_landmarks,
-        });
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -200,20 +114,5 @@ mod tests {
             e.to_string(),
             "b.csv: line 2: column 3 (x) is not a finite number"
         );
-    }
-
-    #[test]
-    fn laser_poses_parse_and_reject() {
-        let p = parse_laser_poses(
-            "t,x,y,theta,status,n_landmarks,n_detections\n0.1,1,2,0.5,ok,4,5\n0.2,,,,lost,0,1\n",
-            "p.csv",
-        )
-        .unwrap();
-        assert_eq!(p.len(), 2);
-        assert!(p[1].pose.is_none());
-        assert!(parse_laser_poses("a,b\n1,2\n", "p.csv").is_err());
-        let e = parse_laser_poses("t,x,y,theta,status,n_landmarks\n0,1,1,1,maybe,1\n", "p.csv")
-            .unwrap_err();
-        assert!(e.to_string().contains("line 2"), "{e}");
     }
 }

@@ -10,7 +10,7 @@ pub mod sections;
 
 pub use chart::{Chart, Mark, Series};
 pub use html::{Block, Report, Section, Table};
-pub use inputs::{parse_laser_poses, parse_track_csv, Clock, LaserPose, TrackFile};
+pub use inputs::{parse_track_csv, Clock, TrackFile};
 pub use sections::{
     calibration_section, corrector_section, heading_section, laser_section, pick_runs,
     training_section, trajectory_section, CalibInput, CalibView, LaserInput, RunView,

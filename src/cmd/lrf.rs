@@ -1,16 +1,15 @@
 //! `odocal lrf`: laser positioning among reflective landmarks.
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    evaluate, find_ambiguities, read_scans_csv, read_truth_csv, AmbiguityKind, Localizer,
-    LocalizerConfig, Map, Scan, ScanTracker, SensorConfig, Status,
+    evaluate, find_ambiguities, localize_scans, read_scan_files, read_truth_csv, AmbiguityKind,
+    Localizer, LocalizerConfig, Map, SensorConfig, Status,
 };
 
-use crate::output::{progress, write_atomic};
+use crate::output::{check_output_file, progress, write_atomic};
 
 /// Subcommands.
 #[derive(clap::Subcommand)]
@@ -137,22 +136,9 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
 }
 
 fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
+    check_output_file(&a.out, "--out")?;
     let map = Map::read(&a.map)?;
-    let mut scans: Vec<Scan> = Vec::new();
-    let mut step: Option<(f64, String)> = None;
-    for p in &a.scans {
-        let s = read_scans_csv(p)?;
-        let this = s[0].step_rad();
-        match &step {
-            Some((st, first)) if (this - st).abs() > 0.01 * st.abs() => anyhow::bail!(
-                "{}: angle step {this:.6} rad differs from {first}'s {st:.6} rad; mismatched angle steps — use scans of one sensor setting",
-                p.display()
-            ),
-            Some(_) => {}
-            None => step = Some((this, p.display().to_string())),
-        }
-        scans.extend(s);
-    }
+    let (scans, step_rad) = read_scan_files(&a.scans)?;
     let cfg = LocalizerConfig {
         sensor: SensorConfig {
             fov_rad: a.fov_deg.to_radians(),
@@ -160,73 +146,24 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             sigma_range_m: a.sigma_range_m,
             intensity_min: a.intensity_min,
             rate_hz: a.rate_hz,
-            step_rad: step
-                .as_ref()
-                .map_or(SensorConfig::default().step_rad, |s| s.0),
+            step_rad: step_rad.unwrap_or(SensorConfig::default().step_rad),
             ..SensorConfig::default()
         },
         ..LocalizerConfig::default()
     };
     let loc = Localizer::new(map, cfg);
-    let mut tracker = ScanTracker::new(&loc);
     let bar = progress(scans.len() as u64, "localize");
-    let mut csv =
-        String::from("t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan\n");
-    let mut rows = Vec::with_capacity(scans.len());
-    let mut n_det_total = 0usize;
     let start = Instant::now();
-    for (k, scan) in scans.iter().enumerate() {
-        let t = scan.t_s.unwrap_or(k as f64 / a.rate_hz);
-        let (status, pose, n_lm, n_det, n_hyp, score, mode) = if a.global_only {
-            let dets = loc.detections(scan);
-            let g = loc.global(scan, &dets);
-            let b = g.best();
-            (
-                g.status,
-                b.map(|h| h.pose),
-                b.map_or(0, |h| h.matches.len()),
-                dets.len(),
-                g.hypotheses.len(),
-                b.map_or(0.0, |h| h.score),
-                "global",
-            )
-        } else {
-            let r = tracker.process(scan, t);
-            (
-                r.status,
-                r.pose,
-                r.n_landmarks,
-                r.n_detections,
-                r.n_hypotheses,
-                r.score,
-                r.mode,
-            )
-        };
-        n_det_total += n_det;
-        let (x, y, th) = match pose {
-            Some(p) => (
-                format!("{:.5}", p.x_m),
-                format!("{:.5}", p.y_m),
-                format!("{:.6}", p.theta_rad),
-            ),
-            None => (String::new(), String::new(), String::new()),
-        };
-        let _ = writeln!(
-            csv,
-            "{t:.4},{x},{y},{th},{status},{n_lm},{n_det},{n_hyp},{score:.1},{mode},{}",
-            scan.id
-        );
-        rows.push((t, status, pose, n_lm));
-        bar.inc(1);
-    }
+    let log = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    write_atomic(&a.out, csv.as_bytes())?;
-    let count = |s: Status| rows.iter().filter(|r| r.1 == s).count();
-    let n = rows.len().max(1);
+    write_atomic(&a.out, log.to_csv().as_bytes())?;
+    let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
+    let n = log.rows.len().max(1);
+    let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
     println!(
         "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; wrote {}",
-        rows.len(),
+        log.rows.len(),
         if a.global_only { "global" } else { "tracking" },
         count(Status::Ok),
         count(Status::Ambiguous),
@@ -237,7 +174,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     );
     if let Some(tp) = &a.truth {
         let truth = read_truth_csv(tp).with_context(|| "reading the truth file".to_string())?;
-        let e = evaluate(&rows, &truth);
+        let e = evaluate(&log.for_evaluation(), &truth);
         if e.n_scans == 0 {
             anyhow::bail!(
                 "{}: no truth pose has the time of a scan; pass the truth of these scans",

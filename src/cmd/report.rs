@@ -7,7 +7,7 @@ use anyhow::{bail, Context};
 use odocal_calib::CameraFile;
 use odocal_dataset::Dataset;
 use odocal_report::{
-    calibration_section, corrector_section, heading_section, laser_section, parse_laser_poses,
+    calibration_section, corrector_section, heading_section, laser_section,
     parse_track_csv, pick_runs, training_section, trajectory_section, CalibInput, CalibView,
     LaserInput, Report, RunView, TrackFile,
 };
@@ -340,7 +340,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // Laser.
     match (&lrf_poses, &lrf_truth) {
         (Some(pp), tp) => {
-            let poses = parse_laser_poses(&read(pp)?, &pp.display().to_string())?;
+            let poses = odocal_lrf::PoseLog::read(pp)?.rows;
             let truth = match tp {
                 Some(t) => odocal_lrf::read_truth_csv(t)?,
                 None => Vec::new(),

@@ -6,7 +6,7 @@ use super::*;
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaserInput {
     /// Poses from `odocal lrf localize`.
-    pub poses: Vec<LaserPose>,
+    pub poses: Vec<odocal_lrf::PoseLogRow>,
     /// True sensor poses.
     pub truth: Vec<TruthPose>,
     /// Landmark positions of the map (x, y), metres.
@@ -19,13 +19,13 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     let key = |t: f64| (t * 1e6).round() as i64;
     let truth: std::collections::HashMap<i64, &TruthPose> =
         l.truth.iter().map(|p| (key(p.t_s), p)).collect();
-    let count = |st: &str| l.poses.iter().filter(|p| p.status == st).count();
+    let count = |st: &str| l.poses.iter().filter(|p| p.status.as_str() == st).count();
     let mut pos_err = Vec::new();
     let mut head_err = Vec::new();
     let mut err_series = Vec::new();
     for p in &l.poses {
         if let (Some(e), Some(tp)) = (p.pose, truth.get(&key(p.t_s))) {
-            if p.status == "ok" {
+            if p.status == odocal_lrf::Status::Ok {
                 let d = (e.x_m - tp.pose.x_m).hypot(e.y_m - tp.pose.y_m);
                 pos_err.push(d);
                 head_err.push(wrap_angle(e.theta_rad - tp.pose.theta_rad));
@@ -55,7 +55,7 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         let pts: Vec<(f64, f64)> = l
             .poses
             .iter()
-            .filter(|p| p.status == st)
+            .filter(|p| p.status.as_str() == st)
             .filter_map(|p| p.pose.map(|q| (q.x_m, q.y_m)))
             .collect();
         if !pts.is_empty() {

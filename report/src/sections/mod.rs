@@ -19,7 +19,7 @@ use odocal_trainer::SweepReport;
 
 use crate::chart::{Chart, Mark, Series};
 use crate::html::{Block, Section, Table};
-use crate::inputs::{Clock, LaserPose, TrackFile};
+use crate::inputs::{Clock, TrackFile};
 use crate::ReportError;
 
 fn figure(name: &str, caption: &str, chart: &Chart) -> Result<Block, ReportError> {

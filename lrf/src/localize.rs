@@ -1,0 +1,82 @@
+//! Localising a whole recording: scan files read and checked together, then every scan
+//! localised (tracking, or each scan on its own) into a [`PoseLog`].
+
+use std::path::PathBuf;
+
+use crate::pose_log::{PoseLog, PoseLogRow};
+use crate::scan::{read_scans_csv, Scan};
+use crate::scan_track::ScanTracker;
+use crate::search::Localizer;
+use crate::LrfError;
+
+/// Reads scan files in order; all must share one angular step (one sensor setting). Returns
+/// the scans and that step, radians.
+pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), LrfError> {
+    let mut scans: Vec<Scan> = Vec::new();
+    let mut step: Option<(f64, String)> = None;
+    for p in paths {
+        let s = read_scans_csv(p)?;
+        let this = s.first().map_or(0.0, |s| s.step_rad());
+        match &step {
+            Some((st, first)) if (this - st).abs() > 0.01 * st.abs() => {
+                return Err(LrfError::Config(format!(
+                    "{}: angle step {this:.6} rad differs from {first}'s {st:.6} rad; mismatched angle steps — use scans of one sensor setting",
+                    p.display()
+                )))
+            }
+            Some(_) => {}
+            None => step = Some((this, p.display().to_string())),
+        }
+        scans.extend(s);
+    }
+    Ok((scans, step.map(|s| s.0)))
+}
+
+/// Localises every scan: with the tracker (prediction from the previous poses, global search
+/// as the fallback), or with `global_only` each scan on its own. Scans without a time stamp
+/// are timed at `index / rate_hz`. `on_scan` is called after each scan (for a progress bar).
+pub fn localize_scans(
+    loc: &Localizer,
+    scans: &[Scan],
+    rate_hz: f64,
+    global_only: bool,
+    on_scan: &dyn Fn(),
+) -> PoseLog {
+    let mut tracker = ScanTracker::new(loc);
+    let mut rows = Vec::with_capacity(scans.len());
+    for (k, scan) in scans.iter().enumerate() {
+        let t_s = scan.t_s.unwrap_or(k as f64 / rate_hz);
+        let row = if global_only {
+            let dets = loc.detections(scan);
+            let g = loc.global(scan, &dets);
+            let b = g.best();
+            PoseLogRow {
+                t_s,
+                pose: b.map(|h| h.pose),
+                status: g.status,
+                n_landmarks: b.map_or(0, |h| h.matches.len()),
+                n_detections: dets.len(),
+                n_hypotheses: g.hypotheses.len(),
+                score: b.map_or(0.0, |h| h.score),
+                mode: "global".into(),
+                scan: scan.id,
+            }
+        } else {
+            let r = tracker.process(scan, t_s);
+            PoseLogRow {
+                t_s,
+                pose: r.pose,
+                status: r.status,
+                n_landmarks: r.n_landmarks,
+                n_detections: r.n_detections,
+                n_hypotheses: r.n_hypotheses,
+                score: r.score,
+                mode: r.mode.into(),
+                scan: scan.id,
+            }
+        };
+        rows.push(row);
+        on_scan();
+    }
+    PoseLog { rows }
+}
