@@ -351,6 +351,8 @@ fn bad_inputs_fail_clearly_without_output() {
         serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
     cj["camera"]["width"] = serde_json::json!(640);
     cj["camera"]["height"] = serde_json::json!(480);
+    cj["camera"]["intrinsics"]["cx"] = serde_json::json!(320.0);
+    cj["camera"]["intrinsics"]["cy"] = serde_json::json!(240.0);
     let small = d.join("camera_640.json");
     std::fs::write(&small, cj.to_string()).unwrap();
     fails_with(

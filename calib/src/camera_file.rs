@@ -114,7 +114,7 @@ impl CameraFile {
         let file: CameraFile = odocal_core::read_tagged_json(
             path,
             CAMERA_FORMAT,
-            "pass a camera.json written by `odocal calibrate`",
+            "expected a camera.json written by `odocal calibrate`",
         )?;
         file.check().map_err(|reason| CalibError::BadFile {
             path: name,

@@ -16,7 +16,20 @@ pub fn parse_tagged_json<T: DeserializeOwned>(
     expected: &str,
     hint: &str,
 ) -> Result<T, FileError> {
-    let value = parse_json_value(text, name)?;
+    let value = parse_json_value(text, name).map_err(|e| match e {
+        FileError::Parse {
+            path,
+            line,
+            column,
+            message,
+        } => FileError::Parse {
+            path,
+            line,
+            column,
+            message: format!("{message}; {hint}"),
+        },
+        other => other,
+    })?;
     check_format_tag(&value, name, expected, hint)?;
     // Parsed again from the text (not the value) so that errors carry line and column.
     serde_json::from_str(text)

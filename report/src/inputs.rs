@@ -1,8 +1,7 @@
 //! Tracks for the report's run figures, in either the camera trajectory format or the
 //! simulator's truth format.
 
-use odocal_core::Pose2;
-use odocal_dataset::Trajectory;
+use odocal_core::{Pose2, Trajectory};
 
 use crate::ReportError;
 
@@ -33,11 +32,7 @@ pub struct TrackFile {
 pub fn parse_track_csv(text: &str, name: &str) -> Result<TrackFile, ReportError> {
     let first = text.lines().next().unwrap_or("");
     if first.split(',').next().map(str::trim) != Some("t_robot") {
-        let tr = Trajectory::parse_csv(text, name).map_err(|e| ReportError::Input {
-            path: name.to_string(),
-            line: 0,
-            message: e.to_string(),
-        })?;
+        let tr = Trajectory::parse_csv(text, name)?;
         return Ok(TrackFile {
             clock: Clock::Camera,
             t_s: tr.rows.iter().map(|r| r.t_s).collect(),
@@ -45,51 +40,14 @@ pub fn parse_track_csv(text: &str, name: &str) -> Result<TrackFile, ReportError>
             source: "camera trajectory",
         });
     }
-    let cols: Vec<&str> = first.split(',').map(str::trim).collect();
-    let col = |n: &str| {
-        cols.iter()
-            .position(|c| *c == n)
-            .ok_or_else(|| ReportError::Input {
-                path: name.to_string(),
-                line: 1,
-                message: format!(
-                    "header lacks column '{n}'; expected t_robot,t_camera,x,y,theta,visible"
-                ),
-            })
-    };
-    let (it, ix, iy, ith) = (col("t_robot")?, col("x")?, col("y")?, col("theta")?);
-    let iv = cols.iter().position(|c| *c == "visible");
-    let mut out = TrackFile {
+    let truth = odocal_synth::robot::TruthTrack::parse(text, name)?;
+    let shown = || truth.rows.iter().filter(|r| r.visible);
+    Ok(TrackFile {
         clock: Clock::Robot,
-        t_s: Vec::new(),
-        poses_floor: Vec::new(),
+        t_s: shown().map(|r| r.t_robot_s).collect(),
+        poses_floor: shown().map(|r| r.pose).collect(),
         source: "true trajectory",
-    };
-    for (k, line) in text.lines().enumerate().skip(1) {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let num = |i: usize, what: &str| -> Result<f64, ReportError> {
-            f.get(i)
-                .and_then(|s| s.parse::<f64>().ok())
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| ReportError::Input {
-                    path: name.to_string(),
-                    line: k + 1,
-                    message: format!("column {} ({what}) is not a finite number", i + 1),
-                })
-        };
-        if let Some(iv) = iv {
-            if f.get(iv).map(|s| *s == "0").unwrap_or(false) {
-                continue;
-            }
-        }
-        out.t_s.push(num(it, "t_robot")?);
-        out.poses_floor
-            .push(Pose2::new(num(ix, "x")?, num(iy, "y")?, num(ith, "theta")?));
-    }
-    Ok(out)
+    })
 }
 
 #[cfg(test)]
@@ -110,9 +68,6 @@ mod tests {
             "b.csv",
         )
         .unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "b.csv: line 2: column 3 (x) is not a finite number"
-        );
+        assert_eq!(e.to_string(), "b.csv:2:3: \"zz\" is not a number");
     }
 }

@@ -1,20 +1,12 @@
 //! `odocal report`: one self-contained HTML file (inline SVG plots, no scripts, no network)
 //! from whatever stage outputs are given; sections without inputs are left out with a note.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{bail, Context};
-use odocal_calib::CameraFile;
-use odocal_dataset::Dataset;
-use odocal_report::{
-    calibration_section, corrector_section, heading_section, laser_section,
-    parse_track_csv, pick_runs, training_section, trajectory_section, CalibInput, CalibView,
-    LaserInput, Report, RunView, TrackFile,
-};
-use odocal_synth::board::{true_corners, CalibTruth};
-use odocal_trainer::{ModelFile, SweepReport};
+use anyhow::bail;
+use odocal_report::{assemble, ReportInputs};
 
-use crate::output::write_atomic;
+use crate::output::{check_output_dir, check_output_file, write_atomic};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -84,120 +76,6 @@ fn input(
     Ok(demo.as_ref().map(|d| d.join(rel)).filter(|p| p.exists()))
 }
 
-fn read(p: &Path) -> anyhow::Result<String> {
-    std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))
-}
-
-fn file_name(s: &str) -> &str {
-    Path::new(s)
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or(s)
-}
-
-fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
-    let views = cam
-        .views
-        .iter()
-        .map(|v| {
-            let detected = (!v.corners_px.is_empty())
-                .then(|| v.corners_px.iter().map(|p| (p[0], p[1])).collect());
-            let corners_px = detected.or_else(|| {
-                truth.and_then(|t| {
-                    t.views
-                        .iter()
-                        .chain(&t.floor_views)
-                        .find(|tv| file_name(&tv.image) == file_name(&v.image))
-                        .map(|tv| {
-                            true_corners(&t.camera, &tv.board_to_camera, &t.scene.board)
-                                .iter()
-                                .map(|p| (p.x, p.y))
-                                .collect()
-                        })
-                })
-            });
-            CalibView {
-                image: v.image.clone(),
-                rms_px: Some(v.rms_px),
-                corners_px,
-            }
-        })
-        .collect::<Vec<_>>();
-    let k = cam.camera.intrinsics;
-    let mut facts = vec![format!(
-        "Intrinsics: fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px{}.",
-        k.fx,
-        k.fy,
-        k.cx,
-        k.cy,
-        cam.std.as_ref().map_or(String::new(), |s| format!(
-            " (standard deviations {:.2}, {:.2}, {:.2}, {:.2} px)",
-            s.fx, s.fy, s.cx, s.cy
-        ))
-    )];
-    if let Some(f) = &cam.floor {
-        facts.push(format!(
-            "Floor plane: camera {:.4} m above the floor, plane fit RMS {:.2} mm from {} floor views.",
-            f.camera_height_m,
-            1000.0 * f.plane_rms_m,
-            f.views.len()
-        ));
-    }
-    if let Some(t) = truth {
-        let tk = t.camera.intrinsics;
-        facts.push(format!(
-            "Against the synthetic truth: fx {:+.3} % , fy {:+.3} %, cx {:+.2} px, cy {:+.2} px.",
-            100.0 * (k.fx - tk.fx) / tk.fx,
-            100.0 * (k.fy - tk.fy) / tk.fy,
-            k.cx - tk.cx,
-            k.cy - tk.cy
-        ));
-    }
-    let any_corners = views.iter().any(|v| v.corners_px.is_some());
-    let detected = cam.views.iter().any(|v| !v.corners_px.is_empty());
-    CalibInput {
-        image_size_px: (cam.camera.width, cam.camera.height),
-        rms_px: cam.rms_px,
-        views,
-        skipped: cam
-            .skipped
-            .iter()
-            .map(|s| (s.image.clone(), s.reason.clone()))
-            .collect(),
-        corners_source: any_corners.then(|| {
-            if detected {
-                "corners as detected, from camera.json".to_string()
-            } else {
-                "true corner positions from the synthetic truth".to_string()
-            }
-        }),
-        facts,
-    }
-}
-
-/// The real track of a recording from the experiment or trajectory folders, if there is one.
-fn find_track(
-    rec: &str,
-    experiment: Option<&Path>,
-    trajectories: Option<&Path>,
-) -> anyhow::Result<Option<TrackFile>> {
-    let mut candidates = Vec::new();
-    if let Some(e) = experiment {
-        candidates.push(e.join("truth").join(format!("{rec}.true.csv")));
-        candidates.push(e.join("runs").join(format!("{rec}.trajectory.csv")));
-    }
-    if let Some(t) = trajectories {
-        candidates.push(t.join(format!("{rec}.trajectory.csv")));
-        candidates.push(t.join(format!("{rec}.csv")));
-    }
-    for c in candidates {
-        if c.exists() {
-            let text = read(&c)?;
-            return Ok(Some(parse_track_csv(&text, &c.display().to_string())?));
-        }
-    }
-    Ok(None)
-}
 
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -218,174 +96,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let lrf_truth = input(&a.lrf_truth, demo, "lrf/truth.csv")?;
     let lrf_map = input(&a.lrf_map, demo, "lrf/map.json")?;
 
-    let mut report = Report {
+    check_output_file(&a.out, "--out")?;
+    if let Some(d) = &a.svg_dir {
+        check_output_dir(d, "--svg-dir")?;
+    }
+    let report = assemble(&ReportInputs {
+        camera,
+        calib_truth,
+        dataset,
+        model,
+        train_report,
+        experiment,
+        trajectories,
+        lrf_poses,
+        lrf_truth,
+        lrf_map,
+        runs: a.runs,
         title: a.title.clone(),
-        ..Report::default()
-    };
-    let mut used = Vec::new();
-    let omit = |r: &mut Report, title: &str, why: &str| {
-        r.omitted.push((title.to_string(), why.to_string()))
-    };
-
-    // Calibration.
-    match &camera {
-        Some(p) => {
-            let cam = CameraFile::load(p)?;
-            let truth = calib_truth.as_deref().map(CalibTruth::read).transpose()?;
-            used.push(format!("camera {}", p.display()));
-            if let Some(t) = &calib_truth {
-                used.push(format!("calibration truth {}", t.display()));
-            }
-            report
-                .sections
-                .push(calibration_section(&calib_input(&cam, truth.as_ref()))?);
-        }
-        None => omit(
-            &mut report,
-            "Camera calibration",
-            "no camera.json given (--camera)",
-        ),
-    }
-
-    // Runs: trajectories, heading, corrector.
-    let ds = dataset
-        .as_deref()
-        .map(|p| Dataset::read(p).with_context(|| format!("cannot use {}", p.display())))
-        .transpose()?;
-    let mdl = match &model {
-        Some(p) => {
-            let m = ModelFile::read(p)?;
-            used.push(format!("model {}", p.display()));
-            Some(m)
-        }
-        None => None,
-    };
-    match &ds {
-        Some(ds) if !ds.samples.is_empty() => {
-            if let Some(p) = &dataset {
-                used.push(format!(
-                    "dataset {} ({} runs)",
-                    p.display(),
-                    ds.samples.len()
-                ));
-            }
-            let preds = match &mdl {
-                Some(m) => Some(
-                    ds.samples
-                        .iter()
-                        .map(|s| {
-                            m.correct(&s.inputs).with_context(|| {
-                                format!("model does not fit run {} of the dataset", s.run_id)
-                            })
-                        })
-                        .collect::<anyhow::Result<Vec<[f64; 2]>>>()?,
-                ),
-                None => None,
-            };
-            let mut views = Vec::new();
-            for i in pick_runs(&ds.samples, a.runs) {
-                let s = &ds.samples[i];
-                let rec = if s.recording_id.is_empty() {
-                    &s.run_id
-                } else {
-                    &s.recording_id
-                };
-                let track = find_track(rec, experiment.as_deref(), trajectories.as_deref())?;
-                views.push(RunView::new(
-                    s,
-                    &ds.robot,
-                    preds.as_ref().map(|p| p[i]),
-                    track.as_ref(),
-                ));
-            }
-            report.sections.push(trajectory_section(&views)?);
-            match heading_section(&views)? {
-                Some(sec) => report.sections.push(sec),
-                None => omit(
-                    &mut report,
-                    "Heading oscillation (Figure 4)",
-                    "no real trajectories of the runs (--experiment or --trajectories)",
-                ),
-            }
-            report
-                .sections
-                .push(corrector_section(&ds.samples, preds.as_deref())?);
-        }
-        Some(_) => omit(
-            &mut report,
-            "Trajectories and end-point errors",
-            "the dataset has no samples",
-        ),
-        None => omit(
-            &mut report,
-            "Trajectories, heading and end-point errors (Figures 4–7)",
-            "no dataset.json given (--dataset)",
-        ),
-    }
-
-    // Tables 1 and 2.
-    match &train_report {
-        Some(p) => {
-            let rep = SweepReport::read(p)?;
-            used.push(format!("training report {}", p.display()));
-            report.sections.push(training_section(&rep)?);
-        }
-        None => omit(
-            &mut report,
-            "Training: Tables 1 and 2",
-            "no training report given (--train-report DIR/report.json)",
-        ),
-    }
-
-    // Laser.
-    match (&lrf_poses, &lrf_truth) {
-        (Some(pp), tp) => {
-            let poses = odocal_lrf::PoseLog::read(pp)?.rows;
-            let truth = match tp {
-                Some(t) => odocal_lrf::read_truth_csv(t)?,
-                None => Vec::new(),
-            };
-            let landmarks_m = match &lrf_map {
-                Some(m) => odocal_lrf::Map::read(m)?
-                    .landmarks
-                    .iter()
-                    .map(|l| (l.position.x, l.position.y))
-                    .collect(),
-                None => Vec::new(),
-            };
-            used.push(format!("laser poses {}", pp.display()));
-            let sec = laser_section(&LaserInput {
-                poses,
-                truth,
-                landmarks_m,
-            })?;
-            report.sections.push(sec);
-            if tp.is_none() {
-                omit(
-                    &mut report,
-                    "Laser error against the truth",
-                    "no laser truth given (--lrf-truth)",
-                );
-            }
-        }
-        (None, _) => omit(
-            &mut report,
-            "Laser positioning",
-            "no laser poses given (--lrf-poses from `odocal lrf localize --out`)",
-        ),
-    }
-
-    report.intro.push(format!(
-        "Inputs: {}.",
-        if used.is_empty() {
-            "none".to_string()
-        } else {
-            used.join("; ")
-        }
-    ));
-    report
-        .intro
-        .push("Units: metres (m), centimetres (cm), millimetres (mm), pixels (px), degrees (deg), seconds (s).".into());
+    })?;
     write_atomic(&a.out, report.to_html().as_bytes())?;
     if let Some(dir) = &a.svg_dir {
         for (name, svg) in report.figures() {

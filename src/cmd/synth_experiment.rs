@@ -11,6 +11,7 @@ use odocal_dataset::oracle::{OracleFile, OracleRun};
 use odocal_dataset::WheelGeometry;
 use odocal_synth::board::CalibScene;
 use odocal_synth::robot::{
+    TruthTrack,
     simulate_recording, CameraTiming, RobotSimConfig, RunTruth, SimulatedRecording,
 };
 use odocal_synth::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
@@ -241,18 +242,7 @@ fn one_recording(
         }
     };
     // True trajectory at 100 Hz on both clocks.
-    let mut csv = String::from("t_robot,t_camera,x,y,theta,visible\n");
-    for p in rec.truth.iter().step_by(2) {
-        csv.push_str(&format!(
-            "{:.3},{:.6},{:.6},{:.6},{:.6},{}\n",
-            p.t_robot_s,
-            p.t_robot_s + rec.clock_offset_s,
-            p.pose.x_m,
-            p.pose.y_m,
-            p.pose.theta_rad,
-            u8::from(p.visible)
-        ));
-    }
+    let csv = TruthTrack::of_recording(&rec).to_csv();
     write_atomic(
         &args.out.join("truth").join(format!("{id}.true.csv")),
         csv.as_bytes(),

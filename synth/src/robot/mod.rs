@@ -22,10 +22,12 @@
 mod config;
 mod recording;
 mod simulate;
+mod truth_track;
 
 pub use config::*;
 pub use recording::*;
 pub use simulate::simulate_recording;
+pub use truth_track::{TruthTrack, TruthTrackRow, TRUTH_TRACK_HEADER};
 
 use odocal_core::{wrap_angle, Pose2};
 use odocal_core::{FileError, Trajectory, TrajectoryRow};

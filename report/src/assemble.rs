@@ -1,0 +1,333 @@
+//! The whole report from the files of a pipeline run: each section built from the outputs of
+//! its stage, left out (with the reason) where they are missing.
+
+use std::path::{Path, PathBuf};
+
+use odocal_calib::CameraFile;
+use odocal_dataset::Dataset;
+use odocal_synth::board::{true_corners, CalibTruth};
+use odocal_trainer::{ModelFile, SweepReport};
+
+use crate::{
+    calibration_section, corrector_section, heading_section, laser_section, parse_track_csv,
+    pick_runs, training_section, trajectory_section, CalibInput, CalibView, LaserInput, Report,
+    ReportError, RunView, TrackFile,
+};
+
+/// The files a report is made from; any may be absent.
+#[derive(Debug, Clone, Default)]
+pub struct ReportInputs {
+    /// camera.json from `odocal calibrate`.
+    pub camera: Option<PathBuf>,
+    /// truth.json from `odocal synth calib`.
+    pub calib_truth: Option<PathBuf>,
+    /// dataset.json from `odocal dataset`.
+    pub dataset: Option<PathBuf>,
+    /// model.json from `odocal train`.
+    pub model: Option<PathBuf>,
+    /// report.json from `odocal train --sweep`.
+    pub train_report: Option<PathBuf>,
+    /// Output folder of `odocal synth experiment`.
+    pub experiment: Option<PathBuf>,
+    /// Folder of camera trajectories `<recording id>.trajectory.csv`.
+    pub trajectories: Option<PathBuf>,
+    /// Pose log of `odocal lrf localize`.
+    pub lrf_poses: Option<PathBuf>,
+    /// True sensor poses of `odocal synth lrf`.
+    pub lrf_truth: Option<PathBuf>,
+    /// The landmark map.
+    pub lrf_map: Option<PathBuf>,
+    /// Runs drawn in the trajectory and heading figures.
+    pub runs: usize,
+    /// The report's title.
+    pub title: String,
+}
+
+/// Builds the report from `inp`: every section whose inputs are there, the others listed as
+/// left out with the reason.
+pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
+    let mut report = Report {
+        title: inp.title.clone(),
+        ..Report::default()
+    };
+    let mut used = Vec::new();
+    let omit = |r: &mut Report, title: &str, why: &str| {
+        r.omitted.push((title.to_string(), why.to_string()))
+    };
+
+    // Calibration.
+    match &inp.camera {
+        Some(p) => {
+            let cam = CameraFile::load(p)?;
+            let truth = inp.calib_truth.as_deref().map(CalibTruth::read).transpose()?;
+            used.push(format!("camera {}", p.display()));
+            if let Some(t) = &inp.calib_truth {
+                used.push(format!("calibration truth {}", t.display()));
+            }
+            report
+                .sections
+                .push(calibration_section(&calib_input(&cam, truth.as_ref()))?);
+        }
+        None => omit(
+            &mut report,
+            "Camera calibration",
+            "no camera.json given (--camera)",
+        ),
+    }
+
+    // Runs: trajectories, heading, corrector.
+    let ds = inp.dataset
+        .as_deref()
+        .map(Dataset::read)
+        .transpose()?;
+    let mdl = match &inp.model {
+        Some(p) => {
+            let m = ModelFile::read(p)?;
+            used.push(format!("model {}", p.display()));
+            Some(m)
+        }
+        None => None,
+    };
+    match &ds {
+        Some(ds) if !ds.samples.is_empty() => {
+            if let Some(p) = &inp.dataset {
+                used.push(format!(
+                    "dataset {} ({} runs)",
+                    p.display(),
+                    ds.samples.len()
+                ));
+            }
+            let preds = match &mdl {
+                Some(m) => Some(
+                    ds.samples
+                        .iter()
+                        .map(|s| {
+                            m.correct(&s.inputs).map_err(|e| {
+                                ReportError::Mismatch(format!(
+                                    "the model does not fit run {} of the dataset: {e}",
+                                    s.run_id
+                                ))
+                            })
+                        })
+                        .collect::<Result<Vec<[f64; 2]>, ReportError>>()?,
+                ),
+                None => None,
+            };
+            let mut views = Vec::new();
+            for i in pick_runs(&ds.samples, inp.runs) {
+                let s = &ds.samples[i];
+                let rec = if s.recording_id.is_empty() {
+                    &s.run_id
+                } else {
+                    &s.recording_id
+                };
+                let track = find_track(rec, inp.experiment.as_deref(), inp.trajectories.as_deref())?;
+                views.push(RunView::new(
+                    s,
+                    &ds.robot,
+                    preds.as_ref().map(|p| p[i]),
+                    track.as_ref(),
+                ));
+            }
+            report.sections.push(trajectory_section(&views)?);
+            match heading_section(&views)? {
+                Some(sec) => report.sections.push(sec),
+                None => omit(
+                    &mut report,
+                    "Heading oscillation (Figure 4)",
+                    "no real trajectories of the runs (--experiment or --trajectories)",
+                ),
+            }
+            report
+                .sections
+                .push(corrector_section(&ds.samples, preds.as_deref())?);
+        }
+        Some(_) => omit(
+            &mut report,
+            "Trajectories and end-point errors",
+            "the dataset has no samples",
+        ),
+        None => omit(
+            &mut report,
+            "Trajectories, heading and end-point errors (Figures 4–7)",
+            "no dataset.json given (--dataset)",
+        ),
+    }
+
+    // Tables 1 and 2.
+    match &inp.train_report {
+        Some(p) => {
+            let rep = SweepReport::read(p)?;
+            used.push(format!("training report {}", p.display()));
+            report.sections.push(training_section(&rep)?);
+        }
+        None => omit(
+            &mut report,
+            "Training: Tables 1 and 2",
+            "no training report given (--train-report DIR/report.json)",
+        ),
+    }
+
+    // Laser.
+    match (&inp.lrf_poses, &inp.lrf_truth) {
+        (Some(pp), tp) => {
+            let poses = odocal_lrf::PoseLog::read(pp)?.rows;
+            let truth = match tp {
+                Some(t) => odocal_lrf::read_truth_csv(t)?,
+                None => Vec::new(),
+            };
+            let landmarks_m = match &inp.lrf_map {
+                Some(m) => odocal_lrf::Map::read(m)?
+                    .landmarks
+                    .iter()
+                    .map(|l| (l.position.x, l.position.y))
+                    .collect(),
+                None => Vec::new(),
+            };
+            used.push(format!("laser poses {}", pp.display()));
+            let sec = laser_section(&LaserInput {
+                poses,
+                truth,
+                landmarks_m,
+            })?;
+            report.sections.push(sec);
+            if tp.is_none() {
+                omit(
+                    &mut report,
+                    "Laser error against the truth",
+                    "no laser truth given (--lrf-truth)",
+                );
+            }
+        }
+        (None, _) => omit(
+            &mut report,
+            "Laser positioning",
+            "no laser poses given (--lrf-poses from `odocal lrf localize --out`)",
+        ),
+    }
+
+    report.intro.push(format!(
+        "Inputs: {}.",
+        if used.is_empty() {
+            "none".to_string()
+        } else {
+            used.join("; ")
+        }
+    ));
+    report
+        .intro
+        .push("Units: metres (m), centimetres (cm), millimetres (mm), pixels (px), degrees (deg), seconds (s).".into());
+    Ok(report)
+}
+
+fn file_name(s: &str) -> &str {
+    Path::new(s)
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or(s)
+}
+
+fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
+    let views = cam
+        .views
+        .iter()
+        .map(|v| {
+            let detected = (!v.corners_px.is_empty())
+                .then(|| v.corners_px.iter().map(|p| (p[0], p[1])).collect());
+            let corners_px = detected.or_else(|| {
+                truth.and_then(|t| {
+                    t.views
+                        .iter()
+                        .chain(&t.floor_views)
+                        .find(|tv| file_name(&tv.image) == file_name(&v.image))
+                        .map(|tv| {
+                            true_corners(&t.camera, &tv.board_to_camera, &t.scene.board)
+                                .iter()
+                                .map(|p| (p.x, p.y))
+                                .collect()
+                        })
+                })
+            });
+            CalibView {
+                image: v.image.clone(),
+                rms_px: Some(v.rms_px),
+                corners_px,
+            }
+        })
+        .collect::<Vec<_>>();
+    let k = cam.camera.intrinsics;
+    let mut facts = vec![format!(
+        "Intrinsics: fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px{}.",
+        k.fx,
+        k.fy,
+        k.cx,
+        k.cy,
+        cam.std.as_ref().map_or(String::new(), |s| format!(
+            " (standard deviations {:.2}, {:.2}, {:.2}, {:.2} px)",
+            s.fx, s.fy, s.cx, s.cy
+        ))
+    )];
+    if let Some(f) = &cam.floor {
+        facts.push(format!(
+            "Floor plane: camera {:.4} m above the floor, plane fit RMS {:.2} mm from {} floor views.",
+            f.camera_height_m,
+            1000.0 * f.plane_rms_m,
+            f.views.len()
+        ));
+    }
+    if let Some(t) = truth {
+        let tk = t.camera.intrinsics;
+        facts.push(format!(
+            "Against the synthetic truth: fx {:+.3} % , fy {:+.3} %, cx {:+.2} px, cy {:+.2} px.",
+            100.0 * (k.fx - tk.fx) / tk.fx,
+            100.0 * (k.fy - tk.fy) / tk.fy,
+            k.cx - tk.cx,
+            k.cy - tk.cy
+        ));
+    }
+    let any_corners = views.iter().any(|v| v.corners_px.is_some());
+    let detected = cam.views.iter().any(|v| !v.corners_px.is_empty());
+    CalibInput {
+        image_size_px: (cam.camera.width, cam.camera.height),
+        rms_px: cam.rms_px,
+        views,
+        skipped: cam
+            .skipped
+            .iter()
+            .map(|s| (s.image.clone(), s.reason.clone()))
+            .collect(),
+        corners_source: any_corners.then(|| {
+            if detected {
+                "corners as detected, from camera.json".to_string()
+            } else {
+                "true corner positions from the synthetic truth".to_string()
+            }
+        }),
+        facts,
+    }
+}
+
+/// The real track of a recording from the experiment or trajectory folders, if there is one.
+fn find_track(
+    rec: &str,
+    experiment: Option<&Path>,
+    trajectories: Option<&Path>,
+) -> Result<Option<TrackFile>, ReportError> {
+    let mut candidates = Vec::new();
+    if let Some(e) = experiment {
+        candidates.push(e.join("truth").join(format!("{rec}.true.csv")));
+        candidates.push(e.join("runs").join(format!("{rec}.trajectory.csv")));
+    }
+    if let Some(t) = trajectories {
+        candidates.push(t.join(format!("{rec}.trajectory.csv")));
+        candidates.push(t.join(format!("{rec}.csv")));
+    }
+    for c in candidates {
+        if c.exists() {
+            let text = odocal_core::read_text(&c)?;
+            return Ok(Some(parse_track_csv(&text, &c.display().to_string())?));
+        }
+    }
+    Ok(None)
+}
+
