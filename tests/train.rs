@@ -97,6 +97,28 @@ fn train_then_correct_a_log() {
     assert_eq!(m["format"], "odocal.model/1");
     assert_eq!(m["layer_sizes"], serde_json::json!([18, 6, 2]));
     assert_eq!(m["dataset_sha256"].as_str().map(str::len), Some(64));
+    // --no-cv fits the same model without the cross-validated estimate.
+    let quick = dir.path().join("quick.json");
+    let out_quick = ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&quick),
+        "--hidden",
+        "6",
+        "--seed",
+        "4",
+        "--no-cv",
+    ]);
+    assert!(!out_quick.contains("cross-validated"), "{out_quick}");
+    assert!(!out_quick.contains("Table 2"), "{out_quick}");
+    let q: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&quick).expect("model")).expect("json");
+    assert!(q["metrics"]["cross_validated"].is_null(), "{q}");
+    assert_eq!(q["weights"], m["weights"]);
+    assert!(m["metrics"]["cross_validated"]["rel_error"]
+        .as_f64()
+        .is_some());
     // Same seed, same bytes.
     let model2 = dir.path().join("model2.json");
     ok(&[

@@ -43,7 +43,8 @@ pub enum LrfError {
         line: usize,
         /// What is wrong.
         message: String,
-    },    /// Settings or inputs that do not fit together (what is wrong and what to do).
+    },
+    /// Settings or inputs that do not fit together (what is wrong and what to do).
     #[error("{0}")]
     Config(String),
 }

@@ -29,10 +29,10 @@ pub use error::LrfError;
 pub use eval::{evaluate, read_truth_csv, Evaluation, TruthPose};
 pub use localize::{localize_scans, read_scan_files};
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
+pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{
     extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, SensorConfig,
 };
-pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan_track::{ScanFix, ScanTracker};
 pub use search::{Hypothesis, Localization, Localizer, LocalizerConfig, SearchStats, Status};
 

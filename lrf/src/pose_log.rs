@@ -92,7 +92,9 @@ impl PoseLog {
                     name,
                     *hline,
                     1,
-                    format!("header lacks column '{n}'; is this the --out of `odocal lrf localize`?"),
+                    format!(
+                        "header lacks column '{n}'; is this the --out of `odocal lrf localize`?"
+                    ),
                 )
             })
         };
@@ -218,8 +220,11 @@ mod tests {
         };
         let back = PoseLog::parse(&log.to_csv(), "p.csv").unwrap();
         assert_eq!(back, log);
-        let short = PoseLog::parse("t,x,y,theta,status,n_landmarks\n0.1,1,2,0.5,ok,4\n", "p.csv")
-            .unwrap();
+        let short = PoseLog::parse(
+            "t,x,y,theta,status,n_landmarks\n0.1,1,2,0.5,ok,4\n",
+            "p.csv",
+        )
+        .unwrap();
         assert_eq!(short.rows[0].n_landmarks, 4);
         assert!(PoseLog::parse("a,b\n1,2\n", "p.csv").is_err());
         let e = PoseLog::parse("t,x,y,theta,status,n_landmarks\n0,1,1,1,maybe,1\n", "p.csv")

@@ -59,7 +59,11 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     match &inp.camera {
         Some(p) => {
             let cam = CameraFile::load(p)?;
-            let truth = inp.calib_truth.as_deref().map(CalibTruth::read).transpose()?;
+            let truth = inp
+                .calib_truth
+                .as_deref()
+                .map(CalibTruth::read)
+                .transpose()?;
             used.push(format!("camera {}", p.display()));
             if let Some(t) = &inp.calib_truth {
                 used.push(format!("calibration truth {}", t.display()));
@@ -76,10 +80,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     }
 
     // Runs: trajectories, heading, corrector.
-    let ds = inp.dataset
-        .as_deref()
-        .map(Dataset::read)
-        .transpose()?;
+    let ds = inp.dataset.as_deref().map(Dataset::read).transpose()?;
     let mdl = match &inp.model {
         Some(p) => {
             let m = ModelFile::read(p)?;
@@ -121,7 +122,8 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 } else {
                     &s.recording_id
                 };
-                let track = find_track(rec, inp.experiment.as_deref(), inp.trajectories.as_deref())?;
+                let track =
+                    find_track(rec, inp.experiment.as_deref(), inp.trajectories.as_deref())?;
                 views.push(RunView::new(
                     s,
                     &ds.robot,
@@ -330,4 +332,3 @@ fn find_track(
     }
     Ok(None)
 }
-

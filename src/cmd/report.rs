@@ -76,7 +76,6 @@ fn input(
     Ok(demo.as_ref().map(|d| d.join(rel)).filter(|p| p.exists()))
 }
 
-
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let demo = &a.demo_dir;

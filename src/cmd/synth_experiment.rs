@@ -11,8 +11,7 @@ use odocal_dataset::oracle::{OracleFile, OracleRun};
 use odocal_dataset::WheelGeometry;
 use odocal_synth::board::CalibScene;
 use odocal_synth::robot::{
-    TruthTrack,
-    simulate_recording, CameraTiming, RobotSimConfig, RunTruth, SimulatedRecording,
+    simulate_recording, CameraTiming, RobotSimConfig, RunTruth, SimulatedRecording, TruthTrack,
 };
 use odocal_synth::scene::{render_video as render_scene_video, SceneConfig, VideoFormat};
 use rayon::prelude::*;

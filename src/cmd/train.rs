@@ -5,14 +5,10 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use odocal_dataset::OracleFile;
-use odocal_trainer::crossval::{assign_folds, capacity_warning, derive_seed};
-use odocal_trainer::{
-    report, sweep, train, KinematicCalibration, Method, Metrics, ModelFile, ModelMetrics,
-    SweepSettings, TrainSettings,
-};
+use odocal_dataset::{Dataset, OracleFile};
+use odocal_trainer::{fit_model, oracle_ends, report, sweep, Method, SweepSettings, TrainSettings};
 
-use crate::output::{progress, write_atomic, write_json};
+use crate::output::{check_output_dir, check_output_file, progress, write_atomic, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -40,6 +36,10 @@ pub struct Args {
     /// Folds of the cross-validation (also used for the single model's estimate).
     #[arg(long, default_value_t = 5)]
     pub folds: usize,
+    /// Fit the one model without the cross-validated estimate of its error (faster; model.json
+    /// then records no cross-validated figures).
+    #[arg(long)]
+    pub no_cv: bool,
     /// Directory for the sweep report (report.json, report.md).
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -101,175 +101,93 @@ fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        check_output_file(out, "--out")?;
+    }
     let bytes = std::fs::read(&args.dataset)
         .with_context(|| format!("cannot read {}", args.dataset.display()))?;
     let (ds, sha) = odocal_trainer::parse_dataset(&bytes, &args.dataset.display().to_string())?;
     let ts = settings(&args)?;
     let oracle = match &args.oracle {
-        Some(p) => {
-            let o = OracleFile::read(p)?;
-            let mut map = HashMap::new();
-            for s in &ds.samples {
-                let end = o.end_m(s).with_context(|| {
-                    format!(
-                        "{}: no entry for run '{}' of the dataset",
-                        p.display(),
-                        s.run_id
-                    )
-                })?;
-                map.insert(s.run_id.clone(), end);
-            }
-            Some(map)
-        }
+        Some(p) => Some(oracle_ends(
+            &ds,
+            &OracleFile::read(p)?,
+            &p.display().to_string(),
+        )?),
         None => None,
     };
-
     if let Some(range) = &args.sweep {
-        let sizes = parse_range(range)?;
-        let settings = SweepSettings {
-            hidden_sizes: sizes.clone(),
-            restarts: args.restarts,
-            folds: args.folds,
-            train: ts,
-            seed: args.seed,
-        };
-        let bar = progress(
-            (sizes.len() * args.restarts * args.folds) as u64,
-            "training",
-        );
-        let rep = sweep(&ds, &sha, &settings, oracle.as_ref(), &|| bar.inc(1))
-            .with_context(|| format!("{}", args.dataset.display()))?;
-        bar.finish_and_clear();
-        for w in &rep.warnings {
-            eprintln!("odocal: warning: {w}");
-        }
-        let md = report::markdown(&rep);
-        println!("{md}");
-        if let Some(dir) = &args.report {
-            write_json(&dir.join("report.json"), &rep)?;
-            write_atomic(&dir.join("report.md"), md.as_bytes())?;
-            eprintln!(
-                "wrote {} and {}",
-                dir.join("report.json").display(),
-                dir.join("report.md").display()
-            );
-        }
-        if let Some(out) = &args.out {
-            eprintln!(
-                "odocal: note: --out is ignored with --sweep; train the chosen k without --sweep"
-            );
-            let _ = out;
-        }
-        return Ok(());
+        return run_sweep(&args, range, &ds, &sha, ts, oracle.as_ref());
     }
-
     let Some(out) = &args.out else {
         bail!("give --out model.json to train a model, or --sweep A..B to cross-validate hidden sizes");
     };
-    let n = ds.samples.len();
-    let n_fit =
-        n - ((n as f64 * ts.val_fraction).round() as usize).max(usize::from(ts.val_fraction > 0.0));
-    if let Some(w) = capacity_warning(ts.hidden, n_fit) {
+    let folds = (!args.no_cv).then_some(args.folds);
+    let bar = progress(folds.unwrap_or(0) as u64, "cross-val");
+    let fitted = fit_model(&ds, &sha, &ts, args.seed, folds, oracle.as_ref(), &|| {
+        bar.inc(1)
+    })
+    .with_context(|| format!("{}", args.dataset.display()))?;
+    bar.finish_and_clear();
+    for w in &fitted.warnings {
         eprintln!("odocal: warning: {w}");
     }
-    let inputs: Vec<Vec<f64>> = ds.samples.iter().map(|s| s.inputs.clone()).collect();
-    let targets: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.target_m).collect();
-    let net = train(&inputs, &targets, &ts, args.seed)
-        .with_context(|| format!("{}", args.dataset.display()))?;
-    let all: Vec<&odocal_dataset::Sample> = ds.samples.iter().collect();
-    let pred: Vec<[f64; 2]> = inputs.iter().map(|x| net.predict(x)).collect();
-    let raw: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.raw_end_m).collect();
-
-    // Fit and early-stopping validation samples reported separately.
-    let subset = |idx: &[usize]| {
-        let s: Vec<&odocal_dataset::Sample> = idx.iter().map(|&i| &ds.samples[i]).collect();
-        let p: Vec<[f64; 2]> = idx.iter().map(|&i| pred[i]).collect();
-        Metrics::of(&s, &p)
-    };
-    let train_metrics = subset(&net.fit_indices);
-    let validation = (!net.validation_indices.is_empty()).then(|| subset(&net.validation_indices));
-    // Cross-validated estimate of this configuration: one restart over the folds.
-    let cross_validated = match assign_folds(&ds.samples, args.folds, args.seed) {
-        Ok(_) => {
-            let s = SweepSettings {
-                hidden_sizes: vec![ts.hidden],
-                restarts: 1,
-                folds: args.folds,
-                train: ts.clone(),
-                seed: derive_seed(args.seed, &[0xC0]),
-            };
-            let bar = progress(args.folds as u64, "cross-val");
-            let rep = sweep(&ds, &sha, &s, oracle.as_ref(), &|| bar.inc(1))?;
-            bar.finish_and_clear();
-            let md = report::table2_markdown(&rep);
-            println!("{md}");
-            let name = odocal_trainer::crossval::net_method_name(ts.hidden);
-            let r = odocal_trainer::crossval::row(&rep.table2, &name)
-                .context("cross-validation lost its row")?;
-            Some(Metrics {
-                mse_m2: r.mse_m2.mean,
-                mse_cm2: r.mse_m2.mean * 1e4,
-                half_sse_m2: r.mse_m2.mean * n as f64,
-                rel_error: r.rel_error.mean,
-                rms_end_error_m: r.rms_end_error_m,
-                n,
-            })
-        }
-        Err(e) => {
-            eprintln!("odocal: warning: no cross-validated estimate ({e})");
-            None
-        }
-    };
-    let kin = KinematicCalibration::fit(&all, &ds.robot).ok();
-    let metrics = ModelMetrics {
-        train: train_metrics,
-        validation,
-        raw_odometry: Metrics::of(&all, &raw),
-        cross_validated,
-    };
-    let model = ModelFile::new(&net, &ts, args.seed, ds.robot, &sha, n, metrics, kin);
-    write_json(out, &model)?;
-    println!(
-        "trained 18-{}-2 ({} parameters) with {:?} on {} samples ({} fitted): kept epoch {} ({}).",
-        ts.hidden,
-        net.net.n_params(),
-        ts.method,
-        n,
-        net.n_fit,
-        net.best_epoch,
-        net.stop_reason
-    );
-    println!(
-        "fitted samples: MSE {:.6} m² ({:.2} cm²), relative end-point error {:.2} % (raw odometry on all samples {:.2} %).",
-        model.metrics.train.mse_m2,
-        model.metrics.train.mse_cm2,
-        100.0 * model.metrics.train.rel_error,
-        100.0 * model.metrics.raw_odometry.rel_error
-    );
-    if let Some(v) = &model.metrics.validation {
-        println!(
-            "early-stopping split ({} samples): MSE {:.6} m² ({:.2} cm²), relative end-point error {:.2} %.",
-            v.n,
-            v.mse_m2,
-            v.mse_cm2,
-            100.0 * v.rel_error
-        );
+    if let Some(md) = &fitted.table2_markdown {
+        println!("{md}");
     }
-    if let Some(cv) = &model.metrics.cross_validated {
-        println!(
-            "cross-validated ({} folds): MSE {:.6} m² ({:.2} cm²), relative end-point error {:.2} %.",
-            args.folds,
-            cv.mse_m2,
-            cv.mse_cm2,
-            100.0 * cv.rel_error
-        );
-    }
-    if let Some(k) = &model.kinematic_calibration {
-        println!(
-            "kinematic calibration: left_wheel_radius_multiplier {:.4}, right_wheel_radius_multiplier {:.4}, wheel_separation_multiplier {:.4}",
-            k.ros.left_wheel_radius_multiplier, k.ros.right_wheel_radius_multiplier, k.ros.wheel_separation_multiplier
-        );
+    write_json(out, &fitted.model)?;
+    for line in fitted.summary(args.folds) {
+        println!("{line}");
     }
     println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `--sweep A..B`: Tables 1 and 2 over hidden sizes, printed and optionally written.
+fn run_sweep(
+    args: &Args,
+    range: &str,
+    ds: &Dataset,
+    sha: &str,
+    ts: TrainSettings,
+    oracle: Option<&HashMap<String, [f64; 2]>>,
+) -> anyhow::Result<()> {
+    let sizes = parse_range(range)?;
+    let settings = SweepSettings {
+        hidden_sizes: sizes.clone(),
+        restarts: args.restarts,
+        folds: args.folds,
+        train: ts,
+        seed: args.seed,
+    };
+    if let Some(dir) = &args.report {
+        check_output_dir(dir, "--report")?;
+    }
+    let bar = progress(
+        (sizes.len() * args.restarts * args.folds) as u64,
+        "training",
+    );
+    let rep = sweep(ds, sha, &settings, oracle, &|| bar.inc(1))
+        .with_context(|| format!("{}", args.dataset.display()))?;
+    bar.finish_and_clear();
+    for w in &rep.warnings {
+        eprintln!("odocal: warning: {w}");
+    }
+    let md = report::markdown(&rep);
+    println!("{md}");
+    if let Some(dir) = &args.report {
+        write_json(&dir.join("report.json"), &rep)?;
+        write_atomic(&dir.join("report.md"), md.as_bytes())?;
+        eprintln!(
+            "wrote {} and {}",
+            dir.join("report.json").display(),
+            dir.join("report.md").display()
+        );
+    }
+    if args.out.is_some() {
+        eprintln!(
+            "odocal: note: --out is ignored with --sweep; train the chosen k without --sweep"
+        );
+    }
     Ok(())
 }

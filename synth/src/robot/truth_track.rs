@@ -119,8 +119,11 @@ mod tests {
         assert_eq!(t.rows.len(), 2);
         assert!(!t.rows[1].visible);
         assert_eq!(TruthTrack::parse(&t.to_csv(), "a.csv").unwrap(), t);
-        let e = TruthTrack::parse("t_robot,t_camera,x,y,theta,visible\n0,0,zz,0,0,1\n", "b.csv")
-            .unwrap_err();
+        let e = TruthTrack::parse(
+            "t_robot,t_camera,x,y,theta,visible\n0,0,zz,0,0,1\n",
+            "b.csv",
+        )
+        .unwrap_err();
         assert_eq!(e.to_string(), "b.csv:2:3: \"zz\" is not a number");
     }
 }
