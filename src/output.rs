@@ -150,8 +150,9 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
     write_atomic(path, s.as_bytes())
 }
 
-/// A temporary directory that becomes `target` on [`commit`] (replacing a directory already
-/// there); write the command's directory output into the returned path.
+/// A temporary directory whose entries move into `target` on [`commit`] (replacing entries
+/// of the same name in an existing `target`); write the command's directory output into the
+/// returned path.
 pub fn staged_dir(target: &Path, option: &str) -> anyhow::Result<PathBuf> {
     check_output_dir(target, option)?;
     let parent = parent_of(target);
@@ -176,13 +177,7 @@ pub fn commit() -> anyhow::Result<()> {
     for s in &list {
         if s.is_dir {
             if s.target.is_dir() {
-                let old = temp_in(parent_of(&s.target));
-                std::fs::rename(&s.target, &old)
-                    .with_context(|| format!("cannot replace {}", s.target.display()))?;
-                std::fs::rename(&s.tmp, &s.target)
-                    .with_context(|| format!("cannot write {}", s.target.display()))?;
-                std::fs::remove_dir_all(&old)
-                    .with_context(|| format!("cannot remove the old {}", s.target.display()))?;
+                merge_dir(&s.tmp, &s.target)?;
             } else {
                 std::fs::rename(&s.tmp, &s.target)
                     .with_context(|| format!("cannot write {}", s.target.display()))?;
@@ -193,6 +188,42 @@ pub fn commit() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Moves every entry of the staged directory `tmp` into the existing directory `target`,
+/// replacing entries of the same name (other entries of `target` stay); files last, so an
+/// index such as manifest.json appears after what it lists.
+fn merge_dir(tmp: &Path, target: &Path) -> anyhow::Result<()> {
+    let mut entries: Vec<(bool, PathBuf)> = std::fs::read_dir(tmp)
+        .with_context(|| format!("cannot read {}", tmp.display()))?
+        .filter_map(|e| e.ok())
+        .map(|e| (e.path().is_file(), e.path()))
+        .collect();
+    entries.sort();
+    for (_, from) in entries {
+        let Some(name) = from.file_name() else {
+            continue;
+        };
+        let to = target.join(name);
+        let old = if to.exists() {
+            let old = temp_in(target);
+            std::fs::rename(&to, &old)
+                .with_context(|| format!("cannot replace {}", to.display()))?;
+            Some(old)
+        } else {
+            None
+        };
+        std::fs::rename(&from, &to).with_context(|| format!("cannot write {}", to.display()))?;
+        if let Some(old) = old {
+            let removed = if old.is_dir() {
+                std::fs::remove_dir_all(&old)
+            } else {
+                std::fs::remove_file(&old)
+            };
+            removed.with_context(|| format!("cannot remove the old {}", to.display()))?;
+        }
+    }
+    std::fs::remove_dir(tmp).with_context(|| format!("cannot remove {}", tmp.display()))
 }
 
 /// Deletes every staged output: the command failed, so nothing it wrote appears.

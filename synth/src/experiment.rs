@@ -1,0 +1,319 @@
+//! The whole odometry experiment with known truth, as `odocal synth experiment` writes it:
+//! a run manifest, per recording a 200 ms tick log and a ceiling video (or the camera
+//! trajectory taken from the truth), and the truth itself (truth/oracle.json,
+//! truth/simulator.json, truth/experiment.json, truth/<id>.true.csv).
+
+use std::path::{Path, PathBuf};
+
+use odocal_core::Pose2;
+use odocal_dataset::manifest::{Manifest, ManifestRow};
+use odocal_dataset::oracle::{OracleFile, OracleRun};
+use odocal_dataset::{DatasetError, WheelGeometry};
+use rayon::prelude::*;
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::robot::{
+    simulate_recording, CameraTiming, RobotSimConfig, RobotSimError, RunTruth, SimulatedRecording,
+    TruthTrack,
+};
+use crate::scene::{render_video as render_scene_video, SceneConfig, SceneError, VideoFormat};
+
+/// The `format` tag of truth/experiment.json.
+pub const EXPERIMENT_TRUTH_FORMAT: &str = "odocal.experiment-truth/1";
+
+/// What goes wrong while simulating an experiment.
+#[derive(Debug, Error)]
+pub enum ExperimentError {
+    /// A setting without sense (names the option).
+    #[error("{0}")]
+    Settings(String),
+    /// The robot simulator refused its configuration.
+    #[error(transparent)]
+    Sim(#[from] RobotSimError),
+    /// Rendering a video failed.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A simulated log or trajectory is not valid (a simulator defect).
+    #[error(transparent)]
+    Dataset(#[from] DatasetError),
+    /// A simulated trajectory is not valid (a simulator defect).
+    #[error(transparent)]
+    File(#[from] odocal_core::FileError),
+    /// A file could not be written.
+    #[error("cannot write {path}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's reason.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// What stands for the camera.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Frames {
+    /// Render ceiling videos (tracked later by `odocal dataset`).
+    Video,
+    /// No video: the true trajectory at the camera's frame times (with its clock offset and
+    /// the configured mm-level noise) is written as the camera trajectory.
+    None,
+}
+
+/// The experiment to simulate.
+#[derive(Debug, Clone)]
+pub struct ExperimentSettings {
+    /// Number of runs.
+    pub runs: usize,
+    /// Random seed (same seed, same bytes).
+    pub seed: u64,
+    /// Camera source.
+    pub frames: Frames,
+    /// Runs per recording (several runs, separated by stops and carrying, in one log).
+    pub runs_per_recording: usize,
+    /// The robot simulator's configuration.
+    pub config: RobotSimConfig,
+}
+
+/// Truth of one recording, as written to truth/experiment.json.
+#[derive(Serialize)]
+struct RecordingTruth {
+    id: String,
+    clock_offset_s: f64,
+    camera_end_s: f64,
+    runs: Vec<NamedRun>,
+}
+
+#[derive(Serialize)]
+struct NamedRun {
+    run_id: String,
+    #[serde(flatten)]
+    truth: RunTruth,
+}
+
+#[derive(Serialize)]
+struct ExperimentTruth<'a> {
+    format: &'static str,
+    seed: u64,
+    frames: Frames,
+    runs: usize,
+    runs_per_recording: usize,
+    config: &'a RobotSimConfig,
+    recordings: Vec<RecordingTruth>,
+}
+
+/// What [`simulate_experiment`] wrote.
+pub struct ExperimentSummary {
+    /// Recordings simulated.
+    pub recordings: usize,
+    /// The manifest, relative to the output directory.
+    pub manifest: PathBuf,
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), ExperimentError> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|source| ExperimentError::Io {
+            path: dir.display().to_string(),
+            source,
+        })?;
+    }
+    std::fs::write(path, bytes).map_err(|source| ExperimentError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), ExperimentError> {
+    let mut s = serde_json::to_string_pretty(value).map_err(|e| {
+        ExperimentError::Settings(format!("cannot serialise {}: {e}", path.display()))
+    })?;
+    s.push('\n');
+    write(path, s.as_bytes())
+}
+
+/// Renders the ceiling video of one recording to `path` (MJPG AVI): frame k at camera time
+/// k / fps, the robot at its true floor pose, seen by the same camera as `synth calib`
+/// renders.
+pub fn render_recording_video(
+    rec: &SimulatedRecording,
+    camera: &CameraTiming,
+    path: &Path,
+    seed: u64,
+) -> Result<(), ExperimentError> {
+    let times = rec.frame_times(camera.fps);
+    let trajectory: Vec<(f64, Pose2)> = times
+        .iter()
+        .filter_map(|&t| rec.pose_at_camera_time(t).map(|p| (t, p)))
+        .collect();
+    if trajectory.len() != times.len() {
+        return Err(ExperimentError::Settings(
+            "--frames video renders one run per recording (the robot is carried between runs); \
+             use --runs-per-recording 1 or --frames none"
+                .into(),
+        ));
+    }
+    render_scene_video(
+        path,
+        VideoFormat::Avi,
+        &SceneConfig::default(),
+        &trajectory,
+        camera.fps,
+        seed,
+    )?;
+    Ok(())
+}
+
+/// Simulates the experiment into the directory `out` (which the caller makes all-or-nothing);
+/// `on_recording` is called after each recording (for a progress bar).
+pub fn simulate_experiment(
+    out: &Path,
+    s: &ExperimentSettings,
+    on_recording: &(dyn Fn() + Sync),
+) -> Result<ExperimentSummary, ExperimentError> {
+    if s.runs == 0 {
+        return Err(ExperimentError::Settings(
+            "--runs must be at least 1".into(),
+        ));
+    }
+    let per = s.runs_per_recording;
+    if per == 0 {
+        return Err(ExperimentError::Settings(
+            "--runs-per-recording must be at least 1".into(),
+        ));
+    }
+    if s.frames == Frames::Video && per > 1 {
+        return Err(ExperimentError::Settings("--frames video renders one run per recording: use --runs-per-recording 1 or --frames none".into()));
+    }
+    let n_rec = s.runs.div_ceil(per);
+    type Outcome = Result<(ManifestRow, RecordingTruth, Vec<OracleRun>), ExperimentError>;
+    let results: Vec<Outcome> = (0..n_rec)
+        .into_par_iter()
+        .map(|r| {
+            let res = one_recording(out, s, r);
+            on_recording();
+            res
+        })
+        .collect();
+    let mut rows = Vec::with_capacity(n_rec);
+    let mut truths = Vec::with_capacity(n_rec);
+    let mut oracle = Vec::with_capacity(s.runs);
+    for res in results {
+        let (row, truth, orc) = res?;
+        rows.push(row);
+        truths.push(truth);
+        oracle.extend(orc);
+    }
+    let manifest = Manifest::new(rows, out);
+    write(
+        &out.join("manifest.json"),
+        format!("{}\n", manifest.to_json()).as_bytes(),
+    )?;
+    write_json(&out.join("truth/oracle.json"), &OracleFile::new(oracle))?;
+    write_json(&out.join("truth/simulator.json"), &s.config)?;
+    write_json(
+        &out.join("truth/experiment.json"),
+        &ExperimentTruth {
+            format: EXPERIMENT_TRUTH_FORMAT,
+            seed: s.seed,
+            frames: s.frames,
+            runs: s.runs,
+            runs_per_recording: per,
+            config: &s.config,
+            recordings: truths,
+        },
+    )?;
+    Ok(ExperimentSummary {
+        recordings: n_rec,
+        manifest: PathBuf::from("manifest.json"),
+    })
+}
+
+fn one_recording(
+    out: &Path,
+    s: &ExperimentSettings,
+    r: usize,
+) -> Result<(ManifestRow, RecordingTruth, Vec<OracleRun>), ExperimentError> {
+    let per = s.runs_per_recording;
+    let cfg = &s.config;
+    let first = r * per;
+    let last = (first + per).min(s.runs);
+    let speeds: Vec<f64> = (first..last).map(|i| cfg.speed_of_run(i)).collect();
+    let id = if per == 1 {
+        format!("run{:03}", r + 1)
+    } else {
+        format!("rec{:03}", r + 1)
+    };
+    let rec = simulate_recording(cfg, &speeds, s.seed, r as u64)?;
+    if rec.runs.len() != speeds.len() {
+        return Err(ExperimentError::Settings(format!(
+            "recording {id}: simulated {} of {} runs",
+            rec.runs.len(),
+            speeds.len()
+        )));
+    }
+    let log = rec.odometry_log()?;
+    let odo_rel = format!("runs/{id}.odometry.csv");
+    write(&out.join(&odo_rel), log.to_csv().as_bytes())?;
+    let (video, trajectory) = match s.frames {
+        Frames::None => {
+            let traj = rec.camera_track(&cfg.camera, s.seed, (1u64 << 32) + r as u64)?;
+            let rel = format!("runs/{id}.trajectory.csv");
+            write(&out.join(&rel), traj.to_csv().as_bytes())?;
+            (None, Some(rel))
+        }
+        Frames::Video => {
+            let rel = format!("runs/{id}.avi");
+            let seed = s.seed.wrapping_mul(1_000_003).wrapping_add(r as u64);
+            render_recording_video(&rec, &cfg.camera, &out.join(&rel), seed)?;
+            (Some(rel), None)
+        }
+    };
+    // True trajectory at 100 Hz on both clocks.
+    let csv = TruthTrack::of_recording(&rec).to_csv();
+    write(&out.join(format!("truth/{id}.true.csv")), csv.as_bytes())?;
+    let names: Vec<String> = (0..rec.runs.len())
+        .map(|j| {
+            if per == 1 {
+                id.clone()
+            } else {
+                format!("{id}.{}", j + 1)
+            }
+        })
+        .collect();
+    let oracle = rec
+        .runs
+        .iter()
+        .zip(&names)
+        .map(|(t, name)| OracleRun {
+            run_id: name.clone(),
+            geometry: WheelGeometry {
+                left_wheel_diameter_m: t.effective.left_wheel_diameter_m,
+                right_wheel_diameter_m: t.effective.right_wheel_diameter_m,
+                wheel_base_m: t.effective.wheel_base_m,
+            },
+            true_end_m: [t.end_in_start_frame.x_m, t.end_in_start_frame.y_m],
+            clock_offset_s: rec.clock_offset_s,
+        })
+        .collect();
+    let row = ManifestRow {
+        id: id.clone(),
+        video,
+        trajectory,
+        odometry: odo_rel,
+        speed_mps: if per == 1 { Some(speeds[0]) } else { None },
+    };
+    let truth = RecordingTruth {
+        id,
+        clock_offset_s: rec.clock_offset_s,
+        camera_end_s: rec.camera_end_s,
+        runs: rec
+            .runs
+            .iter()
+            .zip(names)
+            .map(|(t, run_id)| NamedRun { run_id, truth: *t })
+            .collect(),
+    };
+    Ok((row, truth, oracle))
+}
