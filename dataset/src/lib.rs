@@ -4,6 +4,7 @@
 pub mod align;
 pub mod build;
 pub mod error;
+mod from_manifest;
 pub mod kinematics;
 pub mod manifest;
 pub mod odometry;
@@ -16,6 +17,7 @@ pub use build::{
     RunOutcome,
 };
 pub use error::DatasetError;
+pub use from_manifest::{build_from_manifest, errors_against_truth, TruthErrors, VideoTracker};
 pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
 pub use manifest::{Manifest, ManifestRow};
 pub use odocal_core::{Trajectory, TrajectoryRow};

@@ -5,15 +5,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use odocal_calib::CameraFile;
-use odocal_dataset::build::{
-    assemble, process_recording, samples_csv, BuildOptions, Recording, RunOutcome,
-};
+use odocal_dataset::build::{samples_csv, BuildOptions};
 use odocal_dataset::oracle::OracleFile;
-use odocal_dataset::{Manifest, ManifestRow, OdometryLog, RobotParams, Trajectory};
+use odocal_dataset::{
+    build_from_manifest, errors_against_truth, Manifest, ManifestRow, RobotParams, Trajectory,
+    VideoTracker,
+};
 use odocal_tracker::{open_source, track_source, SourceOptions, TrackOptions};
-use rayon::prelude::*;
 
-use crate::output::{count, progress, write_atomic, write_json};
+use crate::output::{check_output_file, count, progress, write_atomic, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -72,33 +72,6 @@ pub fn trajectory_from_video(
     Ok(result.trajectory()?)
 }
 
-fn one_row(
-    m: &Manifest,
-    row: &ManifestRow,
-    camera: Option<&CameraFile>,
-    opts: &BuildOptions,
-) -> anyhow::Result<Vec<RunOutcome>> {
-    let log = OdometryLog::read_csv(&m.resolve(&row.odometry))?;
-    let traj = match (&row.trajectory, &row.video) {
-        (Some(t), _) => Trajectory::read_csv(&m.resolve(t))?,
-        (None, Some(v)) => match camera {
-            Some(c) => trajectory_from_video(row, &m.resolve(v), c)?,
-            None => bail!(
-                "run \"{}\" has a video: give the calibration with --camera camera.json",
-                row.id
-            ),
-        },
-        (None, None) => bail!("run \"{}\": no video and no trajectory", row.id),
-    };
-    let rec = Recording {
-        id: &row.id,
-        speed_mps: row.speed_mps,
-        log: &log,
-        camera: &traj,
-    };
-    Ok(process_recording(&rec, opts)?)
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.min_gap_s.is_finite() && args.min_gap_s > 0.0) {
@@ -130,53 +103,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         min_gap_s: args.min_gap_s,
         ..BuildOptions::default()
     };
-    let bar = progress(manifest.runs.len() as u64, "dataset");
-    let work = |row: &ManifestRow| {
-        let r = one_row(&manifest, row, camera.as_ref(), &opts);
-        bar.inc(1);
-        r
-    };
-    let results: Vec<anyhow::Result<Vec<RunOutcome>>> = if camera.is_some() {
-        // Videos are tracked on plain threads, one video per core at a time
-        // (each tracker also runs a decoder thread of its own, so tracking
-        // never waits on a busy rayon pool).
-        let threads = std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-            .min(manifest.runs.len().max(1));
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let mut slots: Vec<Option<anyhow::Result<Vec<RunOutcome>>>> =
-            (0..manifest.runs.len()).map(|_| None).collect();
-        let done = std::sync::Mutex::new(&mut slots);
-        std::thread::scope(|scope| {
-            for _ in 0..threads {
-                scope.spawn(|| loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(row) = manifest.runs.get(i) else {
-                        break;
-                    };
-                    let r = work(row);
-                    done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
-                });
-            }
-        });
-        slots
-            .into_iter()
-            .zip(&manifest.runs)
-            .map(|(r, row)| {
-                r.unwrap_or_else(|| Err(anyhow::anyhow!("run \"{}\" was not processed", row.id)))
-            })
-            .collect()
-    } else {
-        manifest.runs.par_iter().map(work).collect()
-    };
-    bar.finish_and_clear();
-    let mut outcomes = Vec::with_capacity(results.len());
-    for r in results {
-        outcomes.push(r?);
+    check_output_file(&args.out, "--out")?;
+    if let Some(csv) = &args.csv {
+        check_output_file(csv, "--csv")?;
     }
-    let ds = assemble(robot, outcomes);
-    write_json(&args.out, &ds).with_context(|| format!("writing {}", args.out.display()))?;
+    let bar = progress(manifest.runs.len() as u64, "dataset");
+    let track = |row: &ManifestRow, video: &Path| -> Result<Trajectory, String> {
+        let camera = camera.as_ref().ok_or("no camera")?;
+        trajectory_from_video(row, video, camera).map_err(|e| format!("{e:#}"))
+    };
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let ds = build_from_manifest(
+        &manifest,
+        &opts,
+        camera.is_some().then_some(&track as &VideoTracker),
+        threads,
+        &|| bar.inc(1),
+    )?;
+    bar.finish_and_clear();
+    write_json(&args.out, &ds)?;
     if let Some(csv) = &args.csv {
         write_atomic(csv, samples_csv(&ds).as_bytes())?;
     }
@@ -205,30 +150,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if let (Some(path), Some(oracle)) = (&args.truth, &oracle) {
-        let (mut target, mut offset) = (Vec::new(), Vec::new());
-        for sample in &ds.samples {
-            let t = oracle.get(&sample.run_id).with_context(|| {
-                format!(
-                    "{}: no truth for run \"{}\"; is this the experiment's truth/oracle.json?",
-                    path.display(),
-                    sample.run_id
-                )
-            })?;
-            target.push(
-                (sample.target_m[0] - t.true_end_m[0]).hypot(sample.target_m[1] - t.true_end_m[1]),
-            );
-            offset.push((sample.clock_offset_s - t.clock_offset_s).abs());
-        }
-        if !target.is_empty() {
-            let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
-            let max = |v: &[f64]| v.iter().fold(0.0f64, |m, e| m.max(*e));
+        if let Some(e) = errors_against_truth(&ds, oracle, &path.display().to_string())? {
             println!(
                 "against the truth: end-point targets RMS {:.2} mm (max {:.2} mm), clock offsets RMS {:.2} ms (max {:.2} ms) over {} samples",
-                1e3 * rms(&target),
-                1e3 * max(&target),
-                1e3 * rms(&offset),
-                1e3 * max(&offset),
-                target.len()
+                1e3 * e.target_rms_m,
+                1e3 * e.target_max_m,
+                1e3 * e.offset_rms_s,
+                1e3 * e.offset_max_s,
+                e.n
             );
         }
     }

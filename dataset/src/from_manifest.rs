@@ -1,0 +1,159 @@
+//! Building dataset.json from a run manifest: every row's odometry log paired with its camera
+//! trajectory (read from a file, or made from the row's video by the caller's tracker),
+//! processed in parallel, and the dataset's errors against a synthetic experiment's truth.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use odocal_core::Trajectory;
+
+use crate::build::{assemble, process_recording, BuildOptions, Recording, RunOutcome};
+use crate::manifest::{Manifest, ManifestRow};
+use crate::odometry::OdometryLog;
+use crate::oracle::OracleFile;
+use crate::sample::Dataset;
+use crate::DatasetError;
+
+/// Makes the camera trajectory of a row that has a video (the tracker, in the binary): the
+/// row and the video's resolved path in, the trajectory or a message out.
+pub type VideoTracker<'a> = dyn Fn(&ManifestRow, &Path) -> Result<Trajectory, String> + Sync + 'a;
+
+fn one_row(
+    m: &Manifest,
+    row: &ManifestRow,
+    track: Option<&VideoTracker>,
+    opts: &BuildOptions,
+) -> Result<Vec<RunOutcome>, DatasetError> {
+    let log = OdometryLog::read_csv(&m.resolve(&row.odometry))?;
+    let traj = match (&row.trajectory, &row.video, track) {
+        (Some(t), _, _) => Trajectory::read_csv(&m.resolve(t))?,
+        (None, Some(v), Some(track)) => {
+            track(row, &m.resolve(v)).map_err(DatasetError::Mismatch)?
+        }
+        (None, Some(_), None) => {
+            return Err(DatasetError::Mismatch(format!(
+                "run \"{}\" has a video: give the calibration with --camera camera.json",
+                row.id
+            )))
+        }
+        (None, None, _) => {
+            return Err(DatasetError::Mismatch(format!(
+                "run \"{}\": no video and no trajectory",
+                row.id
+            )))
+        }
+    };
+    let rec = Recording {
+        id: &row.id,
+        speed_mps: row.speed_mps,
+        log: &log,
+        camera: &traj,
+    };
+    process_recording(&rec, opts)
+}
+
+/// Builds the dataset of every row of `m`. Rows with a video are tracked by `track` on
+/// `threads` plain threads, one video per thread at a time (each tracker runs a decoder
+/// thread of its own, so tracking never waits on a busy rayon pool); rows with trajectories
+/// only are processed on the rayon pool. `on_row` is called after each row.
+pub fn build_from_manifest(
+    m: &Manifest,
+    opts: &BuildOptions,
+    track: Option<&VideoTracker>,
+    threads: usize,
+    on_row: &(dyn Fn() + Sync),
+) -> Result<Dataset, DatasetError> {
+    use rayon::prelude::*;
+    let work = |row: &ManifestRow| {
+        let r = one_row(m, row, track, opts);
+        on_row();
+        r
+    };
+    let results: Vec<Result<Vec<RunOutcome>, DatasetError>> = if track.is_some() {
+        let next = AtomicUsize::new(0);
+        let mut slots: Vec<Option<Result<Vec<RunOutcome>, DatasetError>>> =
+            (0..m.runs.len()).map(|_| None).collect();
+        let done = Mutex::new(&mut slots);
+        std::thread::scope(|scope| {
+            for _ in 0..threads.clamp(1, m.runs.len().max(1)) {
+                scope.spawn(|| loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(row) = m.runs.get(i) else {
+                        break;
+                    };
+                    let r = work(row);
+                    done.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
+                });
+            }
+        });
+        slots
+            .into_iter()
+            .zip(&m.runs)
+            .map(|(r, row)| {
+                r.unwrap_or_else(|| {
+                    Err(DatasetError::Mismatch(format!(
+                        "run \"{}\" was not processed",
+                        row.id
+                    )))
+                })
+            })
+            .collect()
+    } else {
+        m.runs.par_iter().map(work).collect()
+    };
+    let mut outcomes = Vec::with_capacity(results.len());
+    for r in results {
+        outcomes.push(r?);
+    }
+    Ok(assemble(opts.robot, outcomes))
+}
+
+/// The dataset's errors against a synthetic experiment's truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthErrors {
+    /// RMS distance of the targets from the true end points, metres.
+    pub target_rms_m: f64,
+    /// Largest such distance, metres.
+    pub target_max_m: f64,
+    /// RMS error of the estimated clock offsets, seconds.
+    pub offset_rms_s: f64,
+    /// Largest clock-offset error, seconds.
+    pub offset_max_s: f64,
+    /// Samples compared.
+    pub n: usize,
+}
+
+/// Compares every sample's target and clock offset with the truth (`name` is the truth
+/// file, for the message when a run is missing). None when the dataset has no samples.
+pub fn errors_against_truth(
+    ds: &Dataset,
+    oracle: &OracleFile,
+    name: &str,
+) -> Result<Option<TruthErrors>, DatasetError> {
+    let (mut target, mut offset) = (Vec::new(), Vec::new());
+    for sample in &ds.samples {
+        let t = oracle.get(&sample.run_id).ok_or_else(|| {
+            DatasetError::Mismatch(format!(
+                "{name}: no truth for run \"{}\"; is this the experiment's truth/oracle.json?",
+                sample.run_id
+            ))
+        })?;
+        target.push(
+            (sample.target_m[0] - t.true_end_m[0]).hypot(sample.target_m[1] - t.true_end_m[1]),
+        );
+        offset.push((sample.clock_offset_s - t.clock_offset_s).abs());
+    }
+    if target.is_empty() {
+        return Ok(None);
+    }
+    let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
+    let max = |v: &[f64]| v.iter().fold(0.0f64, |m, e| m.max(*e));
+    Ok(Some(TruthErrors {
+        target_rms_m: rms(&target),
+        target_max_m: max(&target),
+        offset_rms_s: rms(&offset),
+        offset_max_s: max(&offset),
+        n: target.len(),
+    }))
+}
