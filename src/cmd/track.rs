@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use odocal_calib::CameraFile;
 use odocal_tracker::{
-    open_source, overlay, track_source, Outcome, SourceOptions, TrackOptions, TrackResult,
+    errors_against, open_source, overlay, track_report, track_source, SourceOptions, TrackOptions,
 };
 
 use crate::output::{progress, write_atomic, write_json};
@@ -64,117 +64,6 @@ pub struct Args {
     /// position and heading RMS error against it (rows matched by timestamp).
     #[arg(long)]
     pub truth: Option<PathBuf>,
-}
-
-/// Position RMS (m), heading RMS (rad) and matched rows of `est` against `truth`;
-/// rows are matched by timestamp (within 0.1 ms).
-fn errors_against(
-    est: &odocal_tracker::Trajectory,
-    truth: &odocal_tracker::Trajectory,
-) -> (f64, f64, usize) {
-    let (mut sp, mut sh, mut n) = (0.0, 0.0, 0usize);
-    for r in &est.rows {
-        let i = truth.rows.partition_point(|t| t.t_s < r.t_s - 1e-4);
-        if let Some(t) = truth.rows.get(i).filter(|t| (t.t_s - r.t_s).abs() <= 1e-4) {
-            sp += (r.pose.position() - t.pose.position()).norm_squared();
-            sh += odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
-            n += 1;
-        }
-    }
-    let k = n.max(1) as f64;
-    ((sp / k).sqrt(), (sh / k).sqrt(), n)
-}
-
-#[derive(serde::Serialize)]
-struct FrameReport {
-    index: usize,
-    t: f64,
-    fix: bool,
-    reason: Option<&'static str>,
-    reprojection_px: Option<f64>,
-    decision_margin: Option<f32>,
-    roi: Option<bool>,
-    pnp_height_m: Option<f64>,
-    pnp_heading_diff_deg: Option<f64>,
-}
-
-#[derive(serde::Serialize)]
-struct GapReport {
-    first_frame: usize,
-    last_frame: usize,
-    start_s: f64,
-    end_s: f64,
-    reasons: std::collections::BTreeMap<&'static str, usize>,
-}
-
-#[derive(serde::Serialize)]
-struct Report {
-    format: &'static str,
-    video: String,
-    camera: String,
-    tag_id: u32,
-    family: String,
-    frames: usize,
-    fixes: usize,
-    median_reprojection_px: f64,
-    ids_seen: std::collections::BTreeMap<u32, usize>,
-    gaps: Vec<GapReport>,
-    per_frame: Vec<FrameReport>,
-}
-
-fn report(args: &Args, r: &TrackResult) -> Report {
-    let mut reproj: Vec<f64> = r.fixes().map(|(_, f)| f.reprojection_rms_px).collect();
-    reproj.sort_by(f64::total_cmp);
-    Report {
-        format: "odocal.track-report/1",
-        video: args.video.display().to_string(),
-        camera: args.camera.display().to_string(),
-        tag_id: args.tag_id,
-        family: args.family.clone(),
-        frames: r.records.len(),
-        fixes: reproj.len(),
-        median_reprojection_px: reproj.get(reproj.len() / 2).copied().unwrap_or(f64::NAN),
-        ids_seen: r.seen_ids.clone(),
-        gaps: r
-            .gaps()
-            .into_iter()
-            .map(|g| GapReport {
-                first_frame: g.first_index,
-                last_frame: g.last_index,
-                start_s: g.start_s,
-                end_s: g.end_s,
-                reasons: g.reasons,
-            })
-            .collect(),
-        per_frame: r
-            .records
-            .iter()
-            .map(|rec| match &rec.outcome {
-                Outcome::Fix(f) => FrameReport {
-                    index: rec.index,
-                    t: rec.t_s,
-                    fix: true,
-                    reason: None,
-                    reprojection_px: Some(f.reprojection_rms_px),
-                    decision_margin: Some(f.decision_margin),
-                    roi: Some(f.from_roi),
-                    pnp_height_m: f.pnp.map(|p| p.height_m),
-                    pnp_heading_diff_deg: f.pnp.map(|p| p.heading_diff_rad.to_degrees()),
-                },
-                Outcome::Gap(g) => FrameReport {
-                    index: rec.index,
-                    t: rec.t_s,
-                    fix: false,
-                    reason: Some(g.as_str()),
-                    reprojection_px: None,
-                    decision_margin: None,
-                    roi: None,
-                    pnp_height_m: None,
-                    pnp_heading_diff_deg: None,
-                },
-            })
-            .collect(),
-    }
 }
 
 /// Runs the subcommand.
@@ -241,7 +130,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_atomic(tum, trajectory.to_tum().as_bytes())?;
     }
     if let Some(path) = &args.report {
-        write_json(path, &report(&args, &result))?;
+        write_json(
+            path,
+            &track_report(
+                &args.video.display().to_string(),
+                &args.camera.display().to_string(),
+                &opts,
+                &result,
+            ),
+        )?;
     }
     let longest = gaps
         .iter()

@@ -1,0 +1,125 @@
+//! The track report (`odocal track --report`): per-frame quality, gaps with their reasons, the
+//! tag ids seen, and the trajectory's error against a reference.
+
+use crate::{Outcome, TrackOptions, TrackResult, Trajectory};
+
+/// The `format` tag of the track report.
+pub const TRACK_REPORT_FORMAT: &str = "odocal.track-report/1";
+
+/// Position RMS (m), heading RMS (rad) and matched rows of `est` against `truth`;
+/// rows are matched by timestamp (within 0.1 ms).
+pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
+    let (mut sp, mut sh, mut n) = (0.0, 0.0, 0usize);
+    for r in &est.rows {
+        let i = truth.rows.partition_point(|t| t.t_s < r.t_s - 1e-4);
+        if let Some(t) = truth.rows.get(i).filter(|t| (t.t_s - r.t_s).abs() <= 1e-4) {
+            sp += (r.pose.position() - t.pose.position()).norm_squared();
+            sh += odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
+            n += 1;
+        }
+    }
+    let k = n.max(1) as f64;
+    ((sp / k).sqrt(), (sh / k).sqrt(), n)
+}
+
+/// One frame in the track report: its fix (reprojection RMS, decision margin, whether the
+/// region of interest found it, the PnP cross-check) or the reason it has none.
+#[derive(serde::Serialize)]
+pub struct FrameReport {
+    index: usize,
+    t: f64,
+    fix: bool,
+    reason: Option<&'static str>,
+    reprojection_px: Option<f64>,
+    decision_margin: Option<f32>,
+    roi: Option<bool>,
+    pnp_height_m: Option<f64>,
+    pnp_heading_diff_deg: Option<f64>,
+}
+
+/// A run of frames without a fix: frames, times (s) and the reasons counted.
+#[derive(serde::Serialize)]
+pub struct GapReport {
+    first_frame: usize,
+    last_frame: usize,
+    start_s: f64,
+    end_s: f64,
+    reasons: std::collections::BTreeMap<&'static str, usize>,
+}
+
+/// The report `odocal track --report` writes (`"format": "odocal.track-report/1"`).
+#[derive(serde::Serialize)]
+pub struct TrackReport {
+    format: &'static str,
+    video: String,
+    camera: String,
+    tag_id: u32,
+    family: String,
+    frames: usize,
+    fixes: usize,
+    median_reprojection_px: f64,
+    ids_seen: std::collections::BTreeMap<u32, usize>,
+    gaps: Vec<GapReport>,
+    per_frame: Vec<FrameReport>,
+}
+
+/// The report of a tracking run: per-frame quality, gaps with reasons, ids seen.
+pub fn track_report(
+    video: &str,
+    camera: &str,
+    opts: &TrackOptions,
+    r: &TrackResult,
+) -> TrackReport {
+    let mut reproj: Vec<f64> = r.fixes().map(|(_, f)| f.reprojection_rms_px).collect();
+    reproj.sort_by(f64::total_cmp);
+    TrackReport {
+        format: TRACK_REPORT_FORMAT,
+        video: video.to_string(),
+        camera: camera.to_string(),
+        tag_id: opts.tag_id,
+        family: opts.family.clone(),
+        frames: r.records.len(),
+        fixes: reproj.len(),
+        median_reprojection_px: reproj.get(reproj.len() / 2).copied().unwrap_or(f64::NAN),
+        ids_seen: r.seen_ids.clone(),
+        gaps: r
+            .gaps()
+            .into_iter()
+            .map(|g| GapReport {
+                first_frame: g.first_index,
+                last_frame: g.last_index,
+                start_s: g.start_s,
+                end_s: g.end_s,
+                reasons: g.reasons,
+            })
+            .collect(),
+        per_frame: r
+            .records
+            .iter()
+            .map(|rec| match &rec.outcome {
+                Outcome::Fix(f) => FrameReport {
+                    index: rec.index,
+                    t: rec.t_s,
+                    fix: true,
+                    reason: None,
+                    reprojection_px: Some(f.reprojection_rms_px),
+                    decision_margin: Some(f.decision_margin),
+                    roi: Some(f.from_roi),
+                    pnp_height_m: f.pnp.map(|p| p.height_m),
+                    pnp_heading_diff_deg: f.pnp.map(|p| p.heading_diff_rad.to_degrees()),
+                },
+                Outcome::Gap(g) => FrameReport {
+                    index: rec.index,
+                    t: rec.t_s,
+                    fix: false,
+                    reason: Some(g.as_str()),
+                    reprojection_px: None,
+                    decision_margin: None,
+                    roi: None,
+                    pnp_height_m: None,
+                    pnp_heading_diff_deg: None,
+                },
+            })
+            .collect(),
+    }
+}
