@@ -1,37 +1,23 @@
 //! Exports of a calibration for other tools: OpenCV FileStorage YAML (through
 //! OpenCV itself) and ROS camera_info YAML.
 
-use std::path::Path;
-
 use opencv::core::{FileStorage, FileStorage_Mode, Mat};
 use opencv::prelude::*;
 
 use crate::opencv_glue::{camera_matrix, dist_coeffs};
 use crate::{CalibError, CameraFile};
 
-fn temp_beside(path: &Path) -> std::path::PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "camera".into());
-    // FileStorage picks its format from the extension, so keep ".yaml" last.
-    path.with_file_name(format!(".{name}.{}.tmp.yaml", std::process::id()))
-}
-
-fn io_err(path: &Path, e: std::io::Error) -> CalibError {
-    CalibError::Io {
-        path: path.display().to_string(),
-        source: e,
-    }
-}
-
-/// Writes the calibration as an OpenCV FileStorage YAML file (the layout of
+/// The calibration as an OpenCV FileStorage YAML file (the layout of
 /// OpenCV's calibration sample: camera_matrix, distortion_coefficients, ...).
-pub fn write_opencv_yaml(cam: &CameraFile, path: &Path) -> Result<(), CalibError> {
-    let tmp = temp_beside(path);
-    let tmp_name = tmp.to_string_lossy().into_owned();
+/// The text is returned, for the caller to write with its other outputs.
+pub fn opencv_yaml(cam: &CameraFile) -> Result<String, CalibError> {
     {
-        let mut fs = FileStorage::new(&tmp_name, FileStorage_Mode::WRITE as i32, "")?;
+        // In memory: OpenCV picks the format from this name's extension.
+        let mut fs = FileStorage::new(
+            ".yaml",
+            FileStorage_Mode::WRITE as i32 | FileStorage_Mode::MEMORY as i32,
+            "",
+        )?;
         fs.write_i32("image_width", cam.camera.width as i32)?;
         fs.write_i32("image_height", cam.camera.height as i32)?;
         fs.write_mat("camera_matrix", &camera_matrix(&cam.camera)?)?;
@@ -49,13 +35,12 @@ pub fn write_opencv_yaml(cam: &CameraFile, path: &Path) -> Result<(), CalibError
                 &Mat::from_slice(&[t.x, t.y, t.z])?.try_clone()?,
             )?;
         }
-        fs.release()?;
+        Ok(fs.release_and_get_string()?)
     }
-    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
 }
 
-/// Writes the calibration as a ROS camera_info YAML file (plumb_bob model).
-pub fn write_ros_yaml(cam: &CameraFile, path: &Path, camera_name: &str) -> Result<(), CalibError> {
+/// The calibration as a ROS camera_info YAML file (plumb_bob model).
+pub fn ros_yaml(cam: &CameraFile, camera_name: &str) -> String {
     let k = cam.camera.intrinsics;
     let d = cam.camera.distortion.to_opencv();
     let fmt = |v: &[f64]| {
@@ -77,7 +62,5 @@ pub fn write_ros_yaml(cam: &CameraFile, path: &Path, camera_name: &str) -> Resul
         dm = fmt(&d),
         pm = fmt(&[k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]),
     );
-    let tmp = temp_beside(path);
-    std::fs::write(&tmp, text).map_err(|e| io_err(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| io_err(path, e))
+    text
 }

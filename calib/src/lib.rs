@@ -9,6 +9,7 @@ pub mod export;
 pub mod floor;
 pub mod model;
 mod opencv_glue;
+mod session;
 
 pub use calibrate::{board_points, calibrate, Calibration};
 pub use camera_file::{
@@ -20,3 +21,4 @@ pub use floor::{board_pose, fit_floor};
 pub use model::{
     intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics,
 };
+pub use session::{calibrate_session, summary, Session};

@@ -49,32 +49,6 @@ pub struct Args {
     square: f64,
 }
 
-/// Parses "9x6" into (cols, rows) of inner corners.
-pub fn parse_board(s: &str, square_m: f64) -> anyhow::Result<BoardSpec> {
-    let (c, r) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--board {s:?}: expected COLSxROWS of inner corners, e.g. 9x6"))?;
-    let cols: u32 = c
-        .trim()
-        .parse()
-        .with_context(|| format!("--board {s:?}: {c:?} is not a number"))?;
-    let rows: u32 = r
-        .trim()
-        .parse()
-        .with_context(|| format!("--board {s:?}: {r:?} is not a number"))?;
-    if cols < 3 || rows < 3 {
-        anyhow::bail!("--board {s}: need at least 3x3 inner corners");
-    }
-    if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
-        anyhow::bail!("--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm");
-    }
-    Ok(BoardSpec {
-        cols,
-        rows,
-        square_m,
-    })
-}
-
 /// Renders a calibration session (board views, floor views, truth.json and
 /// camera_true.json) into `out`.
 pub fn write_calib_set(out: &Path, scene: &CalibScene, seed: u64) -> anyhow::Result<CalibTruth> {
@@ -147,7 +121,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         width: a.width,
         height: a.height,
         hfov_deg: a.hfov,
-        board: parse_board(&a.board, a.square)?,
+        board: BoardSpec::parse(&a.board, a.square)?,
         views: a.views,
         floor_views: a.floor_views,
         noise_sigma: a.noise,

@@ -1,0 +1,240 @@
+//! A calibration session: the board found in every image, views sorted into used and
+//! skipped, one camera and resolution checked, Zhang's calibration, the floor plane from the
+//! floor views, and the summary `odocal calibrate` prints.
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::detect::guess_board_size;
+use crate::{
+    calibrate, detect_file, fit_floor, BoardSpec, BoardView, CalibError, CameraFile, Detection,
+    SkippedView, CAMERA_FORMAT,
+};
+
+impl BoardSpec {
+    /// Parses `--board COLSxROWS` (inner corners) with the square side in metres.
+    pub fn parse(s: &str, square_m: f64) -> Result<Self, CalibError> {
+        let bad = |why: String| CalibError::Input(format!("--board {s:?}: {why}"));
+        let (c, r) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| bad("expected COLSxROWS of inner corners, e.g. 9x6".into()))?;
+        let cols: u32 = c
+            .trim()
+            .parse()
+            .map_err(|_| bad(format!("{c:?} is not a number")))?;
+        let rows: u32 = r
+            .trim()
+            .parse()
+            .map_err(|_| bad(format!("{r:?} is not a number")))?;
+        if cols < 3 || rows < 3 {
+            return Err(bad("need at least 3x3 inner corners".into()));
+        }
+        if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
+            return Err(CalibError::Input(format!(
+                "--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm"
+            )));
+        }
+        Ok(BoardSpec {
+            cols,
+            rows,
+            square_m,
+        })
+    }
+}
+
+/// A calibrated camera and the views it skipped, as notes for the user.
+pub struct Session {
+    /// camera.json's content.
+    pub file: CameraFile,
+    /// "skipped IMAGE: reason" for every image without the board.
+    pub notes: Vec<String>,
+}
+
+/// Calibrates from `images` and, when given, fixes the floor from `floor` images;
+/// `on_image` is called after each image's detection (for a progress bar).
+pub fn calibrate_session(
+    images: &[PathBuf],
+    floor: &[PathBuf],
+    board: &BoardSpec,
+    on_image: &(dyn Fn() + Sync),
+) -> Result<Session, CalibError> {
+    let detections = detect_all(images, board, on_image)?;
+    let (views, skipped, sizes) = split(detections, board);
+    check_sizes(&sizes)?;
+    let mut notes: Vec<String> = skipped
+        .iter()
+        .map(|s| format!("skipped {}: {}", s.image, s.reason))
+        .collect();
+    if views.is_empty() {
+        return Err(no_board_error(images, board, "calibration"));
+    }
+    let cal = calibrate(&views, board)?;
+    let floor = if floor.is_empty() {
+        None
+    } else {
+        let fd = detect_all(floor, board, on_image)?;
+        let (fviews, fskipped, fsizes) = split(fd, board);
+        check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
+        notes.extend(
+            fskipped
+                .iter()
+                .map(|s| format!("skipped floor view {}: {}", s.image, s.reason)),
+        );
+        if fviews.is_empty() {
+            return Err(no_board_error(floor, board, "floor"));
+        }
+        Some(fit_floor(&cal.camera, &fviews, board)?)
+    };
+    let file = CameraFile {
+        format: CAMERA_FORMAT.into(),
+        camera: cal.camera,
+        rms_px: cal.rms_px,
+        std: Some(cal.std),
+        views: cal.views.clone(),
+        skipped,
+        board: Some(*board),
+        floor,
+    };
+    Ok(Session { file, notes })
+}
+
+/// Detects the board in every image in parallel.
+fn detect_all(
+    paths: &[PathBuf],
+    board: &BoardSpec,
+    on_image: &(dyn Fn() + Sync),
+) -> Result<Vec<Detection>, CalibError> {
+    paths
+        .par_iter()
+        .map(|p| {
+            let d = detect_file(p, board);
+            on_image();
+            d
+        })
+        .collect()
+}
+
+type Sizes = Vec<(String, (u32, u32))>;
+
+fn split(
+    detections: Vec<Detection>,
+    board: &BoardSpec,
+) -> (Vec<BoardView>, Vec<SkippedView>, Sizes) {
+    let mut views = Vec::new();
+    let mut skipped = Vec::new();
+    let mut sizes = Vec::new();
+    for d in detections {
+        match d {
+            Detection::Found(v) => {
+                sizes.push((v.image.clone(), v.size));
+                views.push(v);
+            }
+            Detection::NotFound { image, size } => {
+                sizes.push((image.clone(), size));
+                skipped.push(SkippedView {
+                    image,
+                    reason: format!("no {}x{} checkerboard found", board.cols, board.rows),
+                });
+            }
+        }
+    }
+    (views, skipped, sizes)
+}
+
+fn check_sizes(sizes: &[(String, (u32, u32))]) -> Result<(), CalibError> {
+    if let Some((first, s0)) = sizes.first() {
+        if let Some((other, s)) = sizes.iter().find(|(_, s)| s != s0) {
+            return Err(CalibError::Input(format!(
+                "{other} is {}x{} but {first} is {}x{}: all images must come from one camera at one resolution",
+                s.0,
+                s.1,
+                s0.0,
+                s0.1
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn no_board_error(paths: &[PathBuf], board: &BoardSpec, what: &str) -> CalibError {
+    let hint = paths
+        .iter()
+        .take(3)
+        .find_map(|p| guess_board_size(p, board))
+        .map(|(c, r)| format!(" A {c}x{r} board was found instead: pass --board {c}x{r}."))
+        .unwrap_or_default();
+    CalibError::Input(format!(
+        "no {}x{} checkerboard found in any of the {} {what} image(s): --board counts INNER corners \
+         (a board of {}x{} squares has {}x{} inner corners).{hint}",
+        board.cols,
+        board.rows,
+        paths.len(),
+        board.cols + 1,
+        board.rows + 1,
+        board.cols,
+        board.rows
+    ))
+}
+
+/// The calibration as `odocal calibrate` prints it: every number with its unit and
+/// uncertainty, one line each.
+pub fn summary(f: &CameraFile) -> Vec<String> {
+    let mut out = Vec::new();
+    let k = f.camera.intrinsics;
+    let d = f.camera.distortion.to_opencv();
+    out.push(format!(
+        "calibration of a {}x{} camera from {} views ({} skipped); RMS reprojection error {:.3} px",
+        f.camera.width,
+        f.camera.height,
+        f.views.len(),
+        f.skipped.len(),
+        f.rms_px
+    ));
+    let sd = f.std;
+    let s = |v: Option<f64>| v.map(|x| format!("± {x:.3}")).unwrap_or_default();
+    out.push(format!("  fx = {:10.3} px {}", k.fx, s(sd.map(|x| x.fx))));
+    out.push(format!("  fy = {:10.3} px {}", k.fy, s(sd.map(|x| x.fy))));
+    out.push(format!("  cx = {:10.3} px {}", k.cx, s(sd.map(|x| x.cx))));
+    out.push(format!("  cy = {:10.3} px {}", k.cy, s(sd.map(|x| x.cy))));
+    for (i, name) in ["k1", "k2", "p1", "p2", "k3"].iter().enumerate() {
+        let e = sd
+            .map(|x| format!("± {:.5}", x.distortion[i]))
+            .unwrap_or_default();
+        out.push(format!("  {name} = {:10.5}    {e}", d[i]));
+    }
+    out.push(format!(
+        "  (± is one standard deviation from OpenCV's covariance at the optimum)"
+    ));
+    let mut worst = f.views.clone();
+    worst.sort_by(|a, b| b.rms_px.total_cmp(&a.rms_px));
+    let list: Vec<String> = worst
+        .iter()
+        .take(3)
+        .map(|v| format!("{} {:.3} px", short(&v.image), v.rms_px))
+        .collect();
+    out.push(format!(
+        "  worst views (RMS reprojection): {}",
+        list.join(", ")
+    ));
+    if let Some(fl) = &f.floor {
+        out.push(format!(
+            "floor plane from {} view(s): corners within {:.2} mm RMS of the plane; camera {:.4} m above the floor",
+            fl.views.len(),
+            fl.plane_rms_m * 1000.0,
+            fl.camera_height_m
+        ));
+    } else {
+        out.push(format!(
+            "no floor plane (pass --floor images of the board lying on the floor to track robots)"
+        ));
+    }
+    out
+}
+
+fn short(p: &str) -> String {
+    Path::new(p)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| p.to_string())
+}
