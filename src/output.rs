@@ -155,6 +155,15 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> anyhow::Result
 /// returned path.
 pub fn staged_dir(target: &Path, option: &str) -> anyhow::Result<PathBuf> {
     check_output_dir(target, option)?;
+    // Inside a directory that is staged already, the outer one moves it into place.
+    let inside_staged_dir = staged()
+        .iter()
+        .any(|s| s.is_dir && target.starts_with(&s.tmp));
+    if inside_staged_dir {
+        std::fs::create_dir_all(target)
+            .with_context(|| format!("cannot create {}", target.display()))?;
+        return Ok(target.to_path_buf());
+    }
     let parent = parent_of(target);
     std::fs::create_dir_all(parent)
         .with_context(|| format!("cannot create {}", parent.display()))?;

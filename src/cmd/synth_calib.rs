@@ -2,14 +2,12 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
 use clap::Args as ClapArgs;
-use odocal_calib::{BoardSpec, CameraFile, FloorPlane};
-use odocal_synth::board::{calibration_errors, draw_views, render_view, CalibScene, CalibTruth};
-use odocal_synth::raycast::RayGrid;
-use rayon::prelude::*;
+use odocal_calib::{BoardSpec, CameraFile};
+use odocal_synth::board::{calibration_errors, CalibScene, CalibTruth};
+use odocal_synth::calib_set::{self, check_scene};
 
-use crate::output::{progress, write_atomic, write_json};
+use crate::output::{progress, staged_dir};
 
 /// Arguments of `odocal synth calib`.
 #[derive(ClapArgs)]
@@ -49,74 +47,18 @@ pub struct Args {
     square: f64,
 }
 
-/// Renders a calibration session (board views, floor views, truth.json and
-/// camera_true.json) into `out`.
+/// Renders a calibration session into `out` (staged: it appears when the command succeeds).
 pub fn write_calib_set(out: &Path, scene: &CalibScene, seed: u64) -> anyhow::Result<CalibTruth> {
-    let truth = draw_views(scene, seed);
-    if truth.views.len() < scene.views {
-        anyhow::bail!(
-            "could only place {} of {} board views in a {}x{} image",
-            truth.views.len(),
-            scene.views,
-            scene.width,
-            scene.height
-        );
-    }
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let grid = RayGrid::new(&truth.camera, scene.supersample);
-    let jobs: Vec<_> = truth
-        .views
-        .iter()
-        .map(|v| (v, None))
-        .chain(
-            truth
-                .floor_views
-                .iter()
-                .map(|v| (v, Some(&truth.floor_to_camera))),
-        )
-        .enumerate()
-        .collect();
-    let bar = progress(jobs.len() as u64, "rendering");
-    jobs.par_iter()
-        .try_for_each(|(i, (view, floor))| -> anyhow::Result<()> {
-            let img = render_view(
-                &grid,
-                scene,
-                &view.board_to_camera,
-                *floor,
-                seed.wrapping_mul(1000).wrapping_add(*i as u64),
-            );
-            let mut png = Vec::new();
-            img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
-            write_atomic(&out.join(&view.image), &png)?;
-            bar.inc(1);
-            Ok(())
-        })?;
+    check_scene(scene)?;
+    let dir = staged_dir(out, "--out")?;
+    let bar = progress((scene.views + scene.floor_views) as u64, "rendering");
+    let truth = calib_set::write_calib_set(&dir, scene, seed, &|| bar.inc(1));
     bar.finish_and_clear();
-    write_json(&out.join("truth.json"), &truth)?;
-    let floor = FloorPlane {
-        floor_to_camera: truth.floor_to_camera,
-        plane_rms_m: 0.0,
-        camera_height_m: scene.camera_height_m,
-        views: vec![],
-    };
-    write_json(
-        &out.join("camera_true.json"),
-        &CameraFile::from_model(truth.camera, Some(floor)),
-    )?;
-    Ok(truth)
+    Ok(truth?)
 }
 
 /// Runs `odocal synth calib`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    if a.width < 64 || a.height < 48 || !(10.0..170.0).contains(&a.hfov) {
-        anyhow::bail!(
-            "image {}x{} with hfov {}°: need at least 64x48 and 10-170°",
-            a.width,
-            a.height,
-            a.hfov
-        );
-    }
     let scene = CalibScene {
         width: a.width,
         height: a.height,

@@ -1,0 +1,138 @@
+//! A rendered calibration session on disk, as `odocal synth calib` writes it: the hand-held
+//! board views and floor views as PNG, truth.json (every true pose) and camera_true.json
+//! (the true camera in camera.json's format).
+
+use std::path::Path;
+
+use odocal_calib::{CameraFile, FloorPlane};
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::board::{draw_views, render_view, CalibScene, CalibTruth};
+use crate::raycast::RayGrid;
+
+/// The largest image `synth calib` renders, pixels (a 40-megapixel camera).
+pub const MAX_PIXELS: u64 = 40_000_000;
+
+/// What goes wrong while writing a calibration session.
+#[derive(Debug, Error)]
+pub enum CalibSetError {
+    /// Settings that cannot give a session (names the option).
+    #[error("{0}")]
+    Settings(String),
+    /// A file could not be written.
+    #[error("cannot write {path}: {reason}")]
+    Write {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), CalibSetError> {
+    std::fs::write(path, bytes).map_err(|e| CalibSetError::Write {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    })
+}
+
+fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), CalibSetError> {
+    let mut s = serde_json::to_string_pretty(value).map_err(|e| CalibSetError::Write {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    })?;
+    s.push('\n');
+    write(path, s.as_bytes())
+}
+
+/// Checks that a scene can be rendered: an image of at least 64x48 and at most
+/// [`MAX_PIXELS`], a horizontal field of view of 10–170°.
+pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
+    let pixels = u64::from(scene.width) * u64::from(scene.height);
+    if scene.width < 64 || scene.height < 48 || pixels > MAX_PIXELS {
+        return Err(CalibSetError::Settings(format!(
+            "--width {} --height {}: need at least 64x48 and at most {} megapixels",
+            scene.width,
+            scene.height,
+            MAX_PIXELS / 1_000_000
+        )));
+    }
+    if !(10.0..170.0).contains(&scene.hfov_deg) {
+        return Err(CalibSetError::Settings(format!(
+            "--hfov {}: need 10-170 degrees",
+            scene.hfov_deg
+        )));
+    }
+    Ok(())
+}
+
+/// Renders a calibration session into the existing directory `out`; `on_view` is called after
+/// each view (for a progress bar).
+pub fn write_calib_set(
+    out: &Path,
+    scene: &CalibScene,
+    seed: u64,
+    on_view: &(dyn Fn() + Sync),
+) -> Result<CalibTruth, CalibSetError> {
+    check_scene(scene)?;
+    let truth = draw_views(scene, seed);
+    if truth.views.len() < scene.views {
+        return Err(CalibSetError::Settings(format!(
+            "could only place {} of {} board views in a {}x{} image",
+            truth.views.len(),
+            scene.views,
+            scene.width,
+            scene.height
+        )));
+    }
+    std::fs::create_dir_all(out).map_err(|e| CalibSetError::Write {
+        path: out.display().to_string(),
+        reason: e.to_string(),
+    })?;
+    let grid = RayGrid::new(&truth.camera, scene.supersample);
+    let jobs: Vec<_> = truth
+        .views
+        .iter()
+        .map(|v| (v, None))
+        .chain(
+            truth
+                .floor_views
+                .iter()
+                .map(|v| (v, Some(&truth.floor_to_camera))),
+        )
+        .enumerate()
+        .collect();
+    jobs.par_iter()
+        .try_for_each(|(i, (view, floor))| -> Result<(), CalibSetError> {
+            let img = render_view(
+                &grid,
+                scene,
+                &view.board_to_camera,
+                *floor,
+                seed.wrapping_mul(1000).wrapping_add(*i as u64),
+            );
+            let path = out.join(&view.image);
+            let mut png = Vec::new();
+            img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+                .map_err(|e| CalibSetError::Write {
+                    path: path.display().to_string(),
+                    reason: e.to_string(),
+                })?;
+            write(&path, &png)?;
+            on_view();
+            Ok(())
+        })?;
+    write_json(&out.join("truth.json"), &truth)?;
+    let floor = FloorPlane {
+        floor_to_camera: truth.floor_to_camera,
+        plane_rms_m: 0.0,
+        camera_height_m: scene.camera_height_m,
+        views: vec![],
+    };
+    write_json(
+        &out.join("camera_true.json"),
+        &CameraFile::from_model(truth.camera, Some(floor)),
+    )?;
+    Ok(truth)
+}
