@@ -1,0 +1,191 @@
+//! A tracking scene on disk, as `odocal synth track` writes it: a ceiling video of the robot
+//! driving the demonstration path (video.avi, video.mp4 or frames/), the true camera.json,
+//! the true trajectory (truth.csv) and the scene's settings (scene.json).
+
+use std::path::{Path, PathBuf};
+
+use odocal_calib::{CameraFile, FloorPlane};
+use serde::Serialize;
+
+use crate::scene::{
+    demo_trajectory, nadir, render_video_with_progress, truth_csv, SceneConfig, SceneError,
+    VideoFormat,
+};
+
+/// The `format` tag of scene.json.
+pub const TRACK_SCENE_FORMAT: &str = "odocal.synth-track/1";
+
+/// The scene to render.
+#[derive(Debug, Clone)]
+pub struct TrackScene {
+    /// Random seed (floor texture, path phases, sensor noise).
+    pub seed: u64,
+    /// Number of frames.
+    pub frames: usize,
+    /// Container.
+    pub format: VideoFormat,
+    /// Frame rate, frames/s.
+    pub fps: f64,
+    /// Slowest robot speed, m/s.
+    pub speed_min_mps: f64,
+    /// Fastest robot speed, m/s.
+    pub speed_max_mps: f64,
+    /// Sensor noise σ, grey levels.
+    pub noise_sigma: f32,
+    /// Exposure time (motion blur), seconds.
+    pub exposure_s: f64,
+    /// Id of the robot's tag36h11 marker.
+    pub tag_id: u32,
+}
+
+#[derive(Serialize)]
+struct SceneInfo {
+    format: &'static str,
+    seed: u64,
+    fps: f64,
+    frames: usize,
+    video: String,
+    tag_family: &'static str,
+    tag_id: u32,
+    tag_size_m: f64,
+    marker_height_m: f64,
+    exposure_s: f64,
+    noise_sigma: f32,
+    speed_min_mps: f64,
+    speed_max_mps: f64,
+    /// Frames in which the whole tag is not inside the image.
+    tag_not_fully_visible: Vec<usize>,
+}
+
+/// What [`write_track_scene`] wrote.
+pub struct TrackSceneSummary {
+    /// Frames rendered.
+    pub frames: usize,
+    /// The video (or frame folder), relative to the output directory.
+    pub video: PathBuf,
+    /// Image size, pixels.
+    pub size_px: (u32, u32),
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), SceneError> {
+    std::fs::write(path, bytes).map_err(|source| SceneError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SceneError> {
+    let mut s = serde_json::to_string_pretty(value)
+        .map_err(|e| SceneError::Input(format!("cannot serialise {}: {e}", path.display())))?;
+    s.push('\n');
+    write(path, s.as_bytes())
+}
+
+impl TrackScene {
+    /// Checks the settings for sense; the message names the option.
+    pub fn check(&self) -> Result<(), SceneError> {
+        let bad = |m: String| Err(SceneError::Input(m));
+        if self.frames == 0 {
+            return bad("--frames must be at least 1".into());
+        }
+        if !(self.fps > 0.0 && self.fps.is_finite()) {
+            return bad(format!(
+                "--fps {}: must be a positive number of frames per second",
+                self.fps
+            ));
+        }
+        if !(0.0 < self.speed_min_mps
+            && self.speed_min_mps <= self.speed_max_mps
+            && self.speed_max_mps < 5.0)
+        {
+            return bad(format!(
+                "--speed-min {} --speed-max {}: need 0 < min ≤ max < 5 m/s",
+                self.speed_min_mps, self.speed_max_mps
+            ));
+        }
+        if !(self.exposure_s >= 0.0 && self.exposure_s < 1.0 / self.fps) {
+            return bad(format!(
+                "--exposure-ms {}: must be between 0 and the frame period",
+                self.exposure_s * 1000.0
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Renders the scene into the existing directory `out`; `on_frame` is called after each
+/// frame (for a progress bar).
+pub fn write_track_scene(
+    out: &Path,
+    s: &TrackScene,
+    on_frame: &(dyn Fn(usize) + Sync),
+) -> Result<TrackSceneSummary, SceneError> {
+    s.check()?;
+    let mut cfg = SceneConfig::default();
+    cfg.robot.tag_id = s.tag_id;
+    cfg.exposure_s = s.exposure_s;
+    cfg.sensor.noise_sigma = s.noise_sigma;
+    let duration = (s.frames - 1) as f64 / s.fps;
+    let traj = demo_trajectory(
+        nadir(&cfg.floor),
+        duration + 0.01,
+        s.speed_min_mps,
+        s.speed_max_mps,
+        s.seed,
+    );
+    let name = match s.format {
+        VideoFormat::Avi => "video.avi",
+        VideoFormat::Mp4 => "video.mp4",
+        VideoFormat::Png => "frames",
+    };
+    let truths = render_video_with_progress(
+        &out.join(name),
+        s.format,
+        &cfg,
+        &traj,
+        s.fps,
+        s.seed,
+        on_frame,
+    )?;
+    let truths: Vec<_> = truths.into_iter().take(s.frames).collect();
+    let floor = FloorPlane {
+        floor_to_camera: cfg.floor,
+        plane_rms_m: 0.0,
+        camera_height_m: cfg.floor.0.inverse().translation.vector.z,
+        views: vec![],
+    };
+    write_json(
+        &out.join("camera.json"),
+        &CameraFile::from_model(cfg.camera, Some(floor)),
+    )?;
+    write(&out.join("truth.csv"), truth_csv(&truths, false).as_bytes())?;
+    let hidden: Vec<usize> = truths
+        .iter()
+        .filter(|t| !t.tag_visible)
+        .map(|t| t.index)
+        .collect();
+    write_json(
+        &out.join("scene.json"),
+        &SceneInfo {
+            format: TRACK_SCENE_FORMAT,
+            seed: s.seed,
+            fps: s.fps,
+            frames: truths.len(),
+            video: name.into(),
+            tag_family: "tag36h11",
+            tag_id: s.tag_id,
+            tag_size_m: cfg.robot.tag_size_m,
+            marker_height_m: cfg.robot.marker_height_m,
+            exposure_s: cfg.exposure_s,
+            noise_sigma: s.noise_sigma,
+            speed_min_mps: s.speed_min_mps,
+            speed_max_mps: s.speed_max_mps,
+            tag_not_fully_visible: hidden,
+        },
+    )?;
+    Ok(TrackSceneSummary {
+        frames: truths.len(),
+        video: PathBuf::from(name),
+        size_px: (cfg.camera.width, cfg.camera.height),
+    })
+}
