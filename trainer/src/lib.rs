@@ -3,6 +3,7 @@
 //! (Tables 1 and 2), baselines on the same folds, and model files.
 
 pub mod baseline;
+mod correct_log;
 pub mod crossval;
 pub mod data;
 pub mod error;
@@ -14,6 +15,7 @@ pub mod report;
 pub mod train;
 
 pub use baseline::{KinematicCalibration, LinearRegression, RosMultipliers};
+pub use correct_log::CorrectedRun;
 pub use crossval::{sweep, SweepReport, SweepSettings};
 pub use data::{parse_dataset, sha256_hex};
 pub use error::TrainError;
