@@ -74,7 +74,7 @@ fn main() {
         Command::Report(a) => cmd::report::run(a),
     };
     // Outputs appear together when the command succeeds, and not at all when it fails.
-    let result = result.and_then(|()| output::commit());
+    let result = result.and_then(|()| Ok(output::commit()?));
     if let Err(e) = result {
         output::discard();
         // One line: what was wrong, with the chain of causes joined (a cause that the

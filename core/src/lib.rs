@@ -9,6 +9,7 @@
 mod file_error;
 mod fit;
 mod pose;
+pub mod staging;
 mod table;
 mod tagged_json;
 mod trajectory;

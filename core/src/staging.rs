@@ -1,0 +1,253 @@
+//! Outputs that appear together or not at all. Every file a command writes goes through
+//! [`write_atomic`], which writes a temporary file beside the target and only records it;
+//! [`commit`] renames them all into place when the command has succeeded, and [`discard`]
+//! deletes them when it failed. So a command that fails half-way, at any step, leaves every
+//! earlier output as it was. Directory outputs (rendered videos) are built in a temporary
+//! directory beside the target ([`staged_dir`]) and moved in the same way. The staged list
+//! belongs to the process: one command, one set of outputs.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+use crate::file_error::FileError;
+
+/// A temporary file or directory and the path it becomes on [`commit`].
+struct Staged {
+    tmp: PathBuf,
+    target: PathBuf,
+    is_dir: bool,
+}
+
+static STAGED: Mutex<Vec<Staged>> = Mutex::new(Vec::new());
+static COUNTER: AtomicUsize = AtomicUsize::new(0);
+
+fn staged() -> MutexGuard<'static, Vec<Staged>> {
+    // A panic while holding the lock cannot leave the list inconsistent (pushes only).
+    STAGED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn io(path: &Path, source: std::io::Error) -> FileError {
+    FileError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+fn refuse(option: &str, path: &Path, why: &str) -> FileError {
+    FileError::Content {
+        path: format!("{option} {}", path.display()),
+        message: why.to_string(),
+    }
+}
+
+/// The directory `path` goes in ("." for a bare file name).
+fn parent_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+/// A short temporary name in `dir` (short, so that a target name near the file system's
+/// 255-byte limit still works).
+fn temp_in(dir: &Path) -> PathBuf {
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    dir.join(format!(".odocal-{}-{n}.tmp", std::process::id()))
+}
+
+fn inside_staged_dir(path: &Path) -> bool {
+    staged()
+        .iter()
+        .any(|s| s.is_dir && path.starts_with(&s.tmp))
+}
+
+/// Refuses an output path that is not a plain file to be replaced: an existing directory,
+/// device or FIFO, or a name the file system cannot hold. Commands call it on every output
+/// path (`option` names it) before doing any work, so a wrong path fails at once.
+pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
+    if path.as_os_str().is_empty() {
+        return Err(refuse(
+            option,
+            path,
+            "the output path is empty; give a file name",
+        ));
+    }
+    if let Ok(meta) = std::fs::metadata(path) {
+        if meta.is_dir() {
+            return Err(refuse(option, path, "is a directory; give a file path"));
+        }
+        if !meta.is_file() {
+            return Err(refuse(
+                option,
+                path,
+                "is not a regular file (a device, FIFO or socket); give a file path",
+            ));
+        }
+    }
+    if path.file_name().is_some_and(|n| n.len() > 255) {
+        return Err(refuse(
+            option,
+            path,
+            "the file name is longer than the 255 bytes a file system allows",
+        ));
+    }
+    if std::fs::metadata(parent_of(path)).is_ok_and(|m| !m.is_dir()) {
+        return Err(refuse(option, path, "its parent is not a directory"));
+    }
+    Ok(())
+}
+
+/// Refuses an output directory path that exists as something other than a directory.
+pub fn check_output_dir(path: &Path, option: &str) -> Result<(), FileError> {
+    if path.as_os_str().is_empty() {
+        return Err(refuse(
+            option,
+            path,
+            "the output directory is empty; give a name",
+        ));
+    }
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_dir()) {
+        return Err(refuse(
+            option,
+            path,
+            "exists and is not a directory; give a directory path",
+        ));
+    }
+    Ok(())
+}
+
+/// Writes `bytes` for `path`: into a temporary file beside it, moved into place by [`commit`].
+/// A path inside a [`staged_dir`] is written directly (the whole directory moves on commit).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
+    check_output_file(path, "output")?;
+    let dir = parent_of(path);
+    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    if inside_staged_dir(path) {
+        return std::fs::write(path, bytes).map_err(|e| io(path, e));
+    }
+    let tmp = temp_in(dir);
+    if let Err(e) = std::fs::write(&tmp, bytes) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(path, e));
+    }
+    staged().push(Staged {
+        tmp,
+        target: path.to_path_buf(),
+        is_dir: false,
+    });
+    Ok(())
+}
+
+/// A temporary directory whose entries move into `target` on [`commit`] (replacing entries
+/// of the same name in an existing `target`); write the directory output into the returned
+/// path. Inside a directory that is staged already, `target` itself is returned.
+pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
+    check_output_dir(target, option)?;
+    if inside_staged_dir(target) {
+        std::fs::create_dir_all(target).map_err(|e| io(target, e))?;
+        return Ok(target.to_path_buf());
+    }
+    let parent = parent_of(target);
+    std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
+    let tmp = temp_in(parent);
+    std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, e))?;
+    staged().push(Staged {
+        tmp: tmp.clone(),
+        target: target.to_path_buf(),
+        is_dir: true,
+    });
+    Ok(tmp)
+}
+
+/// Moves every staged output into place (files first, in the order written, then
+/// directories). Called once, when the command has succeeded.
+pub fn commit() -> Result<(), FileError> {
+    let mut list = std::mem::take(&mut *staged());
+    list.sort_by_key(|s| s.is_dir);
+    for s in &list {
+        if s.is_dir && s.target.is_dir() {
+            merge_dir(&s.tmp, &s.target)?;
+        } else {
+            std::fs::rename(&s.tmp, &s.target).map_err(|e| io(&s.target, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Moves every entry of the staged directory `tmp` into the existing directory `target`,
+/// replacing entries of the same name (other entries of `target` stay); files last, so an
+/// index such as manifest.json appears after what it lists.
+fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
+    let mut entries: Vec<(bool, PathBuf)> = std::fs::read_dir(tmp)
+        .map_err(|e| io(tmp, e))?
+        .filter_map(|e| e.ok())
+        .map(|e| (e.path().is_file(), e.path()))
+        .collect();
+    entries.sort();
+    for (_, from) in entries {
+        let Some(name) = from.file_name() else {
+            continue;
+        };
+        let to = target.join(name);
+        let old = if to.exists() {
+            let old = temp_in(target);
+            std::fs::rename(&to, &old).map_err(|e| io(&to, e))?;
+            Some(old)
+        } else {
+            None
+        };
+        std::fs::rename(&from, &to).map_err(|e| io(&to, e))?;
+        if let Some(old) = old {
+            let removed = if old.is_dir() {
+                std::fs::remove_dir_all(&old)
+            } else {
+                std::fs::remove_file(&old)
+            };
+            removed.map_err(|e| io(&old, e))?;
+        }
+    }
+    std::fs::remove_dir(tmp).map_err(|e| io(tmp, e))
+}
+
+/// Deletes every staged output: the command failed, so nothing it wrote appears.
+pub fn discard() {
+    for s in std::mem::take(&mut *staged()) {
+        if s.is_dir {
+            let _ = std::fs::remove_dir_all(&s.tmp);
+        } else {
+            let _ = std::fs::remove_file(&s.tmp);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outputs_appear_on_commit_and_never_on_discard() {
+        let dir = std::env::temp_dir().join(format!("odocal-staging-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let a = dir.join("a.txt");
+        write_atomic(&a, b"one").unwrap();
+        assert!(!a.exists());
+        discard();
+        assert!(!a.exists());
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            0,
+            "no temporary left"
+        );
+        write_atomic(&a, b"two").unwrap();
+        let sub = staged_dir(&dir.join("sub"), "--out").unwrap();
+        std::fs::write(sub.join("f"), b"x").unwrap();
+        commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"two");
+        assert!(dir.join("sub/f").exists());
+        assert!(check_output_file(&dir, "--out").is_err());
+        assert!(check_output_file(Path::new("/dev/null"), "--out").is_err());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
