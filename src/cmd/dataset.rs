@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use odocal_calib::CameraFile;
 use odocal_dataset::build::{samples_csv, BuildOptions};
 use odocal_dataset::oracle::OracleFile;
@@ -11,7 +11,7 @@ use odocal_dataset::{
     build_from_manifest, errors_against_truth, Manifest, ManifestRow, RobotParams, Trajectory,
     VideoTracker,
 };
-use odocal_tracker::{open_source, track_source, SourceOptions, TrackOptions};
+use odocal_tracker::track_video;
 
 use crate::output::{check_output_file, count, progress, write_atomic, write_json};
 
@@ -40,36 +40,6 @@ pub struct Args {
     /// also print the targets' and clock offsets' errors against it.
     #[arg(long)]
     pub truth: Option<PathBuf>,
-}
-
-/// Tracks the robot's tag through a run's video into its floor trajectory,
-/// with the tracker's defaults (tag36h11 id 0, 8 cm, 8 cm above the floor).
-pub fn trajectory_from_video(
-    row: &ManifestRow,
-    video: &Path,
-    camera: &CameraFile,
-) -> anyhow::Result<Trajectory> {
-    let floor = camera
-        .floor
-        .as_ref()
-        .map(|f| f.floor_to_camera)
-        .with_context(|| {
-            format!(
-                "run \"{}\": the camera calibration has no floor plane (calibrate with --floor)",
-                row.id
-            )
-        })?;
-    let source = open_source(video, &SourceOptions::default())
-        .with_context(|| format!("run \"{}\"", row.id))?;
-    let result = track_source(
-        source,
-        &camera.camera,
-        &floor,
-        &TrackOptions::default(),
-        &mut |_, _| Ok(()),
-    )
-    .with_context(|| format!("run \"{}\": tracking {}", row.id, video.display()))?;
-    Ok(result.trajectory()?)
 }
 
 /// Runs the subcommand.
@@ -110,7 +80,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bar = progress(manifest.runs.len() as u64, "dataset");
     let track = |row: &ManifestRow, video: &Path| -> Result<Trajectory, String> {
         let camera = camera.as_ref().ok_or("no camera")?;
-        trajectory_from_video(row, video, camera).map_err(|e| format!("{e:#}"))
+        track_video(video, camera)
+            .map_err(|e| format!("run \"{}\": tracking {}: {e}", row.id, video.display()))
     };
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let ds = build_from_manifest(

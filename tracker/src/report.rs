@@ -123,3 +123,26 @@ pub fn track_report(
             .collect(),
     }
 }
+
+/// Tracks the robot's tag through the video (or image folder) at `video` with the camera of
+/// `camera` and the tracker's defaults (tag36h11 id 0, 8 cm, 8 cm above the floor), as
+/// `odocal dataset` does for a manifest row with a video.
+pub fn track_video(
+    video: &std::path::Path,
+    camera: &odocal_calib::CameraFile,
+) -> Result<Trajectory, crate::TrackError> {
+    let floor = camera.floor.as_ref().map(|f| f.floor_to_camera).ok_or_else(|| {
+        crate::TrackError::Mismatch(
+            "the camera calibration has no floor plane (calibrate with --floor)".into(),
+        )
+    })?;
+    let source = crate::open_source(video, &crate::SourceOptions::default())?;
+    let result = crate::track_source(
+        source,
+        &camera.camera,
+        &floor,
+        &TrackOptions::default(),
+        &mut |_, _| Ok(()),
+    )?;
+    result.trajectory()
+}
