@@ -42,10 +42,42 @@ pub struct Args {
     pub truth: Option<PathBuf>,
 }
 
+/// Prints what the dataset holds: samples, rejected runs with reasons, raw odometry's error.
+fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
+    let s = &ds.summary;
+    println!(
+        "dataset: {} from {} in {} ({} rejected) -> {}",
+        count(ds.samples.len(), "sample"),
+        count(s.runs, "run"),
+        count(s.recordings, "recording"),
+        ds.rejected.len(),
+        out.display()
+    );
+    for r in &ds.rejected {
+        println!("  rejected {}: {}", r.run_id, r.reason);
+    }
+    if !ds.samples.is_empty() {
+        println!(
+            "raw odometry end-point error: {:.2} % of path length (RMS {:.1} mm, mean path {:.3} m)",
+            100.0 * s.raw_relative_error,
+            1e3 * s.raw_rms_error_m,
+            s.mean_path_length_m
+        );
+        println!(
+            "largest alignment residual: {:.4} m/s",
+            s.max_alignment_residual_mps
+        );
+    }
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.min_gap_s.is_finite() && args.min_gap_s > 0.0) {
         bail!("--min-gap-s must be a positive number of seconds");
+    }
+    check_output_file(&args.out, "--out")?;
+    if let Some(csv) = &args.csv {
+        check_output_file(csv, "--csv")?;
     }
     let manifest = Manifest::read(&args.manifest)?;
     // A wrong truth file is found before the work, not after the dataset is written.
@@ -73,10 +105,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         min_gap_s: args.min_gap_s,
         ..BuildOptions::default()
     };
-    check_output_file(&args.out, "--out")?;
-    if let Some(csv) = &args.csv {
-        check_output_file(csv, "--csv")?;
-    }
     let bar = progress(manifest.runs.len() as u64, "dataset");
     let track = |row: &ManifestRow, video: &Path| -> Result<Trajectory, String> {
         let camera = camera.as_ref().ok_or("no camera")?;
@@ -96,30 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(csv) = &args.csv {
         write_atomic(csv, samples_csv(&ds).as_bytes())?;
     }
-    let s = &ds.summary;
-    println!(
-        "dataset: {} from {} in {} ({} rejected) -> {}",
-        count(ds.samples.len(), "sample"),
-        count(s.runs, "run"),
-        count(s.recordings, "recording"),
-        ds.rejected.len(),
-        args.out.display()
-    );
-    for r in &ds.rejected {
-        println!("  rejected {}: {}", r.run_id, r.reason);
-    }
-    if !ds.samples.is_empty() {
-        println!(
-            "raw odometry end-point error: {:.2} % of path length (RMS {:.1} mm, mean path {:.3} m)",
-            100.0 * s.raw_relative_error,
-            1e3 * s.raw_rms_error_m,
-            s.mean_path_length_m
-        );
-        println!(
-            "largest alignment residual: {:.4} m/s",
-            s.max_alignment_residual_mps
-        );
-    }
+    print_summary(&ds, &args.out);
     if let (Some(path), Some(oracle)) = (&args.truth, &oracle) {
         if let Some(e) = errors_against_truth(&ds, oracle, &path.display().to_string())? {
             println!(

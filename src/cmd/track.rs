@@ -2,13 +2,14 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use odocal_calib::CameraFile;
+use odocal_tracker::Trajectory;
 use odocal_tracker::{
-    errors_against, open_source, overlay, track_report, track_source, SourceOptions, TrackOptions,
+    errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
+    SourceOptions, TrackOptions,
 };
 
-use crate::output::{progress, write_atomic, write_json};
+use crate::output::{check_output_file, progress, staged_dir, write_atomic, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -66,17 +67,52 @@ pub struct Args {
     pub truth: Option<PathBuf>,
 }
 
+/// The tracker's options from the command line.
+fn options(args: &Args) -> TrackOptions {
+    TrackOptions {
+        family: args.family.clone(),
+        tag_id: args.tag_id,
+        tag_size_m: args.tag_size,
+        marker_height_m: args.marker_height,
+        use_roi: !args.no_roi,
+        max_speed_mps: args.max_speed,
+        max_reprojection_px: args.max_reprojection,
+        pnp_cross_check: args.pnp_check,
+        ..TrackOptions::default()
+    }
+}
+
+/// Prints the trajectory's error against a reference trajectory (rows matched by time).
+fn print_against_truth(
+    trajectory: &Trajectory,
+    truth: &Trajectory,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    let (pos, head, n) = errors_against(trajectory, truth);
+    if n == 0 {
+        anyhow::bail!(
+            "{}: no row has the timestamp of a tracked frame",
+            path.display()
+        );
+    }
+    println!(
+        "against {}: position RMS {:.3} mm, heading RMS {:.3} deg over {n} frames",
+        path.display(),
+        pos * 1e3,
+        head.to_degrees()
+    );
+    Ok(())
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    // FFmpeg and OpenCV print their own complaints about bad files; ours are one line.
-    for (var, level) in [
-        ("OPENCV_FFMPEG_LOGLEVEL", "0"),
-        ("OPENCV_LOG_LEVEL", "SILENT"),
-    ] {
-        if std::env::var_os(var).is_none() {
-            std::env::set_var(var, level);
+    check_output_file(&args.out, "--out")?;
+    for (p, opt) in [(&args.tum, "--tum"), (&args.report, "--report")] {
+        if let Some(p) = p {
+            check_output_file(p, opt)?;
         }
     }
+    quiet_video_logs();
     let camera_file = CameraFile::load(&args.camera)?;
     let truth = match &args.truth {
         Some(path) => Some(odocal_tracker::Trajectory::read_csv(path)?),
@@ -90,23 +126,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             timestamps: args.timestamps.clone(),
         },
     )?;
-    let opts = TrackOptions {
-        family: args.family.clone(),
-        tag_id: args.tag_id,
-        tag_size_m: args.tag_size,
-        marker_height_m: args.marker_height,
-        use_roi: !args.no_roi,
-        max_speed_mps: args.max_speed,
-        max_reprojection_px: args.max_reprojection,
-        pnp_cross_check: args.pnp_check,
-        ..TrackOptions::default()
+    let opts = options(&args);
+    let overlay_dir = match &args.overlay {
+        Some(dir) => Some(staged_dir(dir, "--overlay")?),
+        None => None,
     };
-    if let Some(dir) = &args.overlay {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create overlay folder {}", dir.display()))?;
-    }
     let bar = progress(source.info().frame_count.unwrap_or(0) as u64, "tracking");
-    let overlay_dir = args.overlay.clone();
     let result = track_source(
         source,
         &camera_file.camera,
@@ -123,7 +148,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let result = result?;
     let trajectory = result.trajectory()?;
-    let gaps = result.gaps();
     // All outputs are built before anything is written; each is written atomically.
     write_atomic(&args.out, trajectory.to_csv().as_bytes())?;
     if let Some(tum) = &args.tum {
@@ -140,35 +164,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ),
         )?;
     }
-    let longest = gaps
-        .iter()
-        .map(|g| g.last_index - g.first_index + 1)
-        .max()
-        .unwrap_or(0);
-    eprintln!(
-        "tracked tag {} in {}/{} frames ({} gaps, longest {} frames); {} → {}",
-        args.tag_id,
-        trajectory.rows.len(),
-        result.records.len(),
-        gaps.len(),
-        longest,
-        result.seen_ids_text(),
-        args.out.display()
-    );
+    eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let (Some(truth), Some(path)) = (&truth, &args.truth) {
-        let (pos, head, n) = errors_against(&trajectory, truth);
-        if n == 0 {
-            anyhow::bail!(
-                "{}: no row has the timestamp of a tracked frame",
-                path.display()
-            );
-        }
-        println!(
-            "against {}: position RMS {:.3} mm, heading RMS {:.3} deg over {n} frames",
-            path.display(),
-            pos * 1e3,
-            head.to_degrees()
-        );
+        print_against_truth(&trajectory, truth, path)?;
     }
     Ok(())
 }

@@ -131,11 +131,15 @@ pub fn track_video(
     video: &std::path::Path,
     camera: &odocal_calib::CameraFile,
 ) -> Result<Trajectory, crate::TrackError> {
-    let floor = camera.floor.as_ref().map(|f| f.floor_to_camera).ok_or_else(|| {
-        crate::TrackError::Mismatch(
-            "the camera calibration has no floor plane (calibrate with --floor)".into(),
-        )
-    })?;
+    let floor = camera
+        .floor
+        .as_ref()
+        .map(|f| f.floor_to_camera)
+        .ok_or_else(|| {
+            crate::TrackError::Mismatch(
+                "the camera calibration has no floor plane (calibrate with --floor)".into(),
+            )
+        })?;
     let source = crate::open_source(video, &crate::SourceOptions::default())?;
     let result = crate::track_source(
         source,
@@ -145,4 +149,36 @@ pub fn track_video(
         &mut |_, _| Ok(()),
     )?;
     result.trajectory()
+}
+
+/// Silences FFmpeg's and OpenCV's own complaints about bad files (unless the user set their
+/// log levels), so that odocal's one-line messages are the ones seen.
+pub fn quiet_video_logs() {
+    for (var, level) in [
+        ("OPENCV_FFMPEG_LOGLEVEL", "0"),
+        ("OPENCV_LOG_LEVEL", "SILENT"),
+    ] {
+        if std::env::var_os(var).is_none() {
+            std::env::set_var(var, level);
+        }
+    }
+}
+
+impl TrackResult {
+    /// One line on the tracking run: fixes, gaps and the ids seen.
+    pub fn summary(&self, tag_id: u32) -> String {
+        let gaps = self.gaps();
+        let longest = gaps
+            .iter()
+            .map(|g| g.last_index - g.first_index + 1)
+            .max()
+            .unwrap_or(0);
+        format!(
+            "tracked tag {tag_id} in {}/{} frames ({} gaps, longest {longest} frames); {}",
+            self.fixes().count(),
+            self.records.len(),
+            gaps.len(),
+            self.seen_ids_text()
+        )
+    }
 }
