@@ -9,6 +9,7 @@
 mod file_error;
 mod fit;
 mod pose;
+mod ray;
 pub mod staging;
 mod table;
 mod tagged_json;
@@ -17,6 +18,7 @@ mod trajectory;
 pub use file_error::{read_text, FileError};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};
 pub use pose::{wrap_angle, Pose2};
+pub use ray::ray_segment;
 pub use table::{csv_error, csv_table, numeric_row, CsvTable};
 pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};
 pub use trajectory::{mean_pose, Trajectory, TrajectoryRow, TRAJECTORY_HEADER};

@@ -182,10 +182,8 @@ impl Dataset {
     /// message. The one reader of dataset.json: the trainer and the report use it too.
     pub fn parse(text: &str, name: &str) -> Result<Self, crate::DatasetError> {
         let ds: Dataset = crate::error::parse_json_with_format(text, name, DATASET_FORMAT)?;
-        ds.check().map_err(|message| crate::DatasetError::Content {
-            path: name.to_string(),
-            message,
-        })?;
+        ds.check()
+            .map_err(|message| crate::DatasetError::content(name, message))?;
         Ok(ds)
     }
 
@@ -261,9 +259,11 @@ impl RobotParams {
         let text = crate::error::read_text(path)?;
         let f: RobotFile =
             crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
-        f.robot.check().map_err(|e| crate::DatasetError::Content {
-            path: path.display().to_string(),
-            message: format!("{e}; robot parameters must be positive finite numbers"),
+        f.robot.check().map_err(|e| {
+            crate::DatasetError::content(
+                &path.display().to_string(),
+                format!("{e}; robot parameters must be positive finite numbers"),
+            )
         })?;
         Ok(f.robot)
     }

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use nalgebra::{Point2, Vector2};
+use odocal_core::ray_segment;
 use serde::{Deserialize, Serialize};
 
 use crate::LrfError;
@@ -421,14 +422,10 @@ impl Map {
     pub fn ray_to_wall(&self, from: &Point2<f64>, dir: &Vector2<f64>) -> Option<f64> {
         let mut best: Option<f64> = None;
         for w in &self.walls {
-            let e = Vector2::new(w[2] - w[0], w[3] - w[1]);
-            let den = dir.x * e.y - dir.y * e.x;
-            if den.abs() < 1e-12 {
+            let (a, b) = (Point2::new(w[0], w[1]), Point2::new(w[2], w[3]));
+            let Some((t, u)) = ray_segment(from, dir, &a, &b) else {
                 continue;
-            }
-            let q = Point2::new(w[0], w[1]) - from;
-            let t = (q.x * e.y - q.y * e.x) / den;
-            let u = (q.x * dir.y - q.y * dir.x) / den;
+            };
             if t > 1e-6 && (0.0..=1.0).contains(&u) && best.is_none_or(|b| t < b) {
                 best = Some(t);
             }
@@ -446,16 +443,9 @@ impl Map {
         }
         let t_max = 1.0 - end_clear_m / len;
         self.walls.iter().any(|w| {
-            let p = Point2::new(w[0], w[1]);
-            let e = Vector2::new(w[2] - w[0], w[3] - w[1]);
-            let den = d.x * e.y - d.y * e.x;
-            if den.abs() < 1e-12 {
-                return false;
-            }
-            let q = p - from;
-            let t = (q.x * e.y - q.y * e.x) / den;
-            let u = (q.x * d.y - q.y * d.x) / den;
-            t > 1e-6 && t < t_max && (-1e-9..=1.0 + 1e-9).contains(&u)
+            let (a, b) = (Point2::new(w[0], w[1]), Point2::new(w[2], w[3]));
+            ray_segment(from, &d, &a, &b)
+                .is_some_and(|(t, u)| t > 1e-6 && t < t_max && (-1e-9..=1.0 + 1e-9).contains(&u))
         })
     }
 }
