@@ -21,4 +21,5 @@ pub use floor::{board_pose, fit_floor};
 pub use model::{
     intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics,
 };
+pub use opencv_glue::{camera_matrix, dist_coeffs};
 pub use session::{calibrate_session, summary, Session};

@@ -97,10 +97,8 @@ pub fn pnp_cross_check(
     let image = Vector::<Point2d>::from_iter(
         [3, 2, 1, 0].map(|i| Point2d::new(corners_px[i].x, corners_px[i].y)),
     );
-    let k = camera.intrinsics;
-    let kmat = Mat::from_slice_2d(&[[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]])?;
-    let coeffs = camera.distortion.to_opencv();
-    let dist = Mat::from_slice(&coeffs)?;
+    let kmat = odocal_calib::camera_matrix(camera)?;
+    let dist = odocal_calib::dist_coeffs(camera)?;
     let mut rvec = Mat::default();
     let mut tvec = Mat::default();
     let ok = calib3d::solve_pnp(
