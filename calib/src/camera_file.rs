@@ -158,7 +158,7 @@ impl CameraFile {
         if let Some(f) = &self.floor {
             let iso = &f.floor_to_camera.0;
             let norm = iso.rotation.quaternion().norm();
-            if !((norm - 1.0).abs() < 1e-6) {
+            if (norm - 1.0).abs() >= 1e-6 || norm.is_nan() {
                 return Err(format!(
                     "floor.floor_to_camera rotation has norm {norm}, not a rotation (a unit quaternion)"
                 ));

@@ -203,9 +203,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             .unwrap_or_default();
         out.push(format!("  {name} = {:10.5}    {e}", d[i]));
     }
-    out.push(format!(
-        "  (± is one standard deviation from OpenCV's covariance at the optimum)"
-    ));
+    out.push("  (± is one standard deviation from OpenCV's covariance at the optimum)".to_string());
     let mut worst = f.views.clone();
     worst.sort_by(|a, b| b.rms_px.total_cmp(&a.rms_px));
     let list: Vec<String> = worst
@@ -225,9 +223,10 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             fl.camera_height_m
         ));
     } else {
-        out.push(format!(
+        out.push(
             "no floor plane (pass --floor images of the board lying on the floor to track robots)"
-        ));
+                .to_string(),
+        );
     }
     out
 }

@@ -1,0 +1,107 @@
+//! Folders of PNG/JPEG images, decoded in parallel, timed by a timestamp file or a frame rate.
+
+use super::timestamps::read_timestamps;
+use super::*;
+
+/// A folder of PNG/JPEG frames in file-name order.
+pub struct FolderSource {
+    info: SourceInfo,
+    files: Vec<(PathBuf, f64)>,
+    next: usize,
+}
+
+const IMAGE_EXTS: [&str; 6] = ["png", "jpg", "jpeg", "pgm", "bmp", "tif"];
+
+impl FolderSource {
+    /// Lists the images of `dir` and assigns their timestamps.
+    pub fn open(dir: &Path, opts: &SourceOptions) -> Result<Self, TrackError> {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| TrackError::io(dir, format!("cannot list: {e}")))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| IMAGE_EXTS.contains(&e.to_ascii_lowercase().as_str()))
+            })
+            .collect();
+        files.sort();
+        if files.is_empty() {
+            return Err(TrackError::bad_input(
+                dir,
+                "the folder holds no PNG/JPEG images",
+            ));
+        }
+        let default_csv = dir.join("timestamps.csv");
+        let csv = opts
+            .timestamps
+            .clone()
+            .or_else(|| (opts.fps.is_none() && default_csv.is_file()).then_some(default_csv));
+        let times: Vec<f64> = match (csv, opts.fps) {
+            (Some(csv), _) => read_timestamps(&csv, &files)?,
+            (None, Some(fps)) if fps > 0.0 && fps.is_finite() => (0..files.len()).map(|k| k as f64 / fps).collect(),
+            (None, Some(fps)) => return Err(TrackError::Options(format!("--fps must be positive, got {fps}"))),
+            (None, None) => {
+                return Err(TrackError::bad_input(
+                    dir,
+                    "image folder without timestamps: give --fps or --timestamps FILE.csv (columns file,t)",
+                ))
+            }
+        };
+        let first = imgcodecs::imread(&files[0], imgcodecs::IMREAD_GRAYSCALE)?;
+        if first.empty() {
+            return Err(TrackError::bad_input(&files[0], "cannot decode this image"));
+        }
+        let n = files.len();
+        Ok(Self {
+            info: SourceInfo {
+                path: dir.to_path_buf(),
+                width: first.cols() as u32,
+                height: first.rows() as u32,
+                frame_count: Some(n),
+                kind: "images".into(),
+            },
+            files: files.into_iter().zip(times).collect(),
+            next: 0,
+        })
+    }
+}
+
+impl FrameSource for FolderSource {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn next_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
+        let end = (self.next + n).min(self.files.len());
+        let (w, h) = (self.info.width, self.info.height);
+        let batch: Result<Vec<Frame>, TrackError> = decode_pool().install(|| {
+            (self.next..end)
+                .into_par_iter()
+                .map(|index| {
+                    let (path, t_s) = &self.files[index];
+                    let mat = imgcodecs::imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
+                    if mat.empty() {
+                        return Err(TrackError::bad_input(path, "cannot decode this image"));
+                    }
+                    let image = GrayFrame::from_mat(&mat)?;
+                    if (image.width, image.height) != (w, h) {
+                        return Err(TrackError::bad_input(
+                            path,
+                            format!(
+                            "is {}×{}, the first image is {w}×{h}: all frames must have one size",
+                            image.width, image.height
+                        ),
+                        ));
+                    }
+                    Ok(Frame {
+                        index,
+                        t_s: *t_s,
+                        image,
+                    })
+                })
+                .collect()
+        });
+        self.next = end;
+        batch
+    }
+}

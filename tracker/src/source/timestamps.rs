@@ -1,0 +1,143 @@
+//! Image timestamps: a CSV of `file,t` (matched by name) or one `t` per image in name order.
+
+use super::*;
+
+/// Reads image timestamps: CSV with header `file,t` (any order of rows) or `t`
+/// (one row per image in name order).
+pub(super) fn read_timestamps(csv_path: &Path, files: &[PathBuf]) -> Result<Vec<f64>, TrackError> {
+    let text = std::fs::read_to_string(csv_path)
+        .map_err(|e| TrackError::io(csv_path, format!("cannot read: {e}")))?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| TrackError::bad_input(csv_path, e.to_string()))?
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let by_name = match header
+        .iter()
+        .map(|s| s.as_str())
+        .collect::<Vec<_>>()
+        .as_slice()
+    {
+        ["file", "t"] => true,
+        ["t"] => false,
+        _ => {
+            return Err(TrackError::bad_input(
+                csv_path,
+                format!(
+                    "line 1: header is \"{}\", expected \"file,t\" or \"t\"",
+                    header.join(",")
+                ),
+            ))
+        }
+    };
+    let mut map = HashMap::new();
+    let mut list = Vec::new();
+    for (i, rec) in rdr.records().enumerate() {
+        let line = i + 2;
+        let rec = rec.map_err(|e| TrackError::bad_input(csv_path, format!("line {line}: {e}")))?;
+        let tcol = if by_name { 1 } else { 0 };
+        let field = rec.get(tcol).unwrap_or("");
+        let t: f64 = field
+            .parse()
+            .ok()
+            .filter(|t: &f64| t.is_finite())
+            .ok_or_else(|| {
+                TrackError::bad_input(
+                    csv_path,
+                    format!(
+                        "line {line}, column {}: {field:?} is not a time in seconds",
+                        tcol + 1
+                    ),
+                )
+            })?;
+        if by_name {
+            map.insert(rec.get(0).unwrap_or("").to_string(), t);
+        } else {
+            list.push(t);
+        }
+    }
+    let times: Vec<f64> = if by_name {
+        files
+            .iter()
+            .map(|f| {
+                let name = f
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                map.get(&name).copied().ok_or_else(|| {
+                    TrackError::bad_input(
+                        csv_path,
+                        format!("has no timestamp for image {name}: add a row \"{name},<t>\""),
+                    )
+                })
+            })
+            .collect::<Result<_, _>>()?
+    } else {
+        if list.len() != files.len() {
+            return Err(TrackError::bad_input(
+                csv_path,
+                format!("has {} timestamps for {} images", list.len(), files.len()),
+            ));
+        }
+        list
+    };
+    if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(TrackError::bad_input(
+            csv_path,
+            format!(
+                "timestamps must increase in image-name order: {} ({}) is not after {} ({})",
+                files[k + 1].display(),
+                times[k + 1],
+                files[k].display(),
+                times[k]
+            ),
+        ));
+    }
+    Ok(times)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn files(n: usize) -> Vec<PathBuf> {
+        (0..n)
+            .map(|i| PathBuf::from(format!("/x/frame_{i:02}.png")))
+            .collect()
+    }
+
+    fn ts(text: &str, n: usize) -> Result<Vec<f64>, TrackError> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("ts.csv");
+        std::fs::write(&p, text).unwrap();
+        read_timestamps(&p, &files(n))
+    }
+
+    #[test]
+    fn timestamps_by_name_or_by_order() {
+        let t = ts("file,t\nframe_01.png,0.5\nframe_00.png,0.25\n", 2).unwrap();
+        assert_eq!(t, vec![0.25, 0.5]);
+        assert_eq!(ts("t\n1\n2\n3\n", 3).unwrap(), vec![1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn bad_timestamp_files_say_where() {
+        let e = ts("time\n1\n", 1).unwrap_err().to_string();
+        assert!(
+            e.contains("line 1") && e.contains("expected \"file,t\""),
+            "{e}"
+        );
+        let e = ts("file,t\nframe_00.png,abc\n", 1).unwrap_err().to_string();
+        assert!(e.contains("line 2, column 2") && e.contains("abc"), "{e}");
+        let e = ts("file,t\nframe_00.png,1\n", 2).unwrap_err().to_string();
+        assert!(e.contains("no timestamp for image frame_01.png"), "{e}");
+        let e = ts("t\n1\n1\n", 2).unwrap_err().to_string();
+        assert!(e.contains("must increase"), "{e}");
+        let e = ts("t\n1\n", 2).unwrap_err().to_string();
+        assert!(e.contains("1 timestamps for 2 images"), "{e}");
+    }
+}
