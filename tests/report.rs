@@ -420,7 +420,7 @@ fn malformed_inputs_are_one_line_errors() {
     )
     .expect("write");
     let e = fails(&["report", "--out", p(&html), "--lrf-poses", p(&poses)]);
-    assert!(e.contains("line 3"), "{e}");
+    assert!(e.contains("poses.csv:3:"), "{e}");
     let e = fails(&[
         "report",
         "--out",
