@@ -315,6 +315,7 @@ impl Map {
             }
         }
         let pos: Vec<Point2<f64>> = landmarks.iter().map(|l| l.position).collect();
+        check_extent(&pos, n).map_err(err)?;
         // Edges per landmark, sorted by distance (the source's map structure).
         let mut edge_start = Vec::with_capacity(n + 1);
         let (mut edge_to, mut edge_dist, mut edge_dir) = (Vec::new(), Vec::new(), Vec::new());
@@ -348,7 +349,13 @@ impl Map {
         }
         edge_start.push(edge_to.len());
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let grid = Grid::new(&pos, GRID_CELL_M);
+        // Cells grow with the map so that a large map's grid stays within a million cells.
+        let span = |f: fn(&Point2<f64>) -> f64| {
+            let v = pos.iter().map(f);
+            v.clone().fold(f64::MIN, f64::max) - v.fold(f64::MAX, f64::min)
+        };
+        let span_m = span(|p| p.x).max(span(|p| p.y));
+        let grid = Grid::new(&pos, GRID_CELL_M.max(span_m / 500.0));
         Ok(Map {
             landmarks,
             walls: file.walls.clone(),
@@ -448,6 +455,34 @@ impl Map {
                 .is_some_and(|(t, u)| t > 1e-6 && t < t_max && (-1e-9..=1.0 + 1e-9).contains(&u))
         })
     }
+}
+
+/// The most landmarks a map may hold: the map keeps every pair (n² / 2 edges).
+pub const MAX_LANDMARKS: usize = 2000;
+/// The largest span of a map, metres: a building's reflector layout, not a city's.
+pub const MAX_EXTENT_M: f64 = 2000.0;
+
+/// Refuses maps whose size no building has (and whose search structures would not fit in
+/// memory): too many landmarks, or landmarks spread over more than [`MAX_EXTENT_M`], as
+/// coordinates in millimetres would be.
+fn check_extent(pos: &[Point2<f64>], n: usize) -> Result<(), String> {
+    if n > MAX_LANDMARKS {
+        return Err(format!(
+            "has {n} landmarks, more than the {MAX_LANDMARKS} a map may hold; split the map"
+        ));
+    }
+    let (mut lo, mut hi) = (pos[0], pos[0]);
+    for p in pos {
+        lo = Point2::new(lo.x.min(p.x), lo.y.min(p.y));
+        hi = Point2::new(hi.x.max(p.x), hi.y.max(p.y));
+    }
+    let (w, h) = (hi.x - lo.x, hi.y - lo.y);
+    if !(w <= MAX_EXTENT_M && h <= MAX_EXTENT_M) {
+        return Err(format!(
+            "landmarks span {w:.3e} m x {h:.3e} m, more than the {MAX_EXTENT_M:.0} m a map covers; are the coordinates in metres?"
+        ));
+    }
+    Ok(())
 }
 
 fn half_plane(l: &VisibilityLine) -> Result<(Vector2<f64>, f64), String> {

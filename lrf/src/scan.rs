@@ -28,6 +28,54 @@ pub struct SensorConfig {
     pub intensity_min: f64,
 }
 
+/// The latest scan time accepted, seconds from the start of the recording (a month).
+pub const MAX_SCAN_TIME_S: f64 = 3.0e6;
+
+impl SensorConfig {
+    /// Checks every setting for physical sense; the message names the option to fix.
+    pub fn check(&self) -> Result<(), LrfError> {
+        let bad = |m: String| Err(LrfError::Config(m));
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !(pos(self.fov_rad) && self.fov_rad <= std::f64::consts::TAU) {
+            return bad(format!(
+                "--fov-deg {}: need 0 < fov <= 360 degrees",
+                self.fov_rad.to_degrees()
+            ));
+        }
+        if !(pos(self.max_range_m) && self.max_range_m <= 1000.0) {
+            return bad(format!(
+                "--max-range-m {}: need a range in (0, 1000] metres",
+                self.max_range_m
+            ));
+        }
+        if !(pos(self.sigma_range_m) && self.sigma_range_m < 1.0) {
+            return bad(format!(
+                "--sigma-range-m {}: need a noise in (0, 1) metres",
+                self.sigma_range_m
+            ));
+        }
+        if !(pos(self.rate_hz) && self.rate_hz <= 1000.0) {
+            return bad(format!(
+                "--rate-hz {}: need a scan rate in (0, 1000] Hz",
+                self.rate_hz
+            ));
+        }
+        if !self.intensity_min.is_finite() {
+            return bad(format!(
+                "--intensity-min {}: need a finite intensity",
+                self.intensity_min
+            ));
+        }
+        if !(pos(self.step_rad) && self.step_rad < self.fov_rad) {
+            return bad(format!(
+                "the scans' angle step {} rad is not a scanner's",
+                self.step_rad
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for SensorConfig {
     fn default() -> Self {
         SensorConfig {
@@ -261,10 +309,29 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             None => 0,
         };
         let t = match ct {
-            Some(c) => Some(num(c, "t")?).filter(|t| t.is_finite()),
+            Some(c) => {
+                let t = num(c, "t")?;
+                if !(t.is_finite() && (0.0..=MAX_SCAN_TIME_S).contains(&t)) {
+                    return Err(err(
+                        line,
+                        "t",
+                        format!("time {t} s is not a scan time (0 to {MAX_SCAN_TIME_S:.0} s)"),
+                    ));
+                }
+                Some(t)
+            }
             None => None,
         };
         let new_scan = scans.last().is_none_or(|s| s.id != id);
+        if let (true, Some(t), Some(prev)) = (new_scan, t, scans.last().and_then(|s| s.t_s)) {
+            if t <= prev {
+                return Err(err(
+                    line,
+                    "t",
+                    format!("scan time {t} s does not come after the previous scan's {prev} s; scans must be in time order"),
+                ));
+            }
+        }
         if new_scan {
             if let Some(prev) = scans.last() {
                 check_steps(prev, name, first_line, scans.first().map(|s| s.step_rad()))?;

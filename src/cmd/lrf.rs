@@ -83,6 +83,18 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
     if !(a.tolerance_m > 0.0 && a.tolerance_m <= 0.5) {
         anyhow::bail!("--tolerance-m {} must be in (0, 0.5] metres", a.tolerance_m);
     }
+    if !(a.max_range_m.is_finite() && a.max_range_m > 0.0 && a.max_range_m <= 1000.0) {
+        anyhow::bail!(
+            "--max-range-m {}: need a range in (0, 1000] metres",
+            a.max_range_m
+        );
+    }
+    if a.min_size < 3 {
+        anyhow::bail!(
+            "--min-size {}: a pose needs at least 3 landmarks",
+            a.min_size
+        );
+    }
     let map = Map::read(&a.map)?;
     let amb = find_ambiguities(&map, a.tolerance_m, a.max_range_m, a.min_size);
     let congruent: Vec<_> = amb
@@ -137,20 +149,25 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
 
 fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     check_output_file(&a.out, "--out")?;
-    let map = Map::read(&a.map)?;
-    let (scans, step_rad) = read_scan_files(&a.scans)?;
-    let cfg = LocalizerConfig {
+    let mut cfg = LocalizerConfig {
         sensor: SensorConfig {
             fov_rad: a.fov_deg.to_radians(),
             max_range_m: a.max_range_m,
             sigma_range_m: a.sigma_range_m,
             intensity_min: a.intensity_min,
             rate_hz: a.rate_hz,
-            step_rad: step_rad.unwrap_or(SensorConfig::default().step_rad),
             ..SensorConfig::default()
         },
         ..LocalizerConfig::default()
     };
+    // The options are checked before any file is read, the scans' step after.
+    cfg.sensor.check()?;
+    let map = Map::read(&a.map)?;
+    let (scans, step_rad) = read_scan_files(&a.scans)?;
+    if let Some(step) = step_rad {
+        cfg.sensor.step_rad = step;
+    }
+    cfg.sensor.check()?;
     let loc = Localizer::new(map, cfg);
     let bar = progress(scans.len() as u64, "localize");
     let start = Instant::now();
