@@ -22,6 +22,10 @@ pub struct Args {
     /// Where to write the corrected track (CSV); without it only the end point is printed.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Correct a log outside the model's training domain anyway (longer or shorter runs,
+    /// reversing, inputs beyond the trained range); the result is flagged as a guess.
+    #[arg(long)]
+    pub allow_extrapolation: bool,
 }
 
 /// Runs the subcommand.
@@ -36,9 +40,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let log = OdometryLog::read_csv(&args.log)?;
     let run = model
-        .correct_log(&log, &robot, &args.log.display().to_string())
+        .correct_log(
+            &log,
+            &robot,
+            &args.log.display().to_string(),
+            args.allow_extrapolation,
+        )
         .with_context(|| format!("{}", args.model.display()))?;
     let (raw, corrected) = (run.raw_end_m, run.corrected_end_m);
+    for why in &run.outside_domain {
+        eprintln!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
+    }
     println!(
         "raw odometry end: x {:.4} m, y {:.4} m; corrected end: x {:.4} m, y {:.4} m (start frame; correction {:.2} cm over {:.3} m of odometry)",
         raw[0],

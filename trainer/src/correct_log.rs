@@ -21,6 +21,8 @@ pub struct CorrectedRun {
     pub path_length_m: f64,
     /// Per logged step: time (s), the raw pose and the corrected position (start frame).
     pub track: Vec<(f64, Pose2, [f64; 2])>,
+    /// Why the log lies outside the model's training domain (empty when inside).
+    pub outside_domain: Vec<String>,
 }
 
 /// Median interval between log rows, seconds.
@@ -36,12 +38,15 @@ fn median_period_s(t: &[f64]) -> Option<f64> {
 impl ModelFile {
     /// Corrects a raw log of `robot` (`name` is the log file, for messages): checks that the
     /// model fits the robot and that the log's period is the robot's, builds the features with
-    /// the dataset's rule, and corrects the end point and the track.
+    /// the dataset's rule, and corrects the end point and the track. A log outside the
+    /// model's training domain is refused unless `allow_extrapolation`, when the reasons are
+    /// returned in [`CorrectedRun::outside_domain`] for the caller to flag.
     pub fn correct_log(
         &self,
         log: &OdometryLog,
         robot: &RobotParams,
         name: &str,
+        allow_extrapolation: bool,
     ) -> Result<CorrectedRun, TrainError> {
         self.check_compatible(FEATURE_RULE, robot)?;
         if let Some(p) = median_period_s(&log.t_s) {
@@ -54,11 +59,23 @@ impl ModelFile {
         }
         let f = features_from_log(log, robot)
             .map_err(|e| TrainError::Dataset(format!("{name}: {e}")))?;
+        let nominal = WheelGeometry::nominal(robot);
+        let path_length_m = f.odometry.travel_m(&nominal);
+        let outside_domain = self
+            .domain
+            .as_ref()
+            .map(|d| d.outside(&f.inputs, f.raw_end_m))
+            .unwrap_or_default();
+        if !outside_domain.is_empty() && !allow_extrapolation {
+            return Err(TrainError::Model(format!(
+                "{name}: outside what the model was trained on: {}; a correction there would be a guess (pass --allow-extrapolation to get it anyway, flagged)",
+                outside_domain.join("; ")
+            )));
+        }
         let corrected = self
             .correct(&f.inputs)
             .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
         let raw = f.raw_end_m;
-        let nominal = WheelGeometry::nominal(robot);
         // The start stays, the raw end goes to the corrected end: exact at both, a rotation
         // and scaling in between. A run that does not move keeps its raw track.
         let fit = fit_helmert(
@@ -83,8 +100,9 @@ impl ModelFile {
         Ok(CorrectedRun {
             raw_end_m: raw,
             corrected_end_m: corrected,
-            path_length_m: f.odometry.travel_m(&nominal),
+            path_length_m,
             track,
+            outside_domain,
         })
     }
 }

@@ -117,7 +117,8 @@ pub fn fit_model(
         raw_odometry: Metrics::of(&all, &raw),
         cross_validated,
     };
-    let model = ModelFile::new(&net, ts, seed, ds.robot, sha, n, metrics, kin);
+    let mut model = ModelFile::new(&net, ts, seed, ds.robot, sha, n, metrics, kin);
+    model.domain = crate::domain::TrainingDomain::of(&ds.samples);
     Ok(FittedModel {
         model,
         n_params: net.net.n_params(),

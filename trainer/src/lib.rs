@@ -6,6 +6,7 @@ pub mod baseline;
 mod correct_log;
 pub mod crossval;
 pub mod data;
+pub mod domain;
 pub mod error;
 mod fit_model;
 pub mod metrics;

@@ -74,6 +74,9 @@ pub struct ModelFile {
     pub metrics: ModelMetrics,
     /// Kinematic calibration fitted on the same dataset (reference / ROS export).
     pub kinematic_calibration: Option<KinematicCalibration>,
+    /// What the model was trained on; logs outside it are refused by `odocal correct`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub domain: Option<crate::domain::TrainingDomain>,
 }
 
 fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
@@ -124,6 +127,7 @@ impl ModelFile {
             stop_reason: net.stop_reason.clone(),
             metrics,
             kinematic_calibration,
+            domain: None,
         }
     }
 

@@ -1,0 +1,350 @@
+//! Bad and unusual inputs, as a new user passes them: each class gives exit code 2, one line
+//! that names the culprit, and no output file; none gives a plausible wrong answer.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use common::{experiment_dataset, fails, odocal, ok, p};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/parsers")
+        .join(name)
+}
+
+/// The files of a directory (to check that nothing was written).
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|r| {
+            r.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+/// Runs odocal expecting the one-line error containing every `needles`, and checks that
+/// `dir` holds the same files afterwards.
+fn refused(dir: &Path, args: &[&str], needles: &[&str]) {
+    let before = listing(dir);
+    let e = fails(args);
+    for n in needles {
+        assert!(e.contains(n), "expected {n:?} in: {e}");
+    }
+    assert_eq!(listing(dir), before, "files appeared for {args:?}");
+}
+
+#[test]
+fn correct_refuses_logs_outside_the_training_domain() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let ds = dir.join("dataset.json");
+    experiment_dataset(&dir.join("exp"), &ds, 30, 4);
+    let model = dir.join("model.json");
+    ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&model),
+        "--hidden",
+        "4",
+        "--no-cv",
+    ]);
+    let log_path = dir.join("exp/runs/run001.odometry.csv");
+    ok(&["correct", "--model", p(&model), p(&log_path)]);
+    let text = std::fs::read_to_string(&log_path).expect("log");
+    let scaled = |k: i64| -> String {
+        let mut lines = text.lines();
+        let mut out = format!("{}\n", lines.next().unwrap_or(""));
+        for l in lines {
+            let f: Vec<&str> = l.split(',').collect();
+            let n = |s: &str| s.parse::<i64>().expect("ticks") * k;
+            out += &format!("{},{},{}\n", f[0], n(f[1]), n(f[2]));
+        }
+        out
+    };
+    let out = dir.join("corrected.csv");
+    let long = dir.join("long.csv");
+    std::fs::write(&long, scaled(10)).expect("write");
+    refused(
+        dir,
+        &["correct", "--model", p(&model), p(&long), "--out", p(&out)],
+        &[
+            "long.csv",
+            "outside what the model was trained on",
+            "m from its start",
+        ],
+    );
+    let back = dir.join("back.csv");
+    std::fs::write(&back, scaled(-1)).expect("write");
+    refused(
+        dir,
+        &["correct", "--model", p(&model), p(&back), "--out", p(&out)],
+        &["behind its start"],
+    );
+    // On request it is corrected, and flagged on stderr.
+    let o = odocal(&[
+        "correct",
+        "--model",
+        p(&model),
+        p(&back),
+        "--allow-extrapolation",
+    ]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("EXTRAPOLATED"));
+
+    // A model whose robot has no physical sense is refused, naming the field.
+    let bad = dir.join("bad_model.json");
+    let m = std::fs::read_to_string(&model).expect("model");
+    let v: serde_json::Value = serde_json::from_str(&m).expect("json");
+    let wd = v["robot"]["wheel_diameter_m"].as_f64().expect("diameter");
+    let mut v2 = v.clone();
+    v2["robot"]["wheel_diameter_m"] = serde_json::json!(-wd);
+    std::fs::write(&bad, v2.to_string()).expect("write");
+    refused(
+        dir,
+        &[
+            "correct",
+            "--model",
+            p(&bad),
+            p(&log_path),
+            "--out",
+            p(&out),
+        ],
+        &["bad_model.json", "wheel_diameter_m"],
+    );
+}
+
+#[test]
+fn camera_files_without_physical_sense_name_the_field() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("camera.json")).expect("camera"))
+            .expect("json");
+    let out = dir.join("traj.csv");
+    let video = dir.join("none.avi");
+    for (field, value, needle) in [
+        ("fx", serde_json::json!(0.0), "fx = 0"),
+        ("fy", serde_json::json!(-5.0), "fy = -5"),
+    ] {
+        let mut c = cam.clone();
+        c["camera"]["intrinsics"][field] = value;
+        let path = dir.join(format!("cam_{field}.json"));
+        std::fs::write(&path, c.to_string()).expect("write");
+        refused(
+            dir,
+            &["track", p(&video), "--camera", p(&path), "--out", p(&out)],
+            &[&format!("cam_{field}.json"), needle],
+        );
+    }
+    let mut c = cam.clone();
+    c["floor"]["floor_to_camera"]["rotation"] = serde_json::json!([0.0, 0.0, 0.0, 0.0]);
+    let zero = dir.join("cam_rot.json");
+    std::fs::write(&zero, c.to_string()).expect("write");
+    let e = fails(&["track", p(&video), "--camera", p(&zero), "--out", p(&out)]);
+    assert!(e.contains("cam_rot.json"), "{e}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn laser_options_and_scan_times_are_checked() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let (map, scans) = (data("map.json"), data("scans.csv"));
+    let out = dir.join("poses.csv");
+    let base = [
+        "lrf",
+        "localize",
+        "--map",
+        p(&map),
+        p(&scans),
+        "--out",
+        p(&out),
+    ];
+    for (opt, v, needle) in [
+        ("--rate-hz", "0", "--rate-hz"),
+        ("--max-range-m", "-5", "--max-range-m"),
+        ("--sigma-range-m", "-1", "--sigma-range-m"),
+        ("--intensity-min", "NaN", "--intensity-min"),
+    ] {
+        let mut args = base.to_vec();
+        let arg = format!("{opt}={v}");
+        args.push(&arg);
+        refused(dir, &args, &[needle]);
+    }
+    refused(
+        dir,
+        &["lrf", "check-map", p(&map), "--max-range-m=-1"],
+        &["--max-range-m"],
+    );
+    let text = std::fs::read_to_string(&scans).expect("scans");
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    // A second scan (id 1) whose time is NaN, the same as the first, earlier, or absurd.
+    let second: Vec<String> = lines[1..]
+        .iter()
+        .map(|l| l.replacen("0,", "1,", 1))
+        .collect();
+    for (t, needle) in [
+        ("NaN", "scans2.csv"),
+        ("0.000", "time order"),
+        ("-1", "not a scan time"),
+        ("1e12", "not a scan time"),
+    ] {
+        let mut all = lines.clone();
+        all.extend(second.iter().map(|l| {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[1] = t;
+            f.join(",")
+        }));
+        let bad = dir.join("scans2.csv");
+        std::fs::write(&bad, all.join("\n") + "\n").expect("write");
+        let mut args = base.to_vec();
+        args[4] = p(&bad);
+        refused(dir, &args, &[needle]);
+        std::fs::remove_file(&bad).expect("remove");
+    }
+    lines.truncate(1);
+}
+
+#[test]
+fn absurd_maps_are_refused_without_a_hang_or_a_huge_allocation() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let map: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("map.json")).expect("map"))
+            .expect("json");
+    for (name, f) in [("far", 1e300), ("mm", 1000.0), ("km", 1e7)] {
+        let mut m = map.clone();
+        if let Some(ls) = m["landmarks"].as_array_mut() {
+            for (k, l) in ls.iter_mut().enumerate() {
+                let x = l["x_m"].as_f64().unwrap_or(0.0);
+                l["x_m"] = serde_json::json!(if name == "mm" || k == 0 { x * f + f } else { x });
+            }
+        }
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, m.to_string()).expect("write");
+        refused(
+            dir,
+            &["lrf", "check-map", p(&path)],
+            &[&format!("{name}.json"), "are the coordinates in metres?"],
+        );
+    }
+}
+
+#[test]
+fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let (map, scans) = (data("map.json"), data("scans.csv"));
+    // A directory, a device: refused before any work, nothing replaced.
+    for out in [dir.to_path_buf(), PathBuf::from("/dev/null")] {
+        refused(
+            dir,
+            &[
+                "lrf",
+                "localize",
+                "--map",
+                p(&map),
+                p(&scans),
+                "--out",
+                p(&out),
+            ],
+            &["--out", "give a file path"],
+        );
+    }
+    // A name of 254 characters works (the temporary name does not grow it).
+    let long = dir.join(format!("{}.csv", "p".repeat(250)));
+    ok(&[
+        "lrf",
+        "localize",
+        "--map",
+        p(&map),
+        p(&scans),
+        "--out",
+        p(&long),
+    ]);
+    assert!(long.exists());
+    // A later step fails (a reference of other times): the trajectory is not left behind.
+    let exp = dir.join("exp");
+    ok(&[
+        "synth",
+        "track",
+        "--out",
+        p(&exp),
+        "--frames",
+        "20",
+        "--seed",
+        "3",
+    ]);
+    let truth = dir.join("other_truth.csv");
+    std::fs::write(&truth, "t,x,y,theta,quality\n100,0,0,0,1\n101,0,0,0,1\n").expect("write");
+    let traj = dir.join("traj.csv");
+    let o = odocal(&[
+        "track",
+        p(&exp.join("video.avi")),
+        "--camera",
+        p(&exp.join("camera.json")),
+        "--out",
+        p(&traj),
+        "--truth",
+        p(&truth),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("odocal: error: ") && err.contains("no row has the timestamp"),
+        "{err}"
+    );
+    assert!(
+        !traj.exists(),
+        "the trajectory of a failed command was left"
+    );
+    assert!(
+        listing(dir).iter().all(|f| !f.ends_with(".tmp")),
+        "a temporary file was left: {:?}",
+        listing(dir)
+    );
+    // synth calib with an absurd size: refused before any allocation, no folder made.
+    let calib = dir.join("calib");
+    refused(
+        dir,
+        &[
+            "synth",
+            "calib",
+            "--out",
+            p(&calib),
+            "--width",
+            "100000",
+            "--height",
+            "100000",
+        ],
+        &["--width 100000", "megapixels"],
+    );
+}
+
+#[test]
+fn a_closed_stdout_pipe_ends_quietly() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args([
+            "synth",
+            "lrf",
+            "--out",
+            p(&d.path().join("lrf")),
+            "--seed",
+            "2",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
