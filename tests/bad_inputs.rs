@@ -348,3 +348,59 @@ fn a_closed_stdout_pipe_ends_quietly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn a_log_paired_with_another_runs_trajectory_is_rejected_with_its_figures() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let exp = d.path().join("exp");
+    ok(&[
+        "synth",
+        "experiment",
+        "--out",
+        p(&exp),
+        "--runs",
+        "3",
+        "--seed",
+        "3",
+        "--frames",
+        "none",
+    ]);
+    // run002's log (0.5 m/s) with run003's trajectory (0.7 m/s): the speed profiles correlate,
+    // the speeds do not.
+    let manifest = exp.join("manifest.json");
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).expect("manifest")).expect("json");
+    let other = m["runs"][2]["trajectory"].clone();
+    m["runs"][1]["trajectory"] = other;
+    std::fs::write(&manifest, m.to_string()).expect("write");
+    let out = d.path().join("dataset.json");
+    let text = ok(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    assert!(
+        text.contains("rejected run002: odometry and camera disagree") && text.contains("m/s RMS"),
+        "{text}"
+    );
+}
+
+#[test]
+fn copies_and_too_few_samples_are_refused_by_train() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let ds: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data("dataset.json")).expect("dataset"))
+            .expect("json");
+    let one = ds["samples"][0].clone();
+    let out = dir.join("model.json");
+    for (n, needle) in [(40, "39 of 40 samples are copies"), (1, "1 sample(s)")] {
+        let mut v = ds.clone();
+        v["samples"] = serde_json::Value::Array(vec![one.clone(); n]);
+        let path = dir.join(format!("ds{n}.json"));
+        std::fs::write(&path, v.to_string()).expect("write");
+        let e = fails(&["train", p(&path), "--out", p(&out)]);
+        assert!(
+            e.contains(needle) && e.contains(&format!("ds{n}.json")),
+            "{e}"
+        );
+        assert_eq!(e.matches("warning").count(), 0, "{e}");
+        assert!(!out.exists());
+    }
+}

@@ -33,7 +33,16 @@ pub struct BuildOptions {
     pub rest_guard_s: f64,
     /// Fewest camera frames at rest needed for the start and end poses.
     pub min_rest_frames: usize,
+    /// Largest RMS difference, m/s, between the odometry's speed and the camera's at the best
+    /// clock offset for a run to be kept. Good runs of the reference experiment give about
+    /// 0.025 m/s (encoder quantisation and slip); a log paired with another run's trajectory
+    /// gives 0.1-0.3 m/s. See [`DEFAULT_MAX_ALIGNMENT_RESIDUAL_MPS`].
+    pub max_alignment_residual_mps: f64,
 }
+
+/// The default of [`BuildOptions::max_alignment_residual_mps`]: three times what good runs
+/// give, well below what a mismatched pair gives.
+pub const DEFAULT_MAX_ALIGNMENT_RESIDUAL_MPS: f64 = 0.08;
 
 impl Default for BuildOptions {
     fn default() -> Self {
@@ -46,6 +55,7 @@ impl Default for BuildOptions {
             rest_window_s: 1.0,
             rest_guard_s: 0.3,
             min_rest_frames: 3,
+            max_alignment_residual_mps: DEFAULT_MAX_ALIGNMENT_RESIDUAL_MPS,
         }
     }
 }
@@ -222,6 +232,16 @@ pub fn process_recording(
                 continue;
             }
         };
+        if !(al.residual_mps <= opts.max_alignment_residual_mps) {
+            out.push(reject(
+                id,
+                format!(
+                    "odometry and camera disagree: their speeds differ by {:.3} m/s RMS at the best clock offset (limit {:.3} m/s; good runs give about 0.025); is the log paired with the right video or trajectory?",
+                    al.residual_mps, opts.max_alignment_residual_mps
+                ),
+            ));
+            continue;
+        }
         let d = al.offset_s;
         let (tb, te) = (odo.t_b(), odo.t_e());
         // Start pose: camera frames at rest before motion.
