@@ -404,3 +404,120 @@ fn copies_and_too_few_samples_are_refused_by_train() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let calib = dir.join("calib");
+    ok(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&calib),
+        "--views",
+        "4",
+        "--floor-views",
+        "1",
+        "--width",
+        "640",
+        "--height",
+        "480",
+        "--seed",
+        "5",
+    ]);
+    let view = calib.join("view_00.png");
+    let out = dir.join("camera.json");
+    let copies: Vec<PathBuf> = (0..6).map(|i| dir.join(format!("copy_{i}.png"))).collect();
+    for c in &copies {
+        std::fs::copy(&view, c).expect("copy");
+    }
+    let mut args = vec![
+        "calibrate",
+        "--board",
+        "9x6",
+        "--square",
+        "0.05",
+        "--out",
+        p(&out),
+    ];
+    args.extend(copies.iter().map(|c| p(c)));
+    refused(
+        dir,
+        &args,
+        &["distinct view", "copy_1.png", "the same view as"],
+    );
+    // Every file after --floor is a floor image: say so instead of "no views".
+    let floor = calib.join("floor_00.png");
+    let mut args = vec![
+        "calibrate",
+        "--board",
+        "9x6",
+        "--square",
+        "0.05",
+        "--out",
+        p(&out),
+    ];
+    args.extend(["--floor", p(&floor), p(&view)]);
+    refused(dir, &args, &["--floor took all 2 files"]);
+    // A PNG whose header claims 60000 x 60000 pixels, and one cut in half.
+    let png = std::fs::read(&view).expect("png");
+    let mut huge = png.clone();
+    huge[16..20].copy_from_slice(&60000u32.to_be_bytes());
+    huge[20..24].copy_from_slice(&60000u32.to_be_bytes());
+    let crc = crc32(&huge[12..29]);
+    huge[29..33].copy_from_slice(&crc.to_be_bytes());
+    let bad_huge = dir.join("huge.png");
+    std::fs::write(&bad_huge, &huge).expect("write");
+    let bad_cut = dir.join("cut.png");
+    std::fs::write(&bad_cut, &png[..png.len() / 2]).expect("write");
+    for (bad, needle) in [(&bad_huge, "60000x60000"), (&bad_cut, "damaged PNG")] {
+        let views: Vec<PathBuf> = (1..4)
+            .map(|i| calib.join(format!("view_{i:02}.png")))
+            .collect();
+        let mut args = vec![
+            "calibrate",
+            "--board",
+            "9x6",
+            "--square",
+            "0.05",
+            "--out",
+            p(&out),
+        ];
+        args.push(p(bad));
+        args.extend(views.iter().map(|v| p(v)));
+        let name = bad.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        refused(dir, &args, &[name, needle]);
+    }
+    // A marker below the floor names the option, before any frame is read.
+    let video = dir.join("none.avi");
+    refused(
+        dir,
+        &[
+            "track",
+            p(&video),
+            "--camera",
+            p(&data("camera.json")),
+            "--out",
+            p(&dir.join("t.csv")),
+            "--marker-height=-1",
+        ],
+        &["--marker-height -1"],
+    );
+}
+
+/// CRC-32 of PNG chunks (ISO 3309), to forge a valid header.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}

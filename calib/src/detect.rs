@@ -34,6 +34,38 @@ pub enum Detection {
     },
 }
 
+/// The largest image read, pixels (a 100-megapixel camera).
+pub const MAX_IMAGE_PIXELS: u64 = 100_000_000;
+
+/// Checks an image file before OpenCV decodes it: a header that says what it is and a size a
+/// camera has, and for PNG a complete file, so that a bad file gives one line naming it
+/// instead of a decoder's assertion or a multi-gigabyte allocation.
+pub fn check_image_file(path: &Path) -> Result<(), CalibError> {
+    let bad = |reason: String| CalibError::BadFile {
+        path: path.display().to_string(),
+        reason,
+    };
+    let reader = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| bad(format!("cannot be read ({e})")))?;
+    let format = reader.format();
+    let (w, h) = reader.into_dimensions().map_err(|e| {
+        bad(format!(
+            "is not a readable image ({e}); is it a PNG or JPEG?"
+        ))
+    })?;
+    if u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS || w == 0 || h == 0 {
+        return Err(bad(format!(
+            "claims to be {w}x{h} pixels, not a camera image (at most {} megapixels)",
+            MAX_IMAGE_PIXELS / 1_000_000
+        )));
+    }
+    if format == Some(image::ImageFormat::Png) {
+        image::open(path).map_err(|e| bad(format!("is a damaged PNG ({e})")))?;
+    }
+    Ok(())
+}
+
 /// Reads an image as 8-bit grey, with a clear error for unreadable files.
 pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
     let name = path.display().to_string();
@@ -43,6 +75,7 @@ pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
             reason: "no such file".into(),
         });
     }
+    check_image_file(path)?;
     let img = imgcodecs::imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
     if img.empty() {
         return Err(CalibError::BadFile {
@@ -129,6 +162,24 @@ pub fn detect_file(path: &Path, board: &BoardSpec) -> Result<Detection, CalibErr
         }),
         None => Detection::NotFound { image, size },
     })
+}
+
+/// A board one corner wider, taller or both than `board` that is visible in the image, if
+/// any: `--board` then counts too few corners and the detected grid is part of the board,
+/// which shifts the floor origin by a square.
+pub fn larger_board_visible(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
+    let gray = read_gray(path).ok()?;
+    let (c, r) = (board.cols, board.rows);
+    [(c + 1, r), (c, r + 1), (c + 1, r + 1)]
+        .into_iter()
+        .find(|&(cols, rows)| {
+            let spec = BoardSpec {
+                cols,
+                rows,
+                square_m: board.square_m,
+            };
+            matches!(find_corners(&gray, &spec), Ok(Some(_)))
+        })
 }
 
 /// When no view shows the board, tries nearby sizes on one image to tell the

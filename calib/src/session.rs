@@ -59,9 +59,35 @@ pub fn calibrate_session(
     board: &BoardSpec,
     on_image: &(dyn Fn() + Sync),
 ) -> Result<Session, CalibError> {
+    if images.is_empty() {
+        return Err(CalibError::Input(if floor.is_empty() {
+            "no images: give the checkerboard views to calibrate from".into()
+        } else {
+            format!(
+                "no calibration views: --floor took all {} files after it as floor images; put the views before --floor, or --floor last",
+                floor.len()
+            )
+        }));
+    }
     let detections = detect_all(images, board, on_image)?;
-    let (views, skipped, sizes) = split(detections, board);
+    let (views, mut skipped, sizes) = split(detections, board);
     check_sizes(&sizes)?;
+    let n_found = views.len();
+    let views = distinct_views(views, &mut skipped);
+    if views.len() < n_found && views.len() < 3 {
+        return Err(CalibError::Input(format!(
+            "only {} distinct view(s): {} of the {n_found} images with the board repeat another view ({}); Zhang calibration needs at least 3 views of the board at different tilts",
+            views.len(),
+            n_found - views.len(),
+            skipped
+                .iter()
+                .find(|s| s.reason.starts_with("the same view"))
+                .map_or(String::new(), |s| format!("{}: {}", s.image, s.reason))
+        )));
+    }
+    if let Some(v) = views.first() {
+        check_board_size(Path::new(&v.image), board)?;
+    }
     let mut notes: Vec<String> = skipped
         .iter()
         .map(|s| format!("skipped {}: {}", s.image, s.reason))
@@ -75,6 +101,9 @@ pub fn calibrate_session(
     } else {
         let fd = detect_all(floor, board, on_image)?;
         let (fviews, fskipped, fsizes) = split(fd, board);
+        if let Some(v) = fviews.first() {
+            check_board_size(Path::new(&v.image), board)?;
+        }
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
             fskipped
@@ -97,6 +126,52 @@ pub fn calibrate_session(
         floor,
     };
     Ok(Session { file, notes })
+}
+
+/// Corners of two views closer than this (RMS, pixels) make them the same view.
+pub const SAME_VIEW_RMS_PX: f64 = 0.5;
+
+/// Drops views that repeat an earlier one (the same photo given twice, or the board not
+/// moved between shots), noting each as skipped: they add no constraint, yet weigh their pose
+/// twice in the fit.
+fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<BoardView> {
+    let mut kept: Vec<BoardView> = Vec::with_capacity(views.len());
+    for v in views {
+        let same = kept.iter().find(|k| {
+            let n = k.corners.len().max(1) as f64;
+            let ss: f64 = k
+                .corners
+                .iter()
+                .zip(&v.corners)
+                .map(|(a, b)| (a - b).norm_squared())
+                .sum();
+            k.corners.len() == v.corners.len() && (ss / n).sqrt() < SAME_VIEW_RMS_PX
+        });
+        match same {
+            Some(k) => skipped.push(SkippedView {
+                image: v.image.clone(),
+                reason: format!(
+                    "the same view as {} (corners within {SAME_VIEW_RMS_PX} px)",
+                    k.image
+                ),
+            }),
+            None => kept.push(v),
+        }
+    }
+    kept
+}
+
+/// Refuses a `--board` that counts fewer corners than the board in the image has.
+fn check_board_size(image: &Path, board: &BoardSpec) -> Result<(), CalibError> {
+    match crate::detect::larger_board_visible(image, board) {
+        Some((c, r)) => Err(CalibError::Input(format!(
+            "{} shows a {c}x{r} board, but --board {}x{} finds only part of it (the floor origin would move by a square); pass --board {c}x{r} (inner corners)",
+            image.display(),
+            board.cols,
+            board.rows
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Detects the board in every image in parallel.

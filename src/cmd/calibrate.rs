@@ -13,7 +13,6 @@ use crate::output::{check_output_file, progress, write_atomic, write_json};
 #[derive(ClapArgs)]
 pub struct Args {
     /// Checkerboard images (PNG/JPEG), ideally 15-25 views covering the image.
-    #[arg(required = true)]
     images: Vec<PathBuf>,
     /// Board size in INNER corners, COLSxROWS (a board of 10x7 squares has 9x6 inner corners).
     #[arg(long, default_value = "9x6")]

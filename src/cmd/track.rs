@@ -119,6 +119,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let floor = *camera_file.require_floor(&args.camera)?;
+    let opts = options(&args);
+    opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(
         &args.video,
         &SourceOptions {
@@ -126,7 +128,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             timestamps: args.timestamps.clone(),
         },
     )?;
-    let opts = options(&args);
     let overlay_dir = match &args.overlay {
         Some(dir) => Some(staged_dir(dir, "--overlay")?),
         None => None,

@@ -46,6 +46,41 @@ pub struct TrackOptions {
     pub pnp_cross_check: bool,
 }
 
+impl TrackOptions {
+    /// Checks the options for physical sense (the message names the command-line option);
+    /// with the camera's height above the floor, the marker must be below the camera.
+    pub fn check(&self, camera_height_m: Option<f64>) -> Result<(), TrackError> {
+        let bad = |m: String| Err(TrackError::Options(m));
+        if !(self.tag_size_m > 0.0 && self.tag_size_m <= 1.0) {
+            return bad(format!(
+                "--tag-size {}: the tag's black square is 0 to 1 m across",
+                self.tag_size_m
+            ));
+        }
+        let top = camera_height_m.unwrap_or(f64::INFINITY);
+        if !(self.marker_height_m >= 0.0 && self.marker_height_m < top.min(10.0)) {
+            return bad(format!(
+                "--marker-height {}: the marker is on the robot, 0 m or more above the floor and below the camera{}",
+                self.marker_height_m,
+                camera_height_m.map_or(String::new(), |h| format!(" ({h:.2} m)"))
+            ));
+        }
+        if !(self.max_speed_mps > 0.0 && self.max_speed_mps.is_finite()) {
+            return bad(format!(
+                "--max-speed {}: must be a positive speed in m/s",
+                self.max_speed_mps
+            ));
+        }
+        if !(self.max_reprojection_px > 0.0 && self.max_reprojection_px.is_finite()) {
+            return bad(format!(
+                "--max-reprojection {}: must be a positive number of pixels",
+                self.max_reprojection_px
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for TrackOptions {
     fn default() -> Self {
         Self {
@@ -169,17 +204,7 @@ impl Tracker {
         floor: FloorToCamera,
         opts: TrackOptions,
     ) -> Result<Self, TrackError> {
-        if !(opts.tag_size_m > 0.0 && opts.tag_size_m.is_finite()) {
-            return Err(TrackError::Options(format!(
-                "tag size must be positive, got {} m",
-                opts.tag_size_m
-            )));
-        }
-        if !opts.marker_height_m.is_finite() {
-            return Err(TrackError::Options(
-                "marker height must be a finite number of metres".into(),
-            ));
-        }
+        opts.check(None)?;
         let detector = TagDetector::new(&opts.family, opts.max_hamming.min(3) as usize, 1.0)?;
         Ok(Self {
             camera,
