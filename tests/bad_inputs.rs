@@ -432,15 +432,7 @@ fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
     for c in &copies {
         std::fs::copy(&view, c).expect("copy");
     }
-    let mut args = vec![
-        "calibrate",
-        "--board",
-        "9x6",
-        "--square",
-        "0.05",
-        "--out",
-        p(&out),
-    ];
+    let mut args = calibrate_args(&out);
     args.extend(copies.iter().map(|c| p(c)));
     refused(
         dir,
@@ -449,15 +441,7 @@ fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
     );
     // Every file after --floor is a floor image: say so instead of "no views".
     let floor = calib.join("floor_00.png");
-    let mut args = vec![
-        "calibrate",
-        "--board",
-        "9x6",
-        "--square",
-        "0.05",
-        "--out",
-        p(&out),
-    ];
+    let mut args = calibrate_args(&out);
     args.extend(["--floor", p(&floor), p(&view)]);
     refused(dir, &args, &["--floor took all 2 files"]);
     // A PNG whose header claims 60000 x 60000 pixels, and one cut in half.
@@ -475,15 +459,7 @@ fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
         let views: Vec<PathBuf> = (1..4)
             .map(|i| calib.join(format!("view_{i:02}.png")))
             .collect();
-        let mut args = vec![
-            "calibrate",
-            "--board",
-            "9x6",
-            "--square",
-            "0.05",
-            "--out",
-            p(&out),
-        ];
+        let mut args = calibrate_args(&out);
         args.push(p(bad));
         args.extend(views.iter().map(|v| p(v)));
         let name = bad.file_name().and_then(|n| n.to_str()).unwrap_or("");
@@ -504,6 +480,19 @@ fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
         ],
         &["--marker-height -1"],
     );
+}
+
+/// `odocal calibrate` of a 9x6 board of 5 cm squares into `out`, images to be added.
+fn calibrate_args(out: &Path) -> Vec<&str> {
+    vec![
+        "calibrate",
+        "--board",
+        "9x6",
+        "--square",
+        "0.05",
+        "--out",
+        p(out),
+    ]
 }
 
 /// CRC-32 of PNG chunks (ISO 3309), to forge a valid header.

@@ -19,6 +19,6 @@ pub use file_error::{read_text, FileError};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};
 pub use pose::{wrap_angle, Pose2};
 pub use ray::ray_segment;
-pub use table::{csv_error, csv_table, numeric_row, CsvTable};
+pub use table::{csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, TextFormat};
 pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};
 pub use trajectory::{mean_pose, Trajectory, TrajectoryRow, TRAJECTORY_HEADER};

@@ -48,6 +48,26 @@ pub fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, FileError> 
     Ok(Some(CsvTable { header, rows }))
 }
 
+/// [`csv_table`] for a file that must have a header: an empty one is an error saying it is
+/// an empty `what` ("empty pose log (no header)").
+pub fn csv_table_with_header(text: &str, name: &str, what: &str) -> Result<CsvTable, FileError> {
+    csv_table(text, name)?
+        .ok_or_else(|| FileError::content(name, format!("empty {what} (no header)")))
+}
+
+/// A text file format: parsed from text (`name` starts every message) and read from a path
+/// with the same messages.
+pub trait TextFormat: Sized {
+    /// Parses the file's text.
+    fn parse(text: &str, name: &str) -> Result<Self, FileError>;
+
+    /// Reads and parses the file at `path`.
+    fn read(path: &std::path::Path) -> Result<Self, FileError> {
+        let text = crate::file_error::read_text(path)?;
+        Self::parse(&text, &path.display().to_string())
+    }
+}
+
 /// Parses a data row of exactly `N` finite numbers; errors name the line and column.
 pub fn numeric_row<const N: usize>(
     name: &str,

@@ -232,7 +232,7 @@ pub fn process_recording(
                 continue;
             }
         };
-        if !(al.residual_mps <= opts.max_alignment_residual_mps) {
+        if al.residual_mps > opts.max_alignment_residual_mps || al.residual_mps.is_nan() {
             out.push(reject(
                 id,
                 format!(

@@ -3,9 +3,8 @@
 //! empty when the scan was lost. Metres and radians in the map frame, seconds.
 
 use std::fmt::Write as _;
-use std::path::Path;
 
-use odocal_core::{csv_table, FileError, Pose2};
+use odocal_core::{csv_table_with_header, FileError, Pose2, TextFormat};
 
 use crate::search::Status;
 
@@ -72,18 +71,20 @@ impl PoseLog {
         csv
     }
 
-    /// Reads a pose log file.
-    pub fn read(path: &Path) -> Result<Self, FileError> {
-        let text = odocal_core::read_text(path)?;
-        Self::parse(&text, &path.display().to_string())
+    /// The rows as [`crate::evaluate`] takes them: time, status, pose, landmarks matched.
+    pub fn for_evaluation(&self) -> Vec<(f64, Status, Option<Pose2>, usize)> {
+        self.rows
+            .iter()
+            .map(|r| (r.t_s, r.status, r.pose, r.n_landmarks))
+            .collect()
     }
+}
 
+impl TextFormat for PoseLog {
     /// Parses pose-log text; `name` starts every message. Columns are found by name, so
     /// logs with only `t,x,y,theta,status,n_landmarks` read too (the other counts are 0).
-    pub fn parse(text: &str, name: &str) -> Result<Self, FileError> {
-        let Some(table) = csv_table(text, name)? else {
-            return Err(FileError::content(name, "empty pose log (no header)"));
-        };
+    fn parse(text: &str, name: &str) -> Result<Self, FileError> {
+        let table = csv_table_with_header(text, name, "pose log")?;
         let (hline, header) = &table.header;
         let col = |n: &str| header.iter().position(|c| c == n);
         let need = |n: &str| {
@@ -175,14 +176,6 @@ impl PoseLog {
             });
         }
         Ok(Self { rows })
-    }
-
-    /// The rows as [`crate::evaluate`] takes them: time, status, pose, landmarks matched.
-    pub fn for_evaluation(&self) -> Vec<(f64, Status, Option<Pose2>, usize)> {
-        self.rows
-            .iter()
-            .map(|r| (r.t_s, r.status, r.pose, r.n_landmarks))
-            .collect()
     }
 }
 

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use odocal_calib::CameraFile;
+use odocal_core::TextFormat;
 use odocal_dataset::Dataset;
 use odocal_synth::board::{true_corners, CalibTruth};
 use odocal_trainer::{ModelFile, SweepReport};

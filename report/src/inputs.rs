@@ -1,7 +1,7 @@
 //! Tracks for the report's run figures, in either the camera trajectory format or the
 //! simulator's truth format.
 
-use odocal_core::{Pose2, Trajectory};
+use odocal_core::{Pose2, TextFormat, Trajectory};
 
 use crate::ReportError;
 

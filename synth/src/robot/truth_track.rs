@@ -3,9 +3,8 @@
 //! clocks, floor frame, metres and radians; `visible` is 0 while the robot is carried.
 
 use std::fmt::Write as _;
-use std::path::Path;
 
-use odocal_core::{csv_table, numeric_row, FileError, Pose2};
+use odocal_core::{csv_table_with_header, numeric_row, FileError, Pose2, TextFormat};
 
 use super::SimulatedRecording;
 
@@ -66,18 +65,12 @@ impl TruthTrack {
         }
         csv
     }
+}
 
-    /// Reads a truth track file.
-    pub fn read(path: &Path) -> Result<Self, FileError> {
-        let text = odocal_core::read_text(path)?;
-        Self::parse(&text, &path.display().to_string())
-    }
-
+impl TextFormat for TruthTrack {
     /// Parses truth-track text; `name` starts every message.
-    pub fn parse(text: &str, name: &str) -> Result<Self, FileError> {
-        let Some(table) = csv_table(text, name)? else {
-            return Err(FileError::content(name, "empty truth track (no header)"));
-        };
+    fn parse(text: &str, name: &str) -> Result<Self, FileError> {
+        let table = csv_table_with_header(text, name, "truth track")?;
         let (line, header) = &table.header;
         let fields: Vec<&str> = header.iter().collect();
         if fields.join(",") != TRUTH_TRACK_HEADER {
