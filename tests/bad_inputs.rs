@@ -510,3 +510,28 @@ fn crc32(bytes: &[u8]) -> u32 {
     }
     !c
 }
+
+#[test]
+fn a_reflector_lattice_ends_the_map_check_with_a_verdict_not_a_hang() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let landmarks: Vec<serde_json::Value> = (0..20)
+        .flat_map(|i| (0..20).map(move |j| (i, j)))
+        .enumerate()
+        .map(|(k, (i, j))| serde_json::json!({"id": k + 1, "x_m": i as f64, "y_m": j as f64}))
+        .collect();
+    let map = serde_json::json!({
+        "format": "odocal.lrf-map/1", "reflector_width_m": 0.08, "room_m": [20.0, 20.0],
+        "walls": [], "landmarks": landmarks,
+    });
+    let path = d.path().join("lattice.json");
+    std::fs::write(&path, map.to_string()).expect("write");
+    refused(
+        d.path(),
+        &["lrf", "check-map", p(&path)],
+        &[
+            "lattice.json",
+            "the ambiguity search stopped",
+            "repeats itself",
+        ],
+    );
+}

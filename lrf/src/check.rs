@@ -5,6 +5,7 @@
 use nalgebra::{Point2, Rotation2, Vector2};
 use odocal_core::{wrap_angle, Pose2};
 
+use crate::LrfError;
 use crate::Map;
 
 /// How two sub-configurations relate.
@@ -42,6 +43,23 @@ impl Ambiguity {
 /// set matches within `tol_m` by a rigid motion or a reflection, with
 /// consistent reflector orientations. Largest first.
 pub fn find_ambiguities(map: &Map, tol_m: f64, radius_m: f64, min_size: usize) -> Vec<Ambiguity> {
+    find_ambiguities_within(map, tol_m, radius_m, min_size, usize::MAX).0
+}
+
+/// The most candidate matches [`check_map_report`] tries: a map of a building's reflectors
+/// needs far fewer; a regular lattice needs millions, and is ambiguous anyway.
+pub const CHECK_BUDGET: usize = 200_000;
+
+/// [`find_ambiguities`] that stops after `budget` candidate matches; the flag says whether
+/// the search was complete.
+pub fn find_ambiguities_within(
+    map: &Map,
+    tol_m: f64,
+    radius_m: f64,
+    min_size: usize,
+    budget: usize,
+) -> (Vec<Ambiguity>, bool) {
+    let mut trials = 0usize;
     let n = map.len();
     let mut found: Vec<Ambiguity> = Vec::new();
     let min_size = min_size.max(3);
@@ -73,6 +91,10 @@ pub fn find_ambiguities(map: &Map, tol_m: f64, radius_m: f64, min_size: usize) -
                     let is_identity = kind == AmbiguityKind::Congruent && (c, dd) == (a, b);
                     if is_identity {
                         continue;
+                    }
+                    trials += 1;
+                    if trials > budget {
+                        return (sorted(found), false);
                     }
                     let mid = Point2::from((map.position(a).coords + map.position(b).coords) * 0.5);
                     let mut from = Vec::new();
@@ -117,6 +139,11 @@ pub fn find_ambiguities(map: &Map, tol_m: f64, radius_m: f64, min_size: usize) -
             }
         }
     }
+    (sorted(found), true)
+}
+
+/// Largest first, congruent before mirror.
+fn sorted(mut found: Vec<Ambiguity>) -> Vec<Ambiguity> {
     found.sort_by(|a, b| {
         b.size()
             .cmp(&a.size())
@@ -138,6 +165,78 @@ fn facing_matches(map: &Map, i: usize, j: usize, theta: f64, kind: AmbiguityKind
         }
         _ => false,
     }
+}
+
+/// The check of a map as `odocal lrf check-map` prints it: the map, the counts, up to ten
+/// ambiguous configurations, and the verdict. Refuses settings without sense first.
+pub fn check_map_report(
+    map: &Map,
+    name: &str,
+    tolerance_m: f64,
+    max_range_m: f64,
+    min_size: usize,
+) -> Result<Vec<String>, LrfError> {
+    if !(tolerance_m > 0.0 && tolerance_m <= 0.5) {
+        return Err(LrfError::Config(format!(
+            "--tolerance-m {tolerance_m} must be in (0, 0.5] metres"
+        )));
+    }
+    if !(max_range_m.is_finite() && max_range_m > 0.0 && max_range_m <= 1000.0) {
+        return Err(LrfError::Config(format!(
+            "--max-range-m {max_range_m}: need a range in (0, 1000] metres"
+        )));
+    }
+    if min_size < 3 {
+        return Err(LrfError::Config(format!(
+            "--min-size {min_size}: a pose needs at least 3 landmarks"
+        )));
+    }
+    let (amb, complete) =
+        find_ambiguities_within(map, tolerance_m, max_range_m, min_size, CHECK_BUDGET);
+    if !complete {
+        return Err(LrfError::Config(format!(
+            "{name}: the ambiguity search stopped after {CHECK_BUDGET} candidate matches with {} ambiguous configurations found: the layout repeats itself (a regular lattice?) and cannot give unambiguous poses; break the symmetry by moving some reflectors",
+            amb.len()
+        )));
+    }
+    let of = |k: AmbiguityKind| amb.iter().filter(move |x| x.kind == k);
+    let (congruent, mirror) = (
+        of(AmbiguityKind::Congruent).count(),
+        of(AmbiguityKind::Mirror).count(),
+    );
+    let mut out = vec![
+        format!(
+            "{name}: {} landmarks, {} walls; tolerance {tolerance_m:.3} m, range {max_range_m:.1} m",
+            map.len(),
+            map.walls.len()
+        ),
+        format!("congruent sub-configurations (ambiguous for any matcher): {congruent}; mirror images (ambiguous for distance-only matching): {mirror}"),
+    ];
+    for x in of(AmbiguityKind::Congruent)
+        .chain(of(AmbiguityKind::Mirror))
+        .take(10)
+    {
+        out.push(format!(
+            "  {:<9} {} landmarks: ids {:?} ~ ids {:?} (moved {:.2} m, turned {:.1} deg)",
+            match x.kind {
+                AmbiguityKind::Congruent => "congruent",
+                AmbiguityKind::Mirror => "mirror",
+            },
+            x.size(),
+            x.from_ids,
+            x.to_ids,
+            x.transform.position().coords.norm(),
+            x.transform.theta_rad.to_degrees()
+        ));
+    }
+    out.push(match of(AmbiguityKind::Congruent).next() {
+        None => format!("verdict: no congruent configuration of {} or more landmarks", min_size.max(3)),
+        Some(first) => format!(
+            "verdict: AMBIGUOUS layout ({congruent} congruent configurations, largest {} landmarks): expect `ambiguous` poses there until motion resolves them",
+            first.size()
+        ),
+    });
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ mod scan;
 mod scan_track;
 mod search;
 
-pub use check::{find_ambiguities, Ambiguity, AmbiguityKind};
+pub use check::{check_map_report, find_ambiguities, Ambiguity, AmbiguityKind};
 pub use error::LrfError;
 pub use eval::{evaluate, read_truth_csv, Evaluation, TruthPose};
 pub use localize::{localize_scans, read_scan_files};

@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    evaluate, find_ambiguities, localize_scans, read_scan_files, read_truth_csv, AmbiguityKind,
-    Localizer, LocalizerConfig, Map, SensorConfig, Status,
+    check_map_report, evaluate, localize_scans, read_scan_files, read_truth_csv, Localizer,
+    LocalizerConfig, Map, SensorConfig, Status,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -80,69 +80,10 @@ pub fn run(cmd: Command) -> anyhow::Result<()> {
 }
 
 fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
-    if !(a.tolerance_m > 0.0 && a.tolerance_m <= 0.5) {
-        anyhow::bail!("--tolerance-m {} must be in (0, 0.5] metres", a.tolerance_m);
-    }
-    if !(a.max_range_m.is_finite() && a.max_range_m > 0.0 && a.max_range_m <= 1000.0) {
-        anyhow::bail!(
-            "--max-range-m {}: need a range in (0, 1000] metres",
-            a.max_range_m
-        );
-    }
-    if a.min_size < 3 {
-        anyhow::bail!(
-            "--min-size {}: a pose needs at least 3 landmarks",
-            a.min_size
-        );
-    }
     let map = Map::read(&a.map)?;
-    let amb = find_ambiguities(&map, a.tolerance_m, a.max_range_m, a.min_size);
-    let congruent: Vec<_> = amb
-        .iter()
-        .filter(|x| x.kind == AmbiguityKind::Congruent)
-        .collect();
-    let mirror: Vec<_> = amb
-        .iter()
-        .filter(|x| x.kind == AmbiguityKind::Mirror)
-        .collect();
-    println!(
-        "{}: {} landmarks, {} walls; tolerance {:.3} m, range {:.1} m",
-        a.map.display(),
-        map.len(),
-        map.walls.len(),
-        a.tolerance_m,
-        a.max_range_m
-    );
-    println!(
-        "congruent sub-configurations (ambiguous for any matcher): {}; mirror images (ambiguous for distance-only matching): {}",
-        congruent.len(),
-        mirror.len()
-    );
-    for x in congruent.iter().chain(mirror.iter()).take(10) {
-        println!(
-            "  {:<9} {} landmarks: ids {:?} ~ ids {:?} (moved {:.2} m, turned {:.1} deg)",
-            match x.kind {
-                AmbiguityKind::Congruent => "congruent",
-                AmbiguityKind::Mirror => "mirror",
-            },
-            x.size(),
-            x.from_ids,
-            x.to_ids,
-            x.transform.position().coords.norm(),
-            x.transform.theta_rad.to_degrees()
-        );
-    }
-    if congruent.is_empty() {
-        println!(
-            "verdict: no congruent configuration of {} or more landmarks",
-            a.min_size.max(3)
-        );
-    } else {
-        println!(
-            "verdict: AMBIGUOUS layout ({} congruent configurations, largest {} landmarks): expect `ambiguous` poses there until motion resolves them",
-            congruent.len(),
-            congruent[0].size()
-        );
+    let name = a.map.display().to_string();
+    for line in check_map_report(&map, &name, a.tolerance_m, a.max_range_m, a.min_size)? {
+        println!("{line}");
     }
     Ok(())
 }
