@@ -27,6 +27,22 @@ pub struct ScanFix {
     pub mode: &'static str,
 }
 
+impl ScanFix {
+    /// A scan without a pose: `n_detections` reflectors seen, `n_hypotheses` still tracked.
+    fn lost(t_s: f64, n_detections: usize, n_hypotheses: usize, mode: &'static str) -> Self {
+        ScanFix {
+            t_s,
+            status: Status::Lost,
+            pose: None,
+            n_landmarks: 0,
+            n_detections,
+            n_hypotheses,
+            score: 0.0,
+            mode,
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 struct Track {
     pose: Pose2,
@@ -171,16 +187,7 @@ impl<'a> ScanTracker<'a> {
                 }
                 let max_coast = self.max_coast;
                 self.tracks.retain(|t| t.coasting <= max_coast);
-                return ScanFix {
-                    t_s,
-                    status: Status::Lost,
-                    pose: None,
-                    n_landmarks: 0,
-                    n_detections: n_det,
-                    n_hypotheses: self.tracks.len(),
-                    score: 0.0,
-                    mode,
-                };
+                return ScanFix::lost(t_s, n_det, self.tracks.len(), mode);
             } else {
                 let confirmed = g.status == Status::Ok;
                 self.tracks = g
@@ -210,16 +217,7 @@ impl<'a> ScanTracker<'a> {
 
     fn report(&self, t_s: f64, n_det: usize, mode: &'static str) -> ScanFix {
         let Some(best) = self.tracks.first() else {
-            return ScanFix {
-                t_s,
-                status: Status::Lost,
-                pose: None,
-                n_landmarks: 0,
-                n_detections: n_det,
-                n_hypotheses: 0,
-                score: 0.0,
-                mode,
-            };
+            return ScanFix::lost(t_s, n_det, 0, mode);
         };
         let ok = self.tracks.len() == 1 && best.confirmed && best.last.score >= 1.0;
         ScanFix {
