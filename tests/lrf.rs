@@ -464,3 +464,58 @@ fn cli_bad_input_exits_with_code_2() {
     );
     assert!(String::from_utf8_lossy(&ok.stdout).contains("1 lost"));
 }
+
+/// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
+/// three happen to fit three other landmarks 1.77 m away. Neither mode may call that pose `ok`:
+/// a lone match of three detections in a 200-landmark map is not proof (the odds of such a
+/// coincidence are checked), and in tracking mode a global pose far from the confirmed track is
+/// a jump that the next scans must confirm (checked on its own with the odds check off).
+#[test]
+fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
+    let sim = simulate(&LrfSimConfig::scaled(200, 2));
+    let map = Map::parse(&sim.map_json(), "sim").expect("simulated map is valid");
+    let scans = scans_of(&sim);
+    let truth = truth_of(&sim);
+    let is_wrong_ok = |status: Status, pose: Option<odocal_core::Pose2>, k: usize| {
+        status == Status::Ok
+            && pose.is_some_and(|p| (p.position() - truth[k].pose.position()).norm() > 0.05)
+    };
+    let strict = Localizer::new(map.clone(), LocalizerConfig::default());
+    let d = strict.detections(&scans[272]);
+    assert_eq!(d.len(), 3, "the scan of the glint case");
+    let g = strict.global(&scans[272], &d);
+    assert_ne!(g.status, Status::Ok, "global: {:?}", g.best());
+    let lax = Localizer::new(
+        map,
+        LocalizerConfig {
+            max_chance_ok: f64::INFINITY,
+            ..LocalizerConfig::default()
+        },
+    );
+    let g = lax.global(&scans[272], &d);
+    assert!(
+        is_wrong_ok(g.status, g.best().map(|h| h.pose), 272),
+        "without the odds check the glint case is a confident wrong pose (so the test bites)"
+    );
+    for loc in [&strict, &lax] {
+        let mut tracker = ScanTracker::new(loc);
+        let rows: Vec<_> = scans
+            .iter()
+            .map(|s| {
+                let r = tracker.process(s, s.t_s.unwrap_or(0.0));
+                (r.t_s, r.status, r.pose, r.n_landmarks)
+            })
+            .collect();
+        let wrong: Vec<usize> = (0..rows.len())
+            .filter(|&k| is_wrong_ok(rows[k].1, rows[k].2, k))
+            .collect();
+        assert!(wrong.is_empty(), "confident wrong poses at scans {wrong:?}");
+        let e = evaluate(&rows, &truth);
+        assert!(
+            e.n_correct_eligible as f64 >= 0.98 * e.n_eligible as f64,
+            "correct on {}/{}",
+            e.n_correct_eligible,
+            e.n_eligible
+        );
+    }
+}

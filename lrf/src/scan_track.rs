@@ -189,13 +189,23 @@ impl<'a> ScanTracker<'a> {
                 self.tracks.retain(|t| t.coasting <= max_coast);
                 return ScanFix::lost(t_s, n_det, self.tracks.len(), mode);
             } else {
-                let confirmed = g.status == Status::Ok;
-                self.tracks = g
+                // A pose far from where a confirmed track predicts is a jump: it is not believed
+                // until the next scans refute the old track (which coasts beside it meanwhile).
+                let jump = self.tracks.iter().any(|t| t.confirmed);
+                let confirmed = g.status == Status::Ok && !jump;
+                let mut tracks: Vec<Track> = g
                     .hypotheses
                     .into_iter()
                     .take(self.max_tracks)
                     .map(|h| Self::new_track(h, t_s, confirmed))
                     .collect();
+                for mut old in self.tracks.drain(..).filter(|t| t.confirmed) {
+                    old.coasting += 1;
+                    if old.coasting <= self.max_coast {
+                        tracks.push(old);
+                    }
+                }
+                self.tracks = tracks;
             }
         }
         self.report(t_s, n_det, mode)

@@ -25,6 +25,10 @@ pub struct LocalizerConfig {
     pub min_score_ok: f64,
     /// Detection pairs shorter than this are not used as anchors, metres.
     pub min_anchor_m: f64,
+    /// A lone hypothesis is reported `ok` only if the odds that the search found it by
+    /// coincidence stay below this ([`Localizer::chance_odds`]): few detections in a dense map
+    /// are not proof of a pose.
+    pub max_chance_ok: f64,
 }
 
 impl Default for LocalizerConfig {
@@ -38,6 +42,7 @@ impl Default for LocalizerConfig {
             miss_weight: 1.0,
             min_score_ok: 1.0,
             min_anchor_m: 0.3,
+            max_chance_ok: 1.0,
         }
     }
 }
@@ -185,7 +190,7 @@ impl Localizer {
         let mut stats = SearchStats::default();
         let mut hyps: Vec<Hypothesis> = Vec::new();
         if n < cfg.min_matches {
-            return (self.finish(hyps, n), stats);
+            return (self.finish(hyps, dets, 0), stats);
         }
         // Anchors are taken from a growing prefix of detections, closest (most precise) first.
         let mut order: Vec<usize> = (0..n).collect();
@@ -320,11 +325,61 @@ impl Localizer {
                 break;
             }
         }
-        (self.finish(hyps, n), stats)
+        (self.finish(hyps, dets, stats.candidates), stats)
     }
 
-    /// Sorts hypotheses, keeps those tying with the best and decides the status.
-    fn finish(&self, mut hyps: Vec<Hypothesis>, n_detections: usize) -> Localization {
+    /// The expected number of hypotheses at least as well supported as `h` that the global
+    /// search finds by coincidence (an a-contrario count): the `candidates` landmark pairs it
+    /// tried for anchors, times the ways of choosing `h`'s other matched detections, times the
+    /// chance that each lands in some landmark's gate at a wrong pose (the local landmark
+    /// density around the pose × the gate's area). Three detections in a 200-landmark map
+    /// match somewhere about half the time; seven almost never do.
+    pub fn chance_hypotheses(&self, h: &Hypothesis, dets: &[Detection], candidates: usize) -> f64 {
+        let r = self.cfg.sensor.max_range_m;
+        let s = h.pose.position();
+        let near = self
+            .map
+            .landmarks
+            .iter()
+            .filter(|l| (l.position - s).norm() <= r)
+            .count();
+        let density = near as f64 / (std::f64::consts::PI * r * r);
+        let mut p: Vec<f64> = h
+            .matches
+            .iter()
+            .map(|&(k, _)| {
+                (density * std::f64::consts::PI * self.tight_gate(&dets[k]).powi(2)).min(1.0)
+            })
+            .collect();
+        // The two anchors are given by the candidate pair, the others must fall in by chance.
+        p.sort_by(|a, b| b.total_cmp(a));
+        let others = p.len().saturating_sub(2);
+        let ways = binomial(dets.len().saturating_sub(2), others);
+        candidates as f64 * ways * p.iter().skip(2).product::<f64>()
+    }
+
+    /// The odds that `h` is a coincidence rather than the pose: [`Self::chance_hypotheses`],
+    /// doubled for every landmark the pose says is in view but the scan did not detect (a
+    /// landmark in view is missed at most half the time, a conservative figure: the scanner
+    /// simulated by `odocal synth lrf` misses 11 %).
+    pub fn chance_odds(&self, h: &Hypothesis, dets: &[Detection], candidates: usize) -> f64 {
+        self.chance_hypotheses(h, dets, candidates) * 2f64.powi(h.n_missing.min(60) as i32)
+    }
+
+    /// The association gate once the pose is known to a few millimetres, metres.
+    fn tight_gate(&self, d: &Detection) -> f64 {
+        self.cfg.k_sigma * (self.point_var(d) + 1e-4 + (d.range_m * 0.002).powi(2)).sqrt()
+    }
+
+    /// Sorts hypotheses, keeps those tying with the best and decides the status: `ok` needs a
+    /// lone hypothesis with enough score that is not explained by coincidence.
+    fn finish(
+        &self,
+        mut hyps: Vec<Hypothesis>,
+        dets: &[Detection],
+        candidates: usize,
+    ) -> Localization {
+        let n_detections = dets.len();
         hyps.sort_by(|a, b| {
             b.score
                 .total_cmp(&a.score)
@@ -335,8 +390,12 @@ impl Localizer {
             Some(best) => {
                 let floor = best.score - self.cfg.ambiguity_margin;
                 let best_score = best.score;
+                let chance = self.chance_odds(best, dets, candidates.max(1));
                 hyps.retain(|h| h.score >= floor);
-                if hyps.len() == 1 && best_score >= self.cfg.min_score_ok {
+                if hyps.len() == 1
+                    && best_score >= self.cfg.min_score_ok
+                    && chance <= self.cfg.max_chance_ok
+                {
                     Status::Ok
                 } else {
                     Status::Ambiguous
@@ -397,7 +456,7 @@ impl Localizer {
                 let gate = if iter == 0 {
                     gates[k]
                 } else {
-                    cfg.k_sigma * (self.point_var(d) + 1e-4 + (d.range_m * 0.002).powi(2)).sqrt()
+                    self.tight_gate(d)
                 };
                 let q = iso * d.point;
                 if let Some((l, dist)) = self.map.nearest_within(&q, gate, |l| {
@@ -644,4 +703,9 @@ impl Localizer {
             chain.pop();
         }
     }
+}
+
+/// n choose k, as a float.
+fn binomial(n: usize, k: usize) -> f64 {
+    (0..k.min(n)).fold(1.0, |acc, i| acc * (n - i) as f64 / (i + 1) as f64)
 }

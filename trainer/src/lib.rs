@@ -1,4 +1,4 @@
-//! The odometry corrector of source A: an 18-k-2 perceptron trained by
+//! The odometry corrector of the reference experiment: an 18-k-2 perceptron trained by
 //! Levenberg–Marquardt or back-propagation, its cross-validated experiments
 //! (Tables 1 and 2), baselines on the same folds, and model files.
 

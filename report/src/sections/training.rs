@@ -108,7 +108,7 @@ pub fn training_section(r: &SweepReport) -> Result<Section, ReportError> {
         ]);
     }
     t2.rows.push(vec![
-        "source A (reported)".into(),
+        "reference experiment (reported)".into(),
         "0.165 (unit not stated)".into(),
         "–".into(),
         "3.36 (raw odometry 8–10)".into(),
