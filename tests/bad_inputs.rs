@@ -535,3 +535,57 @@ fn a_reflector_lattice_ends_the_map_check_with_a_verdict_not_a_hang() {
         ],
     );
 }
+
+/// A wrong tag size rejects every frame: `track` names the main reason with its figures, writes
+/// `--report` (per-frame decision margins and reprojection errors, not nulls) and no trajectory.
+#[test]
+fn track_names_why_every_frame_was_rejected_and_still_writes_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&["synth", "track", "--out", p(d), "--frames", "8"]);
+    let (camera, report, out) = (d.join("camera.json"), d.join("r.json"), d.join("t.csv"));
+    let e = fails(&[
+        "track",
+        p(&d.join("video.avi")),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--report",
+        p(&report),
+        "--tag-size",
+        "0.12",
+    ]);
+    for needle in [
+        "detected but never accepted in 8 frames",
+        "8 bad geometry (median corner reprojection",
+        "accepted up to 1.5 px",
+        "--tag-size 0.12",
+        "per-frame figures in",
+    ] {
+        assert!(e.contains(needle), "expected {needle:?} in: {e}");
+    }
+    assert!(!out.exists(), "no trajectory without a fix");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["fixes"], 0);
+    let rej = &r["rejections"]["bad geometry"];
+    assert_eq!(rej["frames"], 8);
+    assert!(rej["median_reprojection_px"].as_f64().unwrap() > 1.5, "{rej}");
+    assert!(rej["median_decision_margin"].as_f64().unwrap() > 20.0, "{rej}");
+    for f in r["per_frame"].as_array().unwrap() {
+        assert!(f["decision_margin"].is_number() && f["reprojection_px"].is_number(), "{f}");
+    }
+    // Without --report the message says where the figures would be.
+    let e = fails(&[
+        "track",
+        p(&d.join("video.avi")),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--tag-size",
+        "0.12",
+    ]);
+    assert!(e.contains("--report FILE gives the per-frame figures"), "{e}");
+}

@@ -108,8 +108,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bar = progress(manifest.runs.len() as u64, "dataset");
     let track = |row: &ManifestRow, video: &Path| -> Result<Trajectory, String> {
         let camera = camera.as_ref().ok_or("no camera")?;
-        track_video(video, camera)
-            .map_err(|e| format!("run \"{}\": tracking {}: {e}", row.id, video.display()))
+        let (trajectory, warnings) = track_video(video, camera)
+            .map_err(|e| format!("run \"{}\": tracking {}: {e}", row.id, video.display()))?;
+        for w in warnings {
+            bar.suspend(|| eprintln!("warning: run \"{}\": {}: {w}", row.id, video.display()));
+        }
+        Ok(trajectory)
     };
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let ds = build_from_manifest(

@@ -6,10 +6,10 @@ use odocal_calib::CameraFile;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
-    SourceOptions, TrackOptions,
+    SourceOptions, TimingReport, TrackError, TrackOptions, TrackResult,
 };
 
-use crate::output::{check_output_file, progress, staged_dir, write_atomic, write_json};
+use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -104,6 +104,21 @@ fn print_against_truth(
     Ok(())
 }
 
+fn write_report(
+    args: &Args,
+    opts: &TrackOptions,
+    result: &TrackResult,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    let report = track_report(
+        &args.video.display().to_string(),
+        &args.camera.display().to_string(),
+        opts,
+        result,
+    );
+    write_json(path, &report)
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     check_output_file(&args.out, "--out")?;
@@ -147,7 +162,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     bar.finish_and_clear();
-    let result = result?;
+    let timeline = match &result {
+        Ok(r) => Some(r),
+        Err(TrackError::NoFix { result, .. }) => Some(result.as_ref()),
+        Err(_) => None,
+    };
+    for w in timeline
+        .map(|r| TimingReport::of(r).warnings())
+        .unwrap_or_default()
+    {
+        eprintln!("warning: {}: {w}", args.video.display());
+    }
+    let result = match result {
+        Err(TrackError::NoFix { message, result }) => {
+            // The report is what tells the user why: it is written even though nothing else is.
+            if let Some(path) = &args.report {
+                write_report(&args, &opts, &result, path)?;
+                commit()?;
+                anyhow::bail!("{message}; per-frame figures in {}", path.display());
+            }
+            anyhow::bail!("{message}; --report FILE gives the per-frame figures");
+        }
+        r => r?,
+    };
     let trajectory = result.trajectory()?;
     // All outputs are built before anything is written; each is written atomically.
     write_atomic(&args.out, trajectory.to_csv().as_bytes())?;
@@ -155,15 +192,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_atomic(tum, trajectory.to_tum().as_bytes())?;
     }
     if let Some(path) = &args.report {
-        write_json(
-            path,
-            &track_report(
-                &args.video.display().to_string(),
-                &args.camera.display().to_string(),
-                &opts,
-                &result,
-            ),
-        )?;
+        write_report(&args, &opts, &result, path)?;
     }
     eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let (Some(truth), Some(path)) = (&truth, &args.truth) {

@@ -24,9 +24,15 @@ pub enum TrackError {
     /// The inputs do not fit together (e.g. camera.json image size ≠ video size).
     #[error("{0}")]
     Mismatch(String),
-    /// The requested tag was never detected.
-    #[error("{0}")]
-    TagNeverSeen(String),
+    /// No frame gave a confident fix of the requested tag: the message names the main
+    /// rejection reason with its figures; the result holds every frame's record (for the report).
+    #[error("{message}")]
+    NoFix {
+        /// What was seen and why it was rejected.
+        message: String,
+        /// The tracking run, every frame a gap.
+        result: Box<crate::TrackResult>,
+    },
     /// A setting is invalid.
     #[error("{0}")]
     Options(String),

@@ -12,6 +12,7 @@ pub mod overlay;
 pub mod pose;
 mod report;
 pub mod source;
+pub mod timing;
 pub mod track;
 
 pub use detect::{Roi, TagDetection, TagDetector};
@@ -24,6 +25,7 @@ pub use report::{
 pub use source::{
     open_source, Frame, FrameSource, GrayFrame, MemorySource, SourceInfo, SourceOptions,
 };
+pub use timing::{DroppedFrames, TimingReport};
 pub use track::{
     track_source, Fix, FrameRecord, Gap, GapReason, Outcome, TrackOptions, TrackResult, Tracker,
 };

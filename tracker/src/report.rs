@@ -1,6 +1,7 @@
 //! The track report (`odocal track --report`): per-frame quality, gaps with their reasons, the
 //! tag ids seen, and the trajectory's error against a reference.
 
+use crate::track::median;
 use crate::{Outcome, TrackOptions, TrackResult, Trajectory};
 
 /// The `format` tag of the track report.
@@ -47,6 +48,15 @@ pub struct GapReport {
     reasons: std::collections::BTreeMap<&'static str, usize>,
 }
 
+/// Frames rejected for one reason: how many, and the median decision margin and corner
+/// reprojection error (pixels) of their detections (null when nothing was detected).
+#[derive(serde::Serialize, Default)]
+pub struct RejectionReport {
+    frames: usize,
+    median_decision_margin: Option<f64>,
+    median_reprojection_px: Option<f64>,
+}
+
 /// The report `odocal track --report` writes (`"format": "odocal.track-report/1"`).
 #[derive(serde::Serialize)]
 pub struct TrackReport {
@@ -59,6 +69,10 @@ pub struct TrackReport {
     fixes: usize,
     median_reprojection_px: f64,
     ids_seen: std::collections::BTreeMap<u32, usize>,
+    /// How the frames were timed; dropped, duplicate and repeated frames; a file cut short.
+    timing: crate::TimingReport,
+    /// Frames without a fix by reason, with the median figures of the rejected detections.
+    rejections: std::collections::BTreeMap<&'static str, RejectionReport>,
     gaps: Vec<GapReport>,
     per_frame: Vec<FrameReport>,
 }
@@ -82,6 +96,8 @@ pub fn track_report(
         fixes: reproj.len(),
         median_reprojection_px: reproj.get(reproj.len() / 2).copied().unwrap_or(f64::NAN),
         ids_seen: r.seen_ids.clone(),
+        timing: crate::TimingReport::of(r),
+        rejections: rejections(r),
         gaps: r
             .gaps()
             .into_iter()
@@ -113,8 +129,8 @@ pub fn track_report(
                     t: rec.t_s,
                     fix: false,
                     reason: Some(g.as_str()),
-                    reprojection_px: None,
-                    decision_margin: None,
+                    reprojection_px: rec.rejected.and_then(|x| x.reprojection_px),
+                    decision_margin: rec.rejected.map(|x| x.decision_margin),
                     roi: None,
                     pnp_height_m: None,
                     pnp_heading_diff_deg: None,
@@ -124,13 +140,39 @@ pub fn track_report(
     }
 }
 
+fn rejections(r: &TrackResult) -> std::collections::BTreeMap<&'static str, RejectionReport> {
+    let mut by: std::collections::BTreeMap<&'static str, Vec<&crate::FrameRecord>> =
+        Default::default();
+    for rec in &r.records {
+        if let Outcome::Gap(g) = rec.outcome {
+            by.entry(g.as_str()).or_default().push(rec);
+        }
+    }
+    by.into_iter()
+        .map(|(reason, recs)| {
+            let rej: Vec<_> = recs.iter().filter_map(|x| x.rejected).collect();
+            let report = RejectionReport {
+                frames: recs.len(),
+                median_decision_margin: median(
+                    rej.iter().map(|x| x.decision_margin as f64).collect(),
+                ),
+                median_reprojection_px: median(
+                    rej.iter().filter_map(|x| x.reprojection_px).collect(),
+                ),
+            };
+            (reason, report)
+        })
+        .collect()
+}
+
 /// Tracks the robot's tag through the video (or image folder) at `video` with the camera of
 /// `camera` and the tracker's defaults (tag36h11 id 0, 8 cm, 8 cm above the floor), as
-/// `odocal dataset` does for a manifest row with a video.
+/// `odocal dataset` does for a manifest row with a video. Also returns the warnings about
+/// the video's timeline (dropped or repeated frames, a file cut short).
 pub fn track_video(
     video: &std::path::Path,
     camera: &odocal_calib::CameraFile,
-) -> Result<Trajectory, crate::TrackError> {
+) -> Result<(Trajectory, Vec<String>), crate::TrackError> {
     let floor = camera
         .floor
         .as_ref()
@@ -148,7 +190,10 @@ pub fn track_video(
         &TrackOptions::default(),
         &mut |_, _| Ok(()),
     )?;
-    result.trajectory()
+    Ok((
+        result.trajectory()?,
+        crate::TimingReport::of(&result).warnings(),
+    ))
 }
 
 /// Silences FFmpeg's and OpenCV's own complaints about bad files (unless the user set their

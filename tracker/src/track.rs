@@ -13,7 +13,7 @@ use odocal_core::{Trajectory, TrajectoryRow};
 
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
-use crate::source::{Frame, FrameSource};
+use crate::source::{Frame, FrameSource, SourceInfo};
 use crate::TrackError;
 
 /// Tracking settings.
@@ -111,6 +111,12 @@ pub enum GapReason {
     BadGeometry,
     /// Found, but it moved impossibly far since the last fix.
     Jump,
+    /// The frame's timestamp is not after the previous frame's (a duplicate or a step back in
+    /// the container): a pose there would have no time of its own.
+    DuplicateTime,
+    /// The image is identical to the previous frame's, byte for byte: a camera that repeats a
+    /// frame when it misses one. A pose from it would belong to an earlier time.
+    RepeatedImage,
 }
 
 impl GapReason {
@@ -121,6 +127,8 @@ impl GapReason {
             Self::LowConfidence => "low confidence",
             Self::BadGeometry => "bad geometry",
             Self::Jump => "impossible jump",
+            Self::DuplicateTime => "duplicate timestamp",
+            Self::RepeatedImage => "repeated image",
         }
     }
 }
@@ -157,6 +165,18 @@ pub enum Outcome {
     Gap(GapReason),
 }
 
+/// The figures of a detection that was rejected, so that a report can say why.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rejected {
+    /// The detector's decision margin.
+    pub decision_margin: f32,
+    /// Corrected bits.
+    pub hamming: u32,
+    /// RMS reprojection error of the corners under the planar pose, pixels (none when the
+    /// corners fit no horizontal square at all).
+    pub reprojection_px: Option<f64>,
+}
+
 /// One frame's record.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameRecord {
@@ -166,6 +186,8 @@ pub struct FrameRecord {
     pub t_s: f64,
     /// Fix or gap.
     pub outcome: Outcome,
+    /// For a gap where the tag was detected but rejected: the detection's figures.
+    pub rejected: Option<Rejected>,
 }
 
 /// A run of consecutive frames without a pose.
@@ -314,14 +336,15 @@ impl Tracker {
         for id in ids_in_frame {
             *self.seen.entry(id).or_insert(0) += 1;
         }
-        let outcome = match found {
-            None => Outcome::Gap(GapReason::NotDetected),
-            Some((d, from_roi)) => self.grade(frame, d, from_roi)?,
+        let (outcome, rejected) = match found {
+            None => (Outcome::Gap(GapReason::NotDetected), None),
+            Some((d, from_roi)) => self.grade(frame, d, from_roi),
         };
         Ok(FrameRecord {
             index: frame.index,
             t_s: frame.t_s,
             outcome,
+            rejected,
         })
     }
 
@@ -330,24 +353,33 @@ impl Tracker {
         frame: &Frame,
         d: TagDetection,
         from_roi: bool,
-    ) -> Result<Outcome, TrackError> {
+    ) -> (Outcome, Option<Rejected>) {
         let o = &self.opts;
-        if d.hamming > o.max_hamming || d.decision_margin < o.min_decision_margin {
-            return Ok(Outcome::Gap(GapReason::LowConfidence));
-        }
-        let Some(planar) = planar_pose(
+        let planar = planar_pose(
             &self.camera,
             &self.floor,
             &d.corners_px,
             o.tag_size_m,
             o.marker_height_m,
-        ) else {
-            return Ok(Outcome::Gap(GapReason::BadGeometry));
+        );
+        let reject = |reason| {
+            let rejected = Rejected {
+                decision_margin: d.decision_margin,
+                hamming: d.hamming,
+                reprojection_px: planar.as_ref().map(|p| p.reprojection_rms_px),
+            };
+            (Outcome::Gap(reason), Some(rejected))
+        };
+        if d.hamming > o.max_hamming || d.decision_margin < o.min_decision_margin {
+            return reject(GapReason::LowConfidence);
+        }
+        let Some(planar) = planar else {
+            return reject(GapReason::BadGeometry);
         };
         // NaN never passes.
         if planar.reprojection_rms_px.is_nan() || planar.reprojection_rms_px > o.max_reprojection_px
         {
-            return Ok(Outcome::Gap(GapReason::BadGeometry));
+            return reject(GapReason::BadGeometry);
         }
         if let Some(&(t_last, p_last, _)) = self.history.last() {
             let dt = (frame.t_s - t_last).abs();
@@ -360,7 +392,7 @@ impl Tracker {
                     self.history.clear();
                     self.consecutive_jumps = 0;
                 }
-                return Ok(Outcome::Gap(GapReason::Jump));
+                return reject(GapReason::Jump);
             }
         }
         self.consecutive_jumps = 0;
@@ -381,7 +413,7 @@ impl Tracker {
             self.history.remove(0);
         }
         self.last_fix_index = Some(frame.index);
-        Ok(Outcome::Fix(Fix {
+        let fix = Outcome::Fix(Fix {
             pose: planar.pose,
             quality: 1.0 / (1.0 + planar.reprojection_rms_px),
             reprojection_rms_px: planar.reprojection_rms_px,
@@ -391,7 +423,8 @@ impl Tracker {
             corners_px: d.corners_px,
             from_roi,
             pnp,
-        }))
+        });
+        (fix, None)
     }
 }
 
@@ -404,6 +437,8 @@ pub struct TrackResult {
     pub seen_ids: BTreeMap<u32, usize>,
     /// Frame size, pixels.
     pub frame_size: (u32, u32),
+    /// The source as it stood after the last frame (timing, frames announced).
+    pub source: SourceInfo,
 }
 
 impl TrackResult {
@@ -457,6 +492,69 @@ impl TrackResult {
         gaps
     }
 
+    /// Why no frame gave a fix: the rejection reasons, most frequent first, with the figures
+    /// that failed (median decision margin and reprojection error of the rejected detections
+    /// against the limits in `opts`), and the ids seen.
+    pub fn no_fix_message(&self, opts: &TrackOptions, path: &std::path::Path) -> String {
+        let n = self.records.len();
+        let mut by_reason: BTreeMap<GapReason, Vec<&FrameRecord>> = BTreeMap::new();
+        for r in &self.records {
+            if let Outcome::Gap(reason) = r.outcome {
+                by_reason.entry(reason).or_default().push(r);
+            }
+        }
+        if !self.seen_ids.contains_key(&opts.tag_id) {
+            return format!(
+                "tag {} ({}) was never seen in {n} frames of {}; {}: check --tag-id and --family",
+                opts.tag_id,
+                opts.family,
+                path.display(),
+                self.seen_ids_text()
+            );
+        }
+        let mut reasons: Vec<(GapReason, Vec<&FrameRecord>)> = by_reason.into_iter().collect();
+        reasons.sort_by_key(|(_, frames)| std::cmp::Reverse(frames.len()));
+        let parts: Vec<String> = reasons
+            .iter()
+            .map(|(reason, frames)| {
+                let rej: Vec<&Rejected> = frames.iter().filter_map(|r| r.rejected.as_ref()).collect();
+                let margin = median(rej.iter().map(|r| r.decision_margin as f64).collect());
+                let reproj = median(rej.iter().filter_map(|r| r.reprojection_px).collect());
+                let figures = match reason {
+                    GapReason::NotDetected | GapReason::DuplicateTime | GapReason::RepeatedImage => {
+                        String::new()
+                    }
+                    GapReason::LowConfidence => format!(
+                        " (median decision margin {}, accepted from {}; median hamming {})",
+                        fmt_opt(margin, 1),
+                        opts.min_decision_margin,
+                        fmt_opt(median(rej.iter().map(|r| r.hamming as f64).collect()), 0)
+                    ),
+                    GapReason::BadGeometry => format!(
+                        " (median corner reprojection {} px, accepted up to {} px: check --tag-size {} m, --marker-height {} m and the camera file)",
+                        fmt_opt(reproj, 2),
+                        opts.max_reprojection_px,
+                        opts.tag_size_m,
+                        opts.marker_height_m
+                    ),
+                    GapReason::Jump => format!(
+                        " (faster than --max-speed {} m/s between detections)",
+                        opts.max_speed_mps
+                    ),
+                };
+                format!("{} {}{figures}", frames.len(), reason.as_str())
+            })
+            .collect();
+        format!(
+            "tag {} ({}) was detected but never accepted in {n} frames of {}: {}; {}",
+            opts.tag_id,
+            opts.family,
+            path.display(),
+            parts.join(", "),
+            self.seen_ids_text()
+        )
+    }
+
     /// Describes the ids seen, for error messages ("ids seen: 3 (120 frames), 7 (2 frames)").
     pub fn seen_ids_text(&self) -> String {
         if self.seen_ids.is_empty() {
@@ -496,21 +594,31 @@ pub fn track_source(
     }
     let mut tracker = Tracker::new(*camera, *floor, opts.clone())?;
     let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
-    let records = std::thread::scope(|scope| -> Result<Vec<FrameRecord>, TrackError> {
-        scope.spawn(move || loop {
-            let batch = source.next_batch(16);
-            let stop = !matches!(&batch, Ok(b) if !b.is_empty());
-            if tx.send(batch).is_err() || stop {
-                break;
+    let (records, final_info) = std::thread::scope(|scope| -> Result<_, TrackError> {
+        let decoder = scope.spawn(move || {
+            loop {
+                let batch = source.next_batch(16);
+                let stop = !matches!(&batch, Ok(b) if !b.is_empty());
+                if tx.send(batch).is_err() || stop {
+                    break;
+                }
             }
+            source.info().clone()
         });
         let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
+        let mut previous: Option<Frame> = None;
         for batch in rx {
-            let batch = batch?;
+            let mut batch = batch?;
             if batch.is_empty() {
                 break;
             }
-            for frame in &batch {
+            for k in 0..batch.len() {
+                let frame = &batch[k];
+                let before = if k > 0 {
+                    batch.get(k - 1)
+                } else {
+                    previous.as_ref()
+                };
                 if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
                     return Err(TrackError::Mismatch(format!(
                         "frame {} of {} is {}×{}, the camera file describes {}×{} images",
@@ -522,12 +630,27 @@ pub fn track_source(
                         camera.height
                     )));
                 }
-                let rec = tracker.process(frame)?;
+                let unusable = match before {
+                    Some(b) if frame.t_s <= b.t_s => Some(GapReason::DuplicateTime),
+                    Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
+                    _ => None,
+                };
+                let rec = match unusable {
+                    Some(reason) => FrameRecord {
+                        index: frame.index,
+                        t_s: frame.t_s,
+                        outcome: Outcome::Gap(reason),
+                        rejected: None,
+                    },
+                    None => tracker.process(frame)?,
+                };
                 on_frame(frame, &rec)?;
                 records.push(rec);
             }
+            previous = batch.pop();
         }
-        Ok(records)
+        let final_info = decoder.join().unwrap_or_else(|_| info.clone());
+        Ok((records, final_info))
     })?;
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
@@ -536,28 +659,23 @@ pub fn track_source(
         records,
         seen_ids: tracker.seen_ids().clone(),
         frame_size: (info.width, info.height),
+        source: final_info,
     };
     if result.fixes().next().is_none() {
-        let detected = result.seen_ids.contains_key(&opts.tag_id);
-        let msg = if detected {
-            format!(
-                "tag {} ({}) was detected but never confidently (all {} frames rejected); {}",
-                opts.tag_id,
-                opts.family,
-                result.records.len(),
-                result.seen_ids_text()
-            )
-        } else {
-            format!(
-                "tag {} ({}) was never seen in {} frames of {}; {}: check --tag-id and --family",
-                opts.tag_id,
-                opts.family,
-                result.records.len(),
-                info.path.display(),
-                result.seen_ids_text()
-            )
-        };
-        return Err(TrackError::TagNeverSeen(msg));
+        return Err(TrackError::NoFix {
+            message: result.no_fix_message(opts, &info.path),
+            result: Box::new(result),
+        });
     }
     Ok(result)
+}
+
+/// The median of `v` (none when empty).
+pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("–".into(), |x| format!("{x:.digits$}"))
 }

@@ -36,6 +36,10 @@ impl FolderSource {
             .timestamps
             .clone()
             .or_else(|| (opts.fps.is_none() && default_csv.is_file()).then_some(default_csv));
+        let timing = match (&csv, opts.fps) {
+            (Some(csv), _) => format!("timestamps file {}", csv.display()),
+            (None, fps) => format!("frame count at {} fps (--fps)", fps.unwrap_or(f64::NAN)),
+        };
         let times: Vec<f64> = match (csv, opts.fps) {
             (Some(csv), _) => read_timestamps(&csv, &files)?,
             (None, Some(fps)) if fps > 0.0 && fps.is_finite() => (0..files.len()).map(|k| k as f64 / fps).collect(),
@@ -59,6 +63,8 @@ impl FolderSource {
                 height: first.rows() as u32,
                 frame_count: Some(n),
                 kind: "images".into(),
+                timing,
+                extrapolated_times: 0,
             },
             files: files.into_iter().zip(times).collect(),
             next: 0,

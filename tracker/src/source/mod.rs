@@ -108,6 +108,11 @@ pub struct SourceInfo {
     pub frame_count: Option<usize>,
     /// Short description ("video MJPG", "images").
     pub kind: String,
+    /// Where the frame times come from ("container timestamps", "frame count at 30 fps").
+    pub timing: String,
+    /// Frames read so far whose container timestamp was missing, timed one frame step after
+    /// the previous frame.
+    pub extrapolated_times: usize,
 }
 
 /// A stream of frames, read in batches.
@@ -160,6 +165,8 @@ impl MemorySource {
                 height,
                 frame_count: Some(frames.len()),
                 kind: "memory".into(),
+                timing: "given with the frames".into(),
+                extrapolated_times: 0,
             },
             frames: frames.into(),
         }

@@ -11,8 +11,16 @@ pub struct VideoSource {
     /// Undecoded JPEG packets are read and decoded here (MJPG only).
     raw_jpeg: bool,
     next_index: usize,
-    /// A frame read ahead while opening (to reject empty videos).
-    pending: Option<Frame>,
+    /// Frames read ahead while opening (to reject empty videos and probe the timestamps).
+    pending: Vec<Frame>,
+    /// Frames are timed by counting at `fps` (--fps given, or the container has no
+    /// timestamps) instead of by the container's presentation timestamps.
+    counted: bool,
+    /// Presentation time of the first frame, seconds (frame times start at 0).
+    first_pts_s: Option<f64>,
+    /// Time of the last frame and the last step forward, seconds.
+    last_t_s: f64,
+    last_step_s: f64,
 }
 
 struct SendCapture(videoio::VideoCapture);
@@ -34,7 +42,9 @@ fn fourcc_string(code: i32) -> String {
 }
 
 impl VideoSource {
-    /// Opens `path` with the FFmpeg backend.
+    /// Opens `path` with the FFmpeg backend. Frames are timed by the container's presentation
+    /// timestamps (so dropped frames leave a gap in time instead of shifting every later
+    /// frame), or by counting at `--fps` when given or when the container has none.
     pub fn open(path: &Path, opts: &SourceOptions) -> Result<Self, TrackError> {
         let file = std::fs::File::open(path)
             .map_err(|e| TrackError::io(path, format!("cannot read: {e}")))?;
@@ -44,6 +54,22 @@ impl VideoSource {
                 "the file is empty (0 bytes): the recording did not complete",
             ));
         }
+        let mut src = Self::open_capture(path, opts, true)?;
+        src.pending = src.read_batch(2)?;
+        if src.raw_jpeg && src.pending.len() == 2 && src.counted && opts.fps.is_none() {
+            // OpenCV gives no timestamps for undecoded packets of this container (AVI):
+            // decode in FFmpeg instead, which does.
+            src = Self::open_capture(path, opts, false)?;
+            src.pending = src.read_batch(1)?;
+        }
+        let Some(first) = src.pending.first() else {
+            return Err(TrackError::bad_input(path, "the video contains no frames"));
+        };
+        (src.info.width, src.info.height) = (first.image.width, first.image.height);
+        Ok(src)
+    }
+
+    fn open_capture(path: &Path, opts: &SourceOptions, try_raw: bool) -> Result<Self, TrackError> {
         let cap = videoio::VideoCapture::from_file(path, videoio::CAP_FFMPEG)?;
         if !cap.is_opened()? {
             return Err(TrackError::bad_input(
@@ -72,34 +98,74 @@ impl VideoSource {
                 ));
             }
         };
-        let raw_jpeg = fourcc.eq_ignore_ascii_case("MJPG")
+        let raw_jpeg = try_raw
+            && fourcc.eq_ignore_ascii_case("MJPG")
             && cap.0.set(videoio::CAP_PROP_FORMAT, -1.0).unwrap_or(false);
-        let mut src = Self {
+        let counted = opts.fps.is_some();
+        Ok(Self {
             info: SourceInfo {
                 path: path.to_path_buf(),
                 width,
                 height,
                 frame_count: (count > 0.0).then_some(count as usize),
                 kind: format!("video {fourcc}"),
+                extrapolated_times: 0,
+                timing: if counted {
+                    format!("frame count at {fps} fps (--fps)")
+                } else {
+                    "container timestamps".into()
+                },
             },
             cap,
             fps,
             raw_jpeg,
             next_index: 0,
-            pending: None,
-        };
-        let first = src.read_batch(1)?;
-        match first.into_iter().next() {
-            Some(f) => {
-                if (f.image.width, f.image.height) != (width, height) {
-                    src.info.width = f.image.width;
-                    src.info.height = f.image.height;
-                }
-                src.pending = Some(f);
-            }
-            None => return Err(TrackError::bad_input(path, "the video contains no frames")),
+            pending: Vec::new(),
+            counted,
+            first_pts_s: None,
+            last_t_s: 0.0,
+            last_step_s: 1.0 / fps,
+        })
+    }
+
+    /// The time of the frame just read, seconds from the first frame: its presentation
+    /// timestamp, put exactly on the nominal frame grid k / fps when it lies within the
+    /// container's rounding (half a millisecond) of it, so that a clean video's times are the
+    /// same whatever the container.
+    fn frame_time(&mut self) -> Result<f64, TrackError> {
+        let counted_t = self.next_index as f64 / self.fps;
+        if self.counted {
+            return Ok(counted_t);
         }
-        Ok(src)
+        // OpenCV reports a missing timestamp as 0.
+        let pts_ms = self.cap.0.get(videoio::CAP_PROP_POS_MSEC)?;
+        if self.next_index == 1 && pts_ms == 0.0 {
+            // A container without timestamps: count frames.
+            self.counted = true;
+            self.info.timing = format!("frame count at {} fps (no container timestamps)", self.fps);
+            return Ok(counted_t);
+        }
+        if self.next_index > 0 && (pts_ms == 0.0 || !pts_ms.is_finite()) {
+            // A frame without a timestamp (H.264 frames drained from the decoder at the end):
+            // one step after the previous.
+            self.info.extrapolated_times += 1;
+            let t = self.last_t_s + self.last_step_s;
+            self.last_t_s = t;
+            return Ok(t);
+        }
+        let first = *self.first_pts_s.get_or_insert(pts_ms / 1000.0);
+        let t = pts_ms / 1000.0 - first;
+        let on_grid = (t * self.fps).round() / self.fps;
+        let t = if (t - on_grid).abs() <= (0.6e-3f64).min(0.25 / self.fps) {
+            on_grid
+        } else {
+            t
+        };
+        if t > self.last_t_s {
+            self.last_step_s = t - self.last_t_s;
+        }
+        self.last_t_s = t;
+        Ok(t)
     }
 
     fn read_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
@@ -113,14 +179,14 @@ impl VideoSource {
                 } else {
                     Vec::new()
                 };
-                packets.push((self.next_index, bytes));
+                let t_s = self.frame_time()?;
+                packets.push((self.next_index, t_s, bytes));
                 self.next_index += 1;
             }
-            let fps = self.fps;
             decode_pool().install(|| {
                 packets
                     .into_par_iter()
-                    .map(|(index, bytes)| {
+                    .map(|(index, t_s, bytes)| {
                         let buf = Vector::<u8>::from_slice(&bytes);
                         let mat = imgcodecs::imdecode(&buf, imgcodecs::IMREAD_GRAYSCALE)?;
                         if mat.empty() {
@@ -131,7 +197,7 @@ impl VideoSource {
                         }
                         Ok(Frame {
                             index,
-                            t_s: index as f64 / fps,
+                            t_s,
                             image: GrayFrame::from_mat(&mat)?,
                         })
                     })
@@ -144,9 +210,10 @@ impl VideoSource {
                 if m.empty() {
                     break;
                 }
+                let t_s = self.frame_time()?;
                 out.push(Frame {
                     index: self.next_index,
-                    t_s: self.next_index as f64 / self.fps,
+                    t_s,
                     image: GrayFrame::from_mat(&m)?,
                 });
                 self.next_index += 1;
@@ -162,11 +229,10 @@ impl FrameSource for VideoSource {
     }
 
     fn next_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
-        let mut out = Vec::with_capacity(n);
-        if let Some(f) = self.pending.take() {
-            out.push(f);
-        }
-        if out.len() < n {
+        let mut out = std::mem::take(&mut self.pending);
+        if out.len() > n {
+            self.pending = out.split_off(n);
+        } else if out.len() < n {
             out.extend(self.read_batch(n - out.len())?);
         }
         Ok(out)

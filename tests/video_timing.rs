@@ -1,0 +1,192 @@
+//! A video's timeline as a real camera records it: frames dropped (a gap in the container's
+//! timestamps), a frame repeated, a file cut short. Frames are timed by the container's
+//! presentation timestamps, so a drop leaves a gap in the trajectory instead of shifting every
+//! later pose; every such event is named on stderr and in `--report`.
+//!
+//! The damaged videos are made from a rendered one by FFmpeg's command-line tool (installed by
+//! `make deps`), which writes real containers with real timestamps: MJPG in Matroska and AVI,
+//! and H.264 in MP4.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use common::{odocal, p, succeeded};
+use odocal_core::Trajectory;
+
+/// Frames 8, 9 and 10 of 24 are dropped.
+const DROPPED: [usize; 3] = [8, 9, 10];
+const FRAMES: usize = 24;
+
+fn ffmpeg(args: &[&str]) {
+    let out = Command::new("ffmpeg")
+        .args(["-loglevel", "error", "-y"])
+        .args(args)
+        .output()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(
+        out.status.success(),
+        "ffmpeg {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A rendered 24-frame MJPG video with its camera and truth.
+fn rendered(d: &Path) {
+    succeeded(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        &FRAMES.to_string(),
+        "--seed",
+        "6",
+    ]));
+}
+
+/// Position RMS (m) of `est` against the truth rows at the same times, and rows matched.
+fn position_rms(est: &Trajectory, truth: &Trajectory) -> (f64, usize) {
+    let mut s = 0.0;
+    let mut n = 0;
+    for r in &est.rows {
+        if let Some(t) = truth.rows.iter().find(|t| (t.t_s - r.t_s).abs() < 1e-6) {
+            s += (r.pose.position() - t.pose.position()).norm_squared();
+            n += 1;
+        }
+    }
+    ((s / n.max(1) as f64).sqrt(), n)
+}
+
+/// Tracks `video`; returns (trajectory, stderr, report JSON).
+fn track(d: &Path, video: &Path, extra: &[&str]) -> (Trajectory, String, serde_json::Value) {
+    let out = d.join("traj.csv");
+    let report = d.join("report.json");
+    let camera = d.join("camera.json");
+    let mut args = vec![
+        "track",
+        p(video),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--report",
+        p(&report),
+    ];
+    args.extend_from_slice(extra);
+    let o = odocal(&args);
+    succeeded(&o);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    (
+        Trajectory::read_csv(&out).unwrap(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        report,
+    )
+}
+
+#[test]
+fn dropped_frames_leave_a_gap_in_time_not_a_shift() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let (clean, err, report) = track(d, &d.join("video.avi"), &[]);
+    assert_eq!(clean.rows.len(), FRAMES);
+    assert!(!err.contains("warning"), "{err}");
+    assert_eq!(report["timing"]["dropped_frames"], 0);
+    assert_eq!(report["timing"]["timing"], "container timestamps");
+    let (clean_rms, _) = position_rms(&clean, &truth);
+
+    let select = format!(
+        "select='not(between(n\\,{}\\,{}))'",
+        DROPPED[0],
+        DROPPED[DROPPED.len() - 1]
+    );
+    let source = d.join("video.avi");
+    for (name, codec) in [
+        ("gap.mkv", ["-c:v", "mjpeg", "-q:v", "2"]),
+        ("gap.avi", ["-c:v", "mjpeg", "-q:v", "2"]),
+        ("gap.mp4", ["-c:v", "libx264", "-crf", "12"]),
+    ] {
+        let video = d.join(name);
+        let mut args = vec!["-i", p(&source), "-vf", &select];
+        args.extend_from_slice(&["-fps_mode", "passthrough"]);
+        args.extend_from_slice(&codec);
+        args.push(p(&video));
+        ffmpeg(&args);
+
+        let (est, err, report) = track(d, &video, &[]);
+        let (rms, n) = position_rms(&est, &truth);
+        println!(
+            "{name}: {n} frames at their true times, position RMS {:.3} mm (clean video {:.3} mm)",
+            rms * 1e3,
+            clean_rms * 1e3
+        );
+        assert_eq!(n, FRAMES - DROPPED.len(), "{name}: every frame at its true time");
+        assert!(rms < 0.5e-3, "{name}: position RMS {rms} m");
+        assert!(
+            err.contains("warning:") && err.contains("3 frames dropped in 1 place (3 after frame 7"),
+            "{name}: {err}"
+        );
+        let timing = &report["timing"];
+        assert_eq!(timing["dropped_frames"], 3, "{name}: {timing}");
+        assert_eq!(timing["dropped"][0]["after_frame"], 7, "{name}: {timing}");
+        assert_eq!(timing["missing_at_end"], 0, "{name}: {timing}");
+
+        if name == "gap.mkv" {
+            // Timed by counting (what odocal did before), the poses after the drop shift by
+            // three frames: the test above would fail.
+            let (counted, err, _) = track(d, &video, &["--fps", "30"]);
+            let (rms, _) = position_rms(&counted, &truth);
+            println!("{name} timed by counting: position RMS {:.1} mm", rms * 1e3);
+            assert!(rms > 10e-3, "counting should shift the poses: {rms} m");
+            assert!(
+                err.contains("3 frames are missing") && err.contains("timed by counting"),
+                "{err}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_repeated_image_is_not_tracked_and_a_cut_file_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    // A camera that repeats frame 5 in the place of frame 6, with frame 6's timestamp.
+    let frames = d.join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    let pattern = frames.join("f%03d.png");
+    ffmpeg(&["-i", p(&d.join("video.avi")), p(&pattern)]);
+    std::fs::copy(frames.join("f006.png"), frames.join("f007.png")).unwrap();
+    let (est, err, report) = track(d, &frames, &["--fps", "30"]);
+    assert_eq!(est.rows.len(), FRAMES - 1);
+    assert!(
+        est.rows.iter().all(|r| (r.t_s - 6.0 / 30.0).abs() > 1e-9),
+        "the repeated frame has no pose"
+    );
+    assert!(err.contains("1 frames repeat the previous image"), "{err}");
+    assert_eq!(report["timing"]["repeated_images"], 1);
+    assert_eq!(report["per_frame"][6]["reason"], "repeated image");
+
+    // The second half of the file is lost: the frames that are there are tracked, and the
+    // loss is named.
+    let bytes = std::fs::read(d.join("video.avi")).unwrap();
+    let cut = d.join("cut.avi");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let (est, err, report) = track(d, &cut, &[]);
+    let read = report["timing"]["frames_read"].as_u64().unwrap() as usize;
+    assert!(read < FRAMES && est.rows.len() == read, "{read} frames read");
+    assert!(
+        err.contains(&format!(
+            "the container announces {FRAMES} frames but only {read} were read"
+        )) && err.contains("cut short"),
+        "{err}"
+    );
+    assert_eq!(
+        report["timing"]["missing_at_end"].as_u64(),
+        Some((FRAMES - read) as u64)
+    );
+}

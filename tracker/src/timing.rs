@@ -1,0 +1,177 @@
+//! The video's timeline as tracking found it: how frames were timed, frames dropped (a step in
+//! time longer than the usual one), duplicate timestamps, repeated images, and a file that
+//! ends before the frames its container announces. Ground truth timed wrongly is wrong, so
+//! each of these is reported on stderr and in the track report.
+
+use crate::{GapReason, Outcome, TrackResult};
+
+/// A run of frames missing from the video between two frames that are there.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DroppedFrames {
+    /// The frame (decode order, from 0) after which frames are missing.
+    pub after_frame: usize,
+    /// Its time, seconds.
+    pub after_s: f64,
+    /// The next frame's time, seconds.
+    pub next_s: f64,
+    /// Frames missing (the step in time over the usual step, minus one).
+    pub missing: usize,
+}
+
+/// How the frames were timed and what is wrong with the timeline.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TimingReport {
+    /// Where the frame times come from ("container timestamps", "frame count at 30 fps").
+    pub timing: String,
+    /// Frames decoded.
+    pub frames_read: usize,
+    /// Frames the container announces (its own estimate for some formats).
+    pub frames_announced: Option<usize>,
+    /// The usual step between frames (median), seconds.
+    pub frame_step_s: Option<f64>,
+    /// Runs of dropped frames.
+    pub dropped: Vec<DroppedFrames>,
+    /// Dropped frames in all.
+    pub dropped_frames: usize,
+    /// Frames whose timestamp is not after the previous one (not tracked).
+    pub duplicate_times: usize,
+    /// Frames identical to the previous one (not tracked).
+    pub repeated_images: usize,
+    /// Frames without a container timestamp, timed one step after the previous.
+    pub extrapolated_times: usize,
+    /// Frames the container announces beyond those read and those dropped: the file ends early.
+    pub missing_at_end: usize,
+}
+
+/// A step longer than this many usual steps means frames were dropped.
+const DROP_STEP_FACTOR: f64 = 1.5;
+
+impl TimingReport {
+    /// The timeline of a tracking run.
+    pub fn of(r: &TrackResult) -> Self {
+        let times: Vec<(usize, f64)> = r.records.iter().map(|x| (x.index, x.t_s)).collect();
+        let mut steps: Vec<f64> = times
+            .windows(2)
+            .map(|w| w[1].1 - w[0].1)
+            .filter(|d| *d > 0.0)
+            .collect();
+        steps.sort_by(f64::total_cmp);
+        let step = steps.get(steps.len() / 2).copied();
+        let mut dropped = Vec::new();
+        if let Some(step) = step {
+            let mut last = times.first().copied();
+            for &(index, t) in times.iter().skip(1) {
+                if let Some((last_index, last_t)) = last {
+                    let d = t - last_t;
+                    if d > DROP_STEP_FACTOR * step {
+                        dropped.push(DroppedFrames {
+                            after_frame: last_index,
+                            after_s: last_t,
+                            next_s: t,
+                            missing: ((d / step).round() as usize).saturating_sub(1).max(1),
+                        });
+                    }
+                    if d <= 0.0 {
+                        continue; // a duplicate time: the next step counts from the last good one
+                    }
+                }
+                last = Some((index, t));
+            }
+        }
+        let count = |reason| {
+            r.records
+                .iter()
+                .filter(|x| x.outcome == Outcome::Gap(reason))
+                .count()
+        };
+        let dropped_frames = dropped.iter().map(|d| d.missing).sum();
+        let frames_read = r.records.len();
+        let announced = r.source.frame_count;
+        // Some containers only estimate their frame count: a few frames either way are normal.
+        let missing_at_end = announced.map_or(0, |a| {
+            let missing = a.saturating_sub(frames_read + dropped_frames);
+            if missing > 2.max(a / 50) {
+                missing
+            } else {
+                0
+            }
+        });
+        Self {
+            timing: r.source.timing.clone(),
+            frames_read,
+            frames_announced: announced,
+            frame_step_s: step,
+            dropped,
+            dropped_frames,
+            duplicate_times: count(GapReason::DuplicateTime),
+            repeated_images: count(GapReason::RepeatedImage),
+            extrapolated_times: r.source.extrapolated_times,
+            missing_at_end,
+        }
+    }
+
+    /// One warning line per problem with the timeline (none for a clean video). Frames timed
+    /// by extrapolation are only in the report: every H.264 stream with B-frames ends with a
+    /// few frames drained from the decoder without a timestamp.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.dropped_frames > 0 {
+            let runs: Vec<String> = self
+                .dropped
+                .iter()
+                .take(5)
+                .map(|d| {
+                    format!(
+                        "{} after frame {} ({:.3} s)",
+                        d.missing, d.after_frame, d.after_s
+                    )
+                })
+                .collect();
+            let more = if self.dropped.len() > 5 { ", …" } else { "" };
+            let places = match self.dropped.len() {
+                1 => "1 place".to_string(),
+                n => format!("{n} places"),
+            };
+            w.push(format!(
+                "{} frames dropped in {places} ({}{more}); the times of the frames after them come from the {}, so the trajectory has gaps there, not shifts",
+                self.dropped_frames,
+                runs.join(", "),
+                self.timing
+            ));
+            if self.timing.starts_with("frame count") {
+                w.push("frames are timed by counting: dropped frames shift every later time; give a video with timestamps or an image folder with --timestamps".into());
+            }
+        }
+        if self.duplicate_times > 0 {
+            w.push(format!(
+                "{} frames have a timestamp that is not after the previous frame's; they were not tracked",
+                self.duplicate_times
+            ));
+        }
+        if self.repeated_images > 0 {
+            w.push(format!(
+                "{} frames repeat the previous image byte for byte (a camera repeating a frame it missed); they were not tracked",
+                self.repeated_images
+            ));
+        }
+        if self.missing_at_end > 0 {
+            let announced = format!(
+                "the container announces {} frames but only {} were read",
+                self.frames_announced.unwrap_or(0),
+                self.frames_read
+            );
+            w.push(if self.timing.starts_with("frame count") {
+                format!(
+                    "{announced}: {} frames are missing (dropped, or the file is cut short), and frames timed by counting shift after every drop: track without --fps to use the container's timestamps",
+                    self.missing_at_end
+                )
+            } else {
+                format!(
+                    "{announced} ({} dropped): the file looks cut short, about {} frames are missing",
+                    self.dropped_frames, self.missing_at_end
+                )
+            });
+        }
+        w
+    }
+}
