@@ -571,10 +571,19 @@ fn track_names_why_every_frame_was_rejected_and_still_writes_the_report() {
     assert_eq!(r["fixes"], 0);
     let rej = &r["rejections"]["bad geometry"];
     assert_eq!(rej["frames"], 8);
-    assert!(rej["median_reprojection_px"].as_f64().unwrap() > 1.5, "{rej}");
-    assert!(rej["median_decision_margin"].as_f64().unwrap() > 20.0, "{rej}");
+    assert!(
+        rej["median_reprojection_px"].as_f64().unwrap() > 1.5,
+        "{rej}"
+    );
+    assert!(
+        rej["median_decision_margin"].as_f64().unwrap() > 20.0,
+        "{rej}"
+    );
     for f in r["per_frame"].as_array().unwrap() {
-        assert!(f["decision_margin"].is_number() && f["reprojection_px"].is_number(), "{f}");
+        assert!(
+            f["decision_margin"].is_number() && f["reprojection_px"].is_number(),
+            "{f}"
+        );
     }
     // Without --report the message says where the figures would be.
     let e = fails(&[
@@ -587,5 +596,51 @@ fn track_names_why_every_frame_was_rejected_and_still_writes_the_report() {
         "--tag-size",
         "0.12",
     ]);
-    assert!(e.contains("--report FILE gives the per-frame figures"), "{e}");
+    assert!(
+        e.contains("--report FILE gives the per-frame figures"),
+        "{e}"
+    );
+}
+
+/// `--board 8x6` for a 9x6 board finds an 8x6 part of it, which would move the floor origin
+/// by a square: calibrate names the board it sees instead.
+#[test]
+fn a_board_size_one_corner_short_is_named() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let calib = dir.join("calib");
+    ok(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&calib),
+        "--views",
+        "4",
+        "--floor-views",
+        "1",
+        "--seed",
+        "7",
+    ]);
+    let out = dir.join("camera.json");
+    // OpenCV finds the 8x6 part in this view (and spends a minute failing on the others).
+    let views = [calib.join("view_03.png")];
+    let mut args = vec![
+        "calibrate",
+        "--board",
+        "8x6",
+        "--square",
+        "0.05",
+        "--out",
+        p(&out),
+    ];
+    args.extend(views.iter().map(|v| p(v)));
+    refused(
+        dir,
+        &args,
+        &[
+            "shows a 9x6 board",
+            "--board 8x6 finds only part",
+            "pass --board 9x6",
+        ],
+    );
 }

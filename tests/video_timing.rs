@@ -124,12 +124,36 @@ fn dropped_frames_leave_a_gap_in_time_not_a_shift() {
             rms * 1e3,
             clean_rms * 1e3
         );
-        assert_eq!(n, FRAMES - DROPPED.len(), "{name}: every frame at its true time");
+        assert_eq!(
+            n,
+            FRAMES - DROPPED.len(),
+            "{name}: every frame at its true time"
+        );
         assert!(rms < 0.5e-3, "{name}: position RMS {rms} m");
         assert!(
-            err.contains("warning:") && err.contains("3 frames dropped in 1 place (3 after frame 7"),
+            err.contains("warning:")
+                && err.contains("3 frames dropped in 1 place (3 after frame 7"),
             "{name}: {err}"
         );
+        // The times are FFmpeg's own: ffprobe's presentation time of every frame (from the
+        // first), which the container stores to the millisecond in Matroska.
+        let probe = Command::new("ffprobe")
+            .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+            .args(["frame=pts_time", "-of", "csv=p=0", p(&video)])
+            .output()
+            .expect("ffprobe comes with ffmpeg");
+        let pts: Vec<f64> = String::from_utf8_lossy(&probe.stdout)
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter_map(|x| x.parse().ok())
+            .collect();
+        assert_eq!(pts.len(), est.rows.len(), "{name}: ffprobe frames");
+        for (r, t) in est.rows.iter().zip(&pts) {
+            assert!(
+                (r.t_s - (t - pts[0])).abs() < 1e-3,
+                "{name}: {} vs ffprobe {t}",
+                r.t_s
+            );
+        }
         let timing = &report["timing"];
         assert_eq!(timing["dropped_frames"], 3, "{name}: {timing}");
         assert_eq!(timing["dropped"][0]["after_frame"], 7, "{name}: {timing}");
@@ -178,7 +202,10 @@ fn a_repeated_image_is_not_tracked_and_a_cut_file_is_named() {
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let (est, err, report) = track(d, &cut, &[]);
     let read = report["timing"]["frames_read"].as_u64().unwrap() as usize;
-    assert!(read < FRAMES && est.rows.len() == read, "{read} frames read");
+    assert!(
+        read < FRAMES && est.rows.len() == read,
+        "{read} frames read"
+    );
     assert!(
         err.contains(&format!(
             "the container announces {FRAMES} frames but only {read} were read"

@@ -164,22 +164,97 @@ pub fn detect_file(path: &Path, board: &BoardSpec) -> Result<Detection, CalibErr
     })
 }
 
-/// A board one corner wider, taller or both than `board` that is visible in the image, if
-/// any: `--board` then counts too few corners and the detected grid is part of the board,
-/// which shifts the floor origin by a square.
-pub fn larger_board_visible(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
+/// The size of the board the detected grid belongs to, when it is larger than `board`: a
+/// `--board` one corner short finds part of the board, which shifts the floor origin by a
+/// square. The grid extends past a side when the points one square beyond that side's corners
+/// are chessboard corners too (saddles: diagonal quadrants alike, neighbouring ones in
+/// contrast); beyond the outermost inner corners of a real board lies its plain margin.
+/// Looking at the image around the corners already found takes microseconds, where asking
+/// OpenCV for a board of every larger size takes tens of seconds when the size is wrong.
+pub fn larger_board_around(
+    path: &Path,
+    board: &BoardSpec,
+    corners: &[Point2<f64>],
+) -> Option<(u32, u32)> {
     let gray = read_gray(path).ok()?;
-    let (c, r) = (board.cols, board.rows);
-    [(c + 1, r), (c, r + 1), (c + 1, r + 1)]
-        .into_iter()
-        .find(|&(cols, rows)| {
-            let spec = BoardSpec {
-                cols,
-                rows,
-                square_m: board.square_m,
+    let (cols, rows) = (board.cols as usize, board.rows as usize);
+    if cols < 2 || rows < 2 || corners.len() != cols * rows {
+        return None;
+    }
+    let at = |r: usize, c: usize| corners[r * cols + c].coords;
+    // Fraction of a side's extrapolated points that are saddles.
+    let side = |line: &[(usize, usize)], inward: (isize, isize)| -> f64 {
+        let mut saddles = 0;
+        for &(r, c) in line {
+            let (ri, ci) = (
+                (r as isize + inward.0) as usize,
+                (c as isize + inward.1) as usize,
+            );
+            let out = at(r, c) - at(ri, ci);
+            // The other grid direction, from a neighbour along the side.
+            let (ra, ca) = if inward.0 == 0 {
+                (if r + 1 < rows { r + 1 } else { r - 1 }, c)
+            } else {
+                (r, if c + 1 < cols { c + 1 } else { c - 1 })
             };
-            matches!(find_corners(&gray, &spec), Ok(Some(_)))
-        })
+            let along = at(ra, ca) - at(r, c);
+            let p = at(r, c) + out;
+            if is_saddle(&gray, p, out, along) == Some(true) {
+                saddles += 1;
+            }
+        }
+        saddles as f64 / line.len() as f64
+    };
+    let right: Vec<(usize, usize)> = (0..rows).map(|r| (r, cols - 1)).collect();
+    let left: Vec<(usize, usize)> = (0..rows).map(|r| (r, 0)).collect();
+    let bottom: Vec<(usize, usize)> = (0..cols).map(|c| (rows - 1, c)).collect();
+    let top: Vec<(usize, usize)> = (0..cols).map(|c| (0, c)).collect();
+    let wider = side(&right, (0, -1)).max(side(&left, (0, 1))) >= 0.6;
+    let taller = side(&bottom, (-1, 0)).max(side(&top, (1, 0))) >= 0.6;
+    (wider || taller).then_some((
+        board.cols + u32::from(wider),
+        board.rows + u32::from(taller),
+    ))
+}
+
+/// Whether the image at `p` looks like a chessboard corner whose squares are spanned by `u`
+/// and `v` (pixels): the mean grey of the four quadrants, sampled by OpenCV a third of a
+/// square away along the diagonals. None when a sample falls outside the image.
+fn is_saddle(
+    gray: &Mat,
+    p: nalgebra::Vector2<f64>,
+    u: nalgebra::Vector2<f64>,
+    v: nalgebra::Vector2<f64>,
+) -> Option<bool> {
+    let (w, h) = (gray.cols() as f64, gray.rows() as f64);
+    let half = ((u.norm().min(v.norm()) * 0.15).round() as i32).max(1);
+    let mut q = [0.0f64; 4];
+    for (k, (a, b)) in [(1.0, 1.0), (1.0, -1.0), (-1.0, -1.0), (-1.0, 1.0)]
+        .iter()
+        .enumerate()
+    {
+        let c = p + (u * *a + v * *b) / 3.0;
+        if c.x < half as f64
+            || c.y < half as f64
+            || c.x >= w - half as f64
+            || c.y >= h - half as f64
+        {
+            return None;
+        }
+        let mut patch = Mat::default();
+        imgproc::get_rect_sub_pix(
+            gray,
+            Size::new(2 * half + 1, 2 * half + 1),
+            Point2f::new(c.x as f32, c.y as f32),
+            &mut patch,
+            -1,
+        )
+        .ok()?;
+        q[k] = core::mean(&patch, &core::no_array()).ok()?[0];
+    }
+    let contrast = ((q[0] + q[2]) - (q[1] + q[3])).abs() / 2.0;
+    let unlike = (q[0] - q[2]).abs().max((q[1] - q[3]).abs());
+    Some(contrast > 40.0 && unlike < 0.5 * contrast)
 }
 
 /// When no view shows the board, tries nearby sizes on one image to tell the

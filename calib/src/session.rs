@@ -86,7 +86,7 @@ pub fn calibrate_session(
         )));
     }
     if let Some(v) = views.first() {
-        check_board_size(Path::new(&v.image), board)?;
+        check_board_size(v, board)?;
     }
     let mut notes: Vec<String> = skipped
         .iter()
@@ -102,7 +102,7 @@ pub fn calibrate_session(
         let fd = detect_all(floor, board, on_image)?;
         let (fviews, fskipped, fsizes) = split(fd, board);
         if let Some(v) = fviews.first() {
-            check_board_size(Path::new(&v.image), board)?;
+            check_board_size(v, board)?;
         }
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
@@ -161,12 +161,12 @@ fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<
     kept
 }
 
-/// Refuses a `--board` that counts fewer corners than the board in the image has.
-fn check_board_size(image: &Path, board: &BoardSpec) -> Result<(), CalibError> {
-    match crate::detect::larger_board_visible(image, board) {
+/// Refuses a `--board` that counts fewer corners than the board in the view has.
+fn check_board_size(view: &BoardView, board: &BoardSpec) -> Result<(), CalibError> {
+    match crate::detect::larger_board_around(Path::new(&view.image), board, &view.corners) {
         Some((c, r)) => Err(CalibError::Input(format!(
             "{} shows a {c}x{r} board, but --board {}x{} finds only part of it (the floor origin would move by a square); pass --board {c}x{r} (inner corners)",
-            image.display(),
+            view.image,
             board.cols,
             board.rows
         ))),
