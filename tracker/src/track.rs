@@ -649,7 +649,9 @@ pub fn track_source(
             }
             previous = batch.pop();
         }
-        let final_info = decoder.join().unwrap_or_else(|_| info.clone());
+        let final_info = decoder.join().map_err(|_| {
+            TrackError::bad_input(&info.path, "the frame decoder stopped on a panic")
+        })?;
         Ok((records, final_info))
     })?;
     if records.is_empty() {
