@@ -30,6 +30,8 @@ enum Command {
     Train(cmd::train::Args),
     /// Correct a raw 200 ms odometry log with a trained model.
     Correct(cmd::correct::Args),
+    /// Judge a path model on held-out squares (UMBMark) or tours against its baselines.
+    Evaluate(cmd::evaluate::Args),
     /// Laser positioning among reflective landmarks.
     #[command(subcommand)]
     Lrf(cmd::lrf::Command),
@@ -70,6 +72,7 @@ fn main() {
         Command::Dataset(a) => cmd::dataset::run(a),
         Command::Train(a) => cmd::train::run(a),
         Command::Correct(a) => cmd::correct::run(a),
+        Command::Evaluate(a) => cmd::evaluate::run(a),
         Command::Lrf(c) => cmd::lrf::run(c),
         Command::Report(a) => cmd::report::run(a),
     };

@@ -38,6 +38,9 @@ pub struct BuildOptions {
     /// 0.025 m/s (encoder quantisation and slip); a log paired with another run's trajectory
     /// gives 0.1-0.3 m/s. See [`DEFAULT_MAX_ALIGNMENT_RESIDUAL_MPS`].
     pub max_alignment_residual_mps: f64,
+    /// What one sample is: a straight run (the reference experiment) or a window of any
+    /// motion.
+    pub layout: crate::windows::Layout,
 }
 
 /// The default of [`BuildOptions::max_alignment_residual_mps`]: three times what good runs
@@ -56,6 +59,7 @@ impl Default for BuildOptions {
             rest_guard_s: 0.3,
             min_rest_frames: 3,
             max_alignment_residual_mps: DEFAULT_MAX_ALIGNMENT_RESIDUAL_MPS,
+            layout: crate::windows::Layout::StraightRuns,
         }
     }
 }

@@ -13,6 +13,7 @@ use crate::manifest::{Manifest, ManifestRow};
 use crate::odometry::OdometryLog;
 use crate::oracle::OracleFile;
 use crate::sample::Dataset;
+use crate::windows::{window_samples, Layout, WINDOW_RULE};
 use crate::DatasetError;
 
 /// Makes the camera trajectory of a row that has a video (the tracker, in the binary): the
@@ -50,7 +51,10 @@ fn one_row(
         log: &log,
         camera: &traj,
     };
-    process_recording(&rec, opts)
+    match opts.layout {
+        Layout::StraightRuns => process_recording(&rec, opts),
+        Layout::Windows(w) => window_samples(&rec, opts, &w),
+    }
 }
 
 /// Builds the dataset of every row of `m`. Rows with a video are tracked by `track` on
@@ -106,13 +110,17 @@ pub fn build_from_manifest(
     for r in results {
         outcomes.push(r?);
     }
-    Ok(assemble(opts.robot, outcomes))
+    let mut ds = assemble(opts.robot, outcomes);
+    if let Layout::Windows(_) = opts.layout {
+        ds.feature_rule = WINDOW_RULE.to_string();
+    }
+    Ok(ds)
 }
 
 /// The dataset's errors against a synthetic experiment's truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TruthErrors {
-    /// RMS distance of the targets from the true end points, metres.
+    /// RMS distance of the targets from the true end points, metres (NaN for windows).
     pub target_rms_m: f64,
     /// Largest such distance, metres.
     pub target_max_m: f64,
@@ -132,16 +140,26 @@ pub fn errors_against_truth(
     name: &str,
 ) -> Result<Option<TruthErrors>, DatasetError> {
     let (mut target, mut offset) = (Vec::new(), Vec::new());
+    // Windows have no truth of their own in the oracle file: only their recording's clock
+    // offset is compared (the targets' errors are NaN).
+    let windows = ds.is_windows();
     for sample in &ds.samples {
-        let t = oracle.get(&sample.run_id).ok_or_else(|| {
+        let key = if windows {
+            &sample.recording_id
+        } else {
+            &sample.run_id
+        };
+        let t = oracle.get(key).ok_or_else(|| {
             DatasetError::Mismatch(format!(
                 "{name}: no truth for run \"{}\"; is this the experiment's truth/oracle.json?",
                 sample.run_id
             ))
         })?;
-        target.push(
-            (sample.target_m[0] - t.true_end_m[0]).hypot(sample.target_m[1] - t.true_end_m[1]),
-        );
+        target.push(if windows {
+            f64::NAN
+        } else {
+            (sample.target_m[0] - t.true_end_m[0]).hypot(sample.target_m[1] - t.true_end_m[1])
+        });
         offset.push((sample.clock_offset_s - t.clock_offset_s).abs());
     }
     if target.is_empty() {

@@ -11,6 +11,7 @@ pub mod odometry;
 pub mod oracle;
 pub mod sample;
 pub mod segment;
+pub mod windows;
 
 pub use build::{
     assemble, features_from_log, process_recording, BuildOptions, Recording, RunFeatures,
@@ -27,3 +28,4 @@ pub use sample::{
     relative_end_error, Dataset, DatasetSummary, RejectedRun, RobotParams, Sample, DATASET_FORMAT,
     FEATURE_RULE, N_INPUTS,
 };
+pub use windows::{window_samples, Layout, WindowOptions, WINDOW_RULE};

@@ -191,22 +191,47 @@ impl Dataset {
     /// robot parameters (positive, finite), and per sample 18 finite inputs, finite target and
     /// raw end point, a positive path length and a finite speed. The message names the sample.
     pub fn check(&self) -> Result<(), String> {
-        if self.feature_rule != FEATURE_RULE {
+        let windows = self.feature_rule == crate::WINDOW_RULE;
+        if self.feature_rule != FEATURE_RULE && !windows {
             return Err(format!(
-                "feature rule \"{}\" is not this build's \"{FEATURE_RULE}\"; rebuild the dataset",
-                self.feature_rule
+                "feature rule \"{}\" is neither of this build's (\"{FEATURE_RULE}\", \"{}\"); rebuild the dataset",
+                self.feature_rule,
+                crate::WINDOW_RULE
             ));
         }
         self.robot.check().map_err(|e| format!("robot.{e}"))?;
         for (i, s) in self.samples.iter().enumerate() {
-            check_sample(s).map_err(|e| format!("sample {i} (run '{}'): {e}", s.run_id))?;
+            check_sample(s, windows)
+                .map_err(|e| format!("sample {i} (run '{}'): {e}", s.run_id))?;
         }
         Ok(())
     }
+
+    /// Whether the samples are windows of any motion ([`crate::WINDOW_RULE`]) rather than
+    /// straight runs.
+    pub fn is_windows(&self) -> bool {
+        self.feature_rule == crate::WINDOW_RULE
+    }
 }
 
-fn check_sample(s: &Sample) -> Result<(), String> {
-    if s.inputs.len() != N_INPUTS {
+fn check_sample(s: &Sample, windows: bool) -> Result<(), String> {
+    if windows {
+        // One [left, right] pair per step, and the rows the steps came from.
+        if s.inputs.is_empty() || !s.inputs.len().is_multiple_of(2) {
+            return Err(format!(
+                "{} inputs, expected one left/right pair per step",
+                s.inputs.len()
+            ));
+        }
+        if s.odometry.rev.len() != s.inputs.len() / 2 + 1
+            || s.odometry.t_s.len() != s.odometry.rev.len()
+        {
+            return Err("the window's odometry rows do not match its steps".into());
+        }
+        if !s.target_theta_rad.is_finite() {
+            return Err("target heading is not finite".into());
+        }
+    } else if s.inputs.len() != N_INPUTS {
         return Err(format!("{} inputs, expected {N_INPUTS}", s.inputs.len()));
     }
     if let Some(c) = s.inputs.iter().position(|v| !v.is_finite()) {

@@ -4,17 +4,18 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use odocal_dataset::{OdometryLog, RobotParams};
-use odocal_trainer::ModelFile;
+use odocal_trainer::{ModelFile, PathModelFile, PATH_MODEL_FORMAT};
 
 use crate::output::{check_output_file, write_atomic};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The trained model (model.json from `odocal train`).
+    /// The trained model (model.json from `odocal train`): a straight-run model corrects the
+    /// end point of one run; a path model (trained on windows) corrects a log of any path.
     #[arg(long)]
     pub model: PathBuf,
-    /// The raw odometry log of one run (`t,left_ticks,right_ticks` or `t,v_left,v_right`).
+    /// The raw odometry log (for a straight-run model: of one run) (`t,left_ticks,right_ticks` or `t,v_left,v_right`).
     pub log: PathBuf,
     /// Robot parameters of the log (robot.json, "format": "odocal.robot/1"); default: the model's robot.
     #[arg(long)]
@@ -28,10 +29,55 @@ pub struct Args {
     pub allow_extrapolation: bool,
 }
 
+/// Corrects a log of any path with a path model: the whole corrected trajectory.
+fn correct_path(args: &Args) -> anyhow::Result<()> {
+    let model = PathModelFile::read(&args.model)?;
+    let robot = match &args.robot {
+        Some(p) => RobotParams::read(p)?,
+        None => model.robot,
+    };
+    let log = OdometryLog::read_csv(&args.log)?;
+    let run = model
+        .correct_log(
+            &log,
+            &robot,
+            &args.log.display().to_string(),
+            args.allow_extrapolation,
+        )
+        .with_context(|| format!("{}", args.model.display()))?;
+    for why in &run.outside_domain {
+        eprintln!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
+    }
+    let (raw, corrected) = run.ends();
+    println!(
+        "raw odometry end: x {:.4} m, y {:.4} m, heading {:.2} deg; corrected end: x {:.4} m, y {:.4} m, heading {:.2} deg (start frame; correction {:.2} cm over {:.3} m of wheel travel)",
+        raw.x_m,
+        raw.y_m,
+        odocal_core::wrap_angle(raw.theta_rad).to_degrees(),
+        corrected.x_m,
+        corrected.y_m,
+        odocal_core::wrap_angle(corrected.theta_rad).to_degrees(),
+        100.0 * (corrected.x_m - raw.x_m).hypot(corrected.y_m - raw.y_m),
+        run.path_length_m
+    );
+    if let Some(out) = &args.out {
+        write_atomic(out, run.to_csv().as_bytes())?;
+        println!("wrote {}", out.display());
+    }
+    Ok(())
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         check_output_file(out, "--out")?;
+    }
+    let kind = odocal_core::read_text(&args.model)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v.get("format").and_then(|f| f.as_str()).map(str::to_string));
+    if kind.as_deref() == Some(PATH_MODEL_FORMAT) {
+        return correct_path(&args);
     }
     let model = ModelFile::read(&args.model)?;
     let robot = match &args.robot {

@@ -8,8 +8,8 @@ use odocal_calib::CameraFile;
 use odocal_dataset::build::{samples_csv, BuildOptions};
 use odocal_dataset::oracle::OracleFile;
 use odocal_dataset::{
-    build_from_manifest, errors_against_truth, Manifest, ManifestRow, RobotParams, Trajectory,
-    VideoTracker,
+    build_from_manifest, errors_against_truth, Layout, Manifest, ManifestRow, RobotParams,
+    Trajectory, VideoTracker, WindowOptions,
 };
 use odocal_tracker::track_video;
 
@@ -36,10 +36,29 @@ pub struct Args {
     /// Shortest stop, seconds, that splits a recording into separate runs.
     #[arg(long, default_value_t = odocal_dataset::build::DEFAULT_MIN_GAP_S)]
     pub min_gap_s: f64,
+    /// What a sample is: `runs`, the straight runs of the reference experiment (18 inputs), or
+    /// `windows`, windows of any motion (curves, turns, squares) for a path corrector.
+    #[arg(long, value_enum, default_value_t = LayoutArg::Runs)]
+    pub layout: LayoutArg,
+    /// With --layout windows: window length, seconds (a whole number of log periods).
+    #[arg(long, default_value_t = 10.0)]
+    pub window_s: f64,
+    /// With --layout windows: time between window starts, seconds.
+    #[arg(long, default_value_t = 5.0)]
+    pub window_stride_s: f64,
     /// Truth of a synthetic experiment (truth/oracle.json from `odocal synth experiment`):
     /// also print the targets' and clock offsets' errors against it.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+}
+
+/// What one sample of the dataset is.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayoutArg {
+    /// One straight run (the reference experiment's 18 inputs).
+    Runs,
+    /// A window of any motion.
+    Windows,
 }
 
 /// Prints what the dataset holds: samples, rejected runs with reasons, raw odometry's error.
@@ -100,9 +119,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => RobotParams::read(p)?,
         None => RobotParams::default(),
     };
+    let layout = match args.layout {
+        LayoutArg::Runs => Layout::StraightRuns,
+        LayoutArg::Windows => {
+            let steps = |v: f64, name: &str| -> anyhow::Result<usize> {
+                let n = v / robot.period_s;
+                if !(v.is_finite() && n >= 1.0 - 1e-9 && (n - n.round()).abs() < 1e-6) {
+                    bail!(
+                        "{name} {v} s must be a positive whole number of the robot's {} s log periods",
+                        robot.period_s
+                    );
+                }
+                Ok(n.round() as usize)
+            };
+            Layout::Windows(WindowOptions {
+                steps: steps(args.window_s, "--window-s")?,
+                stride: steps(args.window_stride_s, "--window-stride-s")?,
+                ..WindowOptions::default()
+            })
+        }
+    };
     let opts = BuildOptions {
         robot,
         min_gap_s: args.min_gap_s,
+        layout,
         ..BuildOptions::default()
     };
     let bar = progress(manifest.runs.len() as u64, "dataset");
@@ -131,6 +171,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_summary(&ds, &args.out);
     if let (Some(path), Some(oracle)) = (&args.truth, &oracle) {
         if let Some(e) = errors_against_truth(&ds, oracle, &path.display().to_string())? {
+            if e.target_rms_m.is_nan() {
+                println!(
+                    "against the truth: clock offsets RMS {:.2} ms (max {:.2} ms) over {} windows",
+                    1e3 * e.offset_rms_s,
+                    1e3 * e.offset_max_s,
+                    e.n
+                );
+                return Ok(());
+            }
             println!(
                 "against the truth: end-point targets RMS {:.2} mm (max {:.2} mm), clock offsets RMS {:.2} ms (max {:.2} ms) over {} samples",
                 1e3 * e.target_rms_m,

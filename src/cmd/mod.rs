@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod correct;
 pub mod dataset;
+pub mod evaluate;
 pub mod lrf;
 pub mod report;
 pub mod synth_calib;

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use odocal_synth::board::CalibScene;
 use odocal_synth::experiment::{self, simulate_experiment, ExperimentSettings};
-use odocal_synth::robot::RobotSimConfig;
+use odocal_synth::robot::{PathKind, RobotSimConfig};
 
 use crate::output::{count, progress, staged_dir};
 
@@ -18,6 +18,18 @@ pub enum Frames {
     /// No video: the true trajectory at the camera's frame times (with its clock offset and
     /// the configured mm-level noise) is written as the camera trajectory.
     None,
+}
+
+/// The paths the robot drives.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Paths {
+    /// The reference experiment: straight runs of about 1.5 m.
+    Straight,
+    /// One random waypoint tour per recording: turns in place, straight legs and arcs.
+    Tours,
+    /// Borenstein's UMBMark: a square per recording, clockwise and counter-clockwise
+    /// alternately (odd recordings clockwise).
+    Umbmark,
 }
 
 /// Arguments of this subcommand.
@@ -39,6 +51,21 @@ pub struct Args {
     /// robot back, in one log and one video (`odocal dataset` splits them by motion).
     #[arg(long, default_value_t = 1)]
     pub runs_per_recording: usize,
+    /// The paths driven (tours and squares: one per recording, with --frames none).
+    #[arg(long, value_enum, default_value_t = Paths::Straight)]
+    pub paths: Paths,
+    /// Side of the UMBMark square, metres.
+    #[arg(long, default_value_t = 4.0)]
+    pub square_m: f64,
+    /// Speed on the UMBMark square's sides, m/s.
+    #[arg(long, default_value_t = 0.5)]
+    pub square_speed: f64,
+    /// Legs per random tour.
+    #[arg(long, default_value_t = 10)]
+    pub tour_legs: usize,
+    /// Side of the square the tour's waypoints lie in, metres.
+    #[arg(long, default_value_t = 3.0)]
+    pub tour_area_m: f64,
     /// Simulator configuration JSON ("format": "odocal.robotsim/1"; absent fields take defaults).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -54,15 +81,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => RobotSimConfig::read(p)?,
         None => RobotSimConfig::default(),
     };
+    let frames = match args.frames {
+        Frames::Video => experiment::Frames::Video,
+        Frames::None => experiment::Frames::None,
+    };
     let settings = ExperimentSettings {
-        runs: args.runs,
-        seed: args.seed,
-        frames: match args.frames {
-            Frames::Video => experiment::Frames::Video,
-            Frames::None => experiment::Frames::None,
+        paths: match args.paths {
+            Paths::Straight => PathKind::Straight,
+            Paths::Tours => PathKind::Tours,
+            Paths::Umbmark => PathKind::Umbmark,
         },
-        runs_per_recording: args.runs_per_recording,
-        config,
+        square_side_m: args.square_m,
+        square_speed_mps: args.square_speed,
+        tour_legs: args.tour_legs,
+        tour_area_m: args.tour_area_m,
+        ..ExperimentSettings::straight(
+            args.runs,
+            args.seed,
+            frames,
+            args.runs_per_recording,
+            config,
+        )
     };
     // Everything is written into a staged folder that replaces the outputs in --out only when
     // the whole experiment has been simulated.
@@ -80,8 +119,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
     }
     println!(
-        "synth experiment: {} in {} (seed {}, frames {}) -> {}",
+        "synth experiment: {} {} in {} (seed {}, frames {}) -> {}",
         count(args.runs, "run"),
+        match args.paths {
+            Paths::Straight => "straight",
+            Paths::Tours => "tours",
+            Paths::Umbmark => "UMBMark squares",
+        },
         count(summary.recordings, "recording"),
         args.seed,
         match args.frames {

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use odocal_dataset::{Dataset, OracleFile};
-use odocal_trainer::{fit_model, oracle_ends, report, sweep, Method, SweepSettings, TrainSettings};
+use odocal_trainer::{
+    fit_model, oracle_ends, report, sweep, Method, PathModelFile, SweepSettings, TrainSettings,
+};
 
 use crate::output::{check_output_dir, check_output_file, progress, write_atomic, write_json};
 
@@ -18,9 +20,10 @@ pub struct Args {
     /// Where to write the trained model (model.json); required unless --sweep is given.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Hidden neurons k (the source chose 8).
-    #[arg(long, default_value_t = 8)]
-    pub hidden: usize,
+    /// Hidden neurons k (default: 8 for straight runs, as the source chose; 2 for a path
+    /// model trained on windows).
+    #[arg(long)]
+    pub hidden: Option<usize>,
     /// Training method: lm (Levenberg–Marquardt, the levenberg-marquardt crate) or backprop.
     #[arg(long, default_value = "lm")]
     pub method: String,
@@ -65,6 +68,55 @@ pub struct Args {
     pub min_improvement: Option<f64>,
 }
 
+/// Restarts of a path model's fit (its first starts from the kinematic fit, so few suffice).
+const PATH_RESTARTS: usize = 2;
+
+/// Trains the path corrector on a window dataset.
+fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
+    if args.sweep.is_some() || args.report.is_some() || args.oracle.is_some() {
+        bail!("{}: a window dataset trains a path model; --sweep, --report and --oracle belong to straight-run datasets (judge a path model with `odocal evaluate`)", args.dataset.display());
+    }
+    let Some(out) = &args.out else {
+        bail!("give --out path-model.json to train a path model");
+    };
+    let hidden = args.hidden.unwrap_or(2);
+    if hidden > 16 {
+        bail!("--hidden {hidden}: a path model takes 0 to 16 hidden neurons");
+    }
+    let bar = progress(0, "fitting the path model");
+    let model = PathModelFile::fit(ds, sha, hidden, PATH_RESTARTS, args.seed)
+        .with_context(|| format!("{}", args.dataset.display()))?;
+    bar.finish_and_clear();
+    write_json(out, &model)?;
+    let names = [
+        "raw odometry",
+        "kinematic fit",
+        &format!("perceptron 2-{hidden}-3"),
+    ];
+    println!(
+        "path model: {} windows; chained window end vs camera (RMS over the training windows):",
+        model.n_windows
+    );
+    for (name, f) in names.iter().zip(&model.window_fit) {
+        println!(
+            "  {name:<18} position {:7.1} mm   heading {:6.3} deg",
+            1e3 * f.position_rms_m,
+            f.heading_rms_rad.to_degrees()
+        );
+    }
+    let g = &model.kinematic_fit;
+    println!(
+        "kinematic fit: left wheel {:.3} mm, right wheel {:.3} mm, wheel base {:.2} mm (nominal {:.3} mm, {:.2} mm)",
+        1e3 * g.left_wheel_diameter_m,
+        1e3 * g.right_wheel_diameter_m,
+        1e3 * g.wheel_base_m,
+        1e3 * ds.robot.wheel_diameter_m,
+        1e3 * ds.robot.wheel_base_m
+    );
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
 fn parse_range(s: &str) -> anyhow::Result<Vec<usize>> {
     let bad = || anyhow::anyhow!("--sweep '{s}': expected A..B with whole numbers, e.g. 6..12");
     let (a, b) = s.split_once("..").ok_or_else(bad)?;
@@ -79,7 +131,7 @@ fn parse_range(s: &str) -> anyhow::Result<Vec<usize>> {
 
 fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
     let method: Method = args.method.parse()?;
-    let mut s = TrainSettings::new(args.hidden, method);
+    let mut s = TrainSettings::new(args.hidden.unwrap_or(8), method);
     if let Some(v) = args.weight_decay {
         s.weight_decay = v;
     }
@@ -107,6 +159,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bytes = std::fs::read(&args.dataset)
         .with_context(|| format!("cannot read {}", args.dataset.display()))?;
     let (ds, sha) = odocal_trainer::parse_dataset(&bytes, &args.dataset.display().to_string())?;
+    if ds.is_windows() {
+        return run_paths(&args, &ds, &sha);
+    }
     let ts = settings(&args)?;
     let oracle = match &args.oracle {
         Some(p) => Some(oracle_ends(

@@ -7,17 +7,19 @@ use std::path::{Path, PathBuf};
 
 use odocal_core::Pose2;
 use odocal_dataset::manifest::{Manifest, ManifestRow};
-use odocal_dataset::oracle::{OracleFile, OracleRun};
+use odocal_dataset::oracle::{OracleFile, OracleRun, TrueKinematics};
 use odocal_dataset::{DatasetError, WheelGeometry};
 use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
 
 use crate::robot::{
-    simulate_recording, CameraTiming, RobotSimConfig, RobotSimError, RunTruth, SimulatedRecording,
-    TruthTrack,
+    simulate_plan, simulate_recording, CameraTiming, PathKind, Plan, RobotSimConfig, RobotSimError,
+    RunTruth, SimulatedRecording, TruthTrack,
 };
 use crate::scene::{render_video as render_scene_video, SceneConfig, SceneError, VideoFormat};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 /// The `format` tag of truth/experiment.json.
 pub const EXPERIMENT_TRUTH_FORMAT: &str = "odocal.experiment-truth/1";
@@ -75,12 +77,73 @@ pub struct ExperimentSettings {
     pub runs_per_recording: usize,
     /// The robot simulator's configuration.
     pub config: RobotSimConfig,
+    /// The paths driven: the straight runs of the reference experiment, or one plan per
+    /// recording (tours, UMBMark squares).
+    pub paths: PathKind,
+    /// Side of the UMBMark square, metres.
+    pub square_side_m: f64,
+    /// Speed on the square's sides, m/s.
+    pub square_speed_mps: f64,
+    /// Legs of a random tour.
+    pub tour_legs: usize,
+    /// Side of the square the tour's waypoints lie in, metres.
+    pub tour_area_m: f64,
+}
+
+impl ExperimentSettings {
+    /// The reference experiment: straight runs, with the path options at their defaults.
+    pub fn straight(
+        runs: usize,
+        seed: u64,
+        frames: Frames,
+        runs_per_recording: usize,
+        config: RobotSimConfig,
+    ) -> Self {
+        Self {
+            runs,
+            seed,
+            frames,
+            runs_per_recording,
+            config,
+            paths: PathKind::Straight,
+            square_side_m: 4.0,
+            square_speed_mps: 0.5,
+            tour_legs: 10,
+            tour_area_m: 3.0,
+        }
+    }
+
+    /// The plan of recording `r` (None for straight runs): squares alternate clockwise and
+    /// counter-clockwise; tours are drawn from their own seeded stream.
+    pub fn plan(&self, r: usize) -> Option<Plan> {
+        match self.paths {
+            PathKind::Straight => None,
+            PathKind::Umbmark => Some(Plan::umbmark(
+                self.square_side_m,
+                r.is_multiple_of(2),
+                self.square_speed_mps,
+                0.2,
+            )),
+            PathKind::Tours => {
+                let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+                rng.set_stream((2u64 << 32) + r as u64);
+                Some(Plan::tour(
+                    self.tour_legs,
+                    self.tour_area_m,
+                    &self.config.protocol.speeds_mps,
+                    &mut rng,
+                ))
+            }
+        }
+    }
 }
 
 /// Truth of one recording, as written to truth/experiment.json.
 #[derive(Serialize)]
 struct RecordingTruth {
     id: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plan: Option<Plan>,
     clock_offset_s: f64,
     camera_end_s: f64,
     runs: Vec<NamedRun>,
@@ -97,6 +160,7 @@ struct NamedRun {
 struct ExperimentTruth<'a> {
     format: &'static str,
     seed: u64,
+    paths: PathKind,
     frames: Frames,
     runs: usize,
     runs_per_recording: usize,
@@ -183,6 +247,22 @@ pub fn simulate_experiment(
             "--runs-per-recording must be at least 1".into(),
         ));
     }
+    if s.paths != PathKind::Straight && (per > 1 || s.frames == Frames::Video) {
+        return Err(ExperimentError::Settings("--paths tours|umbmark drive one plan per recording and leave the camera's 3 x 1.7 m view: use --runs-per-recording 1 and --frames none".into()));
+    }
+    if !(s.square_side_m.is_finite()
+        && s.square_side_m > 0.0
+        && s.square_speed_mps.is_finite()
+        && s.square_speed_mps > 0.0
+        && s.tour_area_m.is_finite()
+        && s.tour_area_m >= 1.0
+        && s.tour_legs > 0)
+    {
+        return Err(ExperimentError::Settings(
+            "--square-m and --square-speed must be > 0, --tour-area-m >= 1 and --tour-legs >= 1"
+                .into(),
+        ));
+    }
     if s.frames == Frames::Video && per > 1 {
         return Err(ExperimentError::Settings("--frames video renders one run per recording: use --runs-per-recording 1 or --frames none".into()));
     }
@@ -210,13 +290,25 @@ pub fn simulate_experiment(
         &out.join("manifest.json"),
         format!("{}\n", manifest.to_json()).as_bytes(),
     )?;
-    write_json(&out.join("truth/oracle.json"), &OracleFile::new(oracle))?;
+    let mut oracle = OracleFile::new(oracle);
+    if s.paths != PathKind::Straight {
+        let sys = &s.config.systematic;
+        oracle.kinematics = Some(TrueKinematics {
+            left_wheel_diameter_m: sys.left_wheel_diameter_m,
+            right_wheel_diameter_m: sys.right_wheel_diameter_m,
+            wheel_base_m: sys.wheel_base_m,
+            left_slip_per_mps: sys.left_slip_per_mps,
+            right_slip_per_mps: sys.right_slip_per_mps,
+        });
+    }
+    write_json(&out.join("truth/oracle.json"), &oracle)?;
     write_json(&out.join("truth/simulator.json"), &s.config)?;
     write_json(
         &out.join("truth/experiment.json"),
         &ExperimentTruth {
             format: EXPERIMENT_TRUTH_FORMAT,
             seed: s.seed,
+            paths: s.paths,
             frames: s.frames,
             runs: s.runs,
             runs_per_recording: per,
@@ -245,7 +337,15 @@ fn one_recording(
     } else {
         format!("rec{:03}", r + 1)
     };
-    let rec = simulate_recording(cfg, &speeds, s.seed, r as u64)?;
+    let plan = s.plan(r);
+    let rec = match &plan {
+        Some(p) => simulate_plan(cfg, p, s.seed, r as u64)?,
+        None => simulate_recording(cfg, &speeds, s.seed, r as u64)?,
+    };
+    let speeds = match &plan {
+        Some(_) => vec![rec.runs.first().map_or(0.0, |t| t.speed_mps)],
+        None => speeds,
+    };
     if rec.runs.len() != speeds.len() {
         return Err(ExperimentError::Settings(format!(
             "recording {id}: simulated {} of {} runs",
@@ -302,10 +402,15 @@ fn one_recording(
         video,
         trajectory,
         odometry: odo_rel,
-        speed_mps: if per == 1 { Some(speeds[0]) } else { None },
+        speed_mps: if per == 1 && plan.is_none() {
+            Some(speeds[0])
+        } else {
+            None
+        },
     };
     let truth = RecordingTruth {
         id,
+        plan,
         clock_offset_s: rec.clock_offset_s,
         camera_end_s: rec.camera_end_s,
         runs: rec

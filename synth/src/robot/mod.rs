@@ -20,11 +20,14 @@
 //! Everything is seeded: a recording is a function of (config, speeds, seed, stream).
 
 mod config;
+mod physics;
+mod plan;
 mod recording;
 mod simulate;
 mod truth_track;
 
 pub use config::*;
+pub use plan::{simulate_plan, PathKind, Plan, Segment};
 pub use recording::*;
 pub use simulate::simulate_recording;
 pub use truth_track::{TruthTrack, TruthTrackRow, TRUTH_TRACK_HEADER};

@@ -2,45 +2,13 @@
 
 use super::*;
 
-fn uniform(rng: &mut ChaCha8Rng, r: [f64; 2]) -> f64 {
-    if r[1] > r[0] {
-        rng.gen_range(r[0]..r[1])
-    } else {
-        r[0]
-    }
-}
+use super::physics::{uniform, Robot};
 
 #[derive(Clone, Copy, PartialEq)]
 enum Phase {
     Rest,
     Driving,
     Braking,
-}
-
-/// Physical state of the robot.
-struct Robot {
-    pose: Pose2,
-    /// Wheel angles since the log started, radians.
-    phi: [f64; 2],
-    /// Random initial encoder phase, radians in [0, one count).
-    phi0: [f64; 2],
-    /// Wheel angular speeds, rad/s.
-    omega: [f64; 2],
-    /// Commanded wheel angular speeds, rad/s.
-    omega_cmd: [f64; 2],
-    /// Random slip state (unit-variance OU in distance) per wheel.
-    slip: [f64; 2],
-    /// Motor disturbance state (unit-variance OU in time) per wheel.
-    motor: [f64; 2],
-    /// Body speed of the last step, m/s.
-    speed: f64,
-    path: f64,
-}
-
-impl Robot {
-    fn ticks(&self, w: usize, count: f64) -> i64 {
-        ((self.phi[w] + self.phi0[w]) / count).floor() as i64
-    }
 }
 
 /// Simulates one recording with runs at `speeds` (one run per entry), from a seed and a stream.
@@ -61,17 +29,11 @@ pub fn simulate_recording(
     let dt = cfg.sim_dt_s;
     let nom = &cfg.nominal;
     let sys = &cfg.systematic;
-    let rnd = &cfg.random;
     let ctl = &cfg.control;
     let pro = &cfg.protocol;
     let count = 2.0 * std::f64::consts::PI / nom.ticks_per_rev as f64;
     let r_nom = 0.5 * nom.wheel_diameter_m;
-    let r_true = [
-        0.5 * sys.left_wheel_diameter_m,
-        0.5 * sys.right_wheel_diameter_m,
-    ];
     let k_slip = [sys.left_slip_per_mps, sys.right_slip_per_mps];
-    let gain = [ctl.left_motor_gain, ctl.right_motor_gain];
     let steps_per_log = (nom.log_period_s / dt).round() as i64;
     let steps_per_ctl = (ctl.control_period_s / dt).round() as i64;
     let record_every = ((0.005 / dt).round() as i64).max(1);
@@ -93,6 +55,7 @@ pub fn simulate_recording(
         slip: [rng.sample(StandardNormal), rng.sample(StandardNormal)],
         motor: [0.0; 2],
         speed: 0.0,
+        wheel_speed: [0.0; 2],
         path: 0.0,
     };
 
@@ -224,35 +187,9 @@ pub fn simulate_recording(
             } else {
                 ctl.motor_time_constant_s
             };
-            let a_m = (-dt / rnd.motor_noise_time_s).exp();
-            let mut ds = [0.0; 2];
-            for w in 0..2 {
-                let n: f64 = rng.sample(StandardNormal);
-                robot.motor[w] = a_m * robot.motor[w] + (1.0 - a_m * a_m).sqrt() * n;
-                let target =
-                    gain[w] * robot.omega_cmd[w] * (1.0 + rnd.motor_noise_sd * robot.motor[w]);
-                robot.omega[w] += (target - robot.omega[w]) * (dt / tau).min(1.0);
-                robot.phi[w] += robot.omega[w] * dt;
-                let slip = k_slip[w] * robot.speed.abs() + rnd.slip_sd * robot.slip[w];
-                ds[w] = robot.omega[w] * r_true[w] * (1.0 - slip) * dt;
-            }
-            let d = 0.5 * (ds[0] + ds[1]);
-            let n: f64 = rng.sample(StandardNormal);
-            let d_rot = (ds[1] - ds[0]) / sys.wheel_base_m
-                + rnd.roughness_rad_per_sqrt_m * d.abs().sqrt() * n;
-            let mid = robot.pose.theta_rad + 0.5 * d_rot;
-            robot.pose = Pose2::new(
-                robot.pose.x_m + d * mid.cos(),
-                robot.pose.y_m + d * mid.sin(),
-                robot.pose.theta_rad + d_rot,
-            );
-            robot.speed = d / dt;
-            robot.path += d.abs();
-            let a_s = (-d.abs() / rnd.slip_correlation_m).exp();
-            for w in 0..2 {
-                let n: f64 = rng.sample(StandardNormal);
-                robot.slip[w] = a_s * robot.slip[w] + (1.0 - a_s * a_s).sqrt() * n;
-            }
+            // Both wheels slip with the body speed on a straight run.
+            let v = robot.speed.abs();
+            robot.physics_step(cfg, tau, [v, v], &mut rng);
         } else {
             robot.speed = 0.0;
         }

@@ -1,0 +1,157 @@
+//! Training samples of any motion: windows of a log, each with the camera's pose change over
+//! the same window as its target. The straight-run samples of the reference experiment are
+//! one layout; this is the other, for robots that drive curves, turns in place and squares.
+//!
+//! The robot clock is mapped to the camera's by the recording's coarse offset (speed-profile
+//! cross-correlation, a few milliseconds on these logs); the window's end poses are the camera
+//! poses interpolated at its first and last log rows. A window of W rows carries the nominal
+//! wheel travel of each of its W steps as inputs, so a corrector can be applied step by step
+//! and chained; its target is in the window's start frame.
+
+use odocal_core::wrap_angle;
+
+use crate::align::coarse_offset;
+use crate::build::{BuildOptions, Recording, RunOutcome};
+use crate::error::DatasetError;
+use crate::kinematics::{RunOdometry, WheelGeometry};
+use crate::{RejectedRun, Sample};
+
+/// The feature rule of window datasets, exactly; a model trained on one rule refuses data
+/// built with another.
+pub const WINDOW_RULE: &str = "odocal.features.windows/1: per window of W consecutive log steps, inputs = the nominal wheel travel of each step, left then right (metres, 2W numbers); target = the camera's pose change over the window in its start frame (x, y metres; theta radians, counter-clockwise), camera poses interpolated at the window's first and last log rows shifted by the recording's clock offset";
+
+/// How windows are cut from a log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowOptions {
+    /// Log steps per window.
+    pub steps: usize,
+    /// Log steps between the starts of consecutive windows.
+    pub stride: usize,
+    /// Least wheel travel (mean of both wheels' absolute travel) of a kept window, metres.
+    pub min_travel_m: f64,
+}
+
+impl Default for WindowOptions {
+    /// 10 s windows every 5 s on a 200 ms log.
+    fn default() -> Self {
+        Self {
+            steps: 50,
+            stride: 25,
+            min_travel_m: 0.05,
+        }
+    }
+}
+
+/// The dataset's layout: what one sample is.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Layout {
+    /// One straight run per sample, the 18 inputs of the reference experiment.
+    #[default]
+    StraightRuns,
+    /// Windows of any motion.
+    Windows(WindowOptions),
+}
+
+/// Cuts one recording into window samples; recordings whose log cannot be aligned with the
+/// camera are one rejected entry.
+pub fn window_samples(
+    rec: &Recording,
+    opts: &BuildOptions,
+    w: &WindowOptions,
+) -> Result<Vec<RunOutcome>, DatasetError> {
+    if w.steps == 0 || w.stride == 0 {
+        return Err(DatasetError::Mismatch(
+            "--window-steps and --window-stride must be at least 1".into(),
+        ));
+    }
+    let robot = &opts.robot;
+    let geom = WheelGeometry::nominal(robot);
+    let revs = rec.log.wheel_revs(robot);
+    let coarse = match coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id) {
+        Ok(c) if c.correlation >= opts.align.min_correlation => c,
+        Ok(c) => {
+            return Ok(vec![RunOutcome::Rejected(RejectedRun {
+                run_id: rec.id.to_string(),
+                reason: format!(
+                    "odometry and camera speed profiles correlate at only {:.2} (< {:.2}): not the same motion",
+                    c.correlation, opts.align.min_correlation
+                ),
+            })])
+        }
+        Err(e) => {
+            return Ok(vec![RunOutcome::Rejected(RejectedRun {
+                run_id: rec.id.to_string(),
+                reason: e.to_string(),
+            })])
+        }
+    };
+    let offset = coarse.offset_s;
+    let circ = [
+        std::f64::consts::PI * geom.left_wheel_diameter_m,
+        std::f64::consts::PI * geom.right_wheel_diameter_m,
+    ];
+    let n = revs.t_s.len();
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k + w.steps < n {
+        let rows = k..=k + w.steps;
+        k += w.stride;
+        let t = &revs.t_s[rows.clone()];
+        let rev: Vec<[f64; 2]> = revs.rev[rows.clone()]
+            .iter()
+            .map(|r| {
+                [
+                    r[0] - revs.rev[*rows.start()][0],
+                    r[1] - revs.rev[*rows.start()][1],
+                ]
+            })
+            .collect();
+        let inputs: Vec<f64> = rev
+            .windows(2)
+            .flat_map(|p| [(p[1][0] - p[0][0]) * circ[0], (p[1][1] - p[0][1]) * circ[1]])
+            .collect();
+        let travel: f64 = inputs.iter().map(|d| 0.5 * d.abs()).sum();
+        if travel < w.min_travel_m {
+            continue;
+        }
+        let (t0, t1) = (t[0] + offset, t[t.len() - 1] + offset);
+        let gap = opts.align.max_frame_gap_s;
+        let id = format!("{}.w{:04}", rec.id, rows.start());
+        let (Some(p0), Some(p1), true) = (
+            rec.camera.pose_at(t0, gap),
+            rec.camera.pose_at(t1, gap),
+            rec.camera.covers(t0, t1, gap),
+        ) else {
+            out.push(RunOutcome::Rejected(RejectedRun {
+                run_id: id,
+                reason: format!(
+                    "the camera does not see the robot throughout {t0:.2}-{t1:.2} s (camera clock)"
+                ),
+            }));
+            continue;
+        };
+        let rel = p1.relative_to(&p0);
+        let odometry = RunOdometry {
+            t_s: t.to_vec(),
+            rev,
+        };
+        let raw = odometry.poses(&geom);
+        let raw_end = raw.last().copied().unwrap_or_default();
+        out.push(RunOutcome::Sample(Box::new(Sample {
+            run_id: id,
+            recording_id: rec.id.to_string(),
+            speed_mps: travel / (t[t.len() - 1] - t[0]),
+            inputs,
+            target_m: [rel.x_m, rel.y_m],
+            target_theta_rad: wrap_angle(rel.theta_rad),
+            raw_end_m: [raw_end.x_m, raw_end.y_m],
+            path_length_m: travel,
+            clock_offset_s: offset,
+            speed_correlation: coarse.correlation,
+            start_pose_floor: p0,
+            odometry,
+            ..Sample::default()
+        })));
+    }
+    Ok(out)
+}

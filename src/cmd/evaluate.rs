@@ -1,0 +1,143 @@
+//! `odocal evaluate`: judges a path model on held-out recordings (squares or any path) against
+//! raw odometry, Borenstein's UMBMark calibration, the kinematic fit and, for synthetic
+//! experiments, the oracle with the true kinematics.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use odocal_dataset::{Manifest, OracleFile, RobotParams, WheelGeometry};
+use odocal_trainer::evaluate::{evaluate_paths, PathRecording, Reckoner};
+use odocal_trainer::umbmark::{SquareError, Umbmark};
+use odocal_trainer::PathModelFile;
+
+use crate::output::{check_output_file, write_json};
+
+/// Arguments of this subcommand.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Manifest of the held-out recordings (each starts and ends at rest, seen by the camera).
+    pub manifest: PathBuf,
+    /// The path model (from `odocal train` on a window dataset).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The recordings are UMBMark squares of this side, metres, driven both ways: adds
+    /// Borenstein's E_max,syst per method.
+    #[arg(long)]
+    pub umbmark_m: Option<f64>,
+    /// Manifest of other UMBMark squares (same side) to calibrate with Borenstein's E_d and
+    /// E_b, the classic baseline; needs --umbmark-m.
+    #[arg(long)]
+    pub umbmark_calibration: Option<PathBuf>,
+    /// Truth of a synthetic experiment (truth/oracle.json with the true kinematics): adds the
+    /// oracle.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// Robot parameters (robot.json); default: the model's robot.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Write the evaluation as JSON.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        check_output_file(out, "--out")?;
+    }
+    if let Some(side) = args.umbmark_m {
+        if !(side.is_finite() && side > 0.0) {
+            bail!("--umbmark-m {side}: the square's side must be a positive number of metres");
+        }
+    } else if args.umbmark_calibration.is_some() {
+        bail!("--umbmark-calibration needs --umbmark-m (the squares' side, metres)");
+    }
+    let model = PathModelFile::read(&args.model)?;
+    let robot = match &args.robot {
+        Some(p) => RobotParams::read(p)?,
+        None => model.robot,
+    };
+    let corrector = model.corrector()?;
+    let truth = match &args.truth {
+        Some(p) => Some(OracleFile::read(p)?.kinematics.with_context(|| {
+            format!("{}: holds no true kinematics (only `odocal synth experiment --paths tours|umbmark` writes them)", p.display())
+        })?),
+        None => None,
+    };
+    let nominal = WheelGeometry::nominal(&robot);
+    let mut methods: Vec<(String, Reckoner)> =
+        vec![("raw odometry".into(), Reckoner::Geometry(nominal))];
+    if let (Some(cal), Some(side)) = (&args.umbmark_calibration, args.umbmark_m) {
+        let recs = PathRecording::read_manifest(&Manifest::read(cal)?)?;
+        let ev = evaluate_paths(
+            &recs,
+            &robot,
+            &[("raw".into(), Reckoner::Geometry(nominal))],
+            true,
+        )
+        .with_context(|| format!("{}", cal.display()))?;
+        let errors: Vec<SquareError> = ev
+            .runs
+            .iter()
+            .map(|r| SquareError {
+                clockwise: r.clockwise == Some(true),
+                error_m: r.errors_m[0],
+            })
+            .collect();
+        let c = Umbmark::of(&errors)?.correction(side, &robot);
+        println!(
+            "UMBMark calibration from {} squares: E_d = {:.5} (wheel diameter ratio right/left), E_b = {:.5} (wheel base factor)",
+            errors.len(),
+            c.e_d,
+            c.e_b
+        );
+        methods.push((
+            "UMBMark calibration (E_d, E_b)".into(),
+            Reckoner::Geometry(c.geometry),
+        ));
+    }
+    methods.push((
+        "kinematic fit (windows)".into(),
+        Reckoner::Geometry(model.kinematic_fit),
+    ));
+    methods.push((
+        format!("perceptron 2-{}-3", corrector.hidden()),
+        Reckoner::Corrector(&corrector),
+    ));
+    if let Some(k) = truth {
+        methods.push(("oracle (true kinematics)".into(), Reckoner::Truth(k)));
+    }
+    let recs = PathRecording::read_manifest(&Manifest::read(&args.manifest)?)?;
+    let ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
+        .with_context(|| format!("{}", args.manifest.display()))?;
+    let path_m: f64 = ev.runs.iter().map(|r| r.path_length_m).sum();
+    println!(
+        "{} held-out recordings, {path_m:.1} m of wheel travel; end-point error per metre driven (mean over recordings){}:",
+        ev.runs.len(),
+        if args.umbmark_m.is_some() {
+            "; UMBMark E_max,syst = larger distance of the clockwise and counter-clockwise error centres"
+        } else {
+            ""
+        }
+    );
+    for m in &ev.methods {
+        match &m.umbmark {
+            Some(u) => println!(
+                "  {:<32} {:6.2} % of path   E_max,syst {:8.1} mm (cw {:.1} mm, ccw {:.1} mm; {}+{} squares)",
+                m.name,
+                100.0 * m.end_error_per_m,
+                1e3 * u.e_max_syst_m,
+                1e3 * u.r_cw_m,
+                1e3 * u.r_ccw_m,
+                u.runs[0],
+                u.runs[1]
+            ),
+            None => println!("  {:<32} {:6.2} % of path", m.name, 100.0 * m.end_error_per_m),
+        }
+    }
+    if let Some(out) = &args.out {
+        write_json(out, &ev)?;
+        println!("wrote {}", out.display());
+    }
+    Ok(())
+}

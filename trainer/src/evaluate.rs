@@ -1,0 +1,236 @@
+//! Judging odometry corrections on whole paths: every method dead-reckons each held-out log
+//! from its start, and its end point is compared with the camera's. Squares driven both ways
+//! give Borenstein's E_max,syst per method; any path gives the end-point error per metre
+//! driven.
+
+use odocal_core::{mean_pose, Pose2, Trajectory};
+use odocal_dataset::oracle::TrueKinematics;
+use odocal_dataset::{OdometryLog, RobotParams, WheelGeometry};
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+use crate::path_model::StepCorrector;
+use crate::umbmark::{SquareError, Umbmark};
+
+/// The `format` tag of path evaluations.
+pub const PATH_EVALUATION_FORMAT: &str = "odocal.path-evaluation/1";
+
+/// Camera frames at the start and end of a recording averaged for its rest poses, seconds.
+const REST_SPAN_S: f64 = 0.25;
+/// Largest spread of those frames for the robot to count as at rest, metres.
+const REST_SPREAD_M: f64 = 0.005;
+
+/// One held-out recording: its log and the camera's trajectory (the robot at rest at both
+/// ends, as a square or tour starts and ends).
+pub struct PathRecording {
+    /// Manifest id.
+    pub id: String,
+    /// The robot's log.
+    pub log: OdometryLog,
+    /// The camera's trajectory.
+    pub camera: Trajectory,
+}
+
+impl PathRecording {
+    /// Every row of a manifest with a camera trajectory file (rows with only a video must be
+    /// tracked first: `odocal track`).
+    pub fn read_manifest(m: &odocal_dataset::Manifest) -> Result<Vec<Self>, TrainError> {
+        m.runs
+            .iter()
+            .map(|row| {
+                let Some(traj) = &row.trajectory else {
+                    return Err(TrainError::Dataset(format!(
+                        "run \"{}\" has no trajectory file; track its video with `odocal track` and name the CSV in the manifest",
+                        row.id
+                    )));
+                };
+                let dataset = |e: odocal_dataset::DatasetError| TrainError::Dataset(e.to_string());
+                Ok(Self {
+                    id: row.id.clone(),
+                    log: OdometryLog::read_csv(&m.resolve(&row.odometry)).map_err(dataset)?,
+                    camera: Trajectory::read_csv(&m.resolve(traj))?,
+                })
+            })
+            .collect()
+    }
+}
+
+/// A way of dead-reckoning a log.
+pub enum Reckoner<'a> {
+    /// Fixed wheel geometry (nominal, or a calibration).
+    Geometry(WheelGeometry),
+    /// A learned step corrector.
+    Corrector(&'a StepCorrector),
+    /// The simulator's true kinematics (synthetic experiments only).
+    Truth(TrueKinematics),
+}
+
+impl Reckoner<'_> {
+    fn end(&self, rev: &[[f64; 2]], robot: &RobotParams) -> Pose2 {
+        let poses = match self {
+            Reckoner::Geometry(g) => odocal_dataset::dead_reckon(rev, g),
+            Reckoner::Corrector(c) => c.dead_reckon(rev),
+            Reckoner::Truth(k) => k.dead_reckon(rev, robot.period_s),
+        };
+        poses.last().copied().unwrap_or_default()
+    }
+}
+
+/// One recording judged.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunResult {
+    /// Manifest id.
+    pub id: String,
+    /// Some(true) for a clockwise loop (odometry turned by less than -π overall), Some(false)
+    /// for counter-clockwise (more than π), None otherwise.
+    pub clockwise: Option<bool>,
+    /// Wheel travel of the log (mean of both wheels' absolute travel), metres.
+    pub path_length_m: f64,
+    /// The camera's end position in the start frame, metres.
+    pub true_end_m: [f64; 2],
+    /// Per method: "true minus computed" end position, start frame, metres.
+    pub errors_m: Vec<[f64; 2]>,
+}
+
+/// One method's figures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodResult {
+    /// What the method is.
+    pub name: String,
+    /// Mean over recordings of |end error| / path length (a fraction).
+    pub end_error_per_m: f64,
+    /// Borenstein's figures, when the recordings are squares in both directions.
+    pub umbmark: Option<Umbmark>,
+}
+
+/// The evaluation of every method on held-out recordings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PathEvaluation {
+    /// Always [`PATH_EVALUATION_FORMAT`].
+    pub format: String,
+    /// Per method, in the order given.
+    pub methods: Vec<MethodResult>,
+    /// Per recording.
+    pub runs: Vec<RunResult>,
+}
+
+fn rest_pose(
+    rows: &[odocal_core::TrajectoryRow],
+    id: &str,
+    which: &str,
+) -> Result<Pose2, TrainError> {
+    let p = mean_pose(rows).ok_or_else(|| {
+        TrainError::Dataset(format!("{id}: the camera has no frames at the {which}"))
+    })?;
+    let spread = rows
+        .iter()
+        .map(|r| (r.pose.position() - p.position()).norm())
+        .fold(0.0, f64::max);
+    if spread > REST_SPREAD_M {
+        return Err(TrainError::Dataset(format!(
+            "{id}: the robot moves during the camera's first or last {REST_SPAN_S} s ({which}: frames spread {:.1} mm > {:.1} mm); the camera must see it at rest before and after the path",
+            1e3 * spread,
+            1e3 * REST_SPREAD_M
+        )));
+    }
+    Ok(p)
+}
+
+/// Judges `methods` (name, reckoner) on `recordings` of `robot`. With `squares`, the
+/// recordings are UMBMark squares (each must turn by more than π one way or the other) and
+/// every method gets Borenstein's figures.
+pub fn evaluate_paths(
+    recordings: &[PathRecording],
+    robot: &RobotParams,
+    methods: &[(String, Reckoner)],
+    squares: bool,
+) -> Result<PathEvaluation, TrainError> {
+    if recordings.is_empty() {
+        return Err(TrainError::Dataset("no recordings to evaluate".into()));
+    }
+    let mut runs = Vec::with_capacity(recordings.len());
+    for r in recordings {
+        let cam = &r.camera;
+        let (t0, t1) = (cam.start_s(), cam.end_s());
+        let start = rest_pose(cam.rows_between(t0, t0 + REST_SPAN_S), &r.id, "start")?;
+        let end = rest_pose(cam.rows_between(t1 - REST_SPAN_S, t1), &r.id, "end")?;
+        let truth = end.relative_to(&start);
+        let revs = r.log.wheel_revs(robot);
+        let nominal = WheelGeometry::nominal(robot);
+        let raw = odocal_dataset::dead_reckon(&revs.rev, &nominal);
+        let turned = raw.last().map_or(0.0, |p| p.theta_rad);
+        let c = std::f64::consts::PI * robot.wheel_diameter_m;
+        let path_length_m: f64 = revs
+            .rev
+            .windows(2)
+            .map(|w| 0.5 * c * ((w[1][0] - w[0][0]).abs() + (w[1][1] - w[0][1]).abs()))
+            .sum();
+        if path_length_m <= 0.0 {
+            return Err(TrainError::Dataset(format!(
+                "{}: the log shows no motion",
+                r.id
+            )));
+        }
+        let errors_m = methods
+            .iter()
+            .map(|(_, m)| {
+                let e = m.end(&revs.rev, robot);
+                [truth.x_m - e.x_m, truth.y_m - e.y_m]
+            })
+            .collect();
+        runs.push(RunResult {
+            id: r.id.clone(),
+            clockwise: if turned < -std::f64::consts::PI {
+                Some(true)
+            } else if turned > std::f64::consts::PI {
+                Some(false)
+            } else {
+                None
+            },
+            path_length_m,
+            true_end_m: [truth.x_m, truth.y_m],
+            errors_m,
+        });
+    }
+    if squares {
+        if let Some(r) = runs.iter().find(|r| r.clockwise.is_none()) {
+            return Err(TrainError::Dataset(format!(
+                "{}: its odometry turns by less than half a turn overall, so it is no UMBMark square",
+                r.id
+            )));
+        }
+    }
+    let methods = methods
+        .iter()
+        .enumerate()
+        .map(|(i, (name, _))| {
+            let per_m = runs
+                .iter()
+                .map(|r| r.errors_m[i][0].hypot(r.errors_m[i][1]) / r.path_length_m)
+                .sum::<f64>()
+                / runs.len() as f64;
+            let umbmark = if squares {
+                let e: Vec<SquareError> = runs
+                    .iter()
+                    .map(|r| SquareError {
+                        clockwise: r.clockwise == Some(true),
+                        error_m: r.errors_m[i],
+                    })
+                    .collect();
+                Some(Umbmark::of(&e)?)
+            } else {
+                None
+            };
+            Ok(MethodResult {
+                name: name.clone(),
+                end_error_per_m: per_m,
+                umbmark,
+            })
+        })
+        .collect::<Result<_, TrainError>>()?;
+    Ok(PathEvaluation {
+        format: PATH_EVALUATION_FORMAT.to_string(),
+        methods,
+        runs,
+    })
+}

@@ -1,0 +1,266 @@
+//! The path model file (`odocal.path-model/1`): a trained step corrector with the window
+//! layout it was fitted on, its kinematic-calibration peer, and what it was trained on, and
+//! applying it to a whole log.
+
+use std::fmt::Write as _;
+
+use nalgebra::{DMatrix, DVector};
+use odocal_core::Pose2;
+use odocal_dataset::{Dataset, OdometryLog, RobotParams, WheelGeometry, WINDOW_RULE};
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+use crate::model::Weights;
+use crate::net::Perceptron;
+use crate::path_model::{fit_step_corrector, nominal_travels, StepCorrector, WindowFit};
+
+/// The `format` tag of path model files.
+pub const PATH_MODEL_FORMAT: &str = "odocal.path-model/1";
+
+/// A step's wheel speed may exceed the fastest seen in training by this share.
+const SPEED_MARGIN: f64 = 0.15;
+
+/// Contents of a path model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PathModelFile {
+    /// Always [`PATH_MODEL_FORMAT`].
+    pub format: String,
+    /// The window layout the model was fitted on ([`WINDOW_RULE`]).
+    pub feature_rule: String,
+    /// Robot parameters the logs were dead-reckoned with.
+    pub robot: RobotParams,
+    /// SHA-256 of the dataset file trained on.
+    pub dataset_sha256: String,
+    /// Windows fitted.
+    pub n_windows: usize,
+    /// Layer sizes [2, k, 3]: step wheel speeds in, corrections of left travel, right travel
+    /// and wheel base out.
+    pub layer_sizes: [usize; 3],
+    /// Weights (inputs: wheel speeds / 0.5 m/s; outputs: tenths of a relative correction).
+    pub weights: Weights,
+    /// Seed of the fit.
+    pub seed: u64,
+    /// The least-squares kinematic calibration on the same windows (effective geometry).
+    pub kinematic_fit: WheelGeometry,
+    /// Fit to the training windows: raw odometry, the kinematic fit and the model.
+    pub window_fit: [WindowFit; 3],
+    /// Fastest wheel speed of a training step, m/s; faster logs are outside the domain.
+    pub max_wheel_speed_mps: f64,
+}
+
+/// A log corrected by a path model.
+#[derive(Debug, Clone)]
+pub struct CorrectedPath {
+    /// Per log row: time (robot clock, s), raw pose and corrected pose (start frame).
+    pub track: Vec<(f64, Pose2, Pose2)>,
+    /// Wheel travel of the log (mean of both wheels' absolute travel), metres.
+    pub path_length_m: f64,
+    /// Why the log lies outside the model's training domain (empty when inside).
+    pub outside_domain: Vec<String>,
+}
+
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|r| m.row(r).iter().copied().collect())
+        .collect()
+}
+
+impl PathModelFile {
+    /// Fits a path model with `hidden` neurons to a window dataset.
+    pub fn fit(
+        ds: &Dataset,
+        dataset_sha256: &str,
+        hidden: usize,
+        restarts: usize,
+        seed: u64,
+    ) -> Result<Self, TrainError> {
+        if !ds.is_windows() {
+            return Err(TrainError::Dataset(
+                "this dataset holds straight runs; a path model is fitted on windows (build it with `odocal dataset --layout windows`)".into(),
+            ));
+        }
+        let samples: Vec<&odocal_dataset::Sample> = ds.samples.iter().collect();
+        let kin = fit_step_corrector(&samples, &ds.robot, 0, 1, 0.0, seed)?;
+        let net = fit_step_corrector(&samples, &ds.robot, hidden, restarts, 1e-4, seed)?;
+        let raw = StepCorrector::nominal(ds.robot, 0);
+        let max_wheel_speed_mps = samples
+            .iter()
+            .flat_map(|s| s.inputs.iter())
+            .fold(0.0f64, |m, d| m.max(d.abs()))
+            / ds.robot.period_s;
+        let p = net.net();
+        Ok(Self {
+            format: PATH_MODEL_FORMAT.to_string(),
+            feature_rule: WINDOW_RULE.to_string(),
+            robot: ds.robot,
+            dataset_sha256: dataset_sha256.to_string(),
+            n_windows: samples.len(),
+            layer_sizes: [2, hidden, 3],
+            weights: Weights {
+                w1: rows(&p.w1),
+                b1: p.b1.iter().copied().collect(),
+                w2: rows(&p.w2),
+                b2: p.b2.iter().copied().collect(),
+            },
+            seed,
+            kinematic_fit: kin.geometry(),
+            window_fit: [
+                WindowFit::of(&raw, &samples),
+                WindowFit::of(&kin, &samples),
+                WindowFit::of(&net, &samples),
+            ],
+            max_wheel_speed_mps,
+        })
+    }
+
+    /// Reads a path model file, rejecting other formats, sizes and non-finite numbers.
+    pub fn read(path: &std::path::Path) -> Result<Self, TrainError> {
+        let text = odocal_core::read_text(path)?;
+        let name = path.display().to_string();
+        let m: PathModelFile = odocal_core::parse_tagged_json(
+            &text,
+            &name,
+            PATH_MODEL_FORMAT,
+            "pass a path model written by `odocal train` from a window dataset",
+        )?;
+        if m.feature_rule != WINDOW_RULE {
+            return Err(TrainError::Model(format!(
+                "{name}: trained on feature rule '{}', not this build's '{WINDOW_RULE}'; retrain it",
+                m.feature_rule
+            )));
+        }
+        m.robot
+            .check()
+            .map_err(|e| TrainError::Model(format!("{name}: robot.{e}")))?;
+        if !(m.max_wheel_speed_mps.is_finite() && m.max_wheel_speed_mps > 0.0) {
+            return Err(TrainError::Model(format!(
+                "{name}: max_wheel_speed_mps must be a positive number"
+            )));
+        }
+        m.corrector()
+            .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
+        Ok(m)
+    }
+
+    /// The step corrector (checks sizes and finiteness).
+    pub fn corrector(&self) -> Result<StepCorrector, TrainError> {
+        let [n, k, o] = self.layer_sizes;
+        let w = &self.weights;
+        let shape_ok = n == 2
+            && o == 3
+            && w.w1.len() == k
+            && w.w1.iter().all(|r| r.len() == n)
+            && w.b1.len() == k
+            && w.w2.len() == o
+            && w.w2.iter().all(|r| r.len() == k)
+            && w.b2.len() == o;
+        if !shape_ok {
+            return Err(TrainError::Model(format!(
+                "layer sizes {:?} do not match the weights (expected [2, k, 3])",
+                self.layer_sizes
+            )));
+        }
+        let net = Perceptron {
+            w1: DMatrix::from_fn(k, n, |r, c| w.w1[r][c]),
+            b1: DVector::from_vec(w.b1.clone()),
+            w2: DMatrix::from_fn(o, k, |r, c| w.w2[r][c]),
+            b2: DVector::from_vec(w.b2.clone()),
+        };
+        if !net.to_params().iter().all(|v| v.is_finite()) {
+            return Err(TrainError::Model("weights contain NaN/inf".into()));
+        }
+        StepCorrector::new(self.robot, net)
+    }
+
+    /// Corrects a whole log of `robot` (`name` names the log in messages): the raw and the
+    /// corrected trajectory from the log's first row. A log whose steps are faster than the
+    /// training's is refused unless `allow_extrapolation`, when the reason is returned.
+    pub fn correct_log(
+        &self,
+        log: &OdometryLog,
+        robot: &RobotParams,
+        name: &str,
+        allow_extrapolation: bool,
+    ) -> Result<CorrectedPath, TrainError> {
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
+        let m = &self.robot;
+        if !(close(m.wheel_diameter_m, robot.wheel_diameter_m)
+            && close(m.ticks_per_rev, robot.ticks_per_rev)
+            && close(m.wheel_base_m, robot.wheel_base_m)
+            && close(m.period_s, robot.period_s))
+        {
+            return Err(TrainError::Model(format!(
+                "the model was trained for robot {m:?}, but {name} is of robot {robot:?}"
+            )));
+        }
+        let revs = log.wheel_revs(robot);
+        let steps = nominal_travels(&revs.rev, robot);
+        for (k, w) in revs.t_s.windows(2).enumerate() {
+            let dt = w[1] - w[0];
+            if (dt - robot.period_s).abs() > 0.05 * robot.period_s {
+                return Err(TrainError::Model(format!(
+                    "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?)",
+                    k + 2,
+                    k + 3,
+                    robot.period_s
+                )));
+            }
+        }
+        let fastest = steps
+            .iter()
+            .fold(0.0f64, |a, d| a.max(d[0].abs()).max(d[1].abs()))
+            / robot.period_s;
+        let mut outside_domain = Vec::new();
+        if fastest > (1.0 + SPEED_MARGIN) * self.max_wheel_speed_mps {
+            outside_domain.push(format!(
+                "a wheel reaches {fastest:.2} m/s, the training only {:.2} m/s",
+                self.max_wheel_speed_mps
+            ));
+        }
+        if !outside_domain.is_empty() && !allow_extrapolation {
+            return Err(TrainError::Model(format!(
+                "{name}: outside what the model was trained on: {}; a correction there would be a guess (pass --allow-extrapolation to get it anyway, flagged)",
+                outside_domain.join("; ")
+            )));
+        }
+        let c = self.corrector()?;
+        let corrected = c.dead_reckon_travels(&steps);
+        let raw = odocal_dataset::dead_reckon(&revs.rev, &WheelGeometry::nominal(robot));
+        let path_length_m = steps.iter().map(|d| 0.5 * (d[0].abs() + d[1].abs())).sum();
+        Ok(CorrectedPath {
+            track: revs
+                .t_s
+                .iter()
+                .zip(raw.iter().zip(&corrected))
+                .map(|(&t, (r, c))| (t, *r, *c))
+                .collect(),
+            path_length_m,
+            outside_domain,
+        })
+    }
+}
+
+impl CorrectedPath {
+    /// The end poses (raw, corrected), start frame.
+    pub fn ends(&self) -> (Pose2, Pose2) {
+        self.track
+            .last()
+            .map(|(_, r, c)| (*r, *c))
+            .unwrap_or_default()
+    }
+
+    /// The track as CSV: `t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected`
+    /// (robot clock seconds, metres, radians; start frame).
+    pub fn to_csv(&self) -> String {
+        let mut csv =
+            String::from("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected\n");
+        for (t, r, c) in &self.track {
+            let _ = writeln!(
+                csv,
+                "{t:.3},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                r.x_m, r.y_m, r.theta_rad, c.x_m, c.y_m, c.theta_rad
+            );
+        }
+        csv
+    }
+}
