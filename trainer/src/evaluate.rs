@@ -81,8 +81,8 @@ impl Reckoner<'_> {
 pub struct RunResult {
     /// Manifest id.
     pub id: String,
-    /// Some(true) for a clockwise loop (odometry turned by less than -π overall), Some(false)
-    /// for counter-clockwise (more than π), None otherwise.
+    /// Some(true) for one clockwise loop (odometry turned by -2π ± π/2 overall), Some(false)
+    /// for one counter-clockwise loop, None otherwise.
     pub clockwise: Option<bool>,
     /// Wheel travel of the log (mean of both wheels' absolute travel), metres.
     pub path_length_m: f64,
@@ -137,7 +137,7 @@ fn rest_pose(
 }
 
 /// Judges `methods` (name, reckoner) on `recordings` of `robot`. With `squares`, the
-/// recordings are UMBMark squares (each must turn by more than π one way or the other) and
+/// recordings are UMBMark squares (each must turn by one full turn one way or the other) and
 /// every method gets Borenstein's figures.
 pub fn evaluate_paths(
     recordings: &[PathRecording],
@@ -180,10 +180,10 @@ pub fn evaluate_paths(
             .collect();
         runs.push(RunResult {
             id: r.id.clone(),
-            clockwise: if turned < -std::f64::consts::PI {
-                Some(true)
-            } else if turned > std::f64::consts::PI {
-                Some(false)
+            clockwise: if (turned.abs() - 2.0 * std::f64::consts::PI).abs()
+                <= std::f64::consts::FRAC_PI_2
+            {
+                Some(turned < 0.0)
             } else {
                 None
             },
@@ -195,7 +195,7 @@ pub fn evaluate_paths(
     if squares {
         if let Some(r) = runs.iter().find(|r| r.clockwise.is_none()) {
             return Err(TrainError::Dataset(format!(
-                "{}: its odometry turns by less than half a turn overall, so it is no UMBMark square",
+                "{}: its odometry does not turn by one full turn (±90°) overall, so it is no UMBMark square",
                 r.id
             )));
         }
