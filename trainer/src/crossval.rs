@@ -135,7 +135,8 @@ pub struct SweepReport {
     pub settings: SweepSettings,
     /// Table 1: one row per hidden size.
     pub table1: Vec<Table1Row>,
-    /// Hidden size with the lowest cross-validated MSE.
+    /// Hidden size with the lowest cross-validated MSE in Table 1 (chosen on the outer folds
+    /// themselves, so Table 2 does not use it: see [`SweepReport::nested`]).
     pub best_hidden: usize,
     /// Table 2: raw odometry, baselines, kernel ridge regression, the perceptron (k by nested
     /// cross-validation when several sizes are swept) and, if given, the oracle.
