@@ -1,5 +1,14 @@
 //! Cross-validated experiments: k-fold over restarts for a sweep of hidden sizes,
 //! with the baselines evaluated on the same folds.
+//!
+//! Table 1 scores every hidden size on the outer folds. Table 2 must not pick the size on
+//! those same folds (that would favour the size that happened to suit them), so its
+//! perceptron row is a nested cross-validation: on each outer fold's training part an inner
+//! CV picks k, and the outer fold is predicted by that k's Table 1 trainings (no extra
+//! outer training). Kernel ridge regression picks its bandwidth and regularisation the same
+//! way. The inner folds are the other outer folds, so inner fold g of outer fold f trains on
+//! neither f nor g: one such training serves both (f, g) and (g, f), which halves the inner
+//! trainings.
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -12,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::baseline::{raw_predict, KinematicCalibration, LinearRegression};
 use crate::error::TrainError;
+use crate::kernel_ridge::{grid_sse, KernelRidge, KernelRidgeParams};
 use crate::metrics::{MeanSd, Metrics};
 use crate::net::Perceptron;
 use crate::train::{train, TrainSettings, HIDDEN_RANGE};
@@ -85,6 +95,33 @@ pub struct MethodRow {
     pub per_speed: Vec<SpeedRow>,
 }
 
+/// Restarts per hidden size in the inner cross-validation that picks k for Table 2.
+///
+/// One, not the sweep's ten: the outer fold is then predicted by all the outer restarts of
+/// the chosen size (Table 1's trainings), so inner restarts only serve the ranking, and more
+/// of them did not rank better. On the 131-run experiment (seed 1, k = 6..12, 10 restarts)
+/// 1, 2, 3, 5 and 10 inner restarts gave the perceptron row 4.53, 4.51, 4.47, 4.50 and
+/// 4.47 % relative end-point error (restart-to-restart sd 0.12-0.15 points): the sizes are
+/// within noise of each other there. Each inner restart costs 7 sizes x 10 fold pairs
+/// trainings on 3/5 of the samples, about 15 % of the sweep's CPU time.
+pub const INNER_RESTARTS: usize = 1;
+
+/// What the nested cross-validation chose on one outer fold's training part.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NestedChoice {
+    /// Outer fold (0-based).
+    pub fold: usize,
+    /// Hidden size the perceptron row used on this fold.
+    pub hidden: usize,
+    /// Inner cross-validated MSE per coordinate of that size, m^2 (mean over the inner
+    /// restarts); None when only one size was swept (nothing to choose).
+    pub hidden_inner_mse_m2: Option<f64>,
+    /// Kernel ridge regression's hyperparameters on this fold.
+    pub kernel_ridge: KernelRidgeParams,
+    /// Inner cross-validated MSE per coordinate of kernel ridge with them, m^2.
+    pub kernel_ridge_inner_mse_m2: f64,
+}
+
 /// Result of a sweep: Table 1, Table 2, the calibration, and a plain verdict.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SweepReport {
@@ -98,10 +135,20 @@ pub struct SweepReport {
     pub settings: SweepSettings,
     /// Table 1: one row per hidden size.
     pub table1: Vec<Table1Row>,
-    /// Hidden size with the lowest cross-validated MSE.
+    /// Hidden size with the lowest cross-validated MSE in Table 1 (chosen on the outer folds
+    /// themselves, so Table 2 does not use it: see [`SweepReport::nested`]).
     pub best_hidden: usize,
-    /// Table 2: raw odometry, baselines, the perceptron (best k) and, if given, the oracle.
+    /// Table 2: raw odometry, baselines, kernel ridge regression, the perceptron (k by nested
+    /// cross-validation when several sizes are swept) and, if given, the oracle.
     pub table2: Vec<MethodRow>,
+    /// Restarts per hidden size in the inner cross-validation ([`INNER_RESTARTS`] at most;
+    /// 0 when one size is swept).
+    #[serde(default)]
+    pub inner_restarts: usize,
+    /// The nested cross-validation's choices, one per outer fold (empty with fewer than 3
+    /// folds: the inner CV needs two folds besides the outer test fold).
+    #[serde(default)]
+    pub nested: Vec<NestedChoice>,
     /// The kinematic calibration fitted on all samples (for a ROS diff_drive_controller).
     pub kinematic_calibration: KinematicCalibration,
     /// Warnings (e.g. parameter count near the number of residuals).
@@ -180,7 +227,22 @@ pub fn capacity_warning(hidden: usize, n_fit: usize) -> Option<String> {
     })
 }
 
+/// One training of a sweep.
+#[derive(Debug, Clone, Copy)]
+enum Task {
+    /// Table 1: size k, restart r, trained without outer fold f, predicts f.
+    Outer { k: usize, r: usize, f: usize },
+    /// Nested choice of k: size k, inner restart r, trained without folds a < b, predicts both.
+    Inner {
+        k: usize,
+        r: usize,
+        a: usize,
+        b: usize,
+    },
+}
+
 struct TaskOut {
+    task: Task,
     hidden: usize,
     restart: usize,
     best_epoch: usize,
@@ -227,10 +289,14 @@ fn method_row(name: &str, samples: &[Sample], preds: &[Vec<[f64; 2]>]) -> Method
     }
 }
 
-/// Name of the perceptron row of Table 2 for hidden size `k`.
+/// Name of the perceptron row of Table 2 for hidden size `k` (a sweep of one size).
 pub fn net_method_name(k: usize) -> String {
     format!("perceptron 18-{k}-2")
 }
+/// Name of the perceptron row of Table 2 when k is chosen per outer fold by nested CV.
+pub const NESTED_NET: &str = "perceptron 18-k-2, k by nested CV";
+/// Name of the kernel ridge regression row.
+pub const KERNEL_RIDGE: &str = "kernel ridge regression (RBF)";
 /// Name of the raw odometry row.
 pub const RAW: &str = "raw odometry";
 /// Name of the kinematic calibration row.
@@ -240,9 +306,12 @@ pub const LINEAR: &str = "linear regression";
 /// Name of the oracle row.
 pub const ORACLE: &str = "oracle (true systematic parameters)";
 
-/// Runs the cross-validated sweep and the baselines on the same folds. `oracle` maps run
-/// ids to the end point corrected with the simulator's true systematic parameters.
-/// `tick` is called once per finished training (for progress bars).
+/// Runs the cross-validated sweep and the baselines on the same folds, and the nested
+/// cross-validation of Table 2 (kernel ridge regression always, the perceptron's k when
+/// several sizes are swept; needs at least 3 folds). `oracle` maps run ids to the end point
+/// corrected with the simulator's true systematic parameters. `tick` is called once per
+/// finished Table 1 training, sizes x restarts x folds times in all (for progress bars; the
+/// fewer, smaller inner trainings run interleaved with them and are not counted).
 pub fn sweep(
     ds: &Dataset,
     dataset_sha256: &str,
@@ -313,44 +382,123 @@ pub fn sweep(
         }
     }
 
-    // The perceptron: sizes x restarts x folds, in parallel, each task seeded on its own.
-    let tasks: Vec<(usize, usize, usize)> = settings
+    // Nested cross-validation needs two folds besides the outer test fold.
+    let nested_ok = settings.folds >= 3;
+    let choose_k = settings.hidden_sizes.len() > 1;
+    if choose_k && !nested_ok {
+        return Err(TrainError::Settings(format!(
+            "folds = {}: choosing the hidden size by nested cross-validation needs at least 3 folds \
+             (or sweep one size)",
+            settings.folds
+        )));
+    }
+    let inner: Vec<Vec<InnerSplit>> = (0..settings.folds)
+        .map(|f| inner_splits(&fold, settings.folds, f))
+        .collect();
+    let inner_restarts = if choose_k {
+        settings.restarts.min(INNER_RESTARTS)
+    } else {
+        0
+    };
+
+    // The perceptron: Table 1's sizes x restarts x folds, and for the nested choice of k
+    // sizes x inner restarts x pairs of folds, in parallel, each task seeded on its own.
+    // Inner tasks are spread evenly among the outer ones so that progress (ticked per outer
+    // training) runs at an even pace.
+    let outer_tasks: Vec<Task> = settings
         .hidden_sizes
         .iter()
         .flat_map(|&k| {
-            (0..settings.restarts).flat_map(move |r| (0..settings.folds).map(move |f| (k, r, f)))
+            (0..settings.restarts)
+                .flat_map(move |r| (0..settings.folds).map(move |f| Task::Outer { k, r, f }))
         })
         .collect();
+    let inner_tasks: Vec<Task> = settings
+        .hidden_sizes
+        .iter()
+        .flat_map(|&k| {
+            (0..inner_restarts).flat_map(move |r| {
+                (0..settings.folds).flat_map(move |a| {
+                    (a + 1..settings.folds).map(move |b| Task::Inner { k, r, a, b })
+                })
+            })
+        })
+        .collect();
+    let mut tasks = Vec::with_capacity(outer_tasks.len() + inner_tasks.len());
+    let mut inner_iter = inner_tasks.iter();
+    for (j, t) in outer_tasks.iter().enumerate() {
+        tasks.push(*t);
+        // Inner tasks queued so far: tasks.len() - (j + 1); keep them in proportion.
+        while (tasks.len() - j - 1) * outer_tasks.len() < (j + 1) * inner_tasks.len() {
+            match inner_iter.next() {
+                Some(i) => tasks.push(*i),
+                None => break,
+            }
+        }
+    }
+    tasks.extend(inner_iter);
+
     let inputs: Vec<Vec<f64>> = samples.iter().map(|s| s.inputs.clone()).collect();
     let targets: Vec<[f64; 2]> = samples.iter().map(|s| s.target_m).collect();
     let outs: Vec<TaskOut> = tasks
         .par_iter()
-        .map(|&(k, r, f)| {
-            let (fit, test) = &fold_sets[f];
+        .map(|task| {
+            // Training rows, the rows to predict, and the training's seed.
+            let (k, r, fit, test, seed) = match *task {
+                Task::Outer { k, r, f } => {
+                    let (fit, test) = &fold_sets[f];
+                    let seed = derive_seed(settings.seed, &[k as u64, r as u64, f as u64]);
+                    (k, r, fit.as_slice(), test.clone(), seed)
+                }
+                Task::Inner { k, r, a, b } => {
+                    // Inner fold b of outer fold a: trained on neither a nor b. It predicts
+                    // fold b for outer fold a's choice and fold a for outer fold b's.
+                    let split = inner[a].iter().find(|s| s.fold == b).ok_or_else(|| {
+                        TrainError::Numerical(format!("no inner fold {b} of outer fold {a}"))
+                    })?;
+                    let mut test = split.test.clone();
+                    test.extend((0..n).filter(|&i| fold[i] == a));
+                    let seed = derive_seed(
+                        settings.seed,
+                        &[0x1EEE, k as u64, r as u64, a as u64, b as u64],
+                    );
+                    (k, r, split.train.as_slice(), test, seed)
+                }
+            };
             let mut ts = settings.train.clone();
             ts.hidden = k;
             let fin: Vec<Vec<f64>> = fit.iter().map(|&i| inputs[i].clone()).collect();
             let ftg: Vec<[f64; 2]> = fit.iter().map(|&i| targets[i]).collect();
-            let seed = derive_seed(settings.seed, &[k as u64, r as u64, f as u64]);
             let net = train(&fin, &ftg, &ts, seed)?;
-            let fit_s: Vec<&Sample> = net.fit_indices.iter().map(|&j| &samples[fit[j]]).collect();
-            let fit_p: Vec<[f64; 2]> = net
-                .fit_indices
-                .iter()
-                .map(|&j| net.predict(&fin[j]))
-                .collect();
             let pred = test.iter().map(|&i| (i, net.predict(&inputs[i]))).collect();
-            tick();
+            let train_mse_m2 = match task {
+                Task::Outer { .. } => {
+                    let fit_s: Vec<&Sample> =
+                        net.fit_indices.iter().map(|&j| &samples[fit[j]]).collect();
+                    let fit_p: Vec<[f64; 2]> = net
+                        .fit_indices
+                        .iter()
+                        .map(|&j| net.predict(&fin[j]))
+                        .collect();
+                    tick();
+                    Metrics::of(&fit_s, &fit_p).mse_m2
+                }
+                Task::Inner { .. } => f64::NAN,
+            };
             Ok(TaskOut {
+                task: *task,
                 hidden: k,
                 restart: r,
                 best_epoch: net.best_epoch,
                 n_fit: net.n_fit,
-                train_mse_m2: Metrics::of(&fit_s, &fit_p).mse_m2,
+                train_mse_m2,
                 pred,
             })
         })
         .collect::<Result<_, TrainError>>()?;
+    let (outs, inner_outs): (Vec<TaskOut>, Vec<TaskOut>) = outs
+        .into_iter()
+        .partition(|o| matches!(o.task, Task::Outer { .. }));
 
     let all: Vec<&Sample> = samples.iter().collect();
     let mut table1 = Vec::new();
@@ -380,23 +528,115 @@ pub fn sweep(
         });
         net_preds.insert(k, per_restart);
     }
+    // The size Table 1 marks: lowest MSE on the outer folds themselves (not used by Table 2).
     let best = table1
         .iter()
         .min_by(|a, b| a.val_mse_m2.mean.total_cmp(&b.val_mse_m2.mean))
         .map(|r| r.hidden)
         .unwrap_or(settings.hidden_sizes[0]);
 
+    // Nested choice of k: per outer fold, the size with the lowest inner cross-validated MSE
+    // (mean over inner restarts) on the outer training part; ties go to the earlier size.
+    let mut hidden_choice: Vec<(usize, Option<f64>)> =
+        vec![(settings.hidden_sizes[0], None); settings.folds];
+    if choose_k {
+        for (f, choice) in hidden_choice.iter_mut().enumerate() {
+            let part: Vec<usize> = (0..n).filter(|&i| fold[i] != f).collect();
+            let part_s: Vec<&Sample> = part.iter().map(|&i| &samples[i]).collect();
+            let mut best_k: Option<(usize, f64)> = None;
+            for &k in &settings.hidden_sizes {
+                let mut mses = Vec::with_capacity(inner_restarts);
+                for r in 0..inner_restarts {
+                    let mut pred = vec![[f64::NAN; 2]; n];
+                    for o in &inner_outs {
+                        let Task::Inner { a, b, .. } = o.task else {
+                            continue;
+                        };
+                        if o.hidden != k || o.restart != r || (a != f && b != f) {
+                            continue;
+                        }
+                        // Only the other fold of the pair is outer fold f's inner test fold.
+                        for &(i, p) in &o.pred {
+                            if fold[i] != f {
+                                pred[i] = p;
+                            }
+                        }
+                    }
+                    let p: Vec<[f64; 2]> = part.iter().map(|&i| pred[i]).collect();
+                    mses.push(Metrics::of(&part_s, &p).mse_m2);
+                }
+                let mse = MeanSd::of(&mses).mean;
+                if !mse.is_finite() {
+                    return Err(TrainError::Numerical(format!(
+                        "inner cross-validation of k = {k} on outer fold {f}: MSE not finite"
+                    )));
+                }
+                if best_k.is_none_or(|(_, m)| mse < m) {
+                    best_k = Some((k, mse));
+                }
+            }
+            if let Some((k, mse)) = best_k {
+                *choice = (k, Some(mse));
+            }
+        }
+    }
+    // Table 2's perceptron: restart r predicts outer fold f with Table 1's training (k_f, r, f).
+    let nested_preds: Vec<Vec<[f64; 2]>> = (0..settings.restarts)
+        .map(|r| {
+            (0..n)
+                .map(|i| net_preds[&hidden_choice[fold[i]].0][r][i])
+                .collect()
+        })
+        .collect();
+
+    // Kernel ridge regression, its hyperparameters chosen on each outer training part.
+    let mut nested = Vec::new();
+    let mut krr_row = None;
+    if nested_ok {
+        let grid = KernelRidgeParams::grid();
+        let per_fold: Vec<KernelRidgeFold> = (0..settings.folds)
+            .into_par_iter()
+            .map(|f| kernel_ridge_fold(samples, &inner[f], &fold_sets[f], &grid, f))
+            .collect::<Result<_, TrainError>>()?;
+        let mut krr = vec![[f64::NAN; 2]; n];
+        for (f, kf) in per_fold.into_iter().enumerate() {
+            for (i, p) in kf.pred {
+                krr[i] = p;
+            }
+            nested.push(NestedChoice {
+                fold: f,
+                hidden: hidden_choice[f].0,
+                hidden_inner_mse_m2: hidden_choice[f].1,
+                kernel_ridge: kf.params,
+                kernel_ridge_inner_mse_m2: kf.inner_mse_m2,
+            });
+        }
+        krr_row = Some(method_row(KERNEL_RIDGE, samples, &[krr]));
+    } else {
+        warnings.push(format!(
+            "folds = {}: kernel ridge regression left out of Table 2 (choosing its bandwidth and \
+             regularisation by nested cross-validation needs at least 3 folds)",
+            settings.folds
+        ));
+    }
+
+    let net_name = if choose_k {
+        NESTED_NET.to_string()
+    } else {
+        net_method_name(settings.hidden_sizes[0])
+    };
     let mut table2 = vec![
         method_row(RAW, samples, &[raw]),
         method_row(KINEMATIC, samples, &[kin]),
         method_row(LINEAR, samples, &[lin]),
-        method_row(&net_method_name(best), samples, &net_preds[&best]),
     ];
+    table2.extend(krr_row);
+    table2.push(method_row(&net_name, samples, &nested_preds));
     if let Some(o) = oracle_preds {
         table2.push(method_row(ORACLE, samples, &[o]));
     }
     let kinematic_calibration = KinematicCalibration::fit(&all, &ds.robot)?;
-    let verdict = verdict(&table2, best);
+    let verdict = verdict(&table2, &net_name);
     Ok(SweepReport {
         format: REPORT_FORMAT.to_string(),
         dataset_sha256: dataset_sha256.to_string(),
@@ -405,10 +645,87 @@ pub fn sweep(
         table1,
         best_hidden: best,
         table2,
+        inner_restarts,
+        nested,
         kinematic_calibration,
         warnings,
         verdict,
     })
+}
+
+/// Kernel ridge regression on one outer fold: the choice of its inner CV and the predictions.
+struct KernelRidgeFold {
+    params: KernelRidgeParams,
+    inner_mse_m2: f64,
+    pred: Vec<(usize, [f64; 2])>,
+}
+
+/// Chooses kernel ridge's hyperparameters from `grid` by the inner splits of outer fold
+/// `outer`, fits them on the outer training part and predicts the outer test fold.
+fn kernel_ridge_fold(
+    samples: &[Sample],
+    inner: &[InnerSplit],
+    (fit, test): &(Vec<usize>, Vec<usize>),
+    grid: &[KernelRidgeParams],
+    outer: usize,
+) -> Result<KernelRidgeFold, TrainError> {
+    let mut sse = vec![0.0; grid.len()];
+    let mut n_inner = 0;
+    for split in inner {
+        let tr: Vec<&Sample> = split.train.iter().map(|&i| &samples[i]).collect();
+        let te: Vec<&Sample> = split.test.iter().map(|&i| &samples[i]).collect();
+        for (acc, v) in sse.iter_mut().zip(grid_sse(&tr, &te, grid)?) {
+            *acc += v;
+        }
+        n_inner += te.len();
+    }
+    // Lowest inner error; ties go to the earlier (smoother) grid entry.
+    let mut pick = 0;
+    for (j, v) in sse.iter().enumerate() {
+        if *v < sse[pick] {
+            pick = j;
+        }
+    }
+    if !sse.get(pick).is_some_and(|v| v.is_finite()) {
+        return Err(TrainError::Numerical(format!(
+            "kernel ridge inner cross-validation on outer fold {outer}: error not finite"
+        )));
+    }
+    let fit_s: Vec<&Sample> = fit.iter().map(|&i| &samples[i]).collect();
+    let test_s: Vec<&Sample> = test.iter().map(|&i| &samples[i]).collect();
+    let model = KernelRidge::fit(&fit_s, grid[pick])?;
+    Ok(KernelRidgeFold {
+        params: grid[pick],
+        inner_mse_m2: sse[pick] / (2 * n_inner.max(1)) as f64,
+        pred: test.iter().copied().zip(model.predict(&test_s)).collect(),
+    })
+}
+
+/// One fold of the inner cross-validation of an outer fold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InnerSplit {
+    /// The outer fold whose samples this inner fold tests on.
+    pub fold: usize,
+    /// Samples trained on: in neither the outer test fold nor this inner fold.
+    pub train: Vec<usize>,
+    /// Samples predicted: those of this inner fold.
+    pub test: Vec<usize>,
+}
+
+/// The inner cross-validation of outer fold `outer` (`fold` from [`assign_folds`]): its
+/// folds are the other outer folds, so it sees only the outer training part; no sample of
+/// fold `outer` is trained on or tested.
+pub fn inner_splits(fold: &[usize], folds: usize, outer: usize) -> Vec<InnerSplit> {
+    (0..folds)
+        .filter(|&g| g != outer)
+        .map(|g| InnerSplit {
+            fold: g,
+            train: (0..fold.len())
+                .filter(|&i| fold[i] != outer && fold[i] != g)
+                .collect(),
+            test: (0..fold.len()).filter(|&i| fold[i] == g).collect(),
+        })
+        .collect()
 }
 
 /// Row of Table 2 by method name.
@@ -416,16 +733,18 @@ pub fn row<'a>(table2: &'a [MethodRow], name: &str) -> Option<&'a MethodRow> {
     table2.iter().find(|r| r.method == name)
 }
 
-fn verdict(t: &[MethodRow], best: usize) -> String {
-    let name = net_method_name(best);
-    let (Some(raw), Some(kin), Some(net)) = (row(t, RAW), row(t, KINEMATIC), row(t, &name)) else {
+fn verdict(t: &[MethodRow], name: &str) -> String {
+    let (Some(raw), Some(kin), Some(net)) = (row(t, RAW), row(t, KINEMATIC), row(t, name)) else {
         return String::new();
     };
     let pct = |r: &MethodRow| 100.0 * r.rel_error.mean;
+    let krr = row(t, KERNEL_RIDGE);
     let mut s = format!(
-        "Cross-validated relative end-point error: raw odometry {:.2} %, kinematic calibration {:.2} %, {} {:.2} % ({:.0} % of raw). ",
+        "Cross-validated relative end-point error: raw odometry {:.2} %, kinematic calibration {:.2} %, {}{} {:.2} % ({:.0} % of raw). ",
         pct(raw),
         pct(kin),
+        krr.map(|r| format!("{KERNEL_RIDGE} {:.2} %, ", pct(r)))
+            .unwrap_or_default(),
         name,
         pct(net),
         100.0 * net.rel_error.mean / raw.rel_error.mean
@@ -452,12 +771,29 @@ fn verdict(t: &[MethodRow], best: usize) -> String {
             pct(net)
         );
     }
+    if let Some(k) = krr {
+        let who = if k.rel_error.mean < net.rel_error.mean {
+            "beats"
+        } else {
+            "does not beat"
+        };
+        s += &format!(
+            " Kernel ridge regression, the strongest simple peer, {who} the perceptron ({:.2} % vs {:.2} %).",
+            pct(k),
+            pct(net)
+        );
+    }
     if let Some(o) = row(t, ORACLE) {
         s += &format!(
-            " The oracle with the true systematic parameters reaches {:.2} %; the perceptron is at {:.2}x the oracle, the kinematic calibration at {:.2}x.",
+            " The oracle with the true systematic parameters reaches {:.2} %; the perceptron is at {:.2}x the oracle, the kinematic calibration at {:.2}x{}.",
             pct(o),
             net.rel_error.mean / o.rel_error.mean,
-            kin.rel_error.mean / o.rel_error.mean
+            kin.rel_error.mean / o.rel_error.mean,
+            krr.map(|k| format!(
+                ", kernel ridge regression at {:.2}x",
+                k.rel_error.mean / o.rel_error.mean
+            ))
+            .unwrap_or_default()
         );
     }
     s

@@ -70,6 +70,7 @@ pub fn table2_markdown(r: &SweepReport) -> String {
             m.mean_distance_m
         );
     }
+    s += &nested_markdown(r);
     let speeds: Vec<f64> = r
         .table2
         .first()
@@ -92,6 +93,62 @@ pub fn table2_markdown(r: &SweepReport) -> String {
             }
             let _ = writeln!(s, "{line}");
         }
+    }
+    s
+}
+
+/// What the nested cross-validation chose on each outer fold, as Markdown (empty without it).
+fn nested_markdown(r: &SweepReport) -> String {
+    let mut s = String::new();
+    if r.nested.is_empty() {
+        return s;
+    }
+    let ks: Vec<String> = r.nested.iter().map(|c| c.hidden.to_string()).collect();
+    let (what, perceptron) = if r.inner_restarts > 0 {
+        (
+            format!(
+                "the perceptron's hidden size k ({} restart{} per size) and ",
+                r.inner_restarts,
+                if r.inner_restarts == 1 { "" } else { "s" }
+            ),
+            format!(
+                "Perceptron k per outer fold: {} (Table 1's best k is chosen on the outer folds themselves and is not used in Table 2).",
+                ks.join(", ")
+            ),
+        )
+    } else {
+        (
+            String::new(),
+            format!(
+                "The perceptron's k is the one size swept, {}.",
+                ks.first().map_or("", String::as_str)
+            ),
+        )
+    };
+    let _ = writeln!(
+        s,
+        "\nHyperparameters by nested cross-validation: on each outer fold's training part, an inner {}-fold \
+         cross-validation (its folds: the other outer folds) chose {what}kernel ridge's bandwidth and regularisation; \
+         the outer fold was then predicted with that choice. {perceptron}\n",
+        r.settings.folds - 1,
+    );
+    let _ = writeln!(
+        s,
+        "| outer fold | perceptron k | its inner MSE (cm²) | kernel ridge bandwidth (x sqrt(2d), standardised inputs) | kernel ridge lambda | its inner MSE (cm²) |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for c in &r.nested {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.0e} | {:.2} |",
+            c.fold + 1,
+            c.hidden,
+            c.hidden_inner_mse_m2
+                .map_or("– (one size)".to_string(), |m| format!("{:.2}", m * 1e4)),
+            c.kernel_ridge.bandwidth,
+            c.kernel_ridge.lambda,
+            c.kernel_ridge_inner_mse_m2 * 1e4
+        );
     }
     s
 }

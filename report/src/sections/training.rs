@@ -117,6 +117,47 @@ pub fn training_section(r: &SweepReport) -> Result<Section, ReportError> {
         "≈ 1.5".into(),
     ]);
     s.blocks.push(Block::Table(t2));
+    if !r.nested.is_empty() {
+        s.blocks.push(Block::Text(format!(
+            "Nested cross-validation: on each outer fold's training part an inner {}-fold cross-validation (its folds: the other outer folds) chose {}kernel ridge's bandwidth and regularisation, and the outer fold was predicted with that choice. Table 1's best k is chosen on the outer folds themselves and is not used in Table 2.",
+            r.settings.folds - 1,
+            if r.inner_restarts > 0 {
+                format!(
+                    "the perceptron's hidden size k ({} restart{} per size) and ",
+                    r.inner_restarts,
+                    if r.inner_restarts == 1 { "" } else { "s" }
+                )
+            } else {
+                String::new()
+            }
+        )));
+        s.blocks.push(Block::Table(Table {
+            caption: "Hyperparameters chosen by nested cross-validation, per outer fold".into(),
+            header: vec![
+                "outer fold".into(),
+                "perceptron k".into(),
+                "its inner MSE (cm²)".into(),
+                "kernel ridge bandwidth (× √(2d), standardised inputs)".into(),
+                "kernel ridge λ".into(),
+                "its inner MSE (cm²)".into(),
+            ],
+            rows: r
+                .nested
+                .iter()
+                .map(|c| {
+                    vec![
+                        (c.fold + 1).to_string(),
+                        c.hidden.to_string(),
+                        c.hidden_inner_mse_m2
+                            .map_or("– (one size)".into(), |m| format!("{:.2}", m * 1e4)),
+                        c.kernel_ridge.bandwidth.to_string(),
+                        format!("{:.0e}", c.kernel_ridge.lambda),
+                        format!("{:.2}", c.kernel_ridge_inner_mse_m2 * 1e4),
+                    ]
+                })
+                .collect(),
+        }));
+    }
     if let Some(first) = r.table2.first() {
         if !first.per_speed.is_empty() {
             let mut header = vec!["method".to_string()];
