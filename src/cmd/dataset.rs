@@ -64,6 +64,27 @@ pub enum LayoutArg {
 /// Prints what the dataset holds: samples, rejected runs with reasons, raw odometry's error.
 fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
     let s = &ds.summary;
+    if ds.is_windows() {
+        println!(
+            "dataset: {} from {} ({} rejected) -> {}",
+            count(ds.samples.len(), "window"),
+            count(s.recordings, "recording"),
+            ds.rejected.len(),
+            out.display()
+        );
+        for r in &ds.rejected {
+            println!("  rejected {}: {}", r.run_id, r.reason);
+        }
+        if !ds.samples.is_empty() {
+            println!(
+                "raw odometry window end-point error: {:.2} % of wheel travel (RMS {:.1} mm, mean travel {:.3} m)",
+                100.0 * s.raw_relative_error,
+                1e3 * s.raw_rms_error_m,
+                s.mean_path_length_m
+            );
+        }
+        return;
+    }
     println!(
         "dataset: {} from {} in {} ({} rejected) -> {}",
         count(ds.samples.len(), "sample"),

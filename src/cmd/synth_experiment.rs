@@ -119,13 +119,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )?;
     }
     println!(
-        "synth experiment: {} {} in {} (seed {}, frames {}) -> {}",
-        count(args.runs, "run"),
-        match args.paths {
-            Paths::Straight => "straight",
-            Paths::Tours => "tours",
-            Paths::Umbmark => "UMBMark squares",
-        },
+        "synth experiment: {} in {} (seed {}, frames {}) -> {}",
+        count(
+            args.runs,
+            match args.paths {
+                Paths::Straight => "run",
+                Paths::Tours => "tour",
+                Paths::Umbmark => "UMBMark square",
+            }
+        ),
         count(summary.recordings, "recording"),
         args.seed,
         match args.frames {
