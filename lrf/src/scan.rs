@@ -254,7 +254,8 @@ impl Detection {
         };
         // Each end is blurred by the bearing noise of the beam that found it.
         let end_blur = r * sensor.sigma_angle_rad / cos_inc;
-        let var_along = len * len / 12.0 + end_blur * end_blur;
+        // The floor, (0.1 mm)², keeps the covariance invertible for a noiseless sensor model.
+        let var_along = len * len / 12.0 + end_blur * end_blur + 1e-8;
         let cov = u * u.transpose() * (sensor.sigma_range_m.powi(2) / k)
             + v * v.transpose() * ((r * sensor.sigma_angle_rad).powi(2) / k)
             + along * along.transpose() * var_along;

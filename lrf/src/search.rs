@@ -566,7 +566,7 @@ impl Localizer {
     /// starting from `guess` (a rigid fit of the same matches, say): the weighted least-squares
     /// fit with every detection's covariance, and the pose's covariance (x, y, θ; m², m·rad,
     /// rad²), which is its Cramér–Rao bound. None when the matches do not fix a pose.
-    pub fn fit_matches(
+    fn fit_matches(
         &self,
         dets: &[Detection],
         matches: &[(usize, usize)],
