@@ -3,6 +3,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
+use nalgebra::Matrix3;
 use odocal_core::{wrap_angle, Pose2};
 
 use crate::{LrfError, Status};
@@ -97,6 +98,28 @@ pub struct Evaluation {
     pub n_eligible: usize,
     /// Eligible scans localised correctly (`ok` and within 0.05 m and 1°).
     pub n_correct_eligible: usize,
+    /// Scans of the accuracy set whose pose came with a covariance (its Cramér–Rao bound).
+    pub n_bound: usize,
+    /// The Cramér–Rao bound of the position RMS: the root of the mean over those scans of the
+    /// bound's position variance (trace of its x, y block), metres.
+    pub position_crb_m: f64,
+    /// The Cramér–Rao bound of the heading RMS over the same scans, radians.
+    pub heading_crb_rad: f64,
+}
+
+/// One localised scan as [`evaluate`] takes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatedPose {
+    /// Scan time, seconds.
+    pub t_s: f64,
+    /// How confident the pose is.
+    pub status: Status,
+    /// The sensor's pose in the map frame; None when lost.
+    pub pose: Option<Pose2>,
+    /// Landmarks matched.
+    pub n_landmarks: usize,
+    /// Covariance of the pose (x, y, θ; m², m·rad, rad²), its Cramér–Rao bound, if known.
+    pub cov: Option<Matrix3<f64>>,
 }
 
 /// Position error bound of a correct pose, metres.
@@ -104,13 +127,14 @@ pub const CORRECT_POS_M: f64 = 0.05;
 /// Heading error bound of a correct pose, radians (1°).
 pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
 
-/// Compares `(t, status, pose, n_landmarks)` rows with truth poses matched by time (to 1 µs).
-pub fn evaluate(rows: &[(f64, Status, Option<Pose2>, usize)], truth: &[TruthPose]) -> Evaluation {
+/// Compares estimated poses with truth poses matched by time (to 1 µs).
+pub fn evaluate(rows: &[EstimatedPose], truth: &[TruthPose]) -> Evaluation {
     let key = |t: f64| (t * 1e6).round() as i64;
     let by_t: HashMap<i64, &TruthPose> = truth.iter().map(|p| (key(p.t_s), p)).collect();
     let mut e = Evaluation::default();
-    let (mut sp, mut sh) = (0.0, 0.0);
-    for &(t, status, pose, n_lm) in rows {
+    let (mut sp, mut sh, mut bp, mut bh) = (0.0, 0.0, 0.0, 0.0);
+    for r in rows {
+        let (t, status, pose, n_lm) = (r.t_s, r.status, r.pose, r.n_landmarks);
         let Some(tp) = by_t.get(&key(t)) else {
             continue;
         };
@@ -140,11 +164,20 @@ pub fn evaluate(rows: &[(f64, Status, Option<Pose2>, usize)], truth: &[TruthPose
             sp += dp * dp;
             sh += dh * dh;
             e.position_max_m = e.position_max_m.max(dp);
+            if let Some(c) = r.cov {
+                e.n_bound += 1;
+                bp += c[(0, 0)] + c[(1, 1)];
+                bh += c[(2, 2)];
+            }
         }
     }
     if e.n_accuracy > 0 {
         e.position_rms_m = (sp / e.n_accuracy as f64).sqrt();
         e.heading_rms_rad = (sh / e.n_accuracy as f64).sqrt();
+    }
+    if e.n_bound > 0 {
+        e.position_crb_m = (bp / e.n_bound as f64).sqrt();
+        e.heading_crb_rad = (bh / e.n_bound as f64).sqrt();
     }
     e
 }

@@ -19,6 +19,7 @@ mod error;
 mod eval;
 mod localize;
 mod map;
+mod pose_fit;
 mod pose_log;
 mod scan;
 mod scan_track;
@@ -26,7 +27,7 @@ mod search;
 
 pub use check::{check_map_report, find_ambiguities, Ambiguity, AmbiguityKind};
 pub use error::LrfError;
-pub use eval::{evaluate, read_truth_csv, Evaluation, TruthPose};
+pub use eval::{evaluate, read_truth_csv, EstimatedPose, Evaluation, TruthPose};
 pub use localize::{localize_scans, read_scan_files};
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};

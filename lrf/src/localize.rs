@@ -60,6 +60,7 @@ pub fn localize_scans(
                 score: b.map_or(0.0, |h| h.score),
                 mode: "global".into(),
                 scan: scan.id,
+                pose_cov: b.and_then(|h| h.cov),
             }
         } else {
             let r = tracker.process(scan, t_s);
@@ -73,6 +74,7 @@ pub fn localize_scans(
                 score: r.score,
                 mode: r.mode.into(),
                 scan: scan.id,
+                pose_cov: r.pose_cov,
             }
         };
         rows.push(row);

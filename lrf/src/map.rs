@@ -79,6 +79,10 @@ pub struct MapFile {
     /// Walls as segments `[x1, y1, x2, y2]` in metres (occluders; optional).
     #[serde(default)]
     pub walls: Vec<[f64; 4]>,
+    /// Uncertainty (1 sigma) of each landmark's surveyed position, metres; absent = the
+    /// localiser's default ([`crate::LocalizerConfig::map_sigma_m`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_sigma_m: Option<f64>,
 }
 
 fn default_width() -> f64 {
@@ -203,6 +207,8 @@ pub struct Map {
     pub walls: Vec<[f64; 4]>,
     /// Reflector strip width, metres.
     pub reflector_width_m: f64,
+    /// Uncertainty (1 sigma) of each landmark's position as the file states it, metres.
+    pub position_sigma_m: Option<f64>,
     /// Per landmark i, edges `edge_start[i]..edge_start[i+1]` sorted by distance.
     pub(crate) edge_start: Vec<usize>,
     /// Edge target landmark.
@@ -262,6 +268,13 @@ impl Map {
                 "reflector_width_m is {}; give the strip width in metres (> 0)",
                 file.reflector_width_m
             )));
+        }
+        if let Some(s) = file.position_sigma_m {
+            if !(s.is_finite() && (0.0..1.0).contains(&s)) {
+                return Err(err(format!(
+                    "position_sigma_m is {s}; give the landmarks' survey uncertainty in metres (0 to 1)"
+                )));
+            }
         }
         let mut landmarks = Vec::with_capacity(n);
         for (k, s) in file.landmarks.iter().enumerate() {
@@ -360,6 +373,7 @@ impl Map {
             landmarks,
             walls: file.walls.clone(),
             reflector_width_m: file.reflector_width_m,
+            position_sigma_m: file.position_sigma_m,
             edge_start,
             edge_to,
             edge_dist,
@@ -522,6 +536,7 @@ mod tests {
             reflector_width_m: 0.08,
             landmarks: l,
             walls: vec![],
+            position_sigma_m: None,
         }
     }
 

@@ -4,8 +4,10 @@
 
 use std::fmt::Write as _;
 
+use nalgebra::Matrix3;
 use odocal_core::{csv_table_with_header, FileError, Pose2, TextFormat};
 
+use crate::eval::EstimatedPose;
 use crate::search::Status;
 
 /// The header of a pose log.
@@ -33,6 +35,9 @@ pub struct PoseLogRow {
     pub mode: String,
     /// The scan's id.
     pub scan: u64,
+    /// Covariance of the pose (x, y, θ; m², m·rad, rad²), its Cramér–Rao bound; kept in
+    /// memory for the evaluation, not written to the file.
+    pub pose_cov: Option<Matrix3<f64>>,
 }
 
 /// A pose log: the localisation of every scan, in time order.
@@ -71,11 +76,17 @@ impl PoseLog {
         csv
     }
 
-    /// The rows as [`crate::evaluate`] takes them: time, status, pose, landmarks matched.
-    pub fn for_evaluation(&self) -> Vec<(f64, Status, Option<Pose2>, usize)> {
+    /// The rows as [`crate::evaluate`] takes them.
+    pub fn for_evaluation(&self) -> Vec<EstimatedPose> {
         self.rows
             .iter()
-            .map(|r| (r.t_s, r.status, r.pose, r.n_landmarks))
+            .map(|r| EstimatedPose {
+                t_s: r.t_s,
+                status: r.status,
+                pose: r.pose,
+                n_landmarks: r.n_landmarks,
+                cov: r.pose_cov,
+            })
             .collect()
     }
 }
@@ -173,6 +184,7 @@ impl TextFormat for PoseLog {
                 },
                 mode: imode.map(|i| get(i).to_string()).unwrap_or_default(),
                 scan: count(iscan, "scan")? as u64,
+                pose_cov: None,
             });
         }
         Ok(Self { rows })
@@ -197,6 +209,7 @@ mod tests {
                     score: 4.0,
                     mode: "global".into(),
                     scan: 0,
+                    pose_cov: None,
                 },
                 PoseLogRow {
                     t_s: 0.2,
@@ -208,6 +221,7 @@ mod tests {
                     score: 0.0,
                     mode: "tracking".into(),
                     scan: 1,
+                    pose_cov: None,
                 },
             ],
         };

@@ -2,6 +2,7 @@
 //! back to global search, and keep several hypotheses until the motion
 //! resolves them.
 
+use nalgebra::Matrix3;
 use odocal_core::{wrap_angle, Pose2};
 
 use crate::{Hypothesis, Localizer, Scan, Status};
@@ -25,6 +26,8 @@ pub struct ScanFix {
     pub score: f64,
     /// "track" if the pose came from tracking, "global" if from global search.
     pub mode: &'static str,
+    /// Covariance of the best pose (x, y, θ; m², m·rad, rad²): its Cramér–Rao bound.
+    pub pose_cov: Option<Matrix3<f64>>,
 }
 
 impl ScanFix {
@@ -39,6 +42,7 @@ impl ScanFix {
             n_hypotheses,
             score: 0.0,
             mode,
+            pose_cov: None,
         }
     }
 }
@@ -239,6 +243,7 @@ impl<'a> ScanTracker<'a> {
             n_hypotheses: self.tracks.len(),
             score: best.last.score,
             mode,
+            pose_cov: best.last.cov,
         }
     }
 }

@@ -1,9 +1,10 @@
 //! Association of detections with map landmarks and the pose: the source's
 //! chained search, and the robust global search with negative evidence.
 
-use nalgebra::{Point2, Rotation2, Vector2};
+use nalgebra::{Matrix2, Matrix3, Point2, Rotation2, Vector2};
 use odocal_core::{fit_helmert, fit_rigid, wrap_angle, Pose2};
 
+use crate::pose_fit::{fit_pose_weighted, pose_information, Observation};
 use crate::{extract_detections, Detection, Map, Scan, SensorConfig};
 
 /// Settings of the localiser.
@@ -13,7 +14,9 @@ pub struct LocalizerConfig {
     pub sensor: SensorConfig,
     /// Gates and margins are this many standard deviations wide.
     pub k_sigma: f64,
-    /// Uncertainty of the surveyed landmark positions (1 sigma), metres.
+    /// Uncertainty of the surveyed landmark positions (1 sigma), metres: a margin of the
+    /// association gates, and the pose fit's map variance unless the map states its own
+    /// (`position_sigma_m`).
     pub map_sigma_m: f64,
     /// Minimum number of matched landmarks for a pose.
     pub min_matches: usize,
@@ -62,6 +65,9 @@ pub struct Hypothesis {
     pub rms_m: f64,
     /// Scale of the free-scale Helmert fit (consistency check, ≈ 1).
     pub helmert_scale: f64,
+    /// Covariance of the pose (x, y, θ; m², m·rad, rad²) from the matched detections'
+    /// covariances and the map's: the pose's Cramér–Rao bound, which the weighted fit reaches.
+    pub cov: Option<Matrix3<f64>>,
 }
 
 /// Outcome class of a localisation.
@@ -508,6 +514,9 @@ impl Localizer {
         for &(_, l) in &matches {
             taken[l] = true;
         }
+        // The pose: every detection weighted by its covariance, from the rigid fit (which
+        // weighs all alike and serves the association and the checks above).
+        let (pose, cov) = self.fit_matches(dets, &matches, pose)?;
         if self.free_space_violations(scan, &pose)
             > 2 + scan.ranges_m.len() / FREE_SPACE_STRIDE / 30
         {
@@ -522,7 +531,48 @@ impl Localizer {
             score,
             rms_m: fit_rms,
             helmert_scale: helmert.scale,
+            cov: Some(cov),
         })
+    }
+
+    /// The observations of `matches` (detection, landmark) for a pose near `guess`: each
+    /// detection's strip centre and covariance ([`Detection::strip_centre`], with the strip's
+    /// orientation from the map turned into the sensor frame) plus the map's variance.
+    fn observations(
+        &self,
+        dets: &[Detection],
+        matches: &[(usize, usize)],
+        guess: &Pose2,
+    ) -> Vec<Observation> {
+        let sigma = self.map.position_sigma_m.unwrap_or(self.cfg.map_sigma_m);
+        let to_sensor = Rotation2::new(-guess.theta_rad);
+        matches
+            .iter()
+            .map(|&(k, l)| {
+                let lm = &self.map.landmarks[l];
+                let normal = lm.facing.map(|f| to_sensor * f);
+                let (centre, cov) =
+                    dets[k].strip_centre(normal, self.map.reflector_width_m, &self.cfg.sensor);
+                Observation {
+                    sensor: centre,
+                    landmark: lm.position,
+                    cov: cov + Matrix2::identity() * sigma * sigma,
+                }
+            })
+            .collect()
+    }
+
+    /// The pose from detections matched to landmarks, (detection index, landmark index),
+    /// starting from `guess` (a rigid fit of the same matches, say): the weighted least-squares
+    /// fit with every detection's covariance, and the pose's covariance (x, y, θ; m², m·rad,
+    /// rad²), which is its Cramér–Rao bound. None when the matches do not fix a pose.
+    fn fit_matches(
+        &self,
+        dets: &[Detection],
+        matches: &[(usize, usize)],
+        guess: Pose2,
+    ) -> Option<(Pose2, Matrix3<f64>)> {
+        fit_pose_weighted(guess, &self.observations(dets, matches, &guess))
     }
 
     /// Beams that contradict the mapped walls from `pose`: a return well
@@ -674,13 +724,17 @@ impl Localizer {
             let dst: Vec<Point2<f64>> = chain.iter().map(|&l| self.map.position(l)).collect();
             if let Ok(h) = fit_helmert(&src, &dst) {
                 if out.iter().all(|o| !same_pose(&o.pose, &h.pose)) {
+                    let matches: Vec<(usize, usize)> = chain.iter().copied().enumerate().collect();
+                    let obs = self.observations(dets, &matches, &h.pose);
+                    let cov = pose_information(&h.pose, &obs).and_then(|i| i.try_inverse());
                     out.push(Hypothesis {
                         pose: h.pose,
-                        matches: chain.iter().copied().enumerate().collect(),
+                        matches,
                         n_missing: 0,
                         score: chain.len() as f64,
                         rms_m: h.rms,
                         helmert_scale: h.scale,
+                        cov,
                     });
                 }
             }

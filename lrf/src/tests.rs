@@ -26,6 +26,7 @@ pub(crate) fn map_of(pts: &[(f64, f64)]) -> Map {
             reflector_width_m: 0.08,
             landmarks,
             walls: vec![],
+            position_sigma_m: None,
         },
         "test",
     )

@@ -139,11 +139,26 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 tp.display()
             );
         }
+        // The bound beside each RMS: the mean over the same scans of each pose's Cramér–Rao
+        // bound, from the matched detections' covariances and the map's.
+        let bound = |rms: f64, crb: f64, unit: &str, scale: f64, digits: usize| {
+            if e.n_bound == e.n_accuracy && crb > 0.0 {
+                format!(
+                    " (Cramér–Rao bound {:.digits$} {unit}, ratio {:.2})",
+                    crb * scale,
+                    rms / crb
+                )
+            } else {
+                String::new()
+            }
+        };
         println!(
-            "vs truth: position RMS {:.1} mm, heading RMS {:.3} deg (max {:.1} mm) over {} ok scans with >= 3 landmarks; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
+            "vs truth: position RMS {:.1} mm{}, max {:.1} mm; heading RMS {:.3} deg{}; over {} ok scans with >= 3 landmarks; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
             e.position_rms_m * 1e3,
-            e.heading_rms_rad.to_degrees(),
+            bound(e.position_rms_m, e.position_crb_m, "mm", 1e3, 1),
             e.position_max_m * 1e3,
+            e.heading_rms_rad.to_degrees(),
+            bound(e.heading_rms_rad, e.heading_crb_rad, "deg", 180.0 / std::f64::consts::PI, 3),
             e.n_accuracy,
             e.n_wrong_ok,
             e.n_correct_eligible,
