@@ -50,7 +50,7 @@ fn main() {
     let mut cal = None;
     for _ in 0..3 {
         let t = Instant::now();
-        cal = calibrate(&views, &scene.board).ok();
+        cal = calibrate(&views, &scene.board, odocal_calib::LensModel::Pinhole5).ok();
         cal_t.push(t.elapsed().as_secs_f64());
     }
     let cal_s = median(cal_t);

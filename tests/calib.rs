@@ -286,3 +286,91 @@ fn missing_file_and_wrong_camera_json() {
     let e = CameraFile::load(&bogus).unwrap_err().to_string();
     assert!(e.contains("odocal.camera/1"), "{e}");
 }
+
+/// The lens-model acceptance figures: for a 70° five-coefficient lens, a 110° rational lens
+/// and a 150° fisheye (20 views each, 1280x720, noise σ 2 grey levels), `--model auto` picks
+/// the true family and the calibration meets the bounds: focal length within 0.2 %,
+/// principal point within 1 px, RMS reprojection ≤ 0.2 px, floor mapping ≤ 2 mm over the
+/// floor seen within 45° of the nadir (farther out a pixel covers 2-30x more floor; the
+/// larger rings are printed, not bounded).
+#[test]
+fn every_lens_model_is_recovered_and_chosen() {
+    use odocal_synth::board::FLOOR_RINGS_DEG;
+    for (lens, hfov, square) in [
+        ("pinhole5", "70", "0.05"),
+        ("rational", "110", "0.08"),
+        ("fisheye", "150", "0.08"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = synth(dir.path(), 3, &["--lens", lens, "--hfov", hfov]);
+        assert_eq!(truth.views.len(), 20, "{lens}: views rendered");
+        let out = dir.path().join("camera.json");
+        let res = calibrate(dir.path(), &out, "9x6", square);
+        succeeded(&res);
+        let cam = CameraFile::load(&out).unwrap();
+        let e = calibration_errors(
+            &cam.camera,
+            cam.floor.as_ref().map(|f| &f.floor_to_camera),
+            &truth.camera,
+            &truth.floor_to_camera,
+        );
+        let within_45 = e.floor_max_by_ring_m[..2]
+            .iter()
+            .flatten()
+            .fold(0.0f64, |a, b| a.max(*b));
+        let chosen: Vec<String> = cam
+            .model_comparison
+            .iter()
+            .map(|s| {
+                format!(
+                    "{} {:?}{}",
+                    s.model,
+                    s.held_out_rms_px,
+                    if s.chosen { "*" } else { "" }
+                )
+            })
+            .collect();
+        println!(
+            "{lens} {hfov}°: {} views used, chosen {} ({}); fx {:.3} %, fy {:.3} %, cx {:.2} px, cy {:.2} px, RMS {:.3} px, floor ≤45° {:.2} mm, rings {:?} (edges {FLOOR_RINGS_DEG:?}°)",
+            cam.views.len(),
+            cam.camera.distortion.model,
+            chosen.join(", "),
+            e.fx_rel * 100.0,
+            e.fy_rel * 100.0,
+            e.cx_px,
+            e.cy_px,
+            cam.rms_px,
+            within_45 * 1e3,
+            e.floor_max_by_ring_m.map(|m| m.map(|v| (v * 1e4).round() / 10.0)),
+        );
+        assert_eq!(
+            cam.camera.distortion.model.name(),
+            lens,
+            "auto picked the wrong family"
+        );
+        assert!(
+            e.fx_rel <= 0.002 && e.fy_rel <= 0.002,
+            "{lens}: focal {e:?}"
+        );
+        assert!(
+            e.cx_px <= 1.0 && e.cy_px <= 1.0,
+            "{lens}: principal point {e:?}"
+        );
+        assert!(cam.rms_px <= 0.2, "{lens}: RMS {}", cam.rms_px);
+        assert!(within_45 <= 0.002, "{lens}: floor {within_45} m within 45°");
+        assert!(
+            cam.views.len() >= 15,
+            "{lens}: only {} views detected",
+            cam.views.len()
+        );
+        // Every view was judged on its own when left out, and the held-out error is of the
+        // order of the fit's (no model is over-fitted).
+        let held: Vec<f64> = cam.views.iter().filter_map(|v| v.held_out_rms_px).collect();
+        assert_eq!(held.len(), cam.views.len());
+        let held_rms = (held.iter().map(|h| h * h).sum::<f64>() / held.len() as f64).sqrt();
+        assert!(
+            held_rms <= 1.2 * cam.rms_px + 0.01,
+            "{lens}: held out {held_rms} px"
+        );
+    }
+}

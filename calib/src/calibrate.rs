@@ -1,7 +1,8 @@
-//! Zhang calibration through OpenCV's calibrateCamera, with parameter
-//! standard deviations, per-view residuals and checks for degenerate sets.
+//! Zhang calibration through OpenCV (calibrateCamera, or cv::fisheye for the
+//! fisheye model), with the parameters' covariance, per-view residuals and
+//! checks for degenerate sets.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{DMatrix, Point2, Point3, Vector3};
 use opencv::calib3d;
 use opencv::core::{self, Mat, Size, TermCriteria, Vector};
 use opencv::prelude::*;
@@ -9,7 +10,7 @@ use opencv::prelude::*;
 use crate::opencv_glue::{at, isometry_from_rt, points2f, points3f};
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, Distortion, Intrinsics,
-    IntrinsicsStd, ViewResidual,
+    IntrinsicsStd, LensModel, ViewResidual,
 };
 
 /// The outcome of Zhang calibration.
@@ -21,6 +22,8 @@ pub struct Calibration {
     pub rms_px: f64,
     /// One standard deviation of each intrinsic parameter.
     pub std: IntrinsicsStd,
+    /// Covariance of [`CameraModel::parameters`] (the board poses marginalised out).
+    pub covariance: DMatrix<f64>,
     /// RMS reprojection error of each view, pixels, in input order.
     pub views: Vec<ViewResidual>,
     /// The board pose of each view, in input order.
@@ -41,8 +44,16 @@ pub fn board_points(board: &BoardSpec) -> Vec<Point3<f64>> {
 /// Minimum spread of board tilts (degrees) for the focal length to be observable.
 const MIN_TILT_DEG: f64 = 8.0;
 
-/// Calibrates from at least three views of the board (Zhang's method).
-pub fn calibrate(views: &[BoardView], board: &BoardSpec) -> Result<Calibration, CalibError> {
+/// Calibrates from at least three views of the board (Zhang's method) with the lens model
+/// `model`: OpenCV's calibrateCamera for the five-coefficient and rational models,
+/// `cv::fisheye::calibrate` for the fisheye model. The parameters' covariance is computed
+/// by odocal for every model ([`crate::uncertainty`]), since OpenCV's fisheye calibration
+/// gives none and its pinhole calibration only the diagonal.
+pub fn calibrate(
+    views: &[BoardView],
+    board: &BoardSpec,
+    model: LensModel,
+) -> Result<Calibration, CalibError> {
     if views.len() < 3 {
         return Err(CalibError::Input(format!(
             "only {} usable view(s); Zhang calibration needs at least 3 (10-20 recommended), \
@@ -58,52 +69,136 @@ pub fn calibrate(views: &[BoardView], board: &BoardSpec) -> Result<Calibration, 
         )));
     }
     let object = board_points(board);
+    let (camera, poses) = opencv_calibrate(views, &object, (w, h), model)?;
+    check_tilt(&poses)?;
+    if !camera.parameters().iter().all(|v| v.is_finite()) || camera.intrinsics.fx <= 0.0 {
+        return Err(CalibError::Input(
+            "calibration diverged; the views are probably degenerate: tilt the board 20-45° in several views".into(),
+        ));
+    }
+    let observations: Vec<Observation> = views
+        .iter()
+        .zip(&poses)
+        .map(|(v, p)| Observation {
+            pose: *p,
+            object: &object,
+            image: &v.corners,
+        })
+        .collect();
+    let fit = crate::uncertainty::covariance(&camera, &observations);
+    let views = views
+        .iter()
+        .zip(&fit.view_rms_px)
+        .map(|(v, rms)| ViewResidual {
+            image: v.image.clone(),
+            rms_px: *rms,
+            held_out_rms_px: None,
+            corners_px: v.corners.iter().map(|p| [p.x, p.y]).collect(),
+        })
+        .collect();
+    let sd: Vec<f64> = (0..fit.covariance.nrows())
+        .map(|i| fit.covariance[(i, i)].max(0.0).sqrt())
+        .collect();
+    let std = IntrinsicsStd {
+        fx: sd[0],
+        fy: sd[1],
+        cx: sd[2],
+        cy: sd[3],
+        distortion: sd[4..].to_vec(),
+    };
+    if !fit.rms_px.is_finite() {
+        return Err(CalibError::Input(
+            "calibration diverged; the views are probably degenerate: tilt the board 20-45° in several views".into(),
+        ));
+    }
+    Ok(Calibration {
+        camera,
+        rms_px: fit.rms_px,
+        std,
+        covariance: fit.covariance,
+        views,
+        poses,
+    })
+}
+
+/// One view's part of the fit: the board pose, the board points and where they were seen.
+pub struct Observation<'a> {
+    /// The board's pose in this view.
+    pub pose: BoardToCamera,
+    /// Board-frame points, metres.
+    pub object: &'a [Point3<f64>],
+    /// Their detected pixels, in the same order.
+    pub image: &'a [Point2<f64>],
+}
+
+/// OpenCV's calibration for `model`: the camera and every view's board pose.
+fn opencv_calibrate(
+    views: &[BoardView],
+    object: &[Point3<f64>],
+    (w, h): (u32, u32),
+    model: LensModel,
+) -> Result<(CameraModel, Vec<BoardToCamera>), CalibError> {
     let mut object_points = Vector::<Vector<core::Point3f>>::new();
     let mut image_points = Vector::<Vector<core::Point2f>>::new();
     for v in views {
-        object_points.push(points3f(&object));
+        object_points.push(points3f(object));
         image_points.push(points2f(&v.corners));
     }
     let mut k = Mat::default();
     let mut dist = Mat::default();
     let mut rvecs = Vector::<Mat>::new();
     let mut tvecs = Vector::<Mat>::new();
-    let mut std_intr = Mat::default();
-    let mut std_extr = Mat::default();
-    let mut per_view = Mat::default();
     let criteria = TermCriteria::new(
         core::TermCriteria_Type::COUNT as i32 + core::TermCriteria_Type::EPS as i32,
         100,
         f64::EPSILON,
     )?;
-    let rms = calib3d::calibrate_camera_extended(
-        &object_points,
-        &image_points,
-        Size::new(w as i32, h as i32),
-        &mut k,
-        &mut dist,
-        &mut rvecs,
-        &mut tvecs,
-        &mut std_intr,
-        &mut std_extr,
-        &mut per_view,
-        0,
-        criteria,
-    )
-    .map_err(|e| {
+    let degenerate = |e: opencv::Error| {
         CalibError::Input(format!(
-            "calibration failed ({e}); the views are probably degenerate: tilt the board 20-45° in several views"
+            "{model} calibration failed ({e}); the views are probably degenerate: tilt the board 20-45° in several views"
         ))
-    })?;
-
+    };
+    let size = Size::new(w as i32, h as i32);
+    match model {
+        LensModel::Fisheye => {
+            calib3d::calibrate(
+                &object_points,
+                &image_points,
+                size,
+                &mut k,
+                &mut dist,
+                &mut rvecs,
+                &mut tvecs,
+                calib3d::Fisheye_CALIB_RECOMPUTE_EXTRINSIC | calib3d::Fisheye_CALIB_FIX_SKEW,
+                criteria,
+            )
+            .map_err(degenerate)?;
+        }
+        LensModel::Pinhole5 | LensModel::Rational => {
+            let flags = if model == LensModel::Rational {
+                calib3d::CALIB_RATIONAL_MODEL
+            } else {
+                0
+            };
+            calib3d::calibrate_camera(
+                &object_points,
+                &image_points,
+                size,
+                &mut k,
+                &mut dist,
+                &mut rvecs,
+                &mut tvecs,
+                flags,
+                criteria,
+            )
+            .map_err(degenerate)?;
+        }
+    }
     let mut poses = Vec::with_capacity(views.len());
     for (r, t) in rvecs.iter().zip(tvecs.iter()) {
         poses.push(BoardToCamera(isometry_from_rt(&r, &t)?));
     }
-    check_tilt(&poses)?;
-
-    let d = dist.data_typed::<f64>()?;
-    let coeff = |i: usize| d.get(i).copied().unwrap_or(0.0);
+    let d = dist.data_typed::<f64>()?.to_vec();
     let camera = CameraModel {
         width: w,
         height: h,
@@ -113,39 +208,9 @@ pub fn calibrate(views: &[BoardView], board: &BoardSpec) -> Result<Calibration, 
             cx: at(&k, 0, 2)?,
             cy: at(&k, 1, 2)?,
         },
-        distortion: Distortion::from_opencv([coeff(0), coeff(1), coeff(2), coeff(3), coeff(4)]),
+        distortion: Distortion::new(model, &d),
     };
-    let s = std_intr.data_typed::<f64>()?;
-    let sd = |i: usize| s.get(i).copied().unwrap_or(f64::NAN);
-    let std = IntrinsicsStd {
-        fx: sd(0),
-        fy: sd(1),
-        cx: sd(2),
-        cy: sd(3),
-        distortion: [sd(4), sd(5), sd(6), sd(7), sd(8)],
-    };
-    let errs = per_view.data_typed::<f64>()?;
-    let views = views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| ViewResidual {
-            image: v.image.clone(),
-            rms_px: errs.get(i).copied().unwrap_or(f64::NAN),
-            corners_px: v.corners.iter().map(|p| [p.x, p.y]).collect(),
-        })
-        .collect();
-    if !camera.intrinsics.fx.is_finite() || camera.intrinsics.fx <= 0.0 || !rms.is_finite() {
-        return Err(CalibError::Input(
-            "calibration diverged; the views are probably degenerate: tilt the board 20-45° in several views".into(),
-        ));
-    }
-    Ok(Calibration {
-        camera,
-        rms_px: rms,
-        std,
-        views,
-        poses,
-    })
+    Ok((camera, poses))
 }
 
 /// Rejects sets whose boards are all (nearly) parallel to the image plane:

@@ -20,9 +20,9 @@ pub struct BoardSpec {
     pub square_m: f64,
 }
 
-/// One standard deviation of each estimated intrinsic parameter (OpenCV's
-/// estimate from the Jacobian at the optimum, scaled by the residual).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// One standard deviation of each estimated intrinsic parameter (from the Jacobian at the
+/// optimum, scaled by the residual, with the board poses marginalised out).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IntrinsicsStd {
     /// σ of fx, pixels.
     pub fx: f64,
@@ -32,8 +32,8 @@ pub struct IntrinsicsStd {
     pub cx: f64,
     /// σ of cy, pixels.
     pub cy: f64,
-    /// σ of k1, k2, p1, p2, k3 (OpenCV order).
-    pub distortion: [f64; 5],
+    /// σ of the distortion coefficients, in the lens model's OpenCV order.
+    pub distortion: Vec<f64>,
 }
 
 /// Reprojection error of one calibration view.
@@ -43,6 +43,10 @@ pub struct ViewResidual {
     pub image: String,
     /// RMS reprojection error of its corners, pixels.
     pub rms_px: f64,
+    /// RMS reprojection error of its corners when the view was left out of the calibration
+    /// (its board pose fitted alone to the calibration of the other views), pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_out_rms_px: Option<f64>,
     /// The detected inner corners (u, v), pixels: where the views covered the image (absent in
     /// files written before odocal stored them).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -91,6 +95,14 @@ pub struct CameraFile {
     pub board: Option<BoardSpec>,
     /// The floor plane, if floor views were given.
     pub floor: Option<FloorPlane>,
+    /// Covariance of the intrinsic parameters in the order of
+    /// [`CameraModel::parameter_names`] (fx fy cx cy, then the distortion coefficients),
+    /// row by row (absent in files written before odocal stored it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Vec<Vec<f64>>>,
+    /// The lens models compared by held-out reprojection error (`--model auto`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub model_comparison: Vec<crate::select::ModelScore>,
 }
 
 impl CameraFile {
@@ -105,7 +117,16 @@ impl CameraFile {
             skipped: vec![],
             board: None,
             floor,
+            covariance: None,
+            model_comparison: vec![],
         }
+    }
+
+    /// The intrinsics' covariance as a matrix, if the file has one.
+    pub fn covariance_matrix(&self) -> Option<nalgebra::DMatrix<f64>> {
+        let c = self.covariance.as_ref()?;
+        let n = c.len();
+        Some(nalgebra::DMatrix::from_fn(n, n, |i, j| c[i][j]))
     }
 
     /// Reads and validates a camera.json ([`CameraFile::check`]); errors name the file.
@@ -151,6 +172,19 @@ impl CameraFile {
         }
         if !c.distortion.to_opencv().iter().all(|v| v.is_finite()) {
             return Err("camera.distortion has a coefficient that is not a finite number".into());
+        }
+        if let Some(cov) = &self.covariance {
+            let n = c.parameters().len();
+            if cov.len() != n || cov.iter().any(|r| r.len() != n) {
+                return Err(format!(
+                    "covariance must be {n}x{n} for the {} model ({})",
+                    c.distortion.model,
+                    c.parameter_names().join(" ")
+                ));
+            }
+            if cov.iter().flatten().any(|v| !v.is_finite()) {
+                return Err("covariance has a value that is not a finite number".into());
+            }
         }
         if !(self.rms_px.is_finite() && self.rms_px >= 0.0) {
             return Err(format!("rms_px = {} must be >= 0", self.rms_px));

@@ -23,6 +23,9 @@ pub fn opencv_yaml(cam: &CameraFile) -> Result<String, CalibError> {
         fs.write_mat("camera_matrix", &camera_matrix(&cam.camera)?)?;
         let d: Mat = dist_coeffs(&cam.camera)?;
         fs.write_mat("distortion_coefficients", &d)?;
+        // Which of OpenCV's functions the coefficients are for: the fisheye ones
+        // (cv::fisheye) or the pinhole ones (5 or 8 coefficients).
+        fs.write_str("distortion_model", cam.camera.distortion.model.name())?;
         fs.write_f64("avg_reprojection_error", cam.rms_px)?;
         if let Some(floor) = &cam.floor {
             let iso = floor.floor_to_camera.0;
@@ -39,7 +42,8 @@ pub fn opencv_yaml(cam: &CameraFile) -> Result<String, CalibError> {
     }
 }
 
-/// The calibration as a ROS camera_info YAML file (plumb_bob model).
+/// The calibration as a ROS camera_info YAML file (`plumb_bob`, `rational_polynomial` or
+/// `equidistant`, by the lens model).
 pub fn ros_yaml(cam: &CameraFile, camera_name: &str) -> String {
     let k = cam.camera.intrinsics;
     let d = cam.camera.distortion.to_opencv();
@@ -52,13 +56,15 @@ pub fn ros_yaml(cam: &CameraFile, camera_name: &str) -> String {
     let text = format!(
         "image_width: {w}\nimage_height: {h}\ncamera_name: {camera_name}\n\
          camera_matrix:\n  rows: 3\n  cols: 3\n  data: [{km}]\n\
-         distortion_model: plumb_bob\n\
-         distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [{dm}]\n\
+         distortion_model: {model}\n\
+         distortion_coefficients:\n  rows: 1\n  cols: {n}\n  data: [{dm}]\n\
          rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n\
          projection_matrix:\n  rows: 3\n  cols: 4\n  data: [{pm}]\n",
         w = cam.camera.width,
         h = cam.camera.height,
         km = fmt(&[k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0]),
+        model = cam.camera.distortion.model.ros_name(),
+        n = d.len(),
         dm = fmt(&d),
         pm = fmt(&[k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]),
     );

@@ -5,10 +5,9 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use opencv::calib3d;
-use opencv::core::Mat;
 
 use crate::calibrate::board_points;
-use crate::opencv_glue::{camera_matrix, dist_coeffs, isometry_from_rt, points2f, points3f};
+use crate::opencv_glue::solve_pnp;
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorPlane, FloorToCamera,
 };
@@ -19,27 +18,18 @@ pub fn board_pose(
     view: &BoardView,
     board: &BoardSpec,
 ) -> Result<BoardToCamera, CalibError> {
-    let object = points3f(&board_points(board));
-    let image = points2f(&view.corners);
-    let mut rvec = Mat::default();
-    let mut tvec = Mat::default();
-    let ok = calib3d::solve_pnp(
-        &object,
-        &image,
-        &camera_matrix(camera)?,
-        &dist_coeffs(camera)?,
-        &mut rvec,
-        &mut tvec,
-        false,
+    match solve_pnp(
+        camera,
+        &board_points(board),
+        &view.corners,
         calib3d::SOLVEPNP_ITERATIVE,
-    )?;
-    if !ok {
-        return Err(CalibError::Input(format!(
+    )? {
+        Some(iso) => Ok(BoardToCamera(iso)),
+        None => Err(CalibError::Input(format!(
             "{}: cannot locate the floor board",
             view.image
-        )));
+        ))),
     }
-    Ok(BoardToCamera(isometry_from_rt(&rvec, &tvec)?))
 }
 
 /// Fits the floor plane through the boards of all floor views.

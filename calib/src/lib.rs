@@ -3,15 +3,18 @@
 
 pub mod calibrate;
 pub mod camera_file;
+mod coverage;
 pub mod detect;
 mod error;
 pub mod export;
 pub mod floor;
 pub mod model;
 mod opencv_glue;
+pub mod select;
 mod session;
+pub mod uncertainty;
 
-pub use calibrate::{board_points, calibrate, Calibration};
+pub use calibrate::{board_points, calibrate, Calibration, Observation};
 pub use camera_file::{
     BoardSpec, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual, CAMERA_FORMAT,
 };
@@ -19,7 +22,9 @@ pub use detect::{detect_file, BoardView, Detection};
 pub use error::CalibError;
 pub use floor::{board_pose, fit_floor};
 pub use model::{
-    intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics,
+    intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics, LensModel,
 };
-pub use opencv_glue::{camera_matrix, dist_coeffs};
-pub use session::{calibrate_session, summary, Session};
+pub use opencv_glue::{camera_matrix, dist_coeffs, solve_pnp};
+pub use select::{compare_models, ModelScore};
+pub use session::{calibrate_session, summary, ModelChoice, Session};
+pub use uncertainty::{projection_sigma_px, UncertaintyMap};

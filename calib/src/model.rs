@@ -1,6 +1,7 @@
-//! The camera model: pinhole intrinsics with OpenCV's five-parameter
-//! distortion (k1 k2 p1 p2 k3). The renderer and the estimator both use it,
-//! so what is rendered is exactly what is estimated.
+//! The camera model: pinhole intrinsics with one of OpenCV's lens models (the
+//! five-coefficient model, the rational model, or Kannala–Brandt fisheye). The
+//! renderer and the estimator both use it, so what is rendered is exactly what
+//! is estimated; OpenCV's own projection is checked against it in the tests.
 
 use nalgebra::{Isometry3, Matrix3, Point2, Point3, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -25,67 +26,192 @@ impl Intrinsics {
     }
 }
 
-/// Lens distortion in OpenCV's order: radial k1 k2 k3, tangential p1 p2.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+/// The lens model families odocal fits, each one of OpenCV's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LensModel {
+    /// OpenCV's default five coefficients k1 k2 p1 p2 k3 (Brown–Conrady; ROS `plumb_bob`).
+    Pinhole5,
+    /// OpenCV's rational model (`CALIB_RATIONAL_MODEL`): k1 k2 p1 p2 k3 k4 k5 k6, a ratio of
+    /// radial polynomials, for wide lenses up to about 120° (ROS `rational_polynomial`).
+    Rational,
+    /// Kannala–Brandt equidistant (`cv::fisheye`): k1..k4 on the angle from the axis, for
+    /// fisheye lenses up to about 180° (ROS `equidistant`).
+    Fisheye,
+}
+
+impl LensModel {
+    /// Every model, simplest first (fewest coefficients, then OpenCV's default first).
+    pub const ALL: [LensModel; 3] = [LensModel::Fisheye, LensModel::Pinhole5, LensModel::Rational];
+
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            LensModel::Pinhole5 => "pinhole5",
+            LensModel::Rational => "rational",
+            LensModel::Fisheye => "fisheye",
+        }
+    }
+
+    /// Parses a name as [`LensModel::name`] writes it.
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == s)
+    }
+
+    /// The coefficient names in OpenCV's order for this model.
+    pub fn coefficient_names(self) -> &'static [&'static str] {
+        match self {
+            LensModel::Pinhole5 => &["k1", "k2", "p1", "p2", "k3"],
+            LensModel::Rational => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
+            LensModel::Fisheye => &["k1", "k2", "k3", "k4"],
+        }
+    }
+
+    /// ROS camera_info's name for this model.
+    pub fn ros_name(self) -> &'static str {
+        match self {
+            LensModel::Pinhole5 => "plumb_bob",
+            LensModel::Rational => "rational_polynomial",
+            LensModel::Fisheye => "equidistant",
+        }
+    }
+}
+
+impl std::fmt::Display for LensModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Lens distortion: the model and its coefficients in OpenCV's order for that model
+/// ([`LensModel::coefficient_names`]); unused trailing entries are zero.
+///
+/// All models map an ideal normalised image point (x/z, y/z) of a point in front of the
+/// camera to a distorted normalised point, which the intrinsics take to pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Distortion {
-    /// Radial coefficient of r².
-    pub k1: f64,
-    /// Radial coefficient of r⁴.
-    pub k2: f64,
-    /// First tangential coefficient.
-    pub p1: f64,
-    /// Second tangential coefficient.
-    pub p2: f64,
-    /// Radial coefficient of r⁶.
-    pub k3: f64,
+    /// Which model the coefficients belong to.
+    pub model: LensModel,
+    coeffs: [f64; 8],
+}
+
+impl Default for Distortion {
+    /// No distortion, OpenCV's default model.
+    fn default() -> Self {
+        Self::zero(LensModel::Pinhole5)
+    }
 }
 
 impl Distortion {
-    /// The coefficients as OpenCV orders them: k1 k2 p1 p2 k3.
-    pub fn to_opencv(&self) -> [f64; 5] {
-        [self.k1, self.k2, self.p1, self.p2, self.k3]
+    /// A model with every coefficient zero (the ideal lens of that model).
+    pub fn zero(model: LensModel) -> Self {
+        Self {
+            model,
+            coeffs: [0.0; 8],
+        }
     }
 
-    /// Builds from OpenCV's order k1 k2 p1 p2 k3.
-    pub fn from_opencv(c: [f64; 5]) -> Self {
-        Self {
-            k1: c[0],
-            k2: c[1],
-            p1: c[2],
-            p2: c[3],
-            k3: c[4],
+    /// Builds from coefficients in OpenCV's order for `model`; extra values must be zero
+    /// (OpenCV returns 14 for the rational model with the thin-prism and tilt terms unused).
+    pub fn new(model: LensModel, coeffs: &[f64]) -> Self {
+        let mut c = [0.0; 8];
+        let n = model.coefficient_names().len();
+        for (dst, src) in c.iter_mut().zip(coeffs.iter().take(n)) {
+            *dst = *src;
         }
+        Self { model, coeffs: c }
+    }
+
+    /// OpenCV's five-coefficient model from k1 k2 p1 p2 k3.
+    pub fn pinhole5(k1: f64, k2: f64, p1: f64, p2: f64, k3: f64) -> Self {
+        Self::new(LensModel::Pinhole5, &[k1, k2, p1, p2, k3])
+    }
+
+    /// The coefficients in OpenCV's order for the model (5, 8 or 4 values).
+    pub fn to_opencv(&self) -> Vec<f64> {
+        self.coefficients().to_vec()
+    }
+
+    /// The coefficients in OpenCV's order for the model.
+    pub fn coefficients(&self) -> &[f64] {
+        &self.coeffs[..self.model.coefficient_names().len()]
+    }
+
+    /// Mutable access to the coefficients (for perturbing one in a numerical derivative).
+    pub fn coefficients_mut(&mut self) -> &mut [f64] {
+        let n = self.model.coefficient_names().len();
+        &mut self.coeffs[..n]
+    }
+
+    /// One coefficient by name (`"k1"`, `"p2"`, ...); `None` if the model has no such term.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        let i = self
+            .model
+            .coefficient_names()
+            .iter()
+            .position(|n| *n == name)?;
+        Some(self.coeffs[i])
     }
 
     /// Distorts an ideal normalised image point (x/z, y/z).
     pub fn distort(&self, u: Vector2<f64>) -> Vector2<f64> {
+        let c = &self.coeffs;
         let (x, y) = (u.x, u.y);
         let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-        Vector2::new(
-            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
-            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
-        )
+        match self.model {
+            LensModel::Fisheye => {
+                let r = r2.sqrt();
+                if r < 1e-15 {
+                    return u;
+                }
+                let th = r.atan();
+                let t2 = th * th;
+                let thd = th * (1.0 + t2 * (c[0] + t2 * (c[1] + t2 * (c[2] + t2 * c[3]))));
+                u * (thd / r)
+            }
+            LensModel::Pinhole5 | LensModel::Rational => {
+                let (k1, k2, p1, p2, k3) = (c[0], c[1], c[2], c[3], c[4]);
+                let mut radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+                if self.model == LensModel::Rational {
+                    radial /= 1.0 + r2 * (c[5] + r2 * (c[6] + r2 * c[7]));
+                }
+                Vector2::new(
+                    x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+                    y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+                )
+            }
+        }
     }
 
-    /// Inverts [`Distortion::distort`] by fixed-point iteration (as OpenCV's
-    /// undistortPoints does), refined with Newton steps for sub-1e-12 accuracy.
+    /// Inverts [`Distortion::distort`]: the fisheye model by Newton's method on the angle
+    /// from the axis; the others by fixed-point iteration (as OpenCV's undistortPoints)
+    /// refined with Newton steps for sub-1e-12 accuracy.
     pub fn undistort(&self, d: Vector2<f64>) -> Vector2<f64> {
+        if self.model == LensModel::Fisheye {
+            return self.undistort_fisheye(d);
+        }
+        let c = &self.coeffs;
         let mut u = d;
         for _ in 0..20 {
             let (x, y) = (u.x, u.y);
             let r2 = x * x + y * y;
-            let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
-            let dx = 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
-            let dy = self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
+            let mut radial = 1.0 + r2 * (c[0] + r2 * (c[1] + r2 * c[4]));
+            if self.model == LensModel::Rational {
+                radial /= 1.0 + r2 * (c[5] + r2 * (c[6] + r2 * c[7]));
+            }
+            if !(radial.is_finite() && radial > 1e-6) {
+                break;
+            }
+            let dx = 2.0 * c[2] * x * y + c[3] * (r2 + 2.0 * x * x);
+            let dy = c[2] * (r2 + 2.0 * y * y) + 2.0 * c[3] * x * y;
             u = Vector2::new((d.x - dx) / radial, (d.y - dy) / radial);
         }
-        for _ in 0..3 {
+        for _ in 0..8 {
             let e = self.distort(u) - d;
             if e.norm() < 1e-15 {
                 break;
             }
-            let h = 1e-7;
+            let h = 1e-7 * (1.0 + u.norm());
             let jx = (self.distort(u + Vector2::new(h, 0.0)) - self.distort(u)) / h;
             let jy = (self.distort(u + Vector2::new(0.0, h)) - self.distort(u)) / h;
             let j = nalgebra::Matrix2::from_columns(&[jx, jy]);
@@ -95,6 +221,85 @@ impl Distortion {
             }
         }
         u
+    }
+
+    fn undistort_fisheye(&self, d: Vector2<f64>) -> Vector2<f64> {
+        let c = &self.coeffs;
+        let thd = d.norm();
+        if thd < 1e-15 {
+            return d;
+        }
+        // θd = θ(1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸), solved for θ in [0, π/2).
+        let mut th = thd.min(1.5);
+        for _ in 0..30 {
+            let t2 = th * th;
+            let f = th * (1.0 + t2 * (c[0] + t2 * (c[1] + t2 * (c[2] + t2 * c[3])))) - thd;
+            let df =
+                1.0 + t2 * (3.0 * c[0] + t2 * (5.0 * c[1] + t2 * (7.0 * c[2] + t2 * 9.0 * c[3])));
+            if df.abs() < 1e-12 {
+                break;
+            }
+            let step = f / df;
+            th = (th - step).clamp(0.0, 1.5707);
+            if step.abs() < 1e-15 {
+                break;
+            }
+        }
+        d * (th.tan() / thd)
+    }
+}
+
+/// camera.json's distortion: `{"model": "rational", "k1": .., "k2": .., ...}`; files written
+/// before lens models existed have no `model` and are OpenCV's five-coefficient model.
+#[derive(Serialize, Deserialize)]
+struct DistortionJson {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    model: Option<LensModel>,
+    #[serde(flatten)]
+    coeffs: std::collections::BTreeMap<String, f64>,
+}
+
+impl Serialize for Distortion {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        DistortionJson {
+            model: Some(self.model),
+            coeffs: self
+                .model
+                .coefficient_names()
+                .iter()
+                .zip(self.coefficients())
+                .map(|(n, v)| (n.to_string(), *v))
+                .collect(),
+        }
+        .serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for Distortion {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let j = DistortionJson::deserialize(d)?;
+        let model = j.model.unwrap_or(LensModel::Pinhole5);
+        let names = model.coefficient_names();
+        if let Some(extra) = j.coeffs.keys().find(|k| !names.contains(&k.as_str())) {
+            return Err(D::Error::custom(format!(
+                "distortion has a coefficient {extra:?} that the {model} model does not have (it has {})",
+                names.join(" ")
+            )));
+        }
+        let mut c = Vec::with_capacity(names.len());
+        for n in names {
+            match j.coeffs.get(*n) {
+                Some(v) => c.push(*v),
+                None => {
+                    return Err(D::Error::custom(format!(
+                        "distortion of the {model} model lacks {n} (it needs {})",
+                        names.join(" ")
+                    )))
+                }
+            }
+        }
+        Ok(Distortion::new(model, &c))
     }
 }
 
@@ -126,7 +331,14 @@ impl CameraModel {
     /// A distortion-free camera of the given size and horizontal field of view,
     /// principal point at the image centre.
     pub fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> Self {
-        let f = (width as f64 / 2.0) / (hfov_deg.to_radians() / 2.0).tan();
+        Self::with_lens(width, height, hfov_deg, Distortion::default())
+    }
+
+    /// A camera with the given lens whose focal length makes the image's left and right
+    /// edges (through the principal point at the image centre) `hfov_deg` apart.
+    pub fn with_lens(width: u32, height: u32, hfov_deg: f64, distortion: Distortion) -> Self {
+        let edge = distortion.distort(Vector2::new((hfov_deg.to_radians() / 2.0).tan(), 0.0));
+        let f = (width as f64 / 2.0) / edge.x;
         Self {
             width,
             height,
@@ -136,13 +348,46 @@ impl CameraModel {
                 cx: (width as f64 - 1.0) / 2.0,
                 cy: (height as f64 - 1.0) / 2.0,
             },
-            distortion: Distortion::default(),
+            distortion,
         }
+    }
+
+    /// The intrinsic parameters as one vector: fx fy cx cy and the distortion coefficients
+    /// in OpenCV's order (the order of camera.json's covariance).
+    pub fn parameters(&self) -> Vec<f64> {
+        let k = &self.intrinsics;
+        let mut p = vec![k.fx, k.fy, k.cx, k.cy];
+        p.extend_from_slice(self.distortion.coefficients());
+        p
+    }
+
+    /// The names of [`CameraModel::parameters`], in order.
+    pub fn parameter_names(&self) -> Vec<&'static str> {
+        let mut n = vec!["fx", "fy", "cx", "cy"];
+        n.extend_from_slice(self.distortion.model.coefficient_names());
+        n
+    }
+
+    /// The same camera with the parameters of [`CameraModel::parameters`] replaced.
+    pub fn with_parameters(&self, p: &[f64]) -> Self {
+        let mut c = *self;
+        if p.len() >= 4 {
+            c.intrinsics = Intrinsics {
+                fx: p[0],
+                fy: p[1],
+                cx: p[2],
+                cy: p[3],
+            };
+            for (dst, src) in c.distortion.coefficients_mut().iter_mut().zip(&p[4..]) {
+                *dst = *src;
+            }
+        }
+        c
     }
 
     /// Projects a point in the camera frame to a pixel; `None` behind the camera.
     pub fn project(&self, p_cam: &Point3<f64>) -> Option<Point2<f64>> {
-        if p_cam.z <= 1e-9 {
+        if p_cam.z <= 1e-9 || !p_cam.z.is_finite() {
             return None;
         }
         let d = self
@@ -220,13 +465,7 @@ mod tests {
 
     fn camera() -> CameraModel {
         let mut c = CameraModel::from_hfov(1280, 720, 70.0);
-        c.distortion = Distortion {
-            k1: -0.12,
-            k2: 0.05,
-            p1: 4e-4,
-            p2: -3e-4,
-            k3: -0.01,
-        };
+        c.distortion = Distortion::pinhole5(-0.12, 0.05, 4e-4, -3e-4, -0.01);
         c
     }
 

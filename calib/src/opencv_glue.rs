@@ -73,3 +73,72 @@ pub fn flat(m: &Mat) -> Result<Vector3<f64>, CalibError> {
     }
     Ok(Vector3::new(data[0], data[1], data[2]))
 }
+
+/// Locates a planar or 3-D target in the camera frame from its image: maps target-frame
+/// points into the camera frame. OpenCV's solvePnP (with `method`, e.g. `SOLVEPNP_ITERATIVE`)
+/// starts from the ideal normalised coordinates that odocal's camera model gives every lens
+/// model (OpenCV's own undistortion iterates too few times for wide lenses and knows no
+/// fisheye), and the pose is then refined by Levenberg–Marquardt on the pixel residuals.
+pub fn solve_pnp(
+    camera: &CameraModel,
+    object: &[Point3<f64>],
+    image: &[Point2<f64>],
+    method: i32,
+) -> Result<Option<Isometry3<f64>>, CalibError> {
+    let object_cv = points3d(object);
+    let ideal: Vector<core::Point2d> = image
+        .iter()
+        .map(|p| {
+            let u = camera.unproject(p);
+            core::Point2d::new(u.x, u.y)
+        })
+        .collect();
+    let eye = Mat::from_slice_2d(&[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])?;
+    let mut rvec = Mat::default();
+    let mut tvec = Mat::default();
+    let ok = opencv::calib3d::solve_pnp(
+        &object_cv,
+        &ideal,
+        &eye,
+        &core::no_array(),
+        &mut rvec,
+        &mut tvec,
+        false,
+        method,
+    )?;
+    if !ok {
+        return Ok(None);
+    }
+    let start = isometry_from_rt(&rvec, &tvec)?;
+    let moved = |p: &[f64]| {
+        let rot = UnitQuaternion::from_scaled_axis(Vector3::new(p[0], p[1], p[2]));
+        Isometry3::from_parts(
+            Translation3::from(start.translation.vector + Vector3::new(p[3], p[4], p[5])),
+            rot * start.rotation,
+        )
+    };
+    let residuals = |p: &[f64]| -> Vec<f64> {
+        let pose = moved(p);
+        object
+            .iter()
+            .zip(image)
+            .flat_map(|(o, x)| match camera.project(&(pose * o)) {
+                Some(q) => [q.x - x.x, q.y - x.y],
+                None => [f64::NAN, f64::NAN],
+            })
+            .collect()
+    };
+    if residuals(&[0.0; 6]).iter().any(|v| !v.is_finite()) {
+        return Ok(Some(start));
+    }
+    let (p, _) = odocal_core::lsq::minimize(&residuals, vec![0.0; 6], 50);
+    Ok(Some(moved(&p)))
+}
+
+/// Object points as OpenCV's double points.
+pub fn points3d(points: &[Point3<f64>]) -> Vector<core::Point3d> {
+    points
+        .iter()
+        .map(|p| core::Point3d::new(p.x, p.y, p.z))
+        .collect()
+}

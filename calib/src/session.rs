@@ -8,8 +8,8 @@ use rayon::prelude::*;
 
 use crate::detect::guess_board_size;
 use crate::{
-    calibrate, detect_file, fit_floor, BoardSpec, BoardView, CalibError, CameraFile, Detection,
-    SkippedView, CAMERA_FORMAT,
+    calibrate, compare_models, detect_file, fit_floor, BoardSpec, BoardView, CalibError,
+    CameraFile, Detection, LensModel, SkippedView, UncertaintyMap, CAMERA_FORMAT,
 };
 
 impl BoardSpec {
@@ -51,12 +51,37 @@ pub struct Session {
     pub notes: Vec<String>,
 }
 
+/// Which lens model to calibrate: one named, or the best by held-out error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelChoice {
+    /// Fit every model and keep the one that predicts held-out views best ([`compare_models`]).
+    Auto,
+    /// This model.
+    Fixed(LensModel),
+}
+
+impl ModelChoice {
+    /// Parses `--model pinhole5|rational|fisheye|auto`.
+    pub fn parse(s: &str) -> Result<Self, CalibError> {
+        if s == "auto" {
+            return Ok(ModelChoice::Auto);
+        }
+        LensModel::parse(s).map(ModelChoice::Fixed).ok_or_else(|| {
+            CalibError::Input(format!(
+                "--model {s:?} is not a lens model: use pinhole5 (OpenCV's default k1 k2 p1 p2 k3), rational (wide lenses to ~120°), fisheye (Kannala–Brandt, to ~180°) or auto (pick by held-out error)"
+            ))
+        })
+    }
+}
+
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
-/// `on_image` is called after each image's detection (for a progress bar).
+/// `on_image` is called after each image's detection and after each model's cross-validation
+/// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise).
 pub fn calibrate_session(
     images: &[PathBuf],
     floor: &[PathBuf],
     board: &BoardSpec,
+    choice: ModelChoice,
     on_image: &(dyn Fn() + Sync),
 ) -> Result<Session, CalibError> {
     if images.is_empty() {
@@ -95,7 +120,33 @@ pub fn calibrate_session(
     if views.is_empty() {
         return Err(no_board_error(images, board, "calibration"));
     }
-    let cal = calibrate(&views, board)?;
+    let (model, model_comparison, held_out) = match choice {
+        ModelChoice::Auto => {
+            let scores = compare_models(&views, board, &|_| on_image())?;
+            let chosen = scores
+                .iter()
+                .find(|s| s.chosen)
+                .ok_or_else(|| CalibError::Input("no lens model fits these views".into()))?;
+            let held = chosen.view_held_out_rms_px.clone();
+            (chosen.model, scores, held)
+        }
+        ModelChoice::Fixed(m) => {
+            // The held-out error is a judgement, not a requirement: with too few views for
+            // folds the calibration stands without it.
+            let held = if views.len() >= 4 {
+                crate::select::held_out_errors(&views, board, m).unwrap_or_default()
+            } else {
+                vec![]
+            };
+            on_image();
+            (m, vec![], held)
+        }
+    };
+    let mut cal = calibrate(&views, board, model)?;
+    for (v, h) in cal.views.iter_mut().zip(&held_out) {
+        v.held_out_rms_px = Some(*h);
+    }
+    notes.extend(crate::coverage::coverage_notes(&cal.camera, &views));
     let floor = if floor.is_empty() {
         None
     } else {
@@ -124,6 +175,13 @@ pub fn calibrate_session(
         skipped,
         board: Some(*board),
         floor,
+        covariance: Some(
+            cal.covariance
+                .row_iter()
+                .map(|r| r.iter().copied().collect())
+                .collect(),
+        ),
+        model_comparison,
     };
     Ok(Session { file, notes })
 }
@@ -257,28 +315,77 @@ fn no_board_error(paths: &[PathBuf], board: &BoardSpec, what: &str) -> CalibErro
 pub fn summary(f: &CameraFile) -> Vec<String> {
     let mut out = Vec::new();
     let k = f.camera.intrinsics;
-    let d = f.camera.distortion.to_opencv();
+    let model = f.camera.distortion.model;
     out.push(format!(
-        "calibration of a {}x{} camera from {} views ({} skipped); RMS reprojection error {:.3} px",
+        "calibration of a {}x{} camera ({model} lens model) from {} views ({} skipped); RMS reprojection error {:.3} px",
         f.camera.width,
         f.camera.height,
         f.views.len(),
         f.skipped.len(),
         f.rms_px
     ));
-    let sd = f.std;
+    if !f.model_comparison.is_empty() {
+        out.push(
+            "  lens models judged on views left out of their calibration (5-fold, RMS px):"
+                .to_string(),
+        );
+        for s in &f.model_comparison {
+            let held = match (s.held_out_rms_px, &s.failure) {
+                (Some(e), _) => format!("held out {e:.3} px"),
+                (None, Some(why)) => format!("failed: {why}"),
+                (None, None) => "not judged".into(),
+            };
+            let fit = s
+                .fit_rms_px
+                .map(|e| format!("fit {e:.3} px, "))
+                .unwrap_or_default();
+            out.push(format!(
+                "    {:9} {:2} parameters: {fit}{held}{}",
+                s.model.name(),
+                s.parameters,
+                if s.chosen { "  <- chosen" } else { "" }
+            ));
+        }
+        out.push(format!(
+            "    (the first of pinhole5, fisheye, rational within {:.0} % of the best held-out error is chosen)",
+            crate::select::SIMPLER_WITHIN * 100.0
+        ));
+    }
+    let sd = f.std.clone();
     let s = |v: Option<f64>| v.map(|x| format!("± {x:.3}")).unwrap_or_default();
-    out.push(format!("  fx = {:10.3} px {}", k.fx, s(sd.map(|x| x.fx))));
-    out.push(format!("  fy = {:10.3} px {}", k.fy, s(sd.map(|x| x.fy))));
-    out.push(format!("  cx = {:10.3} px {}", k.cx, s(sd.map(|x| x.cx))));
-    out.push(format!("  cy = {:10.3} px {}", k.cy, s(sd.map(|x| x.cy))));
-    for (i, name) in ["k1", "k2", "p1", "p2", "k3"].iter().enumerate() {
+    out.push(format!(
+        "  fx = {:10.3} px {}",
+        k.fx,
+        s(sd.as_ref().map(|x| x.fx))
+    ));
+    out.push(format!(
+        "  fy = {:10.3} px {}",
+        k.fy,
+        s(sd.as_ref().map(|x| x.fy))
+    ));
+    out.push(format!(
+        "  cx = {:10.3} px {}",
+        k.cx,
+        s(sd.as_ref().map(|x| x.cx))
+    ));
+    out.push(format!(
+        "  cy = {:10.3} px {}",
+        k.cy,
+        s(sd.as_ref().map(|x| x.cy))
+    ));
+    let d = f.camera.distortion.coefficients();
+    for (i, name) in model.coefficient_names().iter().enumerate() {
         let e = sd
-            .map(|x| format!("± {:.5}", x.distortion[i]))
+            .as_ref()
+            .and_then(|x| x.distortion.get(i))
+            .map(|x| format!("± {x:.5}"))
             .unwrap_or_default();
         out.push(format!("  {name} = {:10.5}    {e}", d[i]));
     }
-    out.push("  (± is one standard deviation from OpenCV's covariance at the optimum)".to_string());
+    out.push(
+        "  (± is one standard deviation from the covariance at the optimum, board poses marginalised out)"
+            .to_string(),
+    );
     let mut worst = f.views.clone();
     worst.sort_by(|a, b| b.rms_px.total_cmp(&a.rms_px));
     let list: Vec<String> = worst
@@ -290,6 +397,41 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
         "  worst views (RMS reprojection): {}",
         list.join(", ")
     ));
+    let held: Vec<f64> = f.views.iter().filter_map(|v| v.held_out_rms_px).collect();
+    if !held.is_empty() {
+        let rms = (held.iter().map(|e| e * e).sum::<f64>() / held.len() as f64).sqrt();
+        let mut worst = f.views.clone();
+        worst.sort_by(|a, b| {
+            b.held_out_rms_px
+                .unwrap_or(0.0)
+                .total_cmp(&a.held_out_rms_px.unwrap_or(0.0))
+        });
+        let list: Vec<String> = worst
+            .iter()
+            .take(3)
+            .filter_map(|v| Some(format!("{} {:.3} px", short(&v.image), v.held_out_rms_px?)))
+            .collect();
+        out.push(format!(
+            "  held-out views (each left out of the calibration): RMS {rms:.3} px; worst {}",
+            list.join(", ")
+        ));
+    }
+    if let Some(cov) = f.covariance_matrix() {
+        let map = UncertaintyMap::new(&f.camera, &cov, (f.camera.width / 32).max(8));
+        let mut v: Vec<f64> = map
+            .sigma_px
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .collect();
+        v.sort_by(f64::total_cmp);
+        if let Some(median) = v.get(v.len() / 2) {
+            out.push(format!(
+                "  projection uncertainty (1σ, worst direction, from the covariance): median {median:.3} px, largest {:.3} px over the image",
+                map.max_px()
+            ));
+        }
+    }
     if let Some(fl) = &f.floor {
         out.push(format!(
             "floor plane from {} view(s): corners within {:.2} mm RMS of the plane; camera {:.4} m above the floor",

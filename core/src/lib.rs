@@ -8,6 +8,7 @@
 
 mod file_error;
 mod fit;
+pub mod lsq;
 mod pose;
 mod ray;
 pub mod staging;

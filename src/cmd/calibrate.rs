@@ -1,11 +1,11 @@
-//! `odocal calibrate`: Zhang calibration from checkerboard images, plus the
-//! floor plane from boards lying on the floor.
+//! `odocal calibrate`: Zhang calibration from checkerboard images with a chosen or
+//! automatically selected lens model, plus the floor plane from boards lying on the floor.
 
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use odocal_calib::export::{opencv_yaml, ros_yaml};
-use odocal_calib::{calibrate_session, summary, BoardSpec};
+use odocal_calib::{calibrate_session, summary, BoardSpec, ModelChoice};
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
 
@@ -23,6 +23,11 @@ pub struct Args {
     /// Images of the board lying flat on the floor; the first fixes the floor frame.
     #[arg(long, num_args = 1..)]
     floor: Vec<PathBuf>,
+    /// Lens model: pinhole5 (OpenCV's k1 k2 p1 p2 k3), rational (wide lenses to ~120°),
+    /// fisheye (Kannala–Brandt, to ~180°), or auto: fit each and keep the one that best
+    /// predicts views left out of its calibration (the comparison is printed).
+    #[arg(long, default_value = "auto")]
+    model: String,
     /// Where to write camera.json.
     #[arg(long)]
     out: PathBuf,
@@ -37,6 +42,7 @@ pub struct Args {
 /// Runs `odocal calibrate`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let board = BoardSpec::parse(&a.board, a.square)?;
+    let choice = ModelChoice::parse(&a.model)?;
     check_output_file(&a.out, "--out")?;
     for (p, opt) in [
         (&a.yaml_opencv, "--yaml-opencv"),
@@ -46,8 +52,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             check_output_file(p, opt)?;
         }
     }
-    let bar = progress((a.images.len() + a.floor.len()) as u64, "detecting");
-    let session = calibrate_session(&a.images, &a.floor, &board, &|| bar.inc(1));
+    let model_steps = if choice == ModelChoice::Auto { 3 } else { 1 };
+    let bar = progress(
+        (a.images.len() + a.floor.len() + model_steps) as u64,
+        "calibrating",
+    );
+    let session = calibrate_session(&a.images, &a.floor, &board, choice, &|| bar.inc(1));
     bar.finish_and_clear();
     let session = session?;
     for note in &session.notes {

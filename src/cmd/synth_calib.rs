@@ -3,8 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
-use odocal_calib::{BoardSpec, CameraFile};
-use odocal_synth::board::{calibration_errors, CalibScene, CalibTruth};
+use odocal_calib::{BoardSpec, CameraFile, LensModel};
+use odocal_synth::board::{
+    calibration_errors, lens_preset, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
+};
 use odocal_synth::calib_set::{self, check_scene};
 
 use crate::output::{progress, staged_dir};
@@ -30,9 +32,13 @@ pub struct Args {
     /// Image height, pixels.
     #[arg(long, default_value_t = 720)]
     height: u32,
-    /// Horizontal field of view, degrees.
+    /// Horizontal field of view, degrees (edge to edge through the image centre).
     #[arg(long, default_value_t = 70.0)]
     hfov: f64,
+    /// The true lens: pinhole5 (a 70° lens, OpenCV's five coefficients), rational (a strong
+    /// barrel lens, ~110°) or fisheye (Kannala–Brandt, ~150°).
+    #[arg(long, default_value = "pinhole5")]
+    lens: String,
     /// Sensor noise σ, grey levels.
     #[arg(long, default_value_t = 2.0)]
     noise: f32,
@@ -42,9 +48,10 @@ pub struct Args {
     /// Board inner corners, COLSxROWS.
     #[arg(long, default_value = "9x6")]
     board: String,
-    /// Board square size, metres.
-    #[arg(long, default_value_t = 0.05)]
-    square: f64,
+    /// Board square size, metres [default: 0.05 for the pinhole5 lens, 0.08 for the wide
+    /// lenses, whose floor views at 2.2 m would otherwise show squares too small to detect].
+    #[arg(long)]
+    square: Option<f64>,
 }
 
 /// Renders a calibration session into `out` (staged: it appears when the command succeeds).
@@ -59,11 +66,25 @@ pub fn write_calib_set(out: &Path, scene: &CalibScene, seed: u64) -> anyhow::Res
 
 /// Runs `odocal synth calib`.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let lens = LensModel::parse(&a.lens).ok_or_else(|| {
+        anyhow::anyhow!(
+            "--lens {:?} is not a lens model: use pinhole5, rational or fisheye",
+            a.lens
+        )
+    })?;
     let scene = CalibScene {
+        distortion: lens_preset(lens),
         width: a.width,
         height: a.height,
         hfov_deg: a.hfov,
-        board: BoardSpec::parse(&a.board, a.square)?,
+        board: BoardSpec::parse(
+            &a.board,
+            a.square.unwrap_or(if lens == LensModel::Pinhole5 {
+                0.05
+            } else {
+                0.08
+            }),
+        )?,
         views: a.views,
         floor_views: a.floor_views,
         noise_sigma: a.noise,
@@ -84,8 +105,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.out.display()
     );
     println!(
-        "true camera: fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
-        k.fx, k.fy, k.cx, k.cy
+        "true camera: {} lens, {:.0}° across, fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
+        lens, a.hfov, k.fx, k.fy, k.cx, k.cy
     );
     Ok(())
 }
@@ -118,13 +139,23 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
         e.cx_px,
         e.cy_px
     );
-    match (e.floor_max_m, e.floor_rms_m) {
-        (Some(max), Some(rms)) => println!(
-            "floor mapping error over the central 2.5 m x 1.5 m: {:.2} mm RMS, {:.2} mm max (bound 2 mm)",
+    match (e.floor_max_m, e.floor_rms_m, e.floor_reach_m) {
+        (Some(max), Some(rms), Some(reach)) => println!(
+            "floor mapping error over all the floor the image sees (out to {reach:.2} m from the point under the camera): {:.2} mm RMS, {:.2} mm max (bound 2 mm)",
             rms * 1e3,
             max * 1e3
         ),
         _ => println!("no floor plane in {}", a.camera.display()),
+    }
+    let mut lo = 0.0;
+    for (r, max) in FLOOR_RINGS_DEG.iter().zip(&e.floor_max_by_ring_m) {
+        if let Some(m) = max {
+            println!(
+                "  floor seen {lo:.0}-{r:.0}° off the nadir: largest mapping error {:.2} mm",
+                m * 1e3
+            );
+        }
+        lo = *r;
     }
     Ok(())
 }

@@ -47,7 +47,8 @@ fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), CalibSe
 }
 
 /// Checks that a scene can be rendered: an image of at least 64x48 and at most
-/// [`MAX_PIXELS`], a horizontal field of view of 10–170°.
+/// [`MAX_PIXELS`], a horizontal field of view the lens model can render
+/// ([`crate::board::max_hfov_deg`]).
 pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
     let pixels = u64::from(scene.width) * u64::from(scene.height);
     if scene.width < 64 || scene.height < 48 || pixels > MAX_PIXELS {
@@ -58,10 +59,17 @@ pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
             MAX_PIXELS / 1_000_000
         )));
     }
-    if !(10.0..170.0).contains(&scene.hfov_deg) {
+    let model = scene.distortion.model;
+    let max = crate::board::max_hfov_deg(model);
+    if !(scene.hfov_deg >= 10.0 && scene.hfov_deg <= max) {
         return Err(CalibSetError::Settings(format!(
-            "--hfov {}: need 10-170 degrees",
-            scene.hfov_deg
+            "--hfov {}: the {model} lens is rendered at 10-{max:.0} degrees{}",
+            scene.hfov_deg,
+            if model == odocal_calib::LensModel::Fisheye {
+                ""
+            } else {
+                "; wider needs --lens fisheye"
+            }
         )));
     }
     Ok(())

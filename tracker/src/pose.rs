@@ -6,12 +6,10 @@
 //! rigid fit. OpenCV's 6-DoF solvePnP (IPPE_SQUARE) is computed only as a
 //! cross-check of the planar assumption.
 
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
+use nalgebra::{Matrix3, Point2, Point3};
 use odocal_calib::{CameraModel, FloorToCamera};
 use odocal_core::{fit_rigid, wrap_angle, Pose2};
 use opencv::calib3d;
-use opencv::core::{Mat, Point2d, Point3d, Vector};
-use opencv::prelude::*;
 
 use crate::TrackError;
 
@@ -88,45 +86,20 @@ pub fn pnp_cross_check(
 ) -> Result<PnpCheck, TrackError> {
     // IPPE_SQUARE wants (-s,+s), (+s,+s), (+s,-s), (-s,-s): detector corners 3, 2, 1, 0.
     let h = tag_size_m / 2.0;
-    let object = Vector::<Point3d>::from_slice(&[
-        Point3d::new(-h, h, 0.0),
-        Point3d::new(h, h, 0.0),
-        Point3d::new(h, -h, 0.0),
-        Point3d::new(-h, -h, 0.0),
-    ]);
-    let image = Vector::<Point2d>::from_iter(
-        [3, 2, 1, 0].map(|i| Point2d::new(corners_px[i].x, corners_px[i].y)),
-    );
-    let kmat = odocal_calib::camera_matrix(camera)?;
-    let dist = odocal_calib::dist_coeffs(camera)?;
-    let mut rvec = Mat::default();
-    let mut tvec = Mat::default();
-    let ok = calib3d::solve_pnp(
-        &object,
-        &image,
-        &kmat,
-        &dist,
-        &mut rvec,
-        &mut tvec,
-        false,
-        calib3d::SOLVEPNP_IPPE_SQUARE,
-    )?;
-    if !ok {
-        return Err(TrackError::Options("solvePnP failed".into()));
-    }
-    let r: [f64; 3] = [
-        *rvec.at::<f64>(0)?,
-        *rvec.at::<f64>(1)?,
-        *rvec.at::<f64>(2)?,
+    let object = [
+        Point3::new(-h, h, 0.0),
+        Point3::new(h, h, 0.0),
+        Point3::new(h, -h, 0.0),
+        Point3::new(-h, -h, 0.0),
     ];
-    let t: [f64; 3] = [
-        *tvec.at::<f64>(0)?,
-        *tvec.at::<f64>(1)?,
-        *tvec.at::<f64>(2)?,
-    ];
-    let r_tc = Rotation3::new(Vector3::new(r[0], r[1], r[2]));
+    let image = [3, 2, 1, 0].map(|i| corners_px[i]);
+    let tag_to_camera =
+        odocal_calib::solve_pnp(camera, &object, &image, calib3d::SOLVEPNP_IPPE_SQUARE)?
+            .ok_or_else(|| TrackError::Options("solvePnP failed".into()))?;
+    let t = tag_to_camera.translation.vector;
+    let r_tc = tag_to_camera.rotation.to_rotation_matrix();
     let cam_to_floor = floor.0.inverse();
-    let centre = cam_to_floor * Point3::new(t[0], t[1], t[2]);
+    let centre = cam_to_floor * Point3::from(t);
     let r_tf: Matrix3<f64> = cam_to_floor.rotation.to_rotation_matrix().matrix() * r_tc.matrix();
     let x_axis = r_tf.column(0);
     let normal = r_tf.column(2);
@@ -147,13 +120,7 @@ mod tests {
 
     fn setup() -> (CameraModel, FloorToCamera) {
         let mut cam = CameraModel::from_hfov(1280, 720, 70.0);
-        cam.distortion = Distortion {
-            k1: -0.1,
-            k2: 0.04,
-            p1: 3e-4,
-            p2: -2e-4,
-            k3: 0.0,
-        };
+        cam.distortion = Distortion::pinhole5(-0.1, 0.04, 3e-4, -2e-4, 0.0);
         let rot = UnitQuaternion::from_euler_angles(0.02, -0.015, 0.3)
             * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
         let c = Vector3::new(0.1, -0.2, 2.2);

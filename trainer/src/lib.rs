@@ -11,7 +11,6 @@ pub mod error;
 pub mod evaluate;
 mod fit_model;
 pub mod kernel_ridge;
-mod lsq;
 pub mod metrics;
 pub mod model;
 pub mod net;

@@ -261,7 +261,7 @@ pub fn fit_step_corrector(
             windows.residuals(&c, &mut r);
             r
         };
-        let (p, report) = crate::lsq::minimize(&f, vec![0.0; 3], 200);
+        let (p, report) = odocal_core::lsq::minimize(&f, vec![0.0; 3], 200);
         if !report.termination.was_successful() || p.iter().any(|v| !v.is_finite()) {
             return Err(TrainError::Numerical(format!(
                 "the kinematic fit on windows did not converge ({:?})",
@@ -298,7 +298,8 @@ pub fn fit_step_corrector(
             }
             res
         };
-        let (p, _) = crate::lsq::minimize(&f, start.net.to_params().iter().copied().collect(), 100);
+        let (p, _) =
+            odocal_core::lsq::minimize(&f, start.net.to_params().iter().copied().collect(), 100);
         if p.iter().any(|v| !v.is_finite()) {
             continue;
         }

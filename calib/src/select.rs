@@ -1,0 +1,150 @@
+//! Choosing the lens model by held-out reprojection error: each model is calibrated with a
+//! fold of the views left out, the left-out boards are located with that calibration
+//! (solvePnP, their pose fitted alone) and their corners' reprojection error measured. A
+//! model with too many parameters fits the calibration views but not the held-out ones; one
+//! with too few fits neither (mrcal's advice for choosing a model).
+
+use serde::{Deserialize, Serialize};
+
+use crate::calibrate::board_points;
+use crate::{calibrate, solve_pnp, BoardSpec, BoardView, CalibError, LensModel};
+
+/// Folds of the leave-views-out cross-validation (fewer when there are fewer views).
+pub const FOLDS: usize = 5;
+
+/// A model is chosen over a more complex one unless that one's held-out error is lower by
+/// more than this fraction.
+pub const SIMPLER_WITHIN: f64 = 0.05;
+
+/// The order in which models are preferred when they fit equally well: OpenCV's default,
+/// then the fisheye model (fewer coefficients than the rational one), then the rational.
+pub const PREFERENCE: [LensModel; 3] =
+    [LensModel::Pinhole5, LensModel::Fisheye, LensModel::Rational];
+
+/// One lens model's calibration judged on views it did not see.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelScore {
+    /// The lens model.
+    pub model: LensModel,
+    /// Number of intrinsic parameters (fx fy cx cy and the coefficients).
+    pub parameters: usize,
+    /// RMS reprojection error of the calibration on all views, pixels.
+    pub fit_rms_px: Option<f64>,
+    /// RMS reprojection error of the views when left out, pixels (`None` if the model
+    /// failed on some fold).
+    pub held_out_rms_px: Option<f64>,
+    /// The held-out RMS of each view, in input order, pixels.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub view_held_out_rms_px: Vec<f64>,
+    /// Why the model could not be judged, if it could not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+    /// Whether this model was chosen.
+    pub chosen: bool,
+}
+
+/// The held-out reprojection error of `model` on `views`: per view, pixels.
+pub fn held_out_errors(
+    views: &[BoardView],
+    board: &BoardSpec,
+    model: LensModel,
+) -> Result<Vec<f64>, CalibError> {
+    let folds = FOLDS.min(views.len());
+    if views.len() < 4 {
+        return Err(CalibError::Input(format!(
+            "judging a lens model on held-out views needs at least 4 views, there are {}",
+            views.len()
+        )));
+    }
+    let object = board_points(board);
+    let mut out = vec![f64::NAN; views.len()];
+    for fold in 0..folds {
+        let train: Vec<BoardView> = views
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i % folds != fold)
+            .map(|(_, v)| v.clone())
+            .collect();
+        let cal = calibrate(&train, board, model)?;
+        for (i, v) in views.iter().enumerate().filter(|(i, _)| i % folds == fold) {
+            let Some(pose) = solve_pnp(
+                &cal.camera,
+                &object,
+                &v.corners,
+                opencv::calib3d::SOLVEPNP_ITERATIVE,
+            )?
+            else {
+                return Err(CalibError::Input(format!(
+                    "{}: the board cannot be located with the {model} calibration of the other views",
+                    v.image
+                )));
+            };
+            let mut ss = 0.0;
+            for (p, x) in object.iter().zip(&v.corners) {
+                ss += match cal.camera.project(&(pose * p)) {
+                    Some(q) => (q - x).norm_squared(),
+                    None => f64::INFINITY,
+                };
+            }
+            out[i] = (ss / object.len().max(1) as f64).sqrt();
+        }
+    }
+    Ok(out)
+}
+
+/// Scores every model and marks the chosen one: the first in [`PREFERENCE`] whose held-out
+/// error is within [`SIMPLER_WITHIN`] of the best.
+pub fn compare_models(
+    views: &[BoardView],
+    board: &BoardSpec,
+    on_model: &(dyn Fn(LensModel) + Sync),
+) -> Result<Vec<ModelScore>, CalibError> {
+    let mut scores: Vec<ModelScore> = PREFERENCE
+        .iter()
+        .map(|&model| {
+            let n_params = 4 + model.coefficient_names().len();
+            let fit = calibrate(views, board, model);
+            let held = held_out_errors(views, board, model);
+            on_model(model);
+            let (held_out_rms_px, view_held_out_rms_px, failure) = match (&fit, held) {
+                (Ok(_), Ok(v)) if v.iter().all(|e| e.is_finite()) => {
+                    let rms = (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
+                    (Some(rms), v, None)
+                }
+                (Ok(_), Ok(_)) => (None, vec![], Some("a held-out view did not project".into())),
+                (Err(e), _) => (None, vec![], Some(e.to_string())),
+                (_, Err(e)) => (None, vec![], Some(e.to_string())),
+            };
+            ModelScore {
+                model,
+                parameters: n_params,
+                fit_rms_px: fit.ok().map(|c| c.rms_px),
+                held_out_rms_px,
+                view_held_out_rms_px,
+                failure,
+                chosen: false,
+            }
+        })
+        .collect();
+    let best = scores
+        .iter()
+        .filter_map(|s| s.held_out_rms_px)
+        .fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        let why: Vec<String> = scores
+            .iter()
+            .map(|s| format!("{}: {}", s.model, s.failure.clone().unwrap_or_default()))
+            .collect();
+        return Err(CalibError::Input(format!(
+            "no lens model could be calibrated from these views ({})",
+            why.join("; ")
+        )));
+    }
+    if let Some(s) = scores.iter_mut().find(|s| {
+        s.held_out_rms_px
+            .is_some_and(|e| e <= best * (1.0 + SIMPLER_WITHIN))
+    }) {
+        s.chosen = true;
+    }
+    Ok(scores)
+}
