@@ -115,7 +115,7 @@ pub fn pnp_cross_check(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
     use odocal_calib::Distortion;
 
     fn setup() -> (CameraModel, FloorToCamera) {

@@ -1,0 +1,304 @@
+//! odocal's lens models against OpenCV's own projection (projectPoints, and
+//! cv::fisheye::projectPoints for the fisheye model), and odocal's covariance against the
+//! standard deviations OpenCV's calibrateCamera reports: the renderer and the estimator share
+//! the camera model, so it is checked here against code odocal did not write.
+
+use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
+use odocal_calib::{
+    board_points, calibrate, BoardSpec, BoardToCamera, BoardView, CameraModel, Distortion,
+    LensModel,
+};
+use opencv::calib3d;
+use opencv::core::{self, Mat, Point3d, Vector};
+use opencv::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn lenses() -> Vec<(CameraModel, f64)> {
+    vec![
+        (
+            CameraModel::with_lens(
+                1280,
+                720,
+                70.0,
+                Distortion::pinhole5(-0.11, 0.045, 4e-4, -3e-4, -0.008),
+            ),
+            35.0,
+        ),
+        (
+            CameraModel::with_lens(
+                1280,
+                720,
+                110.0,
+                Distortion::new(
+                    LensModel::Rational,
+                    &[0.5, 0.1, 1.0e-3, -8e-4, 0.0, 0.85, 0.25, 0.01],
+                ),
+            ),
+            60.0,
+        ),
+        (
+            CameraModel::with_lens(
+                1280,
+                720,
+                150.0,
+                Distortion::new(LensModel::Fisheye, &[-0.013, 0.004, -0.0012, 0.0001]),
+            ),
+            85.0,
+        ),
+    ]
+}
+
+fn k_mat(c: &CameraModel) -> Mat {
+    let k = c.intrinsics;
+    Mat::from_slice_2d(&[[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]]).unwrap()
+}
+
+#[test]
+fn projection_matches_opencv_for_every_model() {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    for (cam, max_deg) in lenses() {
+        let pts: Vec<Point3<f64>> = (0..500)
+            .map(|_| {
+                let off: f64 = rng.gen_range(0.0..max_deg).to_radians();
+                let az: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+                let z: f64 = rng.gen_range(0.5..3.0);
+                let r = z * off.tan();
+                Point3::new(r * az.cos(), r * az.sin(), z)
+            })
+            .collect();
+        let obj: Vector<Point3d> = pts.iter().map(|p| Point3d::new(p.x, p.y, p.z)).collect();
+        let zero = Mat::from_slice(&[0.0f64, 0.0, 0.0])
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        let d = Mat::from_slice(&cam.distortion.to_opencv())
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        let mut img = Vector::<core::Point2d>::new();
+        if cam.distortion.model == LensModel::Fisheye {
+            calib3d::fisheye_project_points_vec(
+                &obj,
+                &mut img,
+                &zero,
+                &zero,
+                &k_mat(&cam),
+                &d,
+                0.0,
+                &mut core::no_array(),
+            )
+            .unwrap();
+        } else {
+            calib3d::project_points_def(&obj, &zero, &zero, &k_mat(&cam), &d, &mut img).unwrap();
+        }
+        let mut worst: f64 = 0.0;
+        for (p, q) in pts.iter().zip(img.iter()) {
+            let ours = cam.project(p).unwrap();
+            worst = worst.max((ours - Point2::new(q.x, q.y)).norm());
+            // And back: the ray through OpenCV's pixel is the point's direction.
+            let u = cam.unproject(&Point2::new(q.x, q.y));
+            let back = Vector3::new(u.x, u.y, 1.0).normalize();
+            assert!(
+                (back - p.coords.normalize()).norm() < 1e-6,
+                "{}: unproject",
+                cam.distortion.model
+            );
+        }
+        println!(
+            "{}: largest difference from OpenCV {worst:.2e} px",
+            cam.distortion.model
+        );
+        assert!(
+            worst < 1e-6,
+            "{}: {worst} px from OpenCV",
+            cam.distortion.model
+        );
+    }
+}
+
+#[test]
+fn distortion_files_round_trip_and_old_files_read_as_pinhole5() {
+    for (cam, _) in lenses() {
+        let text = serde_json::to_string(&cam).unwrap();
+        let back: CameraModel = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.distortion, cam.distortion);
+        assert!((back.intrinsics.fx - cam.intrinsics.fx).abs() < 1e-9);
+    }
+    let old = r#"{"k1":-0.1,"k2":0.04,"p1":0.0003,"p2":-0.0002,"k3":0.0}"#;
+    let d: Distortion = serde_json::from_str(old).unwrap();
+    assert_eq!(d, Distortion::pinhole5(-0.1, 0.04, 3e-4, -2e-4, 0.0));
+    let wrong = r#"{"model":"fisheye","k1":0.1,"k2":0.0,"k3":0.0,"k4":0.0,"p1":0.0}"#;
+    let e = serde_json::from_str::<Distortion>(wrong)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("p1") && e.contains("fisheye"), "{e}");
+    let short = r#"{"model":"rational","k1":0.1}"#;
+    let e = serde_json::from_str::<Distortion>(short)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("lacks k2"), "{e}");
+}
+
+/// Board views projected from known poses with Gaussian corner noise.
+fn noisy_views(cam: &CameraModel, board: &BoardSpec, n: usize, sigma_px: f64) -> Vec<BoardView> {
+    noisy_views_seeded(cam, board, n, sigma_px, 9)
+}
+
+/// As [`noisy_views`], with the poses and noise drawn from `seed`.
+fn noisy_views_seeded(
+    cam: &CameraModel,
+    board: &BoardSpec,
+    n: usize,
+    sigma_px: f64,
+    seed: u64,
+) -> Vec<BoardView> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let normal = rand_distr::Normal::new(0.0, sigma_px).unwrap();
+    let obj = board_points(board);
+    let mut views = Vec::new();
+    while views.len() < n {
+        let rot = UnitQuaternion::from_euler_angles(
+            rng.gen_range(-0.6..0.6),
+            rng.gen_range(-0.6..0.6),
+            rng.gen_range(-0.4..0.4),
+        );
+        let t = Vector3::new(
+            rng.gen_range(-0.35..0.1),
+            rng.gen_range(-0.25..0.05),
+            rng.gen_range(0.8..1.4),
+        );
+        let pose = BoardToCamera(Isometry3::from_parts(Translation3::from(t), rot));
+        let corners: Option<Vec<Point2<f64>>> = obj
+            .iter()
+            .map(|p| {
+                let q = cam.project(&(pose.0 * p))?;
+                let inside = q.x > 5.0
+                    && q.y > 5.0
+                    && q.x < cam.width as f64 - 5.0
+                    && q.y < cam.height as f64 - 5.0;
+                inside.then(|| Point2::new(q.x + rng.sample(normal), q.y + rng.sample(normal)))
+            })
+            .collect();
+        if let Some(corners) = corners {
+            views.push(BoardView {
+                image: format!("v{}", views.len()),
+                size: (cam.width, cam.height),
+                corners,
+            });
+        }
+    }
+    views
+}
+
+#[test]
+fn covariance_matches_opencv_standard_deviations() {
+    let (cam, _) = lenses().remove(0);
+    let board = BoardSpec {
+        cols: 9,
+        rows: 6,
+        square_m: 0.05,
+    };
+    let views = noisy_views(&cam, &board, 20, 0.1);
+    let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
+    // OpenCV's own standard deviations on the same corners.
+    let obj = board_points(&board);
+    let mut op = Vector::<Vector<core::Point3f>>::new();
+    let mut ip = Vector::<Vector<core::Point2f>>::new();
+    for v in &views {
+        op.push(
+            obj.iter()
+                .map(|p| core::Point3f::new(p.x as f32, p.y as f32, 0.0))
+                .collect(),
+        );
+        ip.push(
+            v.corners
+                .iter()
+                .map(|p| core::Point2f::new(p.x as f32, p.y as f32))
+                .collect(),
+        );
+    }
+    let (mut k, mut d) = (Mat::default(), Mat::default());
+    let (mut rv, mut tv) = (Vector::<Mat>::new(), Vector::<Mat>::new());
+    let (mut si, mut se, mut pv) = (Mat::default(), Mat::default(), Mat::default());
+    calib3d::calibrate_camera_extended_def(
+        &op,
+        &ip,
+        core::Size::new(1280, 720),
+        &mut k,
+        &mut d,
+        &mut rv,
+        &mut tv,
+        &mut si,
+        &mut se,
+        &mut pv,
+    )
+    .unwrap();
+    // OpenCV scales its covariance by the residual sum of squares over (points − parameters)
+    // where each point has two residuals (calibration.cpp: `total - nparams_nz`, total
+    // counting points), so its σ are √((2N − n)/(N − n)) too large; odocal divides by the
+    // number of residuals. With that factor the two agree.
+    let n_points = (views.len() * obj.len()) as f64;
+    let n_params = (9 + 6 * views.len()) as f64;
+    let factor = ((2.0 * n_points - n_params) / (n_points - n_params)).sqrt();
+    let ocv = si.data_typed::<f64>().unwrap().to_vec();
+    let ours = [cal.std.fx, cal.std.fy, cal.std.cx, cal.std.cy];
+    for (i, name) in ["fx", "fy", "cx", "cy"].iter().enumerate() {
+        let ratio = ours[i] * factor / ocv[i];
+        println!(
+            "σ {name}: odocal {:.4} px, OpenCV {:.4} px (ratio × {factor:.3}: {ratio:.3})",
+            ours[i], ocv[i]
+        );
+        assert!(
+            (ratio - 1.0).abs() < 0.05,
+            "σ {name}: {} vs OpenCV {}",
+            ours[i],
+            ocv[i]
+        );
+    }
+    for i in 0..5 {
+        let ratio = cal.std.distortion[i] * factor / ocv[4 + i];
+        assert!(
+            (ratio - 1.0).abs() < 0.05,
+            "σ of coefficient {i}: ratio {ratio}"
+        );
+    }
+}
+
+/// odocal's σ is the spread of the estimate over repeated noise draws (Monte Carlo), which
+/// OpenCV's (see above) overstates by about √2.
+#[test]
+fn covariance_matches_the_spread_over_noise_draws() {
+    let (cam, _) = lenses().remove(0);
+    let board = BoardSpec {
+        cols: 9,
+        rows: 6,
+        square_m: 0.05,
+    };
+    let mut fx = Vec::new();
+    let mut cx = Vec::new();
+    let mut sigma = (0.0, 0.0);
+    let draws = 40;
+    for seed in 0..draws {
+        let views = noisy_views_seeded(&cam, &board, 15, 0.2, seed);
+        let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
+        fx.push(cal.camera.intrinsics.fx);
+        cx.push(cal.camera.intrinsics.cx);
+        sigma.0 += cal.std.fx / draws as f64;
+        sigma.1 += cal.std.cx / draws as f64;
+    }
+    let sd = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+    };
+    let (sfx, scx) = (sd(&fx), sd(&cx));
+    println!(
+        "fx: spread {sfx:.4} px, mean σ {:.4} px; cx: spread {scx:.4} px, mean σ {:.4} px ({draws} draws)",
+        sigma.0, sigma.1
+    );
+    // 40 draws give the spread to about ±11 % (1σ).
+    for (spread, s) in [(sfx, sigma.0), (scx, sigma.1)] {
+        let r = s / spread;
+        assert!((0.7..1.4).contains(&r), "σ / spread = {r}");
+    }
+}
