@@ -54,6 +54,17 @@ fn main() {
         cal_t.push(t.elapsed().as_secs_f64());
     }
     let cal_s = median(cal_t);
+    // OpenCV's own calibrateCamera on the same corners, the baseline odocal's calibration
+    // (OpenCV's fit plus odocal's covariance and residuals) is judged against.
+    let opencv_s = median(
+        (0..3)
+            .map(|_| {
+                let t = Instant::now();
+                opencv_calibrate(&views, &scene.board);
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    );
     let floor_views: Vec<BoardView> = floor.iter().filter_map(detect).collect();
     let t = Instant::now();
     if let Some(c) = &cal {
@@ -83,6 +94,11 @@ fn main() {
         cal_s * 1e3
     );
     println!(
+        "  OpenCV calibrateCamera alone: {:8.1} ms total; odocal / OpenCV = {:.3} (target <= 1.10)",
+        opencv_s * 1e3,
+        cal_s / opencv_s
+    );
+    println!(
         "  floor plane, {} views:       {:8.1} ms",
         floor_views.len(),
         floor_s * 1e3
@@ -93,4 +109,41 @@ fn main() {
         hand.len()
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// OpenCV's calibrateCamera (five coefficients) on the views' corners, nothing else.
+fn opencv_calibrate(views: &[BoardView], board: &odocal_calib::BoardSpec) {
+    use opencv::core::{Mat, Point2f, Point3f, Size, Vector};
+    let obj: Vector<Point3f> = odocal_calib::board_points(board)
+        .iter()
+        .map(|p| Point3f::new(p.x as f32, p.y as f32, 0.0))
+        .collect();
+    let mut op = Vector::<Vector<Point3f>>::new();
+    let mut ip = Vector::<Vector<Point2f>>::new();
+    for v in views {
+        op.push(obj.clone());
+        ip.push(v.corners.iter().map(|p| Point2f::new(p.x as f32, p.y as f32)).collect());
+    }
+    let (mut k, mut d) = (Mat::default(), Mat::default());
+    let (mut r, mut t) = (Vector::<Mat>::new(), Vector::<Mat>::new());
+    let criteria = opencv::core::TermCriteria::new(
+        opencv::core::TermCriteria_Type::COUNT as i32
+            + opencv::core::TermCriteria_Type::EPS as i32,
+        100,
+        f64::EPSILON,
+    )
+    .expect("criteria");
+    let size = views.first().map_or((0, 0), |v| v.size);
+    opencv::calib3d::calibrate_camera(
+        &op,
+        &ip,
+        Size::new(size.0 as i32, size.1 as i32),
+        &mut k,
+        &mut d,
+        &mut r,
+        &mut t,
+        0,
+        criteria,
+    )
+    .expect("OpenCV calibration");
 }

@@ -427,7 +427,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
         v.sort_by(f64::total_cmp);
         if let Some(median) = v.get(v.len() / 2) {
             out.push(format!(
-                "  projection uncertainty (1σ, worst direction, from the covariance): median {median:.3} px, largest {:.3} px over the image",
+                "  projection uncertainty of a camera-frame direction (1σ, worst direction, from the covariance): median {median:.3} px, largest {:.3} px over the image (an upper bound on the floor, whose plane the same intrinsics fix)",
                 map.max_px()
             ));
         }
