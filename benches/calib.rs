@@ -122,13 +122,17 @@ fn opencv_calibrate(views: &[BoardView], board: &odocal_calib::BoardSpec) {
     let mut ip = Vector::<Vector<Point2f>>::new();
     for v in views {
         op.push(obj.clone());
-        ip.push(v.corners.iter().map(|p| Point2f::new(p.x as f32, p.y as f32)).collect());
+        ip.push(
+            v.corners
+                .iter()
+                .map(|p| Point2f::new(p.x as f32, p.y as f32))
+                .collect(),
+        );
     }
     let (mut k, mut d) = (Mat::default(), Mat::default());
     let (mut r, mut t) = (Vector::<Mat>::new(), Vector::<Mat>::new());
     let criteria = opencv::core::TermCriteria::new(
-        opencv::core::TermCriteria_Type::COUNT as i32
-            + opencv::core::TermCriteria_Type::EPS as i32,
+        opencv::core::TermCriteria_Type::COUNT as i32 + opencv::core::TermCriteria_Type::EPS as i32,
         100,
         f64::EPSILON,
     )

@@ -635,9 +635,5 @@ fn a_board_size_one_corner_short_is_named() {
         p(&out),
     ];
     args.extend(views.iter().map(|v| p(v)));
-    refused(
-        dir,
-        &args,
-        &["8x6", "9x6 board", "pass --board 9x6"],
-    );
+    refused(dir, &args, &["8x6", "9x6 board", "pass --board 9x6"]);
 }

@@ -240,7 +240,7 @@ impl Distortion {
                 break;
             }
             let step = f / df;
-            th = (th - step).clamp(0.0, 1.5707);
+            th = (th - step).clamp(0.0, std::f64::consts::FRAC_PI_2 - 1e-6);
             if step.abs() < 1e-15 {
                 break;
             }
