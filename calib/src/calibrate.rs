@@ -154,8 +154,10 @@ fn opencv_calibrate(
         f64::EPSILON,
     )?;
     let degenerate = |e: opencv::Error| {
+        // OpenCV's message spans lines; the first says what failed.
+        let first = e.message.lines().next().unwrap_or("").trim().to_string();
         CalibError::Input(format!(
-            "{model} calibration failed ({e}); the views are probably degenerate: tilt the board 20-45° in several views"
+            "{model} calibration failed ({first}); the views are probably degenerate: tilt the board 20-45° in several views"
         ))
     };
     let size = Size::new(w as i32, h as i32);

@@ -131,14 +131,13 @@ pub fn compare_models(
         .filter_map(|s| s.held_out_rms_px)
         .fold(f64::INFINITY, f64::min);
     if !best.is_finite() {
-        let why: Vec<String> = scores
-            .iter()
-            .map(|s| format!("{}: {}", s.model, s.failure.clone().unwrap_or_default()))
-            .collect();
-        return Err(CalibError::Input(format!(
-            "no lens model could be calibrated from these views ({})",
-            why.join("; ")
-        )));
+        // Every model failed on the same views: OpenCV's default model's reason is the one
+        // a user can act on (a degenerate set, too few views).
+        let why = scores
+            .first()
+            .and_then(|s| s.failure.clone())
+            .unwrap_or_else(|| "no lens model could be calibrated from these views".into());
+        return Err(CalibError::Input(why));
     }
     if let Some(s) = scores.iter_mut().find(|s| {
         s.held_out_rms_px
