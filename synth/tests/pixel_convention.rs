@@ -203,7 +203,9 @@ fn tag_cells_in_a_scene_frame_are_drawn_where_opencv_finds_them() {
         let saddles = tag_saddles(&cfg, &pose);
         assert!(saddles.len() >= 4, "{} saddles", saddles.len());
         let o = locate(img.as_raw(), cfg.camera.width as usize, &saddles, 5);
-        check("one scene frame", &o, 0.05, 0.1);
+        // Four saddles per frame: the mean of four noisy corners wanders a few hundredths of a
+        // pixel; the pooled mean below is the convention check.
+        check("one scene frame", &o, 0.08, 0.1);
         found.push(o);
     }
     check("scene renderer", &pooled(&found), 0.015, 0.06);
