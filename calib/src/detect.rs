@@ -275,11 +275,7 @@ pub fn guess_board_size(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
         .into_iter()
         .filter(|&(a, b)| a >= 3 && b >= 3 && (a, b) != (c, r))
         .find(|&(a, b)| {
-            let spec = BoardSpec {
-                cols: a as u32,
-                rows: b as u32,
-                square_m: board.square_m,
-            };
+            let spec = BoardSpec::checkerboard(a as u32, b as u32, board.square_m);
             matches!(find_corners(&gray, &spec), Ok(Some(_)))
         })
         .map(|(a, b)| (a as u32, b as u32))

@@ -1,8 +1,9 @@
-//! Camera model, checkerboard detection, Zhang calibration (through OpenCV)
+//! Camera model, checkerboard and ChArUco detection, Zhang calibration (through OpenCV)
 //! and the floor plane of a ceiling camera.
 
 pub mod calibrate;
 pub mod camera_file;
+pub mod charuco;
 pub mod detect;
 mod error;
 pub mod export;
@@ -13,8 +14,10 @@ mod session;
 
 pub use calibrate::{board_points, calibrate, Calibration};
 pub use camera_file::{
-    BoardSpec, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual, CAMERA_FORMAT,
+    BoardSpec, BoardTarget, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual,
+    CAMERA_FORMAT,
 };
+pub use charuco::ArucoDictionary;
 pub use detect::{detect_file, BoardView, Detection};
 pub use error::CalibError;
 pub use floor::{board_pose, fit_floor};

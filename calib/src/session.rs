@@ -35,11 +35,7 @@ impl BoardSpec {
                 "--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm"
             )));
         }
-        Ok(BoardSpec {
-            cols,
-            rows,
-            square_m,
-        })
+        Ok(BoardSpec::checkerboard(cols, rows, square_m))
     }
 }
 
