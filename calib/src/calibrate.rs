@@ -57,11 +57,11 @@ pub fn calibrate(views: &[BoardView], board: &BoardSpec) -> Result<Calibration, 
             v.image, v.size.0, v.size.1, views[0].image, w, h
         )));
     }
-    let object = board_points(board);
     let mut object_points = Vector::<Vector<core::Point3f>>::new();
     let mut image_points = Vector::<Vector<core::Point2f>>::new();
     for v in views {
-        object_points.push(points3f(&object));
+        check_view_points(v, board)?;
+        object_points.push(points3f(&v.object_points));
         image_points.push(points2f(&v.corners));
     }
     let mut k = Mat::default();
@@ -160,6 +160,28 @@ fn check_tilt(poses: &[BoardToCamera]) -> Result<(), CalibError> {
         return Err(CalibError::Input(format!(
             "degenerate view set: every board is within {max_tilt:.1}° of facing the camera, so the focal length \
              cannot be estimated; add views with the board tilted 20-45° in different directions"
+        )));
+    }
+    Ok(())
+}
+
+/// Each view's corners must come with their places on the board, at least 4 of them (a
+/// homography's worth): a ChArUco view may hold only part of the board.
+fn check_view_points(view: &BoardView, board: &BoardSpec) -> Result<(), CalibError> {
+    if view.object_points.len() != view.corners.len() {
+        return Err(CalibError::Input(format!(
+            "{}: {} corners but {} board positions",
+            view.image,
+            view.corners.len(),
+            view.object_points.len()
+        )));
+    }
+    if view.corners.len() < 4 {
+        return Err(CalibError::Input(format!(
+            "{}: only {} corner(s) of the {}; a view needs at least 4",
+            view.image,
+            view.corners.len(),
+            crate::charuco::board_name(board)
         )));
     }
     Ok(())

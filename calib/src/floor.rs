@@ -1,25 +1,35 @@
 //! The floor plane: boards lying flat on the floor, each located by solvePnP,
 //! one plane fitted through all their corners. The first floor view fixes the
-//! floor frame's origin (its first inner corner) and x axis (along its rows);
-//! z points up, towards the camera.
+//! floor frame's origin (its first inner corner; for a ChArUco board corner 0, whether or
+//! not it is in view) and x axis (along its rows); z points up, towards the camera.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use opencv::calib3d;
 use opencv::core::Mat;
 
-use crate::calibrate::board_points;
 use crate::opencv_glue::{camera_matrix, dist_coeffs, isometry_from_rt, points2f, points3f};
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorPlane, FloorToCamera,
 };
 
-/// Locates one board in the camera frame with a calibrated camera.
+/// Locates one board in the camera frame with a calibrated camera, from the view's corners
+/// and their places on the board (all corners of a checkerboard, those found of a ChArUco
+/// board; `board` names it in errors).
 pub fn board_pose(
     camera: &CameraModel,
     view: &BoardView,
     board: &BoardSpec,
 ) -> Result<BoardToCamera, CalibError> {
-    let object = points3f(&board_points(board));
+    if view.object_points.len() != view.corners.len() || view.corners.len() < 4 {
+        return Err(CalibError::Input(format!(
+            "{}: {} corners of the {} with {} board positions; locating it needs at least 4",
+            view.image,
+            view.corners.len(),
+            crate::charuco::board_name(board),
+            view.object_points.len()
+        )));
+    }
+    let object = points3f(&view.object_points);
     let image = points2f(&view.corners);
     let mut rvec = Mat::default();
     let mut tvec = Mat::default();
@@ -53,7 +63,6 @@ pub fn fit_floor(
             "no floor view: lay the board flat on the floor and photograph it".into(),
         ));
     }
-    let object = board_points(board);
     let mut pts: Vec<Point3<f64>> = Vec::new();
     let mut first_pose = None;
     for v in views {
@@ -61,7 +70,7 @@ pub fn fit_floor(
         if first_pose.is_none() {
             first_pose = Some(pose);
         }
-        pts.extend(object.iter().map(|p| pose.0 * p));
+        pts.extend(v.object_points.iter().map(|p| pose.0 * p));
     }
     let first_pose = first_pose.ok_or_else(|| CalibError::Input("no floor view".into()))?;
     let n = pts.len() as f64;
