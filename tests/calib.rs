@@ -10,7 +10,7 @@ use common::{odocal, succeeded};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardToCamera, CameraFile};
-use odocal_synth::board::{calibration_errors, render_view, CalibScene, CalibTruth};
+use odocal_synth::board::{calibration_errors, render_view, BoardPattern, CalibScene, CalibTruth};
 use odocal_synth::raycast::RayGrid;
 
 fn synth(dir: &Path, seed: u64, extra: &[&str]) -> CalibTruth {
@@ -246,6 +246,7 @@ fn fronto_parallel_views_are_degenerate() {
     };
     let camera = scene.camera();
     let grid = RayGrid::new(&camera, 2);
+    let pattern = BoardPattern::new(&scene.board).unwrap();
     for (i, (x, y, z)) in [
         (-0.3, -0.15, 1.0),
         (0.0, 0.0, 1.1),
@@ -259,7 +260,7 @@ fn fronto_parallel_views_are_degenerate() {
             Translation3::new(*x, *y, *z),
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.02 * i as f64),
         ));
-        render_view(&grid, &scene, &pose, None, i as u64)
+        render_view(&grid, &scene, &pattern, &pose, None, i as u64)
             .save(dir.path().join(format!("view_{i:02}.png")))
             .unwrap();
     }
