@@ -60,13 +60,13 @@ impl BoardSpec {
 }
 
 impl std::fmt::Display for BoardSpec {
-    /// "9x6 checkerboard (inner corners) of 0.05 m squares" or "11x8 ChArUco board (squares)
-    /// of 0.04 m squares, 0.03 m 4X4_50 markers".
+    /// "9x6 checkerboard (inner corners), 0.05 m squares" or "11x8-square ChArUco board,
+    /// 0.04 m squares, 0.03 m 4X4_50 markers".
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.target {
             BoardTarget::Checkerboard => write!(
                 f,
-                "{}x{} checkerboard (inner corners) of {} m squares",
+                "{}x{} checkerboard (inner corners), {} m squares",
                 self.cols, self.rows, self.square_m
             ),
             BoardTarget::Charuco {
@@ -74,7 +74,7 @@ impl std::fmt::Display for BoardSpec {
                 dictionary,
             } => write!(
                 f,
-                "{}x{} ChArUco board (squares) of {} m squares, {marker_m} m {dictionary} markers",
+                "{}x{}-square ChArUco board, {} m squares, {marker_m} m {dictionary} markers",
                 self.cols + 1,
                 self.rows + 1,
                 self.square_m

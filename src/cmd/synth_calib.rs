@@ -1,12 +1,13 @@
-//! `odocal synth calib`: checkerboard and floor views from a known camera.
+//! `odocal synth calib`: checkerboard or ChArUco views and floor views from a known camera.
 
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
-use odocal_calib::{BoardSpec, CameraFile};
-use odocal_synth::board::{calibration_errors, CalibScene, CalibTruth};
+use odocal_calib::CameraFile;
+use odocal_synth::board::{calibration_errors, visible_share, CalibScene, CalibTruth};
 use odocal_synth::calib_set::{self, check_scene};
 
+use super::board::{TargetArg, TargetArgs};
 use crate::output::{progress, staged_dir};
 
 /// Arguments of `odocal synth calib`.
@@ -15,7 +16,7 @@ pub struct Args {
     /// Output folder (created if missing).
     #[arg(long)]
     out: PathBuf,
-    /// Number of hand-held checkerboard views.
+    /// Number of hand-held board views.
     #[arg(long, default_value_t = 20)]
     views: usize,
     /// Number of views of the board lying on the floor.
@@ -39,12 +40,16 @@ pub struct Args {
     /// Optical blur σ, pixels.
     #[arg(long, default_value_t = 0.5)]
     blur: f32,
-    /// Board inner corners, COLSxROWS.
-    #[arg(long, default_value = "9x6")]
-    board: String,
-    /// Board square size, metres.
-    #[arg(long, default_value_t = 0.05)]
-    square: f64,
+    /// Board size, COLSxROWS: a checkerboard's inner corners (default 9x6), a ChArUco board's
+    /// squares (default 11x8).
+    #[arg(long)]
+    board: Option<String>,
+    /// Board square size, metres (default 0.05 for a checkerboard, 0.04 for ChArUco).
+    #[arg(long)]
+    square: Option<f64>,
+    /// The board (ChArUco defaults: 0.03 m markers of 4X4_50).
+    #[command(flatten)]
+    target: TargetArgs,
 }
 
 /// Renders a calibration session into `out` (staged: it appears when the command succeeds).
@@ -59,11 +64,19 @@ pub fn write_calib_set(out: &Path, scene: &CalibScene, seed: u64) -> anyhow::Res
 
 /// Runs `odocal synth calib`.
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let charuco = a.target.target == TargetArg::Charuco;
+    let square = a.square.unwrap_or(if charuco { 0.04 } else { 0.05 });
+    let board = a.target.board_spec(
+        a.board.as_deref(),
+        square,
+        "9x6",
+        Some(("11x8", 0.75 * square, "4X4_50")),
+    )?;
     let scene = CalibScene {
         width: a.width,
         height: a.height,
         hfov_deg: a.hfov,
-        board: BoardSpec::parse(&a.board, a.square)?,
+        board,
         views: a.views,
         floor_views: a.floor_views,
         noise_sigma: a.noise,
@@ -72,17 +85,42 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let truth = write_calib_set(&a.out, &scene, a.seed)?;
     let k = truth.camera.intrinsics;
-    println!(
-        "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
-        truth.views.len(),
-        truth.floor_views.len(),
-        a.width,
-        a.height,
-        scene.board.cols,
-        scene.board.rows,
-        scene.board.square_m,
-        a.out.display()
-    );
+    if scene.board.is_charuco() {
+        println!(
+            "wrote {} board views and {} floor views ({}x{}, {}) to {}",
+            truth.views.len(),
+            truth.floor_views.len(),
+            a.width,
+            a.height,
+            scene.board,
+            a.out.display()
+        );
+        let shares: Vec<f64> = truth
+            .views
+            .iter()
+            .map(|v| visible_share(&truth.camera, &v.board_to_camera, &scene.board))
+            .collect();
+        let partly = shares.iter().filter(|&&s| s < 1.0).count();
+        let third = shares.iter().filter(|&&s| s <= 2.0 / 3.0).count();
+        let least = shares.iter().copied().fold(1.0, f64::min);
+        println!(
+            "board partly outside the image in {partly} of {} views, a third or more outside in {third}; least in view: {:.0} % of the inner corners",
+            shares.len(),
+            least * 100.0
+        );
+    } else {
+        println!(
+            "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
+            truth.views.len(),
+            truth.floor_views.len(),
+            a.width,
+            a.height,
+            scene.board.cols,
+            scene.board.rows,
+            scene.board.square_m,
+            a.out.display()
+        );
+    }
     println!(
         "true camera: fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
         k.fx, k.fy, k.cx, k.cy
