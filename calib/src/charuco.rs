@@ -299,6 +299,14 @@ pub fn find_charuco_corners(
     board: &BoardSpec,
 ) -> Result<Result<CharucoCorners, String>, CalibError> {
     let (marker_m, dictionary) = charuco_target(board)?;
+    if gray.empty() || gray.typ() != core::CV_8UC1 {
+        return Err(CalibError::Input(format!(
+            "ChArUco detection needs an 8-bit grey image, got a {}x{} image of OpenCV type {}",
+            gray.cols(),
+            gray.rows(),
+            gray.typ()
+        )));
+    }
     let cb = opencv_board(board)?;
     let dict = dictionary.opencv()?;
     let params = aruco::DetectorParameters::create()?;
