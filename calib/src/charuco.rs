@@ -1,6 +1,7 @@
 //! ChArUco boards through OpenCV's aruco module: the board's geometry and its printed image
-//! come from OpenCV's `CharucoBoard`, and detection is OpenCV's: the ArUco markers first, then
-//! the chessboard corners between them interpolated from the markers and refined to sub-pixel.
+//! come from OpenCV's `CharucoBoard`, and so does detection up to the sub-pixel step: the ArUco
+//! markers first, then the chessboard corners between them interpolated from the markers,
+//! which odocal refines to sub-pixel without the markers' pixels.
 //!
 //! odocal's frame of a ChArUco board is OpenCV's moved to the inner corner with id 0, so that
 //! corner is the origin as the first inner corner is a checkerboard's: x along the board's
@@ -440,7 +441,7 @@ pub fn find_charuco_corners(
     }
     if ids.len() < MIN_CHARUCO_CORNERS {
         return Ok(Err(format!(
-            "only {} ChArUco corner(s) of the {} found ({markers} markers); at least {MIN_CHARUCO_CORNERS} needed",
+            "only {} ChArUco corner(s) of the {} found ({markers} marker(s)); at least {MIN_CHARUCO_CORNERS} needed",
             ids.len(),
             board_name(board)
         )));

@@ -192,3 +192,28 @@ fn opencv_drawn_board_is_found_where_opencv_geometry_puts_it() {
     }
     assert!(rms < 0.06 && max < 0.15, "RMS {rms} px, max {max} px");
 }
+
+/// Views holding too little of the board are skipped with their reason: a sliver with one
+/// marker gives no corner, one with a single column of corners cannot fix the board's pose.
+#[test]
+fn a_sliver_of_the_board_is_too_little() {
+    let (img, _) = opencv_board();
+    // Only the board's leftmost squares stay inside the image's right edge: about half a
+    // square, then about two.
+    for (left, needle) in [(1150.0, "at least 6 needed"), (1000.0, "lie on one line")] {
+        let h = homography(
+            &img,
+            [
+                (left, 150.0),
+                (left + 1150.0, 120.0),
+                (left + 1210.0, 640.0),
+                (left - 40.0, 600.0),
+            ],
+        );
+        let reason = find_charuco_corners(&warp(&img, &h), &spec())
+            .expect("OpenCV runs")
+            .expect_err("too little of the board");
+        println!("{reason}");
+        assert!(reason.contains(needle), "{reason}");
+    }
+}
