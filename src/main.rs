@@ -20,7 +20,7 @@ enum Command {
     /// Render synthetic inputs with known truth.
     #[command(subcommand)]
     Synth(SynthCommand),
-    /// Calibrate a camera from checkerboard images (Zhang's method) and fix the floor plane.
+    /// Calibrate a camera from checkerboard or ChArUco images (Zhang's method) and fix the floor plane.
     Calibrate(cmd::calibrate::Args),
     /// Track the robot's AprilTag through a video into a floor trajectory.
     Track(cmd::track::Args),
@@ -41,7 +41,7 @@ enum Command {
 
 #[derive(Subcommand)]
 enum SynthCommand {
-    /// Checkerboard views (and floor views) from a known camera.
+    /// Checkerboard or ChArUco views (and floor views) from a known camera.
     Calib(cmd::synth_calib::Args),
     /// Compare a camera.json with the truth of `synth calib`.
     CheckCalib(cmd::synth_calib::CheckArgs),

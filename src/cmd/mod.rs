@@ -1,5 +1,6 @@
 //! One module per subcommand; each owns its arguments and its `run`.
 
+pub mod board;
 pub mod calibrate;
 pub mod correct;
 pub mod dataset;
