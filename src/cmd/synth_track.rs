@@ -112,8 +112,9 @@ const DEFAULT_EXPOSURE_MS: f64 = 4.0;
 const REALISTIC_EXPOSURE_MS: f64 = 12.0;
 
 impl CameraArgs {
-    /// The exposure (seconds) and the camera's effects these options ask for.
-    pub fn effects(&self) -> (f64, CameraEffects) {
+    /// The exposure (seconds) and the camera's effects these options ask for, for a video
+    /// written as `format` (the preset's H.264 bitrate applies to MP4 only).
+    pub fn effects(&self, format: VideoFormat) -> (f64, CameraEffects) {
         let preset = if self.realistic {
             CameraEffects::realistic()
         } else {
@@ -166,7 +167,11 @@ impl CameraArgs {
             paper,
             occlusion_s: self.occlusion_s.unwrap_or(preset.occlusion_s),
             drop_rate: self.drop_rate.unwrap_or(preset.drop_rate),
-            h264_bitrate_kbps: self.bitrate_kbps.or(preset.h264_bitrate_kbps),
+            h264_bitrate_kbps: self.bitrate_kbps.or(if format == VideoFormat::Mp4 {
+                preset.h264_bitrate_kbps
+            } else {
+                None
+            }),
         };
         // Today's videos keep their fixed five exposure samples; a camera asked for samples
         // its blur smoothly.
@@ -188,11 +193,12 @@ impl CameraArgs {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (exposure_s, effects) = args.camera.effects();
+    let format = args.camera.format(args.video.as_deref())?;
+    let (exposure_s, effects) = args.camera.effects(format);
     let scene = TrackScene {
         seed: args.seed,
         frames: args.frames,
-        format: args.camera.format(args.video.as_deref())?,
+        format,
         fps: args.fps,
         speed_min_mps: args.speed_min,
         speed_max_mps: args.speed_max,

@@ -210,3 +210,216 @@ fn rolling_shutter_skews_a_moving_vertical_edge() {
         );
     }
 }
+
+mod video {
+    //! Dropped frames and H.264 read back through OpenCV's own decoder.
+
+    use super::*;
+    use odocal_synth::scene::{render_video, VideoFormat};
+    use opencv::prelude::*;
+    use opencv::videoio;
+
+    /// A 40-frame drive at 30 frames/s in a small scene with noise.
+    fn small(effects: CameraEffects) -> (SceneConfig, Vec<(f64, Pose2)>) {
+        let mut cfg = scene(0.004, effects);
+        cfg.robot.tag_size_m = 0.2;
+        cfg.robot.body_radius_m = 0.12;
+        cfg.sensor.noise_sigma = 2.0;
+        let c = nadir(&cfg.floor);
+        let traj = straight_trajectory(
+            Point2::new(c.x - 0.5, c.y - 0.1),
+            Point2::new(c.x + 0.5, c.y + 0.1),
+            0.7,
+        );
+        let traj: Vec<_> = traj.into_iter().filter(|s| s.0 <= 1.32).collect();
+        (cfg, traj)
+    }
+
+    /// Every frame of a video through OpenCV's FFmpeg backend: its presentation time
+    /// (seconds) and grey image.
+    fn decode(path: &std::path::Path) -> Vec<(f64, Vec<u8>)> {
+        let mut cap = videoio::VideoCapture::from_file(path.to_str().unwrap(), videoio::CAP_FFMPEG)
+            .expect("VideoCapture");
+        assert!(cap.is_opened().unwrap(), "OpenCV cannot open {path:?}");
+        let mut out = Vec::new();
+        let mut m = opencv::core::Mat::default();
+        while cap.read(&mut m).unwrap() && !m.empty() {
+            let t = cap.get(videoio::CAP_PROP_POS_MSEC).unwrap() / 1000.0;
+            let mut grey = opencv::core::Mat::default();
+            opencv::imgproc::cvt_color(&m, &mut grey, opencv::imgproc::COLOR_BGR2GRAY, 0).unwrap();
+            out.push((t, grey.data_bytes().unwrap().to_vec()));
+        }
+        out
+    }
+
+    /// Dropped frames are missing from the file and every other frame keeps its true time,
+    /// as OpenCV's VideoCapture (the decoder odocal tracks with) reads it back, in MJPG AVI,
+    /// H.264 MP4 and a PNG folder.
+    #[test]
+    fn dropped_frames_are_missing_and_the_rest_keep_their_times() {
+        let effects = CameraEffects {
+            drop_rate: 0.12,
+            ..CameraEffects::default()
+        };
+        let (cfg, traj) = small(effects);
+        let dir = tempfile::tempdir().unwrap();
+        for (name, format) in [
+            ("v.avi", VideoFormat::Avi),
+            ("v.mp4", VideoFormat::Mp4),
+            ("frames", VideoFormat::Png),
+        ] {
+            let path = dir.path().join(name);
+            let truths = render_video(&path, format, &cfg, &traj, 30.0, 3).expect("render");
+            assert_eq!(truths.len(), 40, "frames rendered");
+            let kept: Vec<&FrameTruth> = truths.iter().filter(|t| !t.dropped).collect();
+            let dropped: Vec<usize> = truths
+                .iter()
+                .filter(|t| t.dropped)
+                .map(|t| t.index)
+                .collect();
+            assert!(
+                (2..=10).contains(&dropped.len()) && !dropped.contains(&0),
+                "dropped {dropped:?}"
+            );
+            if format == VideoFormat::Png {
+                let csv = std::fs::read_to_string(path.join("timestamps.csv")).unwrap();
+                for t in &truths {
+                    assert_eq!(
+                        path.join(odocal_synth::scene::png_name(t.index)).exists(),
+                        !t.dropped
+                    );
+                }
+                let times: Vec<f64> = csv
+                    .lines()
+                    .skip(1)
+                    .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+                    .collect();
+                assert_times(name, "timestamps.csv", &times, &kept);
+                continue;
+            }
+            let decoded: Vec<f64> = decode(&path).iter().map(|f| f.0).collect();
+            println!(
+                "{name}: frames {dropped:?} dropped, {} of 40 in the file",
+                decoded.len()
+            );
+            assert_eq!(decoded.len(), kept.len(), "{name}: frames in the file");
+            // OpenCV gives no time (0) for the few frames its threaded H.264 decoder releases
+            // only at the end of the file; FFmpeg's own reader gives every frame's.
+            let timed = decoded.iter().skip(1).take_while(|&&t| t > 0.0).count() + 1;
+            assert!(
+                timed + 3 >= decoded.len() && decoded[timed..].iter().all(|&t| t == 0.0),
+                "{name}: OpenCV times {decoded:?}"
+            );
+            assert_times(name, "OpenCV", &decoded[..timed], &kept[..timed]);
+            assert_times(name, "ffprobe", &ffprobe_times(&path), &kept);
+        }
+    }
+
+    /// Presentation times of every frame, from FFmpeg's own reader.
+    fn ffprobe_times(path: &std::path::Path) -> Vec<f64> {
+        let out = std::process::Command::new("ffprobe")
+            .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+            .args(["frame=pts_time", "-of", "csv=p=0"])
+            .arg(path)
+            .output()
+            .expect("ffprobe comes with ffmpeg (`make deps`)");
+        String::from_utf8_lossy(&out.stdout)
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter_map(|x| x.parse().ok())
+            .collect()
+    }
+
+    /// The file's times are the kept frames' true times: containers store them to the
+    /// millisecond or finer, while a frame counted in the wrong place would be off by a whole
+    /// frame period (33 ms).
+    fn assert_times(name: &str, reader: &str, times: &[f64], kept: &[&FrameTruth]) {
+        assert_eq!(times.len(), kept.len(), "{name} ({reader}): frames");
+        for (t, truth) in times.iter().zip(kept) {
+            assert!(
+                (t - truth.t_s).abs() < 1e-3,
+                "{name} ({reader}): frame {} at {t} s, true {} s",
+                truth.index,
+                truth.t_s
+            );
+        }
+    }
+
+    fn psnr_db(a: &[u8], b: &[u8]) -> f64 {
+        let mse = a
+            .iter()
+            .zip(b)
+            .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
+            .sum::<f64>()
+            / a.len() as f64;
+        10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+    }
+
+    /// H.264 at a camera's bitrate decodes through OpenCV with every frame, a file size that
+    /// follows the bitrate, and the loss of a real camera's compression: a PSNR against the
+    /// rendered frames that is plausible and grows with the bitrate.
+    #[test]
+    fn h264_at_a_bitrate_decodes_with_plausible_loss() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut results = Vec::new();
+        for kbps in [300.0, 2000.0] {
+            let effects = CameraEffects {
+                h264_bitrate_kbps: Some(kbps),
+                ..CameraEffects::default()
+            };
+            let (cfg, traj) = small(effects);
+            let path = dir.path().join(format!("v{kbps}.mp4"));
+            let truths = render_video(&path, VideoFormat::Mp4, &cfg, &traj, 30.0, 4).unwrap();
+            let decoded = decode(&path);
+            assert_eq!(decoded.len(), truths.len(), "frames decoded");
+            let renderer = SceneRenderer::new(cfg.clone(), 4).unwrap();
+            let psnr: Vec<f64> = decoded
+                .iter()
+                .zip(&truths)
+                .map(|((_, img), truth)| {
+                    let (orig, _) = renderer
+                        .render_frame(&traj, truth.index, truth.t_s)
+                        .unwrap();
+                    psnr_db(img, orig.as_raw())
+                })
+                .collect();
+            let mean = psnr.iter().sum::<f64>() / psnr.len() as f64;
+            let bytes = std::fs::metadata(&path).unwrap().len() as f64;
+            let actual_kbps = bytes * 8.0 / 1000.0 / (truths.len() as f64 / 30.0);
+            println!(
+                "H.264 at {kbps} kbit/s: file {actual_kbps:.0} kbit/s, PSNR mean {mean:.1} dB (min {:.1})",
+                psnr.iter().cloned().fold(f64::MAX, f64::min)
+            );
+            assert!(
+                actual_kbps < 1.5 * kbps && actual_kbps > 0.3 * kbps,
+                "{actual_kbps} kbit/s for a {kbps} kbit/s target"
+            );
+            results.push(mean);
+        }
+        // Sensor noise of σ 2 grey levels caps what any codec keeps at about 42 dB.
+        assert!((28.0..40.0).contains(&results[0]), "{results:?}");
+        assert!(
+            results[1] > results[0] + 1.0 && results[1] < 48.0,
+            "{results:?}"
+        );
+    }
+
+    /// Same seed, same bytes, with every effect on (FFmpeg's encoders are bit-exact for one
+    /// version of FFmpeg and libx264).
+    #[test]
+    fn realistic_videos_are_reproducible() {
+        let mut effects = CameraEffects::realistic();
+        effects.occlusion_s = 0.3;
+        let (mut cfg, traj) = small(effects);
+        cfg.exposure_s = 0.012;
+        let dir = tempfile::tempdir().unwrap();
+        let mut files = Vec::new();
+        for (name, seed) in [("a.mp4", 8), ("b.mp4", 8), ("c.mp4", 9)] {
+            let path = dir.path().join(name);
+            let truths = render_video(&path, VideoFormat::Mp4, &cfg, &traj, 30.0, seed).unwrap();
+            files.push((std::fs::read(&path).unwrap(), truths));
+        }
+        assert!(files[0].0 == files[1].0, "same seed, different bytes");
+        assert_eq!(files[0].1, files[1].1);
+        assert!(files[0].0 != files[2].0, "another seed, same bytes");
+    }
+}

@@ -9,15 +9,17 @@
 //! unchanged).
 //!
 //! Determinism: the output is byte-for-byte reproducible with the same FFmpeg and libx264
-//! (bitexact flags, a fixed thread count); another version of either may encode differently.
+//! (bitexact flags, one encoder thread); another version of either may encode differently.
 
 use std::io::Write;
 use std::process::{Child, ChildStdin, Command, Stdio};
 
 use super::*;
 
-/// libx264's thread count, fixed so the bytes do not depend on the machine's cores.
-const X264_THREADS: &str = "2";
+/// libx264's thread count. One: with frame threads its rate control (bitrate and VBV) is
+/// not reproducible from run to run (measured with FFmpeg 5.1 and libx264 164), and the
+/// renderer, not the encoder, is the slow part.
+const X264_THREADS: &str = "1";
 
 /// A running FFmpeg encoder fed with 8-bit grey frames.
 pub(crate) struct FfmpegWriter {
