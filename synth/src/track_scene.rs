@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::scene::{
     demo_trajectory, frames_csv, nadir, render_video_with_progress, truth_csv, CameraEffects,
-    SceneConfig, SceneError, VideoFormat,
+    SceneConfig, SceneError, VideoFormat, ROW_TIME_CONVENTION,
 };
 
 /// The `format` tag of scene.json.
@@ -67,9 +67,6 @@ struct EffectsInfo {
     /// Frames in which a person hides part of the tag.
     occluded_frames: Vec<usize>,
 }
-
-/// The statement of the row-time convention written into scene.json.
-pub const ROW_TIME_CONVENTION: &str = "t_row(v) = t_frame + v * rolling_shutter_s / height_px for pixel row v (0 at the top); each row is exposed over t_row(v) +- exposure_s / 2; t_frame is the video's timestamp of the frame";
 
 #[derive(Serialize)]
 struct SceneInfo {

@@ -24,7 +24,7 @@
 use super::*;
 
 /// Mains flicker of the room light: intensity `1 + depth · cos(2π f t + φ)`, φ seeded.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Flicker {
     /// Frequency of the intensity change, Hz (twice the mains frequency: 100 or 120).
     pub frequency_hz: f64,
@@ -36,7 +36,7 @@ pub struct Flicker {
 /// `exp(sigma · s(t))` where s is a sum of four sinusoids with periods between 1 and 4
 /// `period_s` and unit standard deviation. The gain is per frame (the camera sets it between
 /// frames).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct AutoExposure {
     /// Standard deviation of the log gain (0.05 = about ±5 %); 0 for a fixed gain.
     pub sigma: f64,
@@ -45,7 +45,7 @@ pub struct AutoExposure {
 }
 
 /// A tag printed on paper instead of an ideal black-and-white target.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct PaperTag {
     /// Print contrast signal `(white − black) / white` of the print (0.7: the ink reflects
     /// 30 % of what the paper does); 1 would be ideal black ink.
@@ -56,7 +56,7 @@ pub struct PaperTag {
 }
 
 /// Everything a real camera adds to the ideal scene. [`Default`] is all off.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct CameraEffects {
     /// Largest image motion of the tag between two of the exposure's time samples, pixels:
     /// the exposure is integrated with `max(motion_samples, ⌈blur / step⌉ + 1)` samples so
@@ -109,6 +109,9 @@ impl Default for CameraEffects {
         }
     }
 }
+
+/// The rows' time convention in words, as truth files state it.
+pub const ROW_TIME_CONVENTION: &str = "t_row(v) = t_frame + v * rolling_shutter_s / height_px for pixel row v (0 at the top); each row is exposed over t_row(v) +- exposure_s / 2; t_frame is the video's timestamp of the frame";
 
 /// Exposure sampling step of a realistic camera: two samples per pixel of motion.
 pub const REALISTIC_BLUR_STEP_PX: f64 = 0.5;
