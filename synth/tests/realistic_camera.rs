@@ -423,3 +423,443 @@ mod video {
         assert!(files[0].0 != files[2].0, "another seed, same bytes");
     }
 }
+
+mod light {
+    //! Flicker, auto-exposure, vignetting, the light gradient and the paper tag, measured as
+    //! the ratio of a frame to the same frame rendered under ideal light.
+
+    use super::*;
+    use odocal_synth::scene::{AutoExposure, Flicker, PaperTag, LAMP_FROM_CAMERA_M};
+
+    /// The robot parked at `at` (floor metres), heading 0.
+    fn parked(at: Point2<f64>) -> Vec<(f64, Pose2)> {
+        let p = Pose2::new(at.x, at.y, 0.0);
+        vec![(0.0, p), (100.0, p)]
+    }
+
+    /// A scene rendered with its effects and under ideal light.
+    struct Pair(SceneRenderer, SceneRenderer);
+
+    impl Pair {
+        fn new(cfg: &SceneConfig) -> Self {
+            let ideal = SceneConfig {
+                effects: CameraEffects::default(),
+                ..cfg.clone()
+            };
+            Self(
+                SceneRenderer::new(cfg.clone(), 2).unwrap(),
+                SceneRenderer::new(ideal, 2).unwrap(),
+            )
+        }
+
+        /// Per-pixel ratio of frame `index` at `t_s` with the effects to the same frame
+        /// without (NaN where the ideal frame is too dark to divide by).
+        fn ratio(&self, traj: &[(f64, Pose2)], index: usize, t_s: f64) -> Vec<f64> {
+            let (x, _) = self.0.render_frame(traj, index, t_s).unwrap();
+            let (y, _) = self.1.render_frame(traj, index, t_s).unwrap();
+            x.as_raw()
+                .iter()
+                .zip(y.as_raw())
+                .map(|(&p, &q)| {
+                    if q > 40 {
+                        p as f64 / q as f64
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect()
+        }
+    }
+
+    fn ratio(cfg: &SceneConfig, traj: &[(f64, Pose2)], index: usize, t_s: f64) -> Vec<f64> {
+        Pair::new(cfg).ratio(traj, index, t_s)
+    }
+
+    fn mean(v: impl Iterator<Item = f64>) -> f64 {
+        let (s, n) = v
+            .filter(|x| x.is_finite())
+            .fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+        s / n as f64
+    }
+
+    /// Amplitude and frequency (within `freqs`) of the strongest sinusoid in `series`
+    /// sampled at `rate` samples per unit.
+    fn strongest(series: &[f64], rate: f64, freqs: impl Iterator<Item = f64>) -> (f64, f64) {
+        let m = series.iter().sum::<f64>() / series.len() as f64;
+        freqs
+            .map(|f| {
+                let (mut c, mut s) = (0.0, 0.0);
+                for (k, v) in series.iter().enumerate() {
+                    let a = std::f64::consts::TAU * f * k as f64 / rate;
+                    c += (v - m) * a.cos();
+                    s += (v - m) * a.sin();
+                }
+                (2.0 * c.hypot(s) / series.len() as f64, f)
+            })
+            .fold((0.0, 0.0), |best, x| if x.0 > best.0 { x } else { best })
+    }
+
+    /// 100 Hz flicker seen at 30 frames/s: the frames' brightness beats at the alias
+    /// |100 − 3·30| = 10 Hz, with the depth a box exposure of length e leaves of a sinusoid
+    /// (sin(πfe)/(πfe)); a 10 ms exposure spans one whole period and cancels it.
+    #[test]
+    fn flicker_beats_at_its_alias_and_a_10_ms_exposure_cancels_it() {
+        let c = Point2::new(0.3, -0.2);
+        for (exposure_s, depth) in [(0.002, 0.3), (0.010, 0.3)] {
+            let effects = CameraEffects {
+                flicker: Flicker {
+                    frequency_hz: 100.0,
+                    depth,
+                },
+                ..CameraEffects::default()
+            };
+            let mut cfg = scene(exposure_s, effects);
+            cfg.robot.tag_size_m = 0.1;
+            let traj = parked(nadir(&cfg.floor) + c.coords);
+            let pair = Pair::new(&cfg);
+            let series: Vec<f64> = (0..30)
+                .map(|k| mean(pair.ratio(&traj, k, k as f64 / 30.0).into_iter()))
+                .collect();
+            let (amp, f) = strongest(&series, 30.0, (2..=60).map(|i| i as f64 * 0.25));
+            let x = std::f64::consts::PI * 100.0 * exposure_s;
+            let expected = depth * x.sin() / x;
+            println!(
+                "exposure {} ms: brightness beats at {f} Hz with amplitude {amp:.4} (expected {expected:.4})",
+                exposure_s * 1e3
+            );
+            if expected > 0.05 {
+                assert!((f - 10.0).abs() < 0.3, "beat at {f} Hz");
+                assert!((amp - expected).abs() < 0.03 * expected, "amplitude {amp}");
+            } else {
+                assert!(amp < 0.01, "a whole period in the exposure leaves {amp}");
+            }
+        }
+    }
+
+    /// Under a rolling shutter the rows are exposed at different times, so 100 Hz flicker
+    /// draws horizontal bands: f · readout of them per frame (3 for 30 ms).
+    #[test]
+    fn flicker_under_a_rolling_shutter_draws_bands() {
+        let effects = CameraEffects {
+            rolling_shutter_s: 0.030,
+            flicker: Flicker {
+                frequency_hz: 100.0,
+                depth: 0.3,
+            },
+            ..CameraEffects::default()
+        };
+        let cfg = scene(0.002, effects);
+        let traj = parked(nadir(&cfg.floor) + nalgebra::Vector2::new(0.6, 0.3));
+        let r = ratio(&cfg, &traj, 0, 0.0);
+        let rows: Vec<f64> = (0..H as usize)
+            .map(|y| mean(r[y * W as usize..(y + 1) * W as usize].iter().cloned()))
+            .collect();
+        // Bands per frame height: frequency in cycles per H rows.
+        let (amp, bands) = strongest(&rows, H as f64, (20..=200).map(|i| i as f64 * 0.05));
+        println!("{bands} bands per frame, amplitude {amp:.3}");
+        assert!((bands - 3.0).abs() < 0.1, "{bands} bands");
+        assert!(amp > 0.2, "amplitude {amp}");
+    }
+
+    /// Vignetting darkens the corners to 1 − v of the centre; the gradient spans 1 ± g from
+    /// one side of the image to the other; auto-exposure drifts the whole frame smoothly.
+    #[test]
+    fn vignetting_gradient_and_exposure_drift_shade_the_frame() {
+        let at = Point2::new(0.6, 0.3);
+        let patch = |r: &[f64], x0: usize, y0: usize| {
+            mean(
+                (y0..y0 + 5).flat_map(|y| r[y * W as usize + x0..y * W as usize + x0 + 5].to_vec()),
+            )
+        };
+        // Vignetting alone.
+        let mut cfg = scene(
+            0.002,
+            CameraEffects {
+                vignetting: 0.3,
+                ..CameraEffects::default()
+            },
+        );
+        let traj = parked(nadir(&cfg.floor) + at.coords);
+        let r = ratio(&cfg, &traj, 0, 0.0);
+        let (w, h) = (W as usize, H as usize);
+        let centre = patch(&r, w / 2 - 2, h / 2 - 2);
+        let corners = [
+            patch(&r, 0, 0),
+            patch(&r, w - 5, 0),
+            patch(&r, 0, h - 5),
+            patch(&r, w - 5, h - 5),
+        ];
+        println!("vignetting 0.3: centre {centre:.3}, corners {corners:.3?}");
+        assert!((centre - 1.0).abs() < 0.01);
+        for c in corners {
+            // The 5×5 patch is a few pixels in from the corner itself.
+            assert!((c - 0.70).abs() < 0.015, "corner {c}");
+        }
+        // The gradient alone: a plane fitted to the ratio spans 1 ± g over the image.
+        cfg.effects = CameraEffects {
+            gradient: 0.3,
+            ..CameraEffects::default()
+        };
+        let r = ratio(&cfg, &traj, 0, 0.0);
+        let mut ata = nalgebra::Matrix3::<f64>::zeros();
+        let mut atb = nalgebra::Vector3::<f64>::zeros();
+        for y in (0..h).step_by(3) {
+            for x in (0..w).step_by(3) {
+                let v = r[y * w + x];
+                if v.is_finite() {
+                    let a = nalgebra::Vector3::new(1.0, x as f64, y as f64);
+                    ata += a * a.transpose();
+                    atb += a * v;
+                }
+            }
+        }
+        let p = ata.try_inverse().unwrap() * atb;
+        let plane = |x: f64, y: f64| p[0] + p[1] * x + p[2] * y;
+        let at_corners = [
+            plane(0.0, 0.0),
+            plane(w as f64, 0.0),
+            plane(0.0, h as f64),
+            plane(w as f64, h as f64),
+        ];
+        let (lo, hi) = at_corners
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        println!(
+            "gradient 0.3: fitted plane from {lo:.3} to {hi:.3}, {:.3} at the centre",
+            plane(w as f64 / 2.0, h as f64 / 2.0)
+        );
+        assert!(
+            (lo - 0.7).abs() < 0.02 && (hi - 1.3).abs() < 0.02,
+            "{lo} .. {hi}"
+        );
+        // Auto-exposure alone: one gain for the whole frame, drifting slowly between frames.
+        cfg.effects = CameraEffects {
+            auto_exposure: AutoExposure {
+                sigma: 0.05,
+                period_s: 1.0,
+            },
+            ..CameraEffects::default()
+        };
+        let pair = Pair::new(&cfg);
+        let gains: Vec<f64> = (0..30)
+            .map(|k| {
+                let r = pair.ratio(&traj, k, k as f64 / 30.0);
+                let m = mean(r.iter().cloned());
+                let spread = mean(r.iter().map(|v| (v - m).powi(2))).sqrt();
+                assert!(
+                    spread < 0.01,
+                    "frame {k}: the gain varies over the frame by {spread}"
+                );
+                m
+            })
+            .collect();
+        let logs: Vec<f64> = gains.iter().map(|g| g.ln()).collect();
+        let sd = (logs.iter().map(|l| l * l).sum::<f64>() / logs.len() as f64).sqrt();
+        let step = logs
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f64::max);
+        println!("auto-exposure σ 0.05: log gain RMS {sd:.3} over 1 s, largest frame-to-frame step {step:.4}");
+        assert!(sd > 0.01 && sd < 0.15, "log gain RMS {sd}");
+        assert!(step < 0.02, "step {step}");
+    }
+
+    /// Mean of the pixels of a 0.6 m tag's cells, the white border's and the black ring's
+    /// (their middle halves), and the brightest white pixel, for a tag centred at pixel
+    /// (cx, cy), heading 0.
+    fn white_and_black(img: &[u8], cfg: &SceneConfig, (cx, cy): (f64, f64)) -> (f64, f64, f64) {
+        let cell = cfg.robot.tag_size_m / 8.0 * px_per_m(cfg);
+        let band = |from_cells: f64| -> Vec<f64> {
+            // Pixels of the square ring from_cells..from_cells+1 cells out from the black
+            // square's edge (negative: inside), its middle half only.
+            let inner = 4.0 * cell + from_cells * cell + 0.25 * cell;
+            let outer = inner + 0.5 * cell;
+            let mut v = Vec::new();
+            for y in (cy - outer) as usize..=(cy + outer) as usize {
+                for x in (cx - outer) as usize..=(cx + outer) as usize {
+                    let d = (x as f64 - cx).abs().max((y as f64 - cy).abs());
+                    if d > inner && d < outer {
+                        v.push(img[y * W as usize + x] as f64);
+                    }
+                }
+            }
+            v
+        };
+        let white = band(0.0);
+        let black = band(-1.0);
+        // The brightest pixel of the plate (a white cell: black + highlight stays far darker).
+        let half = 4.5 * cell;
+        let max_white = ((cy - half) as usize..=(cy + half) as usize)
+            .flat_map(|y| ((cx - half) as usize..=(cx + half) as usize).map(move |x| (x, y)))
+            .map(|(x, y)| img[y * W as usize + x] as f64)
+            .fold(0.0, f64::max);
+        (mean(white.into_iter()), mean(black.into_iter()), max_white)
+    }
+
+    /// A tag printed on paper has the print contrast asked for, and shows the lamp's soft
+    /// highlight where the mirror geometry puts it (found here independently: the line from
+    /// the camera's mirror image in the tag's plane to the lamp).
+    #[test]
+    fn paper_tag_has_its_contrast_and_a_highlight_where_the_lamp_reflects() {
+        let paper = CameraEffects {
+            paper: Some(PaperTag {
+                contrast: 0.7,
+                gloss: 0.15,
+            }),
+            ..CameraEffects::default()
+        };
+        let mut cfg = scene(0.002, paper);
+        let c = cfg.floor.0.inverse().translation.vector;
+        let m = cfg.robot.marker_height_m;
+        let lamp = c + nalgebra::Vector3::from(LAMP_FROM_CAMERA_M);
+        let mirror = nalgebra::Vector3::new(c.x, c.y, 2.0 * m - c.z);
+        let s = (m - mirror.z) / (lamp.z - mirror.z);
+        let spot = Point2::new(
+            mirror.x + s * (lamp.x - mirror.x),
+            mirror.y + s * (lamp.y - mirror.y),
+        );
+        let mut measure = |at: Point2<f64>, effects: CameraEffects| {
+            cfg.effects = effects;
+            let traj = parked(at);
+            let r = SceneRenderer::new(cfg.clone(), 1).unwrap();
+            let (img, _) = r.render_frame(&traj, 0, 0.0).unwrap();
+            let px = cfg.camera.floor_to_pixel(&cfg.floor, &at, m).unwrap();
+            white_and_black(img.as_raw(), &cfg, (px.x, px.y))
+        };
+        let far = Point2::new(c.x, c.y);
+        let (w_ideal, b_ideal, _) = measure(far, CameraEffects::default());
+        let (w, b, _) = measure(
+            far,
+            CameraEffects {
+                paper: Some(PaperTag {
+                    contrast: 0.7,
+                    gloss: 0.0,
+                }),
+                ..CameraEffects::default()
+            },
+        );
+        println!(
+            "ideal tag: white {w_ideal:.1}, black {b_ideal:.1}, contrast {:.3}; paper: white {w:.1}, black {b:.1}, contrast {:.3}",
+            (w_ideal - b_ideal) / w_ideal,
+            (w - b) / w
+        );
+        assert!(
+            ((w - b) / w - 0.7).abs() < 0.02,
+            "paper contrast {}",
+            (w - b) / w
+        );
+        assert!((w_ideal - b_ideal) / w_ideal > 0.85);
+        let (_, _, peak_at_spot) = measure(spot, paper);
+        let (_, _, peak_far) = measure(Point2::new(c.x - 0.8, c.y - 0.2), paper);
+        println!(
+            "highlight: brightest white {peak_at_spot:.1} with the tag at the lamp's mirror point {:.3?}, {peak_far:.1} 1.1 m away",
+            (spot.x - c.x, spot.y - c.y)
+        );
+        let expected = 0.15 * 255.0;
+        assert!(
+            (peak_at_spot - w - expected).abs() < 0.15 * expected,
+            "highlight {} grey levels over the paper's white, expected about {expected}",
+            peak_at_spot - w
+        );
+        assert!(peak_far - w < 3.0, "far from the spot: {peak_far}");
+    }
+}
+
+mod person {
+    //! A person walking through: the truth's occluded frames are the frames whose tag the
+    //! image shows covered.
+
+    use super::*;
+
+    #[test]
+    fn a_person_hides_the_tag_for_about_the_time_asked_and_the_truth_says_when() {
+        let effects = CameraEffects {
+            blur_step_px: Some(0.5),
+            occlusion_s: 1.0,
+            ..CameraEffects::default()
+        };
+        let mut cfg = scene(0.008, effects);
+        cfg.robot.tag_size_m = 0.1;
+        cfg.robot.body_radius_m = 0.07;
+        let c = nadir(&cfg.floor);
+        let traj = straight_trajectory(
+            Point2::new(c.x - 0.6, c.y - 0.2),
+            Point2::new(c.x + 0.6, c.y + 0.1),
+            0.4,
+        );
+        let ideal = SceneConfig {
+            effects: CameraEffects {
+                occlusion_s: 0.0,
+                ..effects
+            },
+            ..cfg.clone()
+        };
+        let with = SceneRenderer::new(cfg.clone(), 3).unwrap();
+        let without = SceneRenderer::new(ideal, 3).unwrap();
+        let fps = 30.0;
+        let n = (traj.last().unwrap().0 * fps) as usize;
+        let plate_px = cfg.robot.tag_size_m * 10.0 / 8.0 * px_per_m(&cfg);
+        let mut hidden = Vec::new();
+        let mut covered = Vec::new();
+        for k in 0..n {
+            let t = k as f64 / fps;
+            let (a, truth) = with.render_frame(&traj, k, t).unwrap();
+            let (b, _) = without.render_frame(&traj, k, t).unwrap();
+            // Pixels of the plate's inner 80 % that the person changes.
+            let p = cfg
+                .camera
+                .floor_to_pixel(
+                    &cfg.floor,
+                    &truth.pose.position(),
+                    cfg.robot.marker_height_m,
+                )
+                .unwrap();
+            let r = 0.4 * plate_px;
+            let (mut changed, mut all) = (0, 0);
+            for y in (p.y - r) as u32..=(p.y + r) as u32 {
+                for x in (p.x - r) as u32..=(p.x + r) as u32 {
+                    all += 1;
+                    changed += usize::from(
+                        (a.get_pixel(x, y).0[0] as i32 - b.get_pixel(x, y).0[0] as i32).abs() > 8,
+                    );
+                }
+            }
+            hidden.push(truth.hidden_fraction);
+            covered.push(changed as f64 / all as f64);
+        }
+        let occluded: Vec<usize> = (0..n).filter(|&k| hidden[k] > 0.0).collect();
+        let first = *occluded.first().expect("the person hides the tag");
+        let last = *occluded.last().unwrap();
+        let span_s = (last - first + 1) as f64 / fps;
+        println!(
+            "occluded frames {first}..={last} ({span_s:.2} s), fully hidden {} frames, of {n}",
+            hidden.iter().filter(|&&h| h >= 1.0).count()
+        );
+        assert_eq!(
+            occluded.len(),
+            last - first + 1,
+            "one occlusion, without breaks"
+        );
+        assert!((0.7..1.5).contains(&span_s), "occlusion lasts {span_s} s");
+        for k in 0..n {
+            let settled = (k.saturating_sub(1)..(k + 2).min(n))
+                .all(|j| (hidden[j] > 0.0) == (hidden[k] > 0.0));
+            if !settled {
+                continue; // the person's blurred edge crosses the tag
+            }
+            if hidden[k] >= 1.0 {
+                assert!(
+                    covered[k] > 0.9,
+                    "frame {k}: truth hidden, image {:.2} covered",
+                    covered[k]
+                );
+            } else if hidden[k] == 0.0 {
+                assert!(
+                    covered[k] == 0.0,
+                    "frame {k}: truth visible, image {:.2} covered",
+                    covered[k]
+                );
+            }
+        }
+    }
+}
