@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use odocal_synth::scene::{
     AutoExposure, CameraEffects, Flicker, PaperTag, VideoFormat, REALISTIC_BLUR_STEP_PX,
+    REALISTIC_EXPOSURE_S,
 };
 use odocal_synth::track_scene::{write_track_scene, TrackScene};
 
@@ -52,7 +53,7 @@ pub struct Args {
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct CameraArgs {
     /// Exposure time, milliseconds: the scene is integrated over it (motion blur) [default: 4;
-    /// 12 with --realistic]. Given explicitly, or with any camera option, the exposure is
+    /// 16 with --realistic]. Given explicitly, or with any camera option, the exposure is
     /// sampled finely enough (two samples per pixel of the tag's motion) for a smooth blur.
     #[arg(long)]
     pub exposure_ms: Option<f64>,
@@ -98,7 +99,7 @@ pub struct CameraArgs {
     /// camera records (4000 is typical at 1280x720).
     #[arg(long)]
     pub bitrate_kbps: Option<f64>,
-    /// Every effect on at a plausible value ("all conditions combined"): 12 ms exposure,
+    /// Every effect on at a plausible value ("all conditions combined"): 16 ms exposure,
     /// 30 ms rolling shutter, 100 Hz flicker of depth 0.4, auto-exposure 0.05, vignetting
     /// 0.3, gradient 0.3, paper tag (0.7, 0.15), a 1 s occlusion, 1 % dropped frames, H.264
     /// at 4000 kbit/s.
@@ -108,8 +109,6 @@ pub struct CameraArgs {
 
 /// Exposure of the default scene, milliseconds.
 const DEFAULT_EXPOSURE_MS: f64 = 4.0;
-/// Exposure of the realistic preset, milliseconds.
-const REALISTIC_EXPOSURE_MS: f64 = 12.0;
 
 impl CameraArgs {
     /// The exposure (seconds) and the camera's effects these options ask for, for a video
@@ -121,7 +120,7 @@ impl CameraArgs {
             CameraEffects::default()
         };
         let exposure_ms = self.exposure_ms.unwrap_or(if self.realistic {
-            REALISTIC_EXPOSURE_MS
+            REALISTIC_EXPOSURE_S * 1000.0
         } else {
             DEFAULT_EXPOSURE_MS
         });

@@ -410,7 +410,7 @@ mod video {
         let mut effects = CameraEffects::realistic();
         effects.occlusion_s = 0.3;
         let (mut cfg, traj) = small(effects);
-        cfg.exposure_s = 0.012;
+        cfg.exposure_s = odocal_synth::scene::REALISTIC_EXPOSURE_S;
         let dir = tempfile::tempdir().unwrap();
         let mut files = Vec::new();
         for (name, seed) in [("a.mp4", 8), ("b.mp4", 8), ("c.mp4", 9)] {

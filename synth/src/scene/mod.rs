@@ -25,7 +25,7 @@ pub use paths::{demo_trajectory, frame_times, pose_at, straight_trajectory};
 pub use render::SceneRenderer;
 pub use sensor::{
     dropped_frames, AutoExposure, CameraEffects, Flicker, PaperTag, LAMP_FROM_CAMERA_M,
-    REALISTIC_BLUR_STEP_PX, ROW_TIME_CONVENTION,
+    REALISTIC_BLUR_STEP_PX, REALISTIC_EXPOSURE_S, ROW_TIME_CONVENTION,
 };
 pub use tag::tag36h11_pattern;
 pub use truth::{frames_csv, truth_csv, FrameTruth, FRAMES_CSV_HEADER};
