@@ -89,7 +89,7 @@ impl FfmpegWriter {
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
         let mut child = cmd.spawn().map_err(|e| {
-            fail(format!(
+            SceneError::Input(format!(
                 "cannot run ffmpeg ({e}): H.264 at a set bitrate and dropped frames need FFmpeg's command-line program; install it (`make deps` or `apt-get install ffmpeg`)"
             ))
         })?;
