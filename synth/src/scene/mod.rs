@@ -28,7 +28,7 @@ pub use sensor::{
     REALISTIC_BLUR_STEP_PX, REALISTIC_EXPOSURE_S, ROW_TIME_CONVENTION,
 };
 pub use tag::tag36h11_pattern;
-pub use truth::{frames_csv, truth_csv, FrameTruth, FRAMES_CSV_HEADER};
+pub use truth::{frames_csv, truth_csv, FrameTruth, FramesTruth, FRAMES_CSV_HEADER};
 pub use video::{png_name, png_timestamps, render_video, render_video_with_progress, VideoFormat};
 
 use std::path::{Path, PathBuf};

@@ -7,7 +7,8 @@
 //! [`CameraEffects::realistic`] is the combination used for "all conditions combined";
 //! [`CameraEffects::check`] refuses settings without physical sense. The renderer
 //! ([`SceneRenderer::render_frame`]) applies everything but the encoder and the drops, which
-//! [`render_video`] applies; its per-frame truth is [`FrameTruth`].
+//! [`render_video`] applies; its per-frame truth is [`FrameTruth`], written by
+//! [`frames_csv`] (frames.csv) and read back by [`FramesTruth`].
 //!
 //! Time convention (also written into scene.json by `synth track`): a frame's timestamp
 //! `t_frame` is the centre of the exposure of pixel row 0. Pixel row `v` (0 at the top) is

@@ -89,3 +89,79 @@ pub fn truth_csv(truths: &[FrameTruth], visible_only: bool) -> String {
     }
     s
 }
+
+/// The camera's truth of a whole video, as [`frames_csv`] writes it (frames.csv of
+/// `synth track`, truth/<id>.frames.csv of `synth experiment`); read with
+/// [`odocal_core::TextFormat::read`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FramesTruth {
+    /// Every frame, dropped ones included, in order.
+    pub frames: Vec<FrameTruth>,
+}
+
+impl odocal_core::TextFormat for FramesTruth {
+    fn parse(text: &str, name: &str) -> Result<Self, odocal_core::FileError> {
+        use odocal_core::{csv_table_with_header, numeric_row};
+        let table = csv_table_with_header(text, name, "frames truth")?;
+        let header: Vec<&str> = table.header.1.iter().collect();
+        if header.join(",") != FRAMES_CSV_HEADER {
+            return Err(odocal_core::FileError::parse(
+                name,
+                table.header.0,
+                1,
+                format!("expected the header {FRAMES_CSV_HEADER}"),
+            ));
+        }
+        let frames = table
+            .rows
+            .iter()
+            .map(|(line, rec)| {
+                let v = numeric_row::<15>(name, *line, rec)?;
+                Ok(FrameTruth {
+                    index: v[0] as usize,
+                    t_s: v[1],
+                    dropped: v[2] != 0.0,
+                    hidden_fraction: v[4],
+                    tag_visible: v[5] != 0.0,
+                    blur_px: v[6],
+                    tag_row_px: v[7],
+                    t_tag_row_s: v[8],
+                    pose: Pose2::new(v[9], v[10], v[11]),
+                    pose_tag_row: Pose2::new(v[12], v[13], v[14]),
+                })
+            })
+            .collect::<Result<Vec<_>, odocal_core::FileError>>()?;
+        Ok(Self { frames })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_core::TextFormat;
+
+    #[test]
+    fn frames_csv_reads_back_exactly() {
+        let f = |index: usize, dropped: bool, hidden: f64| FrameTruth {
+            index,
+            t_s: index as f64 / 30.0,
+            pose: Pose2::new(0.1 * index as f64, -0.25, 1.0 / 3.0),
+            tag_visible: index != 2,
+            tag_row_px: 351.25,
+            t_tag_row_s: index as f64 / 30.0 + 0.0146,
+            pose_tag_row: Pose2::new(0.1 * index as f64 + 0.01, -0.25, 0.3),
+            blur_px: 3.5,
+            hidden_fraction: hidden,
+            dropped,
+        };
+        let frames = vec![f(0, false, 0.0), f(1, true, 0.25), f(2, false, 1.0)];
+        let text = frames_csv(&frames);
+        let back = FramesTruth::parse(&text, "frames.csv").unwrap();
+        assert_eq!(back.frames, frames);
+        let bad = text.replace("t_tag_row", "t_row");
+        let e = FramesTruth::parse(&bad, "frames.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("frames.csv") && e.contains("header"), "{e}");
+    }
+}
