@@ -1,8 +1,8 @@
 //! The whole odometry experiment with known truth, as `odocal synth experiment` writes it:
 //! a run manifest, per recording a 200 ms tick log and a ceiling video (or the camera
 //! trajectory taken from the truth), and the truth itself (truth/oracle.json,
-//! truth/simulator.json, truth/experiment.json, truth/<id>.true.csv, and with videos the
-//! camera's truth per frame, truth/<id>.frames.csv). The videos can be taken by a realistic
+//! truth/simulator.json, truth/experiment.json, `truth/<id>.true.csv`, and with videos the
+//! camera's truth per frame, `truth/<id>.frames.csv`). The videos can be taken by a realistic
 //! camera ([`ExperimentSettings::effects`]).
 
 use std::path::{Path, PathBuf};

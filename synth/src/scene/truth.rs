@@ -91,7 +91,7 @@ pub fn truth_csv(truths: &[FrameTruth], visible_only: bool) -> String {
 }
 
 /// The camera's truth of a whole video, as [`frames_csv`] writes it (frames.csv of
-/// `synth track`, truth/<id>.frames.csv of `synth experiment`); read with
+/// `synth track`, `truth/<id>.frames.csv` of `synth experiment`); read with
 /// [`odocal_core::TextFormat::read`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FramesTruth {
