@@ -316,6 +316,11 @@ pub fn simulate_experiment(
         )));
     }
     s.effects.check(s.config.camera.fps)?;
+    if s.frames == Frames::None && s.effects != CameraEffects::default() {
+        return Err(ExperimentError::Settings(
+            "the camera options (--exposure-ms, --rolling-shutter-ms, --realistic, ...) shape rendered videos: use them with --frames video".into(),
+        ));
+    }
     if s.frames == Frames::Video && per > 1 {
         return Err(ExperimentError::Settings("--frames video renders one run per recording: use --runs-per-recording 1 or --frames none".into()));
     }
