@@ -243,70 +243,62 @@ fn opencv_calibrate(
             .map_err(degenerate)?;
         }
         LensModel::Rational => {
-            let rms = calib3d::calibrate_camera(
-                &object_points,
-                &image_points,
-                size,
-                &mut k,
-                &mut dist,
-                &mut rvecs,
-                &mut tvecs,
-                calib3d::CALIB_RATIONAL_MODEL,
-                criteria,
-            )
-            .map_err(degenerate)?;
             // OpenCV starts the rational fit from a distortion-free homography guess, which a
             // wide lens seen through partial boards near the image's edge can lead into a
-            // wrong minimum (fx 12 % off at 110°); started from the five-coefficient fit
-            // instead it finds the right one. The lower residual wins.
-            let mut k5 = Mat::default();
-            let mut d5 = Mat::default();
-            let (mut r5, mut t5) = (Vector::<Mat>::new(), Vector::<Mat>::new());
-            let seeded = calib3d::calibrate_camera(
-                &object_points,
-                &image_points,
-                size,
-                &mut k5,
-                &mut d5,
-                &mut r5,
-                &mut t5,
-                0,
-                criteria,
-            )
-            .ok()
-            .and_then(|_| {
-                let c = d5.data_typed::<f64>().ok()?.to_vec();
-                let mut d8 = Mat::from_slice(&[
-                    c.first().copied().unwrap_or(0.0),
-                    c.get(1).copied().unwrap_or(0.0),
-                    c.get(2).copied().unwrap_or(0.0),
-                    c.get(3).copied().unwrap_or(0.0),
-                    c.get(4).copied().unwrap_or(0.0),
-                    0.0,
-                    0.0,
-                    0.0,
-                ])
-                .ok()?
-                .try_clone()
-                .ok()?;
-                let rms = calib3d::calibrate_camera(
+            // wrong minimum (fx 12 % off on 110° ChArUco views); started from the
+            // five-coefficient fit it finds the right one (and never a worse one on the
+            // synthetic lenses). OpenCV's own start remains the fallback.
+            let seeded = (|| -> Option<f64> {
+                let (mut k5, mut d5) = (Mat::default(), Mat::default());
+                let (mut r5, mut t5) = (Vector::<Mat>::new(), Vector::<Mat>::new());
+                calib3d::calibrate_camera(
                     &object_points,
                     &image_points,
                     size,
                     &mut k5,
-                    &mut d8,
+                    &mut d5,
                     &mut r5,
                     &mut t5,
-                    calib3d::CALIB_RATIONAL_MODEL | calib3d::CALIB_USE_INTRINSIC_GUESS,
+                    0,
                     criteria,
                 )
                 .ok()?;
-                Some((rms, d8))
-            });
-            if let Some((rms_seeded, d8)) = seeded {
-                if rms_seeded.is_finite() && (rms_seeded < rms || !rms.is_finite()) {
-                    (k, dist, rvecs, tvecs) = (k5, d8, r5, t5);
+                let c = d5.data_typed::<f64>().ok()?.to_vec();
+                let mut d8 = [0.0f64; 8];
+                for (d, v) in d8.iter_mut().zip(&c) {
+                    *d = *v;
                 }
+                dist = Mat::from_slice(&d8).ok()?.try_clone().ok()?;
+                k = k5;
+                calib3d::calibrate_camera(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut k,
+                    &mut dist,
+                    &mut rvecs,
+                    &mut tvecs,
+                    calib3d::CALIB_RATIONAL_MODEL | calib3d::CALIB_USE_INTRINSIC_GUESS,
+                    criteria,
+                )
+                .ok()
+                .filter(|rms| rms.is_finite())
+            })();
+            if seeded.is_none() {
+                (k, dist) = (Mat::default(), Mat::default());
+                (rvecs, tvecs) = (Vector::new(), Vector::new());
+                calib3d::calibrate_camera(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut k,
+                    &mut dist,
+                    &mut rvecs,
+                    &mut tvecs,
+                    calib3d::CALIB_RATIONAL_MODEL,
+                    criteria,
+                )
+                .map_err(degenerate)?;
             }
         }
     }
