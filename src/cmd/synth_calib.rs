@@ -51,8 +51,8 @@ pub struct Args {
     #[arg(long)]
     board: Option<String>,
     /// Board square size, metres [default: 0.05 (checkerboard) or 0.04 (ChArUco) with the
-    /// pinhole5 lens, 0.08 with the wide lenses, whose floor views at 2.2 m would otherwise show
-    /// squares and markers too small to detect].
+    /// pinhole5 lens; 0.08 with the wide lenses (0.12 for a ChArUco board and the fisheye),
+    /// whose floor views at 2.2 m would otherwise show squares and markers too small to measure].
     #[arg(long)]
     square: Option<f64>,
     /// The board (ChArUco defaults: markers 0.75 of the square, of 4X4_50).
@@ -79,14 +79,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         )
     })?;
     let charuco = a.target.target == TargetArg::Charuco;
-    let square = a
-        .square
-        .unwrap_or(match (charuco, lens == LensModel::Pinhole5) {
-            (true, true) => 0.04,
-            (true, false) => 0.08,
-            (false, true) => 0.05,
-            (false, false) => 0.08,
-        });
+    let square = a.square.unwrap_or(match (charuco, lens) {
+        (true, LensModel::Pinhole5) => 0.04,
+        (true, LensModel::Rational) => 0.08,
+        // Through a 150° fisheye an 8 cm ChArUco square on the floor 2.2 m below is 18 px
+        // wide, its corners 2 px from the markers: the floor plane comes out ~1 mm uncertain.
+        (true, LensModel::Fisheye) => 0.12,
+        (false, LensModel::Pinhole5) => 0.05,
+        (false, _) => 0.08,
+    });
     let board = a.target.board_spec(
         a.board.as_deref(),
         square,
