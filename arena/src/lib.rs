@@ -19,6 +19,7 @@ pub mod fuse;
 mod graph;
 mod shared;
 pub mod track;
+mod track_file;
 
 pub use error::ArenaError;
 pub use file::{ArenaCamera, ArenaFile, Consistency, PairConsistency, ARENA_FORMAT};
@@ -30,4 +31,7 @@ pub use graph::{build_arena, solve_arena, ArenaSolution, SharedObservation, REFU
 pub use shared::{detect_shared, parse_shared_name, SharedView};
 pub use track::{
     camera_tracks, fuse_all, track_camera, track_cameras, ArenaTracking, CameraResult,
+};
+pub use track_file::{
+    ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,
 };
