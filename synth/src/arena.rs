@@ -349,7 +349,7 @@ pub fn draw_arena(scene: &ArenaScene) -> ArenaTruth {
     let mut rng = ChaCha8Rng::seed_from_u64(scene.seed ^ 0xa7e4a);
     let b = scene.board;
     let mut cameras = Vec::new();
-    for k in 0..4 {
+    for (k, &(nx, ny)) in CAMERA_NADIRS_M.iter().enumerate() {
         let calib = scene.calib_scene(k);
         let camera = calib.camera();
         let pose = camera_pose(scene, k, &mut rng);
@@ -360,7 +360,6 @@ pub fn draw_arena(scene: &ArenaScene) -> ArenaTruth {
             rng.gen_range(-0.12..0.12)
         };
         let views = draw_views(&calib, scene.seed.wrapping_mul(31).wrapping_add(k as u64)).views;
-        let (nx, ny) = CAMERA_NADIRS_M[k];
         let mut floor_views = Vec::new();
         // Camera 0's first board fixes the arena's floor frame: it lies at the origin.
         let spots = [(0.0, 0.0), (0.7, 0.35), (-0.7, -0.3), (0.6, -0.4)];
