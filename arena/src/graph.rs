@@ -310,3 +310,141 @@ pub fn build_arena(
     };
     Ok((file, solution))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_calib::{BoardView, FloorPlane};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    const BOARD: BoardSpec = BoardSpec {
+        cols: 9,
+        rows: 6,
+        square_m: 0.08,
+    };
+
+    /// Three 90° cameras 2.5 m up, and boards on the floor where their views overlap; the
+    /// corners are the true projections with 0.1 px of noise.
+    fn scene() -> (Vec<CameraModel>, Vec<FloorToCamera>, Vec<SharedView>) {
+        let cams = vec![CameraModel::from_hfov(960, 540, 90.0); 3];
+        let poses: Vec<FloorToCamera> = [(0.0, 0.0, 1.0), (2.5, 0.2, -2.0), (1.2, 1.6, 3.0)]
+            .iter()
+            .map(|&(x, y, yaw)| {
+                let above = odocal_synth::scene::ceiling_camera(2.5, 1.0, -0.5, yaw);
+                FloorToCamera(above.0 * Isometry3::translation(-x, -y, 0.0))
+            })
+            .collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let object = board_points(&BOARD);
+        let mut shared = Vec::new();
+        for (i, &(x, y)) in [(1.0, -0.3), (1.5, 0.4), (0.4, 0.9), (1.4, 1.0), (2.0, 1.1)]
+            .iter()
+            .enumerate()
+        {
+            let board = board_on_floor(x, y, 0.3 * (i as f64 - 2.0));
+            let views: Vec<(usize, BoardView)> = (0..3)
+                .filter_map(|k| {
+                    let corners: Vec<Point2<f64>> = object
+                        .iter()
+                        .filter_map(|p| cams[k].project(&(poses[k].0 * board * p)))
+                        .filter(|p| p.x > 5.0 && p.y > 5.0 && p.x < 955.0 && p.y < 535.0)
+                        .map(|p| {
+                            p + nalgebra::Vector2::new(
+                                rng.gen_range(-0.17..0.17),
+                                rng.gen_range(-0.17..0.17),
+                            )
+                        })
+                        .collect();
+                    (corners.len() == object.len()).then(|| {
+                        (
+                            k,
+                            BoardView {
+                                image: format!("s{i}_c{k}.png"),
+                                size: (960, 540),
+                                corners,
+                            },
+                        )
+                    })
+                })
+                .collect();
+            if views.len() >= 2 {
+                shared.push(SharedView {
+                    name: format!("s{i}"),
+                    views,
+                });
+            }
+        }
+        (cams, poses, shared)
+    }
+
+    fn files(cams: &[CameraModel], poses: &[FloorToCamera]) -> Vec<CameraFile> {
+        cams.iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let floor = (k == 0).then(|| FloorPlane {
+                    floor_to_camera: poses[0],
+                    plane_rms_m: 0.0,
+                    camera_height_m: 2.5,
+                    views: vec![],
+                });
+                CameraFile::from_model(*c, floor)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_pose_graph_puts_every_camera_where_it_is() {
+        let (cams, poses, shared) = scene();
+        assert!(shared.len() >= 4, "{} shared views", shared.len());
+        let paths = [
+            Path::new("a.json"),
+            Path::new("b.json"),
+            Path::new("c.json"),
+        ];
+        let sol = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD).unwrap();
+        // Corner noise of 0.1 px is 0.5-0.8 mm of floor at these cameras, twice over for a pair.
+        assert!(sol.consistency.rms_mm < 1.5, "{:?}", sol.consistency);
+        // Each camera maps its pixels to the floor as the true camera does where the shared
+        // boards tie it (a camera's far side, tied by nothing, is extrapolated).
+        for k in 1..3 {
+            let mut worst: f64 = 0.0;
+            for px in shared
+                .iter()
+                .flat_map(|s| s.views.iter())
+                .filter(|(c, _)| *c == k)
+                .flat_map(|(_, bv)| bv.corners.iter())
+            {
+                let est = cams[k]
+                    .pixel_to_floor(&sol.arena_to_camera[k], px, 0.0)
+                    .unwrap();
+                let tru = cams[k].pixel_to_floor(&poses[k], px, 0.0).unwrap();
+                worst = worst.max((est - tru).norm());
+            }
+            // The fit averages hundreds of corners: below one corner's noise.
+            assert!(worst < 1e-3, "camera {k}: {worst} m");
+            assert!(sol.rms_px[k] < 0.2, "{:?}", sol.rms_px);
+        }
+    }
+
+    #[test]
+    fn corners_numbered_the_other_way_round_are_refused() {
+        let (cams, poses, mut shared) = scene();
+        // Camera 1 numbers one board's corners from the other end (a camera turned 180°).
+        let (_, bv) = shared
+            .iter_mut()
+            .flat_map(|s| s.views.iter_mut())
+            .find(|(k, _)| *k == 1)
+            .unwrap();
+        bv.corners.reverse();
+        let paths = [
+            Path::new("a.json"),
+            Path::new("b.json"),
+            Path::new("c.json"),
+        ];
+        let e = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("number the corners alike"), "{e}");
+    }
+}

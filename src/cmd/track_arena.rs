@@ -104,13 +104,11 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         Some(arena_path) => track_arena(&args, arena_path, &opts, &selection)?,
         None => track_one_video(&args, &opts, &selection)?,
     };
-    let mut files = Vec::new();
     for (id, t) in &trajectories {
         let path = out_path(&args.out, *id, single);
         check_output_file(&path, "--out")?;
         write_atomic(&path, t.to_csv().as_bytes())?;
         eprintln!("tag {id}: {} poses → {}", t.rows.len(), path.display());
-        files.push(path.display().to_string());
     }
     Ok(())
 }
