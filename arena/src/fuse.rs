@@ -532,8 +532,8 @@ mod tests {
         let tr = tracks(&offsets, 3);
         let opts = FuseOptions::for_fps(30.0);
         let found = estimate_clock_offsets(&tr, 3, &opts).unwrap();
-        for k in 0..3 {
-            let err = (found.offset_s[k] - offsets[k]).abs();
+        for (k, want) in offsets.iter().enumerate() {
+            let err = (found.offset_s[k] - want).abs();
             assert!(err < 3e-4, "camera {k}: {err} s, {found:?}");
             assert!(found.sigma_s[k] < 3e-4, "{:?}", found.sigma_s);
         }
