@@ -4,7 +4,8 @@
 //! rejection), so two robots are never merged and never swapped: a fix is always of the id
 //! it is filed under. A tracker that has lost its tag would search the whole frame on every
 //! frame; instead one shared full-frame search (decimated) per frame looks for every lost id
-//! at once, and only an id it finds is handed to its tracker. With `--tags all` that shared
+//! at once (every third frame for tags long out of view), and only an id it finds is handed
+//! to its tracker. With `--tags all` that shared
 //! search also discovers ids: every id it sees gets a tracker from that frame on (frames
 //! before have no pose for it).
 
@@ -20,6 +21,10 @@ use crate::TrackError;
 
 /// Frames after its last fix during which a tracker still follows its tag by itself.
 const FOLLOW_FRAMES: usize = 5;
+/// A tag missing this many frames (or never seen) is searched for on every third frame only:
+/// a robot out of view costs a third of the full-frame searches, and one coming into view is
+/// found at most two frames late.
+const SLOW_SEARCH_AFTER: usize = 15;
 
 /// Which tags to track.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -153,8 +158,16 @@ pub fn track_source_multi(
                     s.last_fix
                         .is_some_and(|i| frame.index.saturating_sub(i) <= FOLLOW_FRAMES)
                 };
+                let urgent = |s: &IdState| {
+                    !following(s)
+                        && s.last_fix
+                            .is_some_and(|i| frame.index.saturating_sub(i) <= SLOW_SEARCH_AFTER)
+                };
+                let lost =
+                    *selection == TagSelection::All || states.values().any(|s| !following(s));
                 let need_search = unusable.is_none()
-                    && (*selection == TagSelection::All || states.values().any(|s| !following(s)));
+                    && lost
+                    && (frame.index % 3 == 0 || states.values().any(urgent));
                 let found: Vec<u32> = if need_search {
                     let mut ids: Vec<u32> = search
                         .detect(&frame.image, None)?
