@@ -116,11 +116,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         lrf_poses,
         lrf_truth,
         lrf_map,
-        arena: match &a.arena {
-            Some(p) => Some((
-                input(&a.arena, &None, "")?.unwrap_or_else(|| p.clone()),
-                input(&a.arena_track, &None, "")?,
-            )),
+        arena: match input(&a.arena, &None, "")? {
+            Some(p) => Some((p, input(&a.arena_track, &None, "")?)),
             None => None,
         },
         runs: a.runs,

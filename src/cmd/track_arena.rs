@@ -241,28 +241,43 @@ fn track_arena(
         .collect())
 }
 
-/// The common frame rate: the median frame interval of the first camera.
+/// The common frame rate: each camera's median frame interval, which must agree (the fusion
+/// assumes one frame rate for all cameras).
 fn frame_rate(results: &[odocal_arena::CameraResult], videos: &[PathBuf]) -> anyhow::Result<f64> {
-    let Some(first) = results.first().and_then(|r| r.values().next()) else {
-        bail!(
-            "no selected tag was tracked in {}: check --tags",
-            videos[0].display()
-        );
-    };
-    let mut dt: Vec<f64> = first
-        .records
-        .windows(2)
-        .map(|w| w[1].t_s - w[0].t_s)
-        .filter(|d| *d > 0.0)
-        .collect();
-    dt.sort_by(f64::total_cmp);
-    match dt.get(dt.len() / 2) {
-        Some(d) if d.is_finite() && *d > 0.0 => Ok(1.0 / d),
-        _ => bail!(
-            "{}: too few frames to tell the frame rate",
-            videos[0].display()
-        ),
+    let mut rates = Vec::new();
+    for (k, per_id) in results.iter().enumerate() {
+        let Some(first) = per_id.values().next() else {
+            bail!(
+                "no selected tag was tracked in {}: check --tags",
+                videos[k].display()
+            );
+        };
+        let mut dt: Vec<f64> = first
+            .records
+            .windows(2)
+            .map(|w| w[1].t_s - w[0].t_s)
+            .filter(|d| *d > 0.0)
+            .collect();
+        dt.sort_by(f64::total_cmp);
+        match dt.get(dt.len() / 2) {
+            Some(d) if d.is_finite() && *d > 0.0 => rates.push(1.0 / d),
+            _ => bail!(
+                "{}: too few frames to tell the frame rate",
+                videos[k].display()
+            ),
+        }
     }
+    for (k, r) in rates.iter().enumerate() {
+        if (r / rates[0] - 1.0).abs() > 0.005 {
+            bail!(
+                "{} runs at {r:.3} frames/s but {} at {:.3}: the arena's cameras must share one frame rate (set them alike and record again)",
+                videos[k].display(),
+                videos[0].display(),
+                rates[0]
+            );
+        }
+    }
+    Ok(rates[0])
 }
 
 /// Each robot's error against the synthetic truth, and the offsets against the true ones.
