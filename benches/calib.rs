@@ -8,7 +8,7 @@ use common::median;
 use std::time::Instant;
 
 use odocal_calib::{calibrate, detect_file, fit_floor, BoardView, Detection};
-use odocal_synth::board::{draw_views, render_view, CalibScene};
+use odocal_synth::board::{draw_views, render_view, BoardPattern, CalibScene};
 use odocal_synth::raycast::RayGrid;
 use rayon::prelude::*;
 
@@ -18,11 +18,12 @@ fn main() {
     let dir = std::env::temp_dir().join(format!("odocal-bench-calib-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let grid = RayGrid::new(&truth.camera, scene.supersample);
+    let pattern = BoardPattern::new(&scene.board).expect("board pattern");
     let t = Instant::now();
     let mut paths = Vec::new();
     for (i, v) in truth.views.iter().chain(&truth.floor_views).enumerate() {
         let floor = (i >= truth.views.len()).then_some(&truth.floor_to_camera);
-        let img = render_view(&grid, &scene, &v.board_to_camera, floor, i as u64);
+        let img = render_view(&grid, &scene, &pattern, &v.board_to_camera, floor, i as u64);
         let p = dir.join(&v.image);
         img.save(&p).expect("write view");
         paths.push(p);

@@ -20,7 +20,7 @@ enum Command {
     /// Render synthetic inputs with known truth.
     #[command(subcommand)]
     Synth(SynthCommand),
-    /// Calibrate a camera from checkerboard images (Zhang's method) and fix the floor plane.
+    /// Calibrate a camera from checkerboard or ChArUco images (Zhang's method) and fix the floor plane.
     Calibrate(cmd::calibrate::Args),
     /// Tie several calibrated cameras into one floor frame with boards on the floor in their overlaps.
     Arena(cmd::arena::Args),
@@ -43,7 +43,7 @@ enum Command {
 
 #[derive(Subcommand)]
 enum SynthCommand {
-    /// Checkerboard views (and floor views) from a known camera.
+    /// Checkerboard or ChArUco views (and floor views) from a known camera.
     Calib(cmd::synth_calib::Args),
     /// Compare a camera.json with the truth of `synth calib`.
     CheckCalib(cmd::synth_calib::CheckArgs),

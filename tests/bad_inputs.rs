@@ -637,3 +637,144 @@ fn a_board_size_one_corner_short_is_named() {
     args.extend(views.iter().map(|v| p(v)));
     refused(dir, &args, &["8x6", "9x6 board", "pass --board 9x6"]);
 }
+
+/// ChArUco options are checked before any image is read, and a ChArUco set calibrated with
+/// the wrong board or dictionary names what it found instead of calibrating on nonsense.
+#[test]
+fn charuco_options_and_boards_are_checked() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let calib = dir.join("calib");
+    ok(&[
+        "synth",
+        "calib",
+        "--target",
+        "charuco",
+        "--out",
+        p(&calib),
+        "--views",
+        "4",
+        "--floor-views",
+        "0",
+        "--seed",
+        "5",
+    ]);
+    let views: Vec<PathBuf> = (0..4)
+        .map(|i| calib.join(format!("view_{i:02}.png")))
+        .collect();
+    let out = dir.join("camera.json");
+    let charuco = |board: &'static str, marker: &'static str, dictionary: &'static str| {
+        let mut args = vec![
+            "calibrate",
+            "--target",
+            "charuco",
+            "--board",
+            board,
+            "--square",
+            "0.04",
+            "--marker",
+            marker,
+            "--dictionary",
+            dictionary,
+            "--out",
+            p(&out),
+        ];
+        args.extend(views.iter().map(|v| p(v)));
+        args
+    };
+    for (args, needles) in [
+        (
+            charuco("11x8", "0.05", "4X4_50"),
+            vec!["--marker 0.05", "less than --square 0.04"],
+        ),
+        (
+            charuco("11x8", "0.03", "4X4_51"),
+            vec![
+                "--dictionary \"4X4_51\"",
+                "4X4_50, 4X4_100",
+                "APRILTAG_36h11",
+            ],
+        ),
+        (
+            charuco("2x8", "0.03", "4X4_50"),
+            vec!["at least 3x3 squares"],
+        ),
+        (
+            charuco("14x9", "0.03", "4X4_50"),
+            vec!["63 markers", "4X4_50 has only 50"],
+        ),
+        // The board is one square wider than said: OpenCV numbers the markers row by row, so
+        // every row but the first sits elsewhere.
+        (
+            charuco("12x8", "0.03", "4X4_50"),
+            vec![
+                "no 12x8 ChArUco board found",
+                "do not sit where a 12x8 ChArUco board",
+            ],
+        ),
+        (
+            charuco("11x8", "0.03", "5X5_100"),
+            vec!["no 5X5_100 marker", "pass --dictionary 4X4_50"],
+        ),
+    ] {
+        refused(dir, &args, &needles);
+    }
+    let mut args = vec![
+        "calibrate",
+        "--target",
+        "charuco",
+        "--board",
+        "11x8",
+        "--square",
+        "0.04",
+        "--dictionary",
+        "4X4_50",
+        "--out",
+        p(&out),
+    ];
+    args.extend(views.iter().map(|v| p(v)));
+    refused(dir, &args, &["--target charuco needs --marker"]);
+    let mut args = vec![
+        "calibrate",
+        "--square",
+        "0.05",
+        "--marker",
+        "0.03",
+        "--out",
+        p(&out),
+    ];
+    args.extend(views.iter().map(|v| p(v)));
+    refused(dir, &args, &["pass --target charuco with them"]);
+    refused(
+        dir,
+        &[
+            "synth",
+            "calib",
+            "--target",
+            "charuco",
+            "--square",
+            "0.04",
+            "--marker",
+            "0.04",
+            "--out",
+            p(&dir.join("s")),
+        ],
+        &["--marker 0.04"],
+    );
+
+    // A view without the board is skipped with its reason; the others calibrate.
+    let blank = calib.join("blank.png");
+    image::GrayImage::from_pixel(1280, 720, image::Luma([128u8]))
+        .save(&blank)
+        .expect("write");
+    let mut args = charuco("11x8", "0.03", "4X4_50");
+    args.push(p(&blank));
+    let o = odocal(&args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("skipped")
+            && err.contains("blank.png: no 4X4_50 marker of the 11x8 ChArUco board found"),
+        "{err}"
+    );
+}

@@ -9,8 +9,10 @@ use std::process::Output;
 use common::{odocal, succeeded};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use odocal_calib::{BoardToCamera, CameraFile};
-use odocal_synth::board::{calibration_errors, render_view, CalibScene, CalibTruth};
+use odocal_calib::{BoardTarget, BoardToCamera, CameraFile};
+use odocal_synth::board::{
+    calibration_errors, render_view, visible_share, BoardPattern, CalibScene, CalibTruth,
+};
 use odocal_synth::raycast::RayGrid;
 
 fn synth(dir: &Path, seed: u64, extra: &[&str]) -> CalibTruth {
@@ -246,6 +248,7 @@ fn fronto_parallel_views_are_degenerate() {
     };
     let camera = scene.camera();
     let grid = RayGrid::new(&camera, 2);
+    let pattern = BoardPattern::new(&scene.board).unwrap();
     for (i, (x, y, z)) in [
         (-0.3, -0.15, 1.0),
         (0.0, 0.0, 1.1),
@@ -259,7 +262,7 @@ fn fronto_parallel_views_are_degenerate() {
             Translation3::new(*x, *y, *z),
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.02 * i as f64),
         ));
-        render_view(&grid, &scene, &pose, None, i as u64)
+        render_view(&grid, &scene, &pattern, &pose, None, i as u64)
             .save(dir.path().join(format!("view_{i:02}.png")))
             .unwrap();
     }
@@ -373,4 +376,109 @@ fn every_lens_model_is_recovered_and_chosen() {
             "{lens}: held out {held_rms} px"
         );
     }
+}
+
+/// `odocal calibrate` of the ChArUco views `synth calib --target charuco` renders by default:
+/// an 11x8 board of 4 cm squares with 3 cm 4X4_50 markers.
+fn calibrate_charuco(dir: &Path, out: &Path) -> Output {
+    let views = images(dir, "view_");
+    let floors = images(dir, "floor_");
+    let mut args: Vec<&str> = vec!["calibrate"];
+    args.extend(views.iter().map(|s| s.as_str()));
+    args.extend([
+        "--target",
+        "charuco",
+        "--board",
+        "11x8",
+        "--square",
+        "0.04",
+        "--marker",
+        "0.03",
+        "--dictionary",
+        "4X4_50",
+        "--out",
+        out.to_str().unwrap(),
+        "--floor",
+    ]);
+    args.extend(floors.iter().map(|s| s.as_str()));
+    odocal(&args)
+}
+
+/// The acceptance figures with a ChArUco board (issue 13, part 3): 20 views at 1280x720 of the
+/// 70° camera, noise σ 2 grey levels, with a third or more of the board outside the image in
+/// many of them, and ChArUco floor views; for several seeds.
+#[test]
+fn charuco_calibration_matches_truth_with_boards_partly_outside_the_image() {
+    for seed in [1u64, 2, 3] {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = synth(dir.path(), seed, &["--target", "charuco"]);
+        assert!(truth.scene.board.is_charuco());
+        let shares: Vec<f64> = truth
+            .views
+            .iter()
+            .map(|v| visible_share(&truth.camera, &v.board_to_camera, &truth.scene.board))
+            .collect();
+        let third_out = shares.iter().filter(|&&s| s <= 2.0 / 3.0).count();
+        let out = dir.path().join("camera.json");
+        let res = calibrate_charuco(dir.path(), &out);
+        succeeded(&res);
+        let cam = CameraFile::load(&out).unwrap();
+        let e = calibration_errors(
+            &cam.camera,
+            cam.floor.as_ref().map(|f| &f.floor_to_camera),
+            &truth.camera,
+            &truth.floor_to_camera,
+        );
+        let floor_err = e.floor_max_m.expect("floor plane estimated");
+        println!(
+            "seed {seed}: {third_out} of 20 views with a third or more of the board outside; fx err {:.4} %, fy err {:.4} %, cx err {:.3} px, cy err {:.3} px, RMS {:.3} px, floor max err {:.3} mm",
+            e.fx_rel * 100.0,
+            e.fy_rel * 100.0,
+            e.cx_px,
+            e.cy_px,
+            cam.rms_px,
+            floor_err * 1000.0
+        );
+        assert!(
+            third_out >= 5,
+            "seed {seed}: only {third_out} views with a third of the board outside"
+        );
+        assert!(
+            e.fx_rel <= 0.002 && e.fy_rel <= 0.002,
+            "seed {seed}: focal error {e:?}"
+        );
+        assert!(
+            e.cx_px <= 1.0 && e.cy_px <= 1.0,
+            "seed {seed}: principal point error {e:?}"
+        );
+        assert!(cam.rms_px <= 0.2, "seed {seed}: RMS {}", cam.rms_px);
+        assert!(floor_err <= 0.002, "seed {seed}: floor error {floor_err} m");
+        assert_eq!(cam.views.len(), 20);
+        assert!(cam.board.is_some_and(|b| b.is_charuco()));
+        // The partial views count: views with fewer corners than the board's 70 were used.
+        assert!(cam.views.iter().any(|v| v.corners_px.len() < 40));
+        if seed == 1 {
+            let check = odocal(&[
+                "synth",
+                "check-calib",
+                "--camera",
+                out.to_str().unwrap(),
+                "--truth",
+                dir.path().join("truth.json").to_str().unwrap(),
+            ]);
+            succeeded(&check);
+            print!("{}", String::from_utf8_lossy(&check.stdout));
+        }
+    }
+}
+
+/// camera.json files written before odocal read ChArUco boards have no board target: they
+/// were checkerboards.
+#[test]
+fn camera_files_without_a_board_target_are_checkerboards() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/parsers/camera.json");
+    let cam = CameraFile::load(&path).unwrap();
+    let board = cam.board.expect("board");
+    assert_eq!(board.target, BoardTarget::Checkerboard);
+    assert_eq!((board.cols, board.rows), (9, 6));
 }

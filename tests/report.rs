@@ -292,6 +292,7 @@ fn report_renders_in_headless_chromium() {
     for fig in [
         "calib-residuals",
         "calib-coverage",
+        "calib-projection-uncertainty",
         "errors-x",
         "errors-y",
         "table1-mse",

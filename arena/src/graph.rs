@@ -10,13 +10,14 @@
 //! Levenberg–Marquardt (`odocal_core::lsq`). The first guess chains solvePnP poses from the
 //! first camera through the shared views.
 //!
-//! Corner numbering: OpenCV numbers a checkerboard's corners from the one nearest the image's
-//! top-left, so two cameras name a board's corners alike when their images are turned alike
-//! (within ±45° about the vertical). Cameras mounted otherwise number them differently; the
-//! fit then cannot make them agree, and the consistency check refuses the result.
+//! Corner numbering: a ChArUco board names every corner, so any cameras agree on it. OpenCV
+//! numbers a plain checkerboard's corners from the one nearest the image's top-left, so two
+//! cameras name its corners alike only when their images are turned alike (within ±45° about
+//! the vertical). Cameras mounted otherwise number them differently; the fit then cannot make
+//! them agree, and the consistency check refuses the result.
 
 use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
-use odocal_calib::{board_points, board_pose, BoardSpec, CameraFile, CameraModel, FloorToCamera};
+use odocal_calib::{board_pose, BoardSpec, CameraFile, CameraModel, FloorToCamera};
 use std::path::Path;
 
 use crate::{ArenaError, Consistency, PairConsistency, SharedView};
@@ -35,6 +36,10 @@ pub struct SharedObservation {
     pub camera: usize,
     /// The detected inner corners, pixels.
     pub corners: Vec<Point2<f64>>,
+    /// Each corner's index among the board's inner corners (a ChArUco board's ids).
+    pub ids: Vec<u32>,
+    /// Each corner's place on the board (board frame), metres.
+    pub object_points: Vec<nalgebra::Point3<f64>>,
 }
 
 /// The fitted arena.
@@ -95,17 +100,11 @@ pub fn solve_arena(
     }
     let first_floor = *cameras[0].require_floor(camera_paths[0])?;
     let models: Vec<CameraModel> = cameras.iter().map(|c| c.camera).collect();
-    let object = board_points(board);
     // First guesses: solvePnP of every image, chained from the first camera.
     let mut pnp = Vec::new();
     for (s, view) in shared.iter().enumerate() {
         for (k, bv) in &view.views {
-            pnp.push((
-                s,
-                *k,
-                board_pose(&models[*k], bv, board)?,
-                bv.corners.clone(),
-            ));
+            pnp.push((s, *k, board_pose(&models[*k], bv, board)?, bv));
         }
     }
     let mut cam_init: Vec<Option<FloorToCamera>> = vec![None; n];
@@ -145,13 +144,16 @@ pub fn solve_arena(
     let board_init: Vec<[f64; 3]> = board_init.into_iter().flatten().collect();
     let observations: Vec<SharedObservation> = pnp
         .into_iter()
-        .map(|(view, camera, _, corners)| SharedObservation {
+        .map(|(view, camera, _, bv)| SharedObservation {
             view,
             camera,
-            corners,
+            corners: bv.corners.clone(),
+            ids: bv.ids.clone(),
+            object_points: bv.object_points.clone(),
         })
         .collect();
     let n_cam = 6 * (n - 1);
+    let n_residuals: usize = observations.iter().map(|o| 2 * o.corners.len()).sum();
     let unpack = |p: &[f64]| -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>) {
         let cams = (0..n)
             .map(|k| {
@@ -172,10 +174,10 @@ pub fn solve_arena(
     };
     let residuals = |p: &[f64]| -> Vec<f64> {
         let (cams, boards) = unpack(p);
-        let mut r = Vec::with_capacity(observations.len() * object.len() * 2);
+        let mut r = Vec::with_capacity(n_residuals);
         for o in &observations {
             let to_cam = cams[o.camera] * boards[o.view];
-            for (q, seen) in object.iter().zip(&o.corners) {
+            for (q, seen) in o.object_points.iter().zip(&o.corners) {
                 match models[o.camera].project(&(to_cam * q)) {
                     Some(px) => {
                         r.push(px.x - seen.x);
@@ -197,16 +199,15 @@ pub fn solve_arena(
     let (p, _report) = odocal_core::lsq::minimize(&residuals, p0, 200);
     let (cams, boards) = unpack(&p);
     let r = residuals(&p);
-    let per_obs = object.len() * 2;
     let mut sq = vec![0.0; n];
     let mut count = vec![0usize; n];
     let mut views_per_camera = vec![0usize; n];
-    for (i, o) in observations.iter().enumerate() {
-        sq[o.camera] += r[i * per_obs..(i + 1) * per_obs]
-            .iter()
-            .map(|v| v * v)
-            .sum::<f64>();
-        count[o.camera] += object.len();
+    let mut at = 0;
+    for o in &observations {
+        let m = 2 * o.corners.len();
+        sq[o.camera] += r[at..at + m].iter().map(|v| v * v).sum::<f64>();
+        at += m;
+        count[o.camera] += o.corners.len();
         views_per_camera[o.camera] += 1;
     }
     let rms_px = sq
@@ -252,7 +253,15 @@ fn consistency(
     let mut by_pair: std::collections::BTreeMap<(usize, usize), Vec<f64>> = Default::default();
     for (i, a) in observations.iter().enumerate() {
         for b in observations[i + 1..].iter().filter(|b| b.view == a.view) {
-            for (pa, pb) in a.corners.iter().zip(&b.corners) {
+            // The same corner in both images: by its index on the board.
+            let in_b: std::collections::HashMap<u32, &Point2<f64>> =
+                b.ids.iter().copied().zip(&b.corners).collect();
+            for (pa, pb) in a
+                .ids
+                .iter()
+                .zip(&a.corners)
+                .filter_map(|(id, pa)| in_b.get(id).map(|pb| (pa, *pb)))
+            {
                 let fa = models[a.camera].pixel_to_floor(&poses[a.camera], pa, 0.0);
                 let fb = models[b.camera].pixel_to_floor(&poses[b.camera], pb, 0.0);
                 if let (Some(fa), Some(fb)) = (fa, fb) {
@@ -314,7 +323,7 @@ pub fn build_arena(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use odocal_calib::{BoardView, FloorPlane};
+    use odocal_calib::{board_points, BoardView, FloorPlane};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -322,6 +331,7 @@ mod tests {
         cols: 9,
         rows: 6,
         square_m: 0.08,
+        target: odocal_calib::BoardTarget::Checkerboard,
     };
 
     /// Three 90° cameras 2.5 m up, and boards on the floor where their views overlap; the
@@ -359,11 +369,12 @@ mod tests {
                     (corners.len() == object.len()).then(|| {
                         (
                             k,
-                            BoardView {
-                                image: format!("s{i}_c{k}.png"),
-                                size: (960, 540),
+                            BoardView::checkerboard(
+                                format!("s{i}_c{k}.png"),
+                                (960, 540),
                                 corners,
-                            },
+                                &BOARD,
+                            ),
                         )
                     })
                 })

@@ -37,11 +37,7 @@ fn arena_meets_the_bounds() {
         frames: 120,
         supersample: 2,
         calib_views: 10,
-        board: odocal_calib::BoardSpec {
-            cols: 9,
-            rows: 6,
-            square_m: 0.08,
-        },
+        board: odocal_calib::BoardSpec::checkerboard(9, 6, 0.08),
         ..ArenaScene::default()
     };
     let dir = tempfile::tempdir().unwrap();

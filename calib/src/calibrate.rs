@@ -68,8 +68,10 @@ pub fn calibrate(
             v.image, v.size.0, v.size.1, views[0].image, w, h
         )));
     }
-    let object = board_points(board);
-    let (camera, poses) = opencv_calibrate(views, &object, (w, h), model)?;
+    for v in views {
+        check_view_points(v, board)?;
+    }
+    let (camera, poses) = opencv_calibrate(views, (w, h), model)?;
     check_tilt(&poses)?;
     if !camera.parameters().iter().all(|v| v.is_finite()) || camera.intrinsics.fx <= 0.0 {
         return Err(CalibError::Input(
@@ -81,7 +83,7 @@ pub fn calibrate(
         .zip(&poses)
         .map(|(v, p)| Observation {
             pose: *p,
-            object: &object,
+            object: &v.object_points,
             image: &v.corners,
         })
         .collect();
@@ -134,14 +136,13 @@ pub struct Observation<'a> {
 /// OpenCV's calibration for `model`: the camera and every view's board pose.
 fn opencv_calibrate(
     views: &[BoardView],
-    object: &[Point3<f64>],
     (w, h): (u32, u32),
     model: LensModel,
 ) -> Result<(CameraModel, Vec<BoardToCamera>), CalibError> {
     let mut object_points = Vector::<Vector<core::Point3f>>::new();
     let mut image_points = Vector::<Vector<core::Point2f>>::new();
     for v in views {
-        object_points.push(points3f(object));
+        object_points.push(points3f(&v.object_points));
         image_points.push(points2f(&v.corners));
     }
     let mut k = Mat::default();
@@ -227,6 +228,28 @@ fn check_tilt(poses: &[BoardToCamera]) -> Result<(), CalibError> {
         return Err(CalibError::Input(format!(
             "degenerate view set: every board is within {max_tilt:.1}° of facing the camera, so the focal length \
              cannot be estimated; add views with the board tilted 20-45° in different directions"
+        )));
+    }
+    Ok(())
+}
+
+/// Each view's corners must come with their places on the board, at least 4 of them (a
+/// homography's worth): a ChArUco view may hold only part of the board.
+fn check_view_points(view: &BoardView, board: &BoardSpec) -> Result<(), CalibError> {
+    if view.object_points.len() != view.corners.len() {
+        return Err(CalibError::Input(format!(
+            "{}: {} corners but {} board positions",
+            view.image,
+            view.corners.len(),
+            view.object_points.len()
+        )));
+    }
+    if view.corners.len() < 4 {
+        return Err(CalibError::Input(format!(
+            "{}: only {} corner(s) of the {}; a view needs at least 4",
+            view.image,
+            view.corners.len(),
+            crate::charuco::board_name(board)
         )));
     }
     Ok(())

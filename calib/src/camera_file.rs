@@ -4,20 +4,83 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::{CalibError, CameraModel, FloorToCamera};
+use crate::{ArucoDictionary, CalibError, CameraModel, FloorToCamera};
 
 /// The `format` tag of camera.json files.
 pub const CAMERA_FORMAT: &str = "odocal.camera/1";
 
-/// A checkerboard: inner-corner counts and square size.
+/// A calibration board: inner-corner counts, square size and what is printed on it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BoardSpec {
-    /// Inner corners along a row (the board's x axis).
+    /// Inner corners along a row (the board's x axis); a ChArUco board of 11x8 squares has
+    /// 10x7 inner corners.
     pub cols: u32,
     /// Inner corners along a column (the board's y axis).
     pub rows: u32,
     /// Side of one square, metres.
     pub square_m: f64,
+    /// A plain checkerboard or a ChArUco board (absent in files written before odocal read
+    /// ChArUco boards: those were checkerboards).
+    #[serde(default)]
+    pub target: BoardTarget,
+}
+
+/// What is printed on a calibration board.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum BoardTarget {
+    /// Black and white squares; every inner corner must be in view.
+    #[default]
+    Checkerboard,
+    /// OpenCV's ChArUco board: ArUco markers in the white squares name every corner, so a
+    /// board partly outside the image still counts.
+    Charuco {
+        /// Side of one marker, metres.
+        marker_m: f64,
+        /// The markers' dictionary.
+        dictionary: ArucoDictionary,
+    },
+}
+
+impl BoardSpec {
+    /// A checkerboard of `cols` x `rows` inner corners and `square_m` squares.
+    pub fn checkerboard(cols: u32, rows: u32, square_m: f64) -> Self {
+        Self {
+            cols,
+            rows,
+            square_m,
+            target: BoardTarget::Checkerboard,
+        }
+    }
+
+    /// Whether this is a ChArUco board.
+    pub fn is_charuco(&self) -> bool {
+        matches!(self.target, BoardTarget::Charuco { .. })
+    }
+}
+
+impl std::fmt::Display for BoardSpec {
+    /// "9x6 checkerboard (inner corners), 0.05 m squares" or "11x8-square ChArUco board,
+    /// 0.04 m squares, 0.03 m 4X4_50 markers".
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.target {
+            BoardTarget::Checkerboard => write!(
+                f,
+                "{}x{} checkerboard (inner corners), {} m squares",
+                self.cols, self.rows, self.square_m
+            ),
+            BoardTarget::Charuco {
+                marker_m,
+                dictionary,
+            } => write!(
+                f,
+                "{}x{}-square ChArUco board, {} m squares, {marker_m} m {dictionary} markers",
+                self.cols + 1,
+                self.rows + 1,
+                self.square_m
+            ),
+        }
+    }
 }
 
 /// One standard deviation of each estimated intrinsic parameter (from the Jacobian at the
@@ -103,6 +166,10 @@ pub struct CameraFile {
     /// The lens models compared by held-out reprojection error (`--model auto`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub model_comparison: Vec<crate::select::ModelScore>,
+    /// How uncertain the floor point seen at each pixel is, from the covariance and the
+    /// floor boards (absent without floor views or in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_uncertainty: Option<crate::FloorUncertaintyMap>,
 }
 
 impl CameraFile {
@@ -119,6 +186,7 @@ impl CameraFile {
             floor,
             covariance: None,
             model_comparison: vec![],
+            floor_uncertainty: None,
         }
     }
 

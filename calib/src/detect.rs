@@ -1,23 +1,49 @@
-//! Checkerboard corner detection (OpenCV findChessboardCorners + cornerSubPix).
+//! Board corner detection: checkerboards (OpenCV findChessboardCorners + cornerSubPix) and
+//! ChArUco boards ([`crate::charuco`]).
 
 use std::path::Path;
 
-use nalgebra::Point2;
+use nalgebra::{Point2, Point3};
 use opencv::core::{self, Mat, Point2f, Size, TermCriteria, Vector};
 use opencv::prelude::*;
 use opencv::{calib3d, imgcodecs, imgproc};
 
-use crate::{BoardSpec, CalibError};
+use crate::{board_points, BoardSpec, BoardTarget, CalibError};
 
-/// The detected inner corners of one view, row by row, in pixels.
+/// The corners detected in one view, each with where it lies on the board.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoardView {
     /// The image file.
     pub image: String,
     /// Image size (width, height), pixels.
     pub size: (u32, u32),
-    /// Inner corners, `board.cols` per row, first corner nearest the image's top-left.
+    /// Detected inner corners, pixels: for a checkerboard all of them, `board.cols` per row,
+    /// first corner nearest the image's top-left; for a ChArUco board the ones found.
     pub corners: Vec<Point2<f64>>,
+    /// Each corner's index among the board's inner corners (row-major from the board frame's
+    /// origin; OpenCV's ChArUco ids).
+    pub ids: Vec<u32>,
+    /// Each corner's position on the board (board frame, z = 0), metres.
+    pub object_points: Vec<Point3<f64>>,
+}
+
+impl BoardView {
+    /// A view of a whole checkerboard: `corners` row by row, as [`find_corners`] orders them.
+    pub fn checkerboard(
+        image: String,
+        size: (u32, u32),
+        corners: Vec<Point2<f64>>,
+        board: &BoardSpec,
+    ) -> Self {
+        let object_points = board_points(board);
+        Self {
+            image,
+            size,
+            ids: (0..corners.len() as u32).collect(),
+            object_points: object_points.into_iter().take(corners.len()).collect(),
+            corners,
+        }
+    }
 }
 
 /// The result of looking for the board in one image.
@@ -25,12 +51,14 @@ pub struct BoardView {
 pub enum Detection {
     /// The board was found.
     Found(BoardView),
-    /// The image was read but the board was not found in it.
+    /// The image was read but the board was not found in it, or too little of it.
     NotFound {
         /// The image file.
         image: String,
         /// Image size (width, height), pixels.
         size: (u32, u32),
+        /// What was missing, e.g. "no 9x6 checkerboard found".
+        reason: String,
     },
 }
 
@@ -154,13 +182,29 @@ pub fn detect_file(path: &Path, board: &BoardSpec) -> Result<Detection, CalibErr
     let size = gray.size()?;
     let size = (size.width as u32, size.height as u32);
     let image = path.display().to_string();
+    if let BoardTarget::Charuco { .. } = board.target {
+        return Ok(match crate::charuco::find_charuco_corners(&gray, board)? {
+            Ok(found) => Detection::Found(BoardView {
+                image,
+                size,
+                corners: found.corners,
+                ids: found.ids,
+                object_points: found.object_points,
+            }),
+            Err(reason) => Detection::NotFound {
+                image,
+                size,
+                reason,
+            },
+        });
+    }
     Ok(match find_corners(&gray, board)? {
-        Some(corners) => Detection::Found(BoardView {
+        Some(corners) => Detection::Found(BoardView::checkerboard(image, size, corners, board)),
+        None => Detection::NotFound {
             image,
             size,
-            corners,
-        }),
-        None => Detection::NotFound { image, size },
+            reason: format!("no {}x{} checkerboard found", board.cols, board.rows),
+        },
     })
 }
 
@@ -275,11 +319,7 @@ pub fn guess_board_size(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
         .into_iter()
         .filter(|&(a, b)| a >= 3 && b >= 3 && (a, b) != (c, r))
         .find(|&(a, b)| {
-            let spec = BoardSpec {
-                cols: a as u32,
-                rows: b as u32,
-                square_m: board.square_m,
-            };
+            let spec = BoardSpec::checkerboard(a as u32, b as u32, board.square_m);
             matches!(find_corners(&gray, &spec), Ok(Some(_)))
         })
         .map(|(a, b)| (a as u32, b as u32))

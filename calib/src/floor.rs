@@ -1,26 +1,36 @@
 //! The floor plane: boards lying flat on the floor, each located by solvePnP,
 //! one plane fitted through all their corners. The first floor view fixes the
-//! floor frame's origin (its first inner corner) and x axis (along its rows);
-//! z points up, towards the camera.
+//! floor frame's origin (its first inner corner; for a ChArUco board corner 0, whether or
+//! not it is in view) and x axis (along its rows); z points up, towards the camera.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use opencv::calib3d;
 
-use crate::calibrate::board_points;
 use crate::opencv_glue::solve_pnp;
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorPlane, FloorToCamera,
 };
 
-/// Locates one board in the camera frame with a calibrated camera.
+/// Locates one board in the camera frame with a calibrated camera, from the view's corners
+/// and their places on the board (all corners of a checkerboard, those found of a ChArUco
+/// board; `board` names it in errors).
 pub fn board_pose(
     camera: &CameraModel,
     view: &BoardView,
     board: &BoardSpec,
 ) -> Result<BoardToCamera, CalibError> {
+    if view.object_points.len() != view.corners.len() || view.corners.len() < 4 {
+        return Err(CalibError::Input(format!(
+            "{}: {} corners of the {} with {} board positions; locating it needs at least 4",
+            view.image,
+            view.corners.len(),
+            crate::charuco::board_name(board),
+            view.object_points.len()
+        )));
+    }
     match solve_pnp(
         camera,
-        &board_points(board),
+        &view.object_points,
         &view.corners,
         calib3d::SOLVEPNP_ITERATIVE,
     )? {
@@ -43,17 +53,27 @@ pub fn fit_floor(
             "no floor view: lay the board flat on the floor and photograph it".into(),
         ));
     }
-    let object = board_points(board);
+    let poses = views
+        .iter()
+        .map(|v| board_pose(camera, v, board))
+        .collect::<Result<Vec<_>, _>>()?;
+    plane_from_poses(&poses, views)
+}
+
+/// The floor plane through boards lying on the floor, located at `poses` (one per view):
+/// the least-squares plane of all their corners, its origin at the first board's first
+/// corner and its x axis along that board's rows.
+pub(crate) fn plane_from_poses(
+    poses: &[BoardToCamera],
+    views: &[BoardView],
+) -> Result<FloorPlane, CalibError> {
     let mut pts: Vec<Point3<f64>> = Vec::new();
-    let mut first_pose = None;
-    for v in views {
-        let pose = board_pose(camera, v, board)?;
-        if first_pose.is_none() {
-            first_pose = Some(pose);
-        }
-        pts.extend(object.iter().map(|p| pose.0 * p));
+    for (pose, v) in poses.iter().zip(views) {
+        pts.extend(v.object_points.iter().map(|p| pose.0 * p));
     }
-    let first_pose = first_pose.ok_or_else(|| CalibError::Input("no floor view".into()))?;
+    let Some(&first_pose) = poses.first() else {
+        return Err(CalibError::Input("no floor view".into()));
+    };
     let n = pts.len() as f64;
     let centroid = pts.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
     let mut scatter = Matrix3::zeros();

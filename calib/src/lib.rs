@@ -1,13 +1,15 @@
-//! Camera model, checkerboard detection, Zhang calibration (through OpenCV)
+//! Camera model, checkerboard and ChArUco detection, Zhang calibration (through OpenCV)
 //! and the floor plane of a ceiling camera.
 
 pub mod calibrate;
 pub mod camera_file;
+pub mod charuco;
 mod coverage;
 pub mod detect;
 mod error;
 pub mod export;
 pub mod floor;
+pub mod floor_uncertainty;
 pub mod model;
 mod opencv_glue;
 pub mod select;
@@ -16,11 +18,14 @@ pub mod uncertainty;
 
 pub use calibrate::{board_points, calibrate, Calibration, Observation};
 pub use camera_file::{
-    BoardSpec, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual, CAMERA_FORMAT,
+    BoardSpec, BoardTarget, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual,
+    CAMERA_FORMAT,
 };
+pub use charuco::ArucoDictionary;
 pub use detect::{detect_file, BoardView, Detection};
 pub use error::CalibError;
 pub use floor::{board_pose, fit_floor};
+pub use floor_uncertainty::FloorUncertaintyMap;
 pub use model::{
     intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics, LensModel,
 };

@@ -6,7 +6,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::calibrate::board_points;
 use crate::{calibrate, solve_pnp, BoardSpec, BoardView, CalibError, LensModel};
 
 /// Folds of the leave-views-out cross-validation (fewer when there are fewer views).
@@ -56,7 +55,6 @@ pub fn held_out_errors(
             views.len()
         )));
     }
-    let object = board_points(board);
     let mut out = vec![f64::NAN; views.len()];
     for fold in 0..folds {
         let train: Vec<BoardView> = views
@@ -69,7 +67,7 @@ pub fn held_out_errors(
         for (i, v) in views.iter().enumerate().filter(|(i, _)| i % folds == fold) {
             let Some(pose) = solve_pnp(
                 &cal.camera,
-                &object,
+                &v.object_points,
                 &v.corners,
                 opencv::calib3d::SOLVEPNP_ITERATIVE,
             )?
@@ -80,13 +78,13 @@ pub fn held_out_errors(
                 )));
             };
             let mut ss = 0.0;
-            for (p, x) in object.iter().zip(&v.corners) {
+            for (p, x) in v.object_points.iter().zip(&v.corners) {
                 ss += match cal.camera.project(&(pose * p)) {
                     Some(q) => (q - x).norm_squared(),
                     None => f64::INFINITY,
                 };
             }
-            out[i] = (ss / object.len().max(1) as f64).sqrt();
+            out[i] = (ss / v.corners.len().max(1) as f64).sqrt();
         }
     }
     Ok(out)

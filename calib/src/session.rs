@@ -8,8 +8,9 @@ use rayon::prelude::*;
 
 use crate::detect::guess_board_size;
 use crate::{
-    calibrate, compare_models, detect_file, fit_floor, BoardSpec, BoardView, CalibError,
-    CameraFile, Detection, LensModel, SkippedView, UncertaintyMap, CAMERA_FORMAT,
+    calibrate, compare_models, detect_file, fit_floor, ArucoDictionary, BoardSpec, BoardTarget,
+    BoardView, CalibError, CameraFile, Detection, FloorUncertaintyMap, LensModel, SkippedView,
+    UncertaintyMap, CAMERA_FORMAT,
 };
 
 impl BoardSpec {
@@ -35,11 +36,57 @@ impl BoardSpec {
                 "--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm"
             )));
         }
-        Ok(BoardSpec {
-            cols,
-            rows,
+        Ok(BoardSpec::checkerboard(cols, rows, square_m))
+    }
+
+    /// Parses a ChArUco board: `--board COLSxROWS` in squares (as OpenCV counts them), the
+    /// square and marker sides in metres and the dictionary's name (`4X4_50`, ...).
+    pub fn parse_charuco(
+        s: &str,
+        square_m: f64,
+        marker_m: f64,
+        dictionary: &str,
+    ) -> Result<Self, CalibError> {
+        let bad = |why: String| CalibError::Input(format!("--board {s:?}: {why}"));
+        let (c, r) = s.split_once(['x', 'X']).ok_or_else(|| {
+            bad("expected COLSxROWS of squares for a ChArUco board, e.g. 11x8".into())
+        })?;
+        let cols: u32 = c
+            .trim()
+            .parse()
+            .map_err(|_| bad(format!("{c:?} is not a number")))?;
+        let rows: u32 = r
+            .trim()
+            .parse()
+            .map_err(|_| bad(format!("{r:?} is not a number")))?;
+        if cols < 3 || rows < 3 {
+            return Err(bad(
+                "a ChArUco board needs at least 3x3 squares (--board counts squares for ChArUco)"
+                    .into(),
+            ));
+        }
+        if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
+            return Err(CalibError::Input(format!(
+                "--square {square_m}: the square size is in metres, e.g. 0.04 for 4 cm"
+            )));
+        }
+        let dictionary = ArucoDictionary::from_name(dictionary).ok_or_else(|| {
+            CalibError::Input(format!(
+                "--dictionary {dictionary:?}: not an ArUco dictionary OpenCV knows; one of {}",
+                ArucoDictionary::names()
+            ))
+        })?;
+        let board = BoardSpec {
+            cols: cols - 1,
+            rows: rows - 1,
             square_m,
-        })
+            target: BoardTarget::Charuco {
+                marker_m,
+                dictionary,
+            },
+        };
+        crate::charuco::check_board(&board)?;
+        Ok(board)
     }
 }
 
@@ -95,7 +142,7 @@ pub fn calibrate_session(
         }));
     }
     let detections = detect_all(images, board, on_image)?;
-    let (views, mut skipped, sizes) = split(detections, board);
+    let (views, mut skipped, sizes) = split(detections);
     check_sizes(&sizes)?;
     let n_found = views.len();
     let views = distinct_views(views, &mut skipped);
@@ -147,11 +194,12 @@ pub fn calibrate_session(
         v.held_out_rms_px = Some(*h);
     }
     notes.extend(crate::coverage::coverage_notes(&cal.camera, &views));
+    let mut floor_uncertainty = None;
     let floor = if floor.is_empty() {
         None
     } else {
         let fd = detect_all(floor, board, on_image)?;
-        let (fviews, fskipped, fsizes) = split(fd, board);
+        let (fviews, fskipped, fsizes) = split(fd);
         if let Some(v) = fviews.first() {
             check_board_size(v, board)?;
         }
@@ -164,7 +212,18 @@ pub fn calibrate_session(
         if fviews.is_empty() {
             return Err(no_board_error(floor, board, "floor"));
         }
-        Some(fit_floor(&cal.camera, &fviews, board)?)
+        let plane = fit_floor(&cal.camera, &fviews, board)?;
+        // The corners' noise per coordinate: the calibration's RMS is per corner (2-D).
+        let corner_sigma_px = cal.rms_px / std::f64::consts::SQRT_2;
+        floor_uncertainty = Some(FloorUncertaintyMap::new(
+            &cal.camera,
+            &cal.covariance,
+            &fviews,
+            board,
+            corner_sigma_px,
+            (cal.camera.width / 32).max(8),
+        )?);
+        Some(plane)
     };
     let file = CameraFile {
         format: CAMERA_FORMAT.into(),
@@ -182,6 +241,7 @@ pub fn calibrate_session(
                 .collect(),
         ),
         model_comparison,
+        floor_uncertainty,
     };
     Ok(Session { file, notes })
 }
@@ -203,7 +263,7 @@ fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<
                 .zip(&v.corners)
                 .map(|(a, b)| (a - b).norm_squared())
                 .sum();
-            k.corners.len() == v.corners.len() && (ss / n).sqrt() < SAME_VIEW_RMS_PX
+            k.ids == v.ids && (ss / n).sqrt() < SAME_VIEW_RMS_PX
         });
         match same {
             Some(k) => skipped.push(SkippedView {
@@ -219,8 +279,12 @@ fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<
     kept
 }
 
-/// Refuses a `--board` that counts fewer corners than the board in the view has.
+/// Refuses a `--board` that counts fewer corners than the checkerboard in the view has (a
+/// ChArUco board's markers name every corner, so it cannot be taken for a part of itself).
 fn check_board_size(view: &BoardView, board: &BoardSpec) -> Result<(), CalibError> {
+    if board.is_charuco() {
+        return Ok(());
+    }
     match crate::detect::larger_board_around(Path::new(&view.image), board, &view.corners) {
         Some((c, r)) => Err(CalibError::Input(format!(
             "{} shows a {c}x{r} board, but --board {}x{} finds only part of it (the floor origin would move by a square); pass --board {c}x{r} (inner corners)",
@@ -250,10 +314,7 @@ fn detect_all(
 
 type Sizes = Vec<(String, (u32, u32))>;
 
-fn split(
-    detections: Vec<Detection>,
-    board: &BoardSpec,
-) -> (Vec<BoardView>, Vec<SkippedView>, Sizes) {
+fn split(detections: Vec<Detection>) -> (Vec<BoardView>, Vec<SkippedView>, Sizes) {
     let mut views = Vec::new();
     let mut skipped = Vec::new();
     let mut sizes = Vec::new();
@@ -263,12 +324,13 @@ fn split(
                 sizes.push((v.image.clone(), v.size));
                 views.push(v);
             }
-            Detection::NotFound { image, size } => {
+            Detection::NotFound {
+                image,
+                size,
+                reason,
+            } => {
                 sizes.push((image.clone(), size));
-                skipped.push(SkippedView {
-                    image,
-                    reason: format!("no {}x{} checkerboard found", board.cols, board.rows),
-                });
+                skipped.push(SkippedView { image, reason });
             }
         }
     }
@@ -291,6 +353,9 @@ fn check_sizes(sizes: &[(String, (u32, u32))]) -> Result<(), CalibError> {
 }
 
 fn no_board_error(paths: &[PathBuf], board: &BoardSpec, what: &str) -> CalibError {
+    if let BoardTarget::Charuco { dictionary, .. } = board.target {
+        return no_charuco_error(paths, board, dictionary, what);
+    }
     let hint = paths
         .iter()
         .take(3)
@@ -310,6 +375,34 @@ fn no_board_error(paths: &[PathBuf], board: &BoardSpec, what: &str) -> CalibErro
     ))
 }
 
+fn no_charuco_error(
+    paths: &[PathBuf],
+    board: &BoardSpec,
+    dictionary: ArucoDictionary,
+    what: &str,
+) -> CalibError {
+    let first = paths.first().map(|p| {
+        let reason = match detect_file(p, board) {
+            Ok(Detection::NotFound { reason, .. }) => reason,
+            Ok(Detection::Found(_)) => "the board was found".into(),
+            Err(e) => e.to_string(),
+        };
+        format!(" In {}: {reason}.", p.display())
+    });
+    let hint = paths
+        .iter()
+        .take(3)
+        .find_map(|p| crate::charuco::guess_dictionary(p, dictionary))
+        .map(|(d, n)| format!(" {n} markers of dictionary {d} were found: pass --dictionary {d}."))
+        .unwrap_or_default();
+    CalibError::Input(format!(
+        "no {} found in any of the {} {what} image(s): --board counts the ChArUco board's squares and --dictionary names its markers.{}{hint}",
+        crate::charuco::board_name(board),
+        paths.len(),
+        first.unwrap_or_default()
+    ))
+}
+
 /// The calibration as `odocal calibrate` prints it: every number with its unit and
 /// uncertainty, one line each.
 pub fn summary(f: &CameraFile) -> Vec<String> {
@@ -324,6 +417,19 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
         f.skipped.len(),
         f.rms_px
     ));
+    if let Some(b) = f.board.filter(|b| b.is_charuco()) {
+        let mut n: Vec<usize> = f.views.iter().map(|v| v.corners_px.len()).collect();
+        n.sort_unstable();
+        if let (Some(lo), Some(hi)) = (n.first(), n.last()) {
+            out.push(format!(
+                "  {}: {} ChArUco corners in all, per view min {lo}, median {}, max {hi} of {}",
+                crate::charuco::board_name(&b),
+                n.iter().sum::<usize>(),
+                n[n.len() / 2],
+                b.cols * b.rows
+            ));
+        }
+    }
     if !f.model_comparison.is_empty() {
         out.push(
             "  lens models judged on views left out of their calibration (5-fold, RMS px):"
@@ -439,6 +545,15 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             fl.plane_rms_m * 1000.0,
             fl.camera_height_m
         ));
+        if let Some((median, max)) = f
+            .floor_uncertainty
+            .as_ref()
+            .and_then(|m| m.median_and_max_mm())
+        {
+            out.push(format!(
+                "  floor position uncertainty (1σ along the worst direction, from the intrinsics' covariance and the floor boards' corner noise): median {median:.3} mm, largest {max:.3} mm over the image where it sees the floor"
+            ));
+        }
     } else {
         out.push(
             "no floor plane (pass --floor images of the board lying on the floor to track robots)"

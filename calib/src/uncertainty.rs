@@ -24,7 +24,11 @@ pub struct Fit {
 }
 
 /// Pixel residuals of one view, two per point (u then v).
-fn residuals(camera: &CameraModel, pose: &nalgebra::Isometry3<f64>, o: &Observation) -> Vec<f64> {
+pub(crate) fn residuals(
+    camera: &CameraModel,
+    pose: &nalgebra::Isometry3<f64>,
+    o: &Observation,
+) -> Vec<f64> {
     let mut r = Vec::with_capacity(2 * o.object.len());
     for (p, x) in o.object.iter().zip(o.image) {
         match camera.project(&(pose * p)) {
@@ -42,7 +46,7 @@ fn residuals(camera: &CameraModel, pose: &nalgebra::Isometry3<f64>, o: &Observat
 }
 
 /// A pose moved by a small rotation `w` (radians, camera frame) and translation `t` (metres).
-fn nudge(pose: &nalgebra::Isometry3<f64>, k: usize, h: f64) -> nalgebra::Isometry3<f64> {
+pub(crate) fn nudge(pose: &nalgebra::Isometry3<f64>, k: usize, h: f64) -> nalgebra::Isometry3<f64> {
     let mut p = *pose;
     if k < 3 {
         let mut w = Vector3::zeros();
@@ -57,7 +61,7 @@ fn nudge(pose: &nalgebra::Isometry3<f64>, k: usize, h: f64) -> nalgebra::Isometr
 
 /// Central-difference step for each intrinsic parameter: a ten-millionth of a focal length
 /// for the pixel parameters, 1e-7 for the dimensionless coefficients.
-fn steps(camera: &CameraModel) -> Vec<f64> {
+pub(crate) fn steps(camera: &CameraModel) -> Vec<f64> {
     let f = camera.intrinsics.fx.abs().max(1.0);
     camera
         .parameters()
@@ -69,7 +73,10 @@ fn steps(camera: &CameraModel) -> Vec<f64> {
 
 /// Derivatives of a view's residuals with respect to the intrinsics (columns of `ji`) and its
 /// own pose (columns of `jp`).
-fn view_jacobians(camera: &CameraModel, o: &Observation) -> (DMatrix<f64>, DMatrix<f64>) {
+pub(crate) fn view_jacobians(
+    camera: &CameraModel,
+    o: &Observation,
+) -> (DMatrix<f64>, DMatrix<f64>) {
     let pose = o.pose.0;
     let n = 2 * o.object.len();
     let p0 = camera.parameters();

@@ -5,8 +5,8 @@
 
 use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{
-    board_points, calibrate, BoardSpec, BoardToCamera, BoardView, CameraModel, Distortion,
-    LensModel,
+    board_points, calibrate, fit_floor, BoardSpec, BoardToCamera, BoardView, CameraModel,
+    Distortion, FloorToCamera, FloorUncertaintyMap, LensModel,
 };
 use opencv::calib3d;
 use opencv::core::{self, Mat, Point3d, Vector};
@@ -153,7 +153,22 @@ fn noisy_views_seeded(
     sigma_px: f64,
     seed: u64,
 ) -> Vec<BoardView> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    noisy_views_posed(cam, board, n, sigma_px, seed, seed)
+}
+
+/// As [`noisy_views_seeded`], the poses drawn from `pose_seed` and the noise from `noise_seed`
+/// (when they differ).
+fn noisy_views_posed(
+    cam: &CameraModel,
+    board: &BoardSpec,
+    n: usize,
+    sigma_px: f64,
+    pose_seed: u64,
+    noise_seed: u64,
+) -> Vec<BoardView> {
+    let mut rng = ChaCha8Rng::seed_from_u64(pose_seed);
+    let mut noise_rng = ChaCha8Rng::seed_from_u64(noise_seed);
+    let shared = pose_seed == noise_seed;
     let normal = rand_distr::Normal::new(0.0, sigma_px).unwrap();
     let obj = board_points(board);
     let mut views = Vec::new();
@@ -177,15 +192,17 @@ fn noisy_views_seeded(
                     && q.y > 5.0
                     && q.x < cam.width as f64 - 5.0
                     && q.y < cam.height as f64 - 5.0;
-                inside.then(|| Point2::new(q.x + rng.sample(normal), q.y + rng.sample(normal)))
+                let noise = if shared { &mut rng } else { &mut noise_rng };
+                inside.then(|| Point2::new(q.x + noise.sample(normal), q.y + noise.sample(normal)))
             })
             .collect();
         if let Some(corners) = corners {
-            views.push(BoardView {
-                image: format!("v{}", views.len()),
-                size: (cam.width, cam.height),
+            views.push(BoardView::checkerboard(
+                format!("v{}", views.len()),
+                (cam.width, cam.height),
                 corners,
-            });
+                board,
+            ));
         }
     }
     views
@@ -194,11 +211,7 @@ fn noisy_views_seeded(
 #[test]
 fn covariance_matches_opencv_standard_deviations() {
     let (cam, _) = lenses().remove(0);
-    let board = BoardSpec {
-        cols: 9,
-        rows: 6,
-        square_m: 0.05,
-    };
+    let board = BoardSpec::checkerboard(9, 6, 0.05);
     let views = noisy_views(&cam, &board, 20, 0.1);
     let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
     // OpenCV's own standard deviations on the same corners.
@@ -270,11 +283,7 @@ fn covariance_matches_opencv_standard_deviations() {
 #[test]
 fn covariance_matches_the_spread_over_noise_draws() {
     let (cam, _) = lenses().remove(0);
-    let board = BoardSpec {
-        cols: 9,
-        rows: 6,
-        square_m: 0.05,
-    };
+    let board = BoardSpec::checkerboard(9, 6, 0.05);
     let mut fx = Vec::new();
     let mut cx = Vec::new();
     let mut sigma = (0.0, 0.0);
@@ -300,5 +309,107 @@ fn covariance_matches_the_spread_over_noise_draws() {
     for (spread, s) in [(sfx, sigma.0), (scx, sigma.1)] {
         let r = s / spread;
         assert!((0.7..1.4).contains(&r), "σ / spread = {r}");
+    }
+}
+
+/// Boards lying flat on the floor under a ceiling camera 2.2 m up, their corners projected
+/// with Gaussian noise drawn from `seed`.
+fn noisy_floor_views(
+    cam: &CameraModel,
+    board: &BoardSpec,
+    floor: &FloorToCamera,
+    sigma_px: f64,
+    seed: u64,
+) -> Vec<BoardView> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let normal = rand_distr::Normal::new(0.0, sigma_px).unwrap();
+    let obj = board_points(board);
+    [
+        (0.0, 0.0, 0.0),
+        (1.1, -0.4, 0.5),
+        (-0.9, 0.5, -0.3),
+        (0.9, 0.6, 1.2),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, &(x, y, yaw))| {
+        let on_floor = Isometry3::from_parts(
+            Translation3::new(x, y, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
+        );
+        let corners = obj
+            .iter()
+            .map(|p| {
+                let q = cam.project(&(floor.0 * on_floor * p)).unwrap();
+                Point2::new(q.x + rng.sample(normal), q.y + rng.sample(normal))
+            })
+            .collect();
+        BoardView::checkerboard(format!("floor{i}"), (cam.width, cam.height), corners, board)
+    })
+    .collect()
+}
+
+/// The floor-position uncertainty map (intrinsics' covariance and floor boards' noise carried
+/// through the floor fit) against the spread of the floor point a pixel maps to over repeated
+/// calibrations with fresh noise (Monte Carlo): the same within the sampling error.
+#[test]
+fn floor_uncertainty_matches_the_spread_over_noise_draws() {
+    let (cam, _) = lenses().remove(0);
+    let board = BoardSpec::checkerboard(9, 6, 0.05);
+    // Camera 2.2 m up over (0.3, 0.2) on the floor, looking down, slightly tilted.
+    let rot = UnitQuaternion::from_euler_angles(std::f64::consts::PI + 0.04, -0.03, 0.3);
+    let centre = Vector3::new(0.3, 0.2, 2.2);
+    let floor = FloorToCamera(Isometry3::from_parts(
+        Translation3::from(-(rot * centre)),
+        rot,
+    ));
+    let pixels = [
+        Point2::new(640.0, 360.0),
+        Point2::new(300.0, 200.0),
+        Point2::new(1000.0, 520.0),
+        Point2::new(660.0, 80.0),
+    ];
+    let sigma_px = 0.2;
+    let draws = 40;
+    let mut points: Vec<Vec<Point2<f64>>> = vec![Vec::new(); pixels.len()];
+    let mut mean_sigma = vec![0.0; pixels.len()];
+    for seed in 0..draws {
+        let views = noisy_views_posed(&cam, &board, 15, sigma_px, 7, 500 + seed);
+        let floor_views = noisy_floor_views(&cam, &board, &floor, sigma_px, 1000 + seed);
+        let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
+        let plane = fit_floor(&cal.camera, &floor_views, &board).unwrap();
+        let map = FloorUncertaintyMap::new(
+            &cal.camera,
+            &cal.covariance,
+            &floor_views,
+            &board,
+            sigma_px,
+            40,
+        )
+        .unwrap();
+        for (k, pix) in pixels.iter().enumerate() {
+            let p = cal
+                .camera
+                .pixel_to_floor(&plane.floor_to_camera, pix, 0.0)
+                .unwrap();
+            points[k].push(p);
+            mean_sigma[k] += map.at(pix).unwrap() / draws as f64;
+        }
+    }
+    for (k, pts) in points.iter().enumerate() {
+        let n = pts.len() as f64;
+        let m = pts.iter().map(|p| p.coords).sum::<nalgebra::Vector2<f64>>() / n;
+        let mut c = nalgebra::Matrix2::zeros();
+        for p in pts {
+            let d = p.coords - m;
+            c += d * d.transpose() / (n - 1.0);
+        }
+        let spread_mm = c.symmetric_eigenvalues().max().sqrt() * 1000.0;
+        let r = mean_sigma[k] / spread_mm;
+        println!(
+            "pixel ({:.0}, {:.0}): floor spread {spread_mm:.3} mm (worst direction), mean σ {:.3} mm, ratio {r:.2} ({draws} draws)",
+            pixels[k].x, pixels[k].y, mean_sigma[k]
+        );
+        assert!((0.7..1.4).contains(&r), "pixel {k}: σ / spread = {r}");
     }
 }

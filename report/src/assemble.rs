@@ -317,6 +317,10 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
             }
         }),
         facts,
+        projection_sigma: cam.covariance_matrix().map(|cov| {
+            odocal_calib::UncertaintyMap::new(&cam.camera, &cov, (cam.camera.width / 32).max(8))
+        }),
+        floor_sigma: cam.floor_uncertainty.clone(),
     }
 }
 

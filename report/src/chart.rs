@@ -63,6 +63,48 @@ pub struct Chart {
     pub y_range: Option<(f64, f64)>,
     /// Size in pixels (width, height).
     pub size_px: (u32, u32),
+    /// A heat map drawn under the series, if any.
+    pub cells: Option<Cells>,
+}
+
+/// A grid of values drawn as coloured cells (a heat map) in chart units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cells {
+    /// Left and top edge of the first cell (top = smallest y).
+    pub origin: (f64, f64),
+    /// Width and height of a cell.
+    pub cell: (f64, f64),
+    /// Cells across.
+    pub cols: usize,
+    /// The values row by row (`None`: the cell is left grey).
+    pub values: Vec<Option<f64>>,
+    /// Legend text for the grey cells.
+    pub missing_label: String,
+    /// Unit written after the values in the legend, e.g. "mm".
+    pub unit: String,
+}
+
+impl Cells {
+    /// The largest finite value.
+    pub fn max(&self) -> f64 {
+        self.values
+            .iter()
+            .flatten()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max)
+    }
+
+    /// The colour of `v` on a viridis scale from 0 to `max`.
+    fn colour(v: f64, max: f64) -> RGBColor {
+        use plotters::style::colors::colormaps::{ColorMap, ViridisRGB};
+        let t = if max > 0.0 {
+            (v / max).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        ViridisRGB.get_color_normalized(t, 0.0, 1.0)
+    }
 }
 
 /// Colour-blind-safe palette (Okabe–Ito) plus grey.
@@ -90,6 +132,7 @@ impl Chart {
             x_range: None,
             y_range: None,
             size_px: (760, 420),
+            cells: None,
         }
     }
 
@@ -159,6 +202,43 @@ impl Chart {
                 .draw()
                 .map_err(|e| err(&e))?;
             let mut any_label = false;
+            if let Some(c) = &self.cells {
+                let max = c.max();
+                let grey = RGBColor(200, 200, 200);
+                let rects = c.values.iter().enumerate().map(|(i, v)| {
+                    let (col, row) = ((i % c.cols.max(1)) as f64, (i / c.cols.max(1)) as f64);
+                    let x0 = c.origin.0 + col * c.cell.0;
+                    let y0 = c.origin.1 + row * c.cell.1;
+                    let colour = v
+                        .filter(|v| v.is_finite())
+                        .map_or(grey, |v| Cells::colour(v, max));
+                    Rectangle::new(
+                        [(x0, flip * y0), (x0 + c.cell.0, flip * (y0 + c.cell.1))],
+                        colour.filled(),
+                    )
+                });
+                chart.draw_series(rects).map_err(|e| err(&e))?;
+                // The scale as legend entries: five levels from 0 to the largest value.
+                let mut levels: Vec<(String, RGBColor)> = (0..5)
+                    .map(|k| {
+                        let v = max * k as f64 / 4.0;
+                        (format!("{} {}", fmt_tick(v), c.unit), Cells::colour(v, max))
+                    })
+                    .collect();
+                if c.values.iter().any(|v| v.is_none()) {
+                    levels.push((c.missing_label.clone(), grey));
+                }
+                for (label, colour) in levels {
+                    any_label = true;
+                    chart
+                        .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+                        .map_err(|e| err(&e))?
+                        .label(label)
+                        .legend(move |(x, y)| {
+                            Rectangle::new([(x, y - 5), (x + 18, y + 5)], colour.filled())
+                        });
+                }
+            }
             for s in &self.series {
                 let color = PALETTE[s.color % PALETTE.len()];
                 let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (x, flip * y)).collect();
@@ -370,5 +450,37 @@ mod tests {
         assert_eq!(fmt_tick(-0.0), "0");
         assert_eq!(fmt_tick(1500.0), "1500");
         assert_eq!(fmt_tick(2e-5), "2.0e-5");
+    }
+
+    /// A heat map draws one cell per value, the missing ones grey, the scale in the legend
+    /// from 0 to the largest value.
+    #[test]
+    fn cells_are_drawn_with_their_scale() {
+        let mut c = Chart::new("Heat", "u (px)", "v (px)").with(Series::new(
+            "",
+            vec![(0.0, 0.0), (30.0, 20.0)],
+            Mark::Line,
+            7,
+        ));
+        c.cells = Some(Cells {
+            origin: (0.0, 0.0),
+            cell: (10.0, 10.0),
+            cols: 3,
+            values: vec![Some(0.0), Some(1.0), Some(2.0), None, Some(4.0), Some(2.0)],
+            missing_label: "no floor".into(),
+            unit: "mm".into(),
+        });
+        let svg = c.to_svg().unwrap();
+        for s in ["0 mm", "4 mm", "no floor", "#C8C8C8"] {
+            assert!(svg.contains(s), "missing {s}");
+        }
+        // The largest value takes viridis' top colour, 0 its bottom.
+        let top = Cells::colour(4.0, 4.0);
+        let bottom = Cells::colour(0.0, 4.0);
+        for col in [top, bottom] {
+            let css = format!("#{:02X}{:02X}{:02X}", col.0, col.1, col.2);
+            assert!(svg.contains(&css), "missing {css}");
+        }
+        assert_ne!(top, bottom);
     }
 }

@@ -1,25 +1,29 @@
-//! `odocal calibrate`: Zhang calibration from checkerboard images with a chosen or
-//! automatically selected lens model, plus the floor plane from boards lying on the floor.
+//! `odocal calibrate`: Zhang calibration from checkerboard or ChArUco images with a chosen
+//! or automatically selected lens model, plus the floor plane from boards lying on the floor.
 
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use odocal_calib::export::{opencv_yaml, ros_yaml};
-use odocal_calib::{calibrate_session, summary, BoardSpec, ModelChoice};
+use odocal_calib::{calibrate_session, summary, ModelChoice};
 
+use super::board::TargetArgs;
 use crate::output::{check_output_file, progress, write_atomic, write_json};
 
 /// Arguments of `odocal calibrate`.
 #[derive(ClapArgs)]
 pub struct Args {
-    /// Checkerboard images (PNG/JPEG), ideally 15-25 views covering the image.
+    /// Board images (PNG/JPEG), ideally 15-25 views covering the image.
     images: Vec<PathBuf>,
-    /// Board size in INNER corners, COLSxROWS (a board of 10x7 squares has 9x6 inner corners).
-    #[arg(long, default_value = "9x6")]
-    board: String,
+    /// Board size, COLSxROWS: a checkerboard's INNER corners (a board of 10x7 squares has 9x6
+    /// inner corners; default 9x6), a ChArUco board's squares (e.g. 11x8).
+    #[arg(long)]
+    board: Option<String>,
     /// Side of one square, metres (measure the printed board).
     #[arg(long)]
     square: f64,
+    #[command(flatten)]
+    target: TargetArgs,
     /// Images of the board lying flat on the floor; the first fixes the floor frame.
     #[arg(long, num_args = 1..)]
     floor: Vec<PathBuf>,
@@ -41,7 +45,9 @@ pub struct Args {
 
 /// Runs `odocal calibrate`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let board = BoardSpec::parse(&a.board, a.square)?;
+    let board = a
+        .target
+        .board_spec(a.board.as_deref(), a.square, "9x6", None)?;
     let choice = ModelChoice::parse(&a.model)?;
     check_output_file(&a.out, "--out")?;
     for (p, opt) in [

@@ -1,6 +1,7 @@
 //! One module per subcommand; each owns its arguments and its `run`.
 
 pub mod arena;
+pub mod board;
 pub mod calibrate;
 pub mod correct;
 pub mod dataset;

@@ -1,14 +1,15 @@
-//! `odocal synth calib`: checkerboard and floor views from a known camera.
+//! `odocal synth calib`: checkerboard or ChArUco views and floor views from a known camera.
 
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
-use odocal_calib::{BoardSpec, CameraFile, LensModel};
+use odocal_calib::{CameraFile, LensModel};
 use odocal_synth::board::{
-    calibration_errors, lens_preset, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
+    calibration_errors, lens_preset, visible_share, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
 };
 use odocal_synth::calib_set::{self, check_scene};
 
+use super::board::{TargetArg, TargetArgs};
 use crate::output::{progress, staged_dir};
 
 /// Arguments of `odocal synth calib`.
@@ -17,7 +18,7 @@ pub struct Args {
     /// Output folder (created if missing).
     #[arg(long)]
     out: PathBuf,
-    /// Number of hand-held checkerboard views.
+    /// Number of hand-held board views.
     #[arg(long, default_value_t = 20)]
     views: usize,
     /// Number of views of the board lying on the floor.
@@ -45,13 +46,18 @@ pub struct Args {
     /// Optical blur σ, pixels.
     #[arg(long, default_value_t = 0.5)]
     blur: f32,
-    /// Board inner corners, COLSxROWS.
-    #[arg(long, default_value = "9x6")]
-    board: String,
-    /// Board square size, metres [default: 0.05 for the pinhole5 lens, 0.08 for the wide
-    /// lenses, whose floor views at 2.2 m would otherwise show squares too small to detect].
+    /// Board size, COLSxROWS: a checkerboard's inner corners (default 9x6), a ChArUco board's
+    /// squares (default 11x8).
+    #[arg(long)]
+    board: Option<String>,
+    /// Board square size, metres [default: 0.04 for ChArUco; for a checkerboard 0.05 with the
+    /// pinhole5 lens, 0.08 with the wide lenses, whose floor views at 2.2 m would otherwise show
+    /// squares too small to detect].
     #[arg(long)]
     square: Option<f64>,
+    /// The board (ChArUco defaults: 0.03 m markers of 4X4_50).
+    #[command(flatten)]
+    target: TargetArgs,
 }
 
 /// Renders a calibration session into `out` (staged: it appears when the command succeeds).
@@ -72,19 +78,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.lens
         )
     })?;
+    let charuco = a.target.target == TargetArg::Charuco;
+    let square = a.square.unwrap_or(if charuco {
+        0.04
+    } else if lens == LensModel::Pinhole5 {
+        0.05
+    } else {
+        0.08
+    });
+    let board = a.target.board_spec(
+        a.board.as_deref(),
+        square,
+        "9x6",
+        Some(("11x8", 0.75 * square, "4X4_50")),
+    )?;
     let scene = CalibScene {
         distortion: lens_preset(lens),
         width: a.width,
         height: a.height,
         hfov_deg: a.hfov,
-        board: BoardSpec::parse(
-            &a.board,
-            a.square.unwrap_or(if lens == LensModel::Pinhole5 {
-                0.05
-            } else {
-                0.08
-            }),
-        )?,
+        board,
         views: a.views,
         floor_views: a.floor_views,
         noise_sigma: a.noise,
@@ -93,17 +106,42 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let truth = write_calib_set(&a.out, &scene, a.seed)?;
     let k = truth.camera.intrinsics;
-    println!(
-        "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
-        truth.views.len(),
-        truth.floor_views.len(),
-        a.width,
-        a.height,
-        scene.board.cols,
-        scene.board.rows,
-        scene.board.square_m,
-        a.out.display()
-    );
+    if scene.board.is_charuco() {
+        println!(
+            "wrote {} board views and {} floor views ({}x{}, {}) to {}",
+            truth.views.len(),
+            truth.floor_views.len(),
+            a.width,
+            a.height,
+            scene.board,
+            a.out.display()
+        );
+        let shares: Vec<f64> = truth
+            .views
+            .iter()
+            .map(|v| visible_share(&truth.camera, &v.board_to_camera, &scene.board))
+            .collect();
+        let partly = shares.iter().filter(|&&s| s < 1.0).count();
+        let third = shares.iter().filter(|&&s| s <= 2.0 / 3.0).count();
+        let least = shares.iter().copied().fold(1.0, f64::min);
+        println!(
+            "board partly outside the image in {partly} of {} views, a third or more outside in {third}; least in view: {:.0} % of the inner corners",
+            shares.len(),
+            least * 100.0
+        );
+    } else {
+        println!(
+            "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
+            truth.views.len(),
+            truth.floor_views.len(),
+            a.width,
+            a.height,
+            scene.board.cols,
+            scene.board.rows,
+            scene.board.square_m,
+            a.out.display()
+        );
+    }
     println!(
         "true camera: {} lens, {:.0}° across, fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
         lens, a.hfov, k.fx, k.fy, k.cx, k.cy

@@ -23,7 +23,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::board::{draw_views, lens_preset, render_view, true_corners, CalibScene, TrueView};
+use crate::board::{
+    draw_views, lens_preset, render_view, true_corners, BoardPattern, CalibScene, TrueView,
+};
 use crate::raycast::{RayGrid, Sensor};
 use crate::scene::{pose_at, RobotLook, SceneConfig, SceneError, SceneRenderer};
 
@@ -106,11 +108,7 @@ impl Default for ArenaScene {
             tag_size_m: 0.16,
             calib_views: 14,
             supersample: 3,
-            board: BoardSpec {
-                cols: 9,
-                rows: 6,
-                square_m: 0.07,
-            },
+            board: BoardSpec::checkerboard(9, 6, 0.07),
         }
     }
 }
@@ -571,6 +569,8 @@ pub fn write_arena(
             )));
         }
     }
+    let pattern =
+        BoardPattern::new(&b).map_err(|e| ArenaSynthError::Settings(format!("the board: {e}")))?;
     mkdir(&out.join("shared"))?;
     mkdir(&out.join("truth"))?;
     let mut shared_images = 0;
@@ -604,6 +604,7 @@ pub fn write_arena(
                 let img = render_view(
                     &grid,
                     &calib,
+                    &pattern,
                     pose,
                     on_floor.then_some(&cam.arena_to_camera),
                     seed.wrapping_add(i as u64),

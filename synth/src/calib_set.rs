@@ -8,7 +8,7 @@ use odocal_calib::{CameraFile, FloorPlane};
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::board::{draw_views, render_view, CalibScene, CalibTruth};
+use crate::board::{draw_views, render_view, BoardPattern, CalibScene, CalibTruth};
 use crate::raycast::RayGrid;
 
 /// The largest image `synth calib` renders, pixels (a 40-megapixel camera).
@@ -72,6 +72,10 @@ pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
             }
         )));
     }
+    if scene.board.is_charuco() {
+        odocal_calib::charuco::check_board(&scene.board)
+            .map_err(|e| CalibSetError::Settings(e.to_string()))?;
+    }
     Ok(())
 }
 
@@ -98,6 +102,8 @@ pub fn write_calib_set(
         path: out.display().to_string(),
         reason: e.to_string(),
     })?;
+    let pattern =
+        BoardPattern::new(&scene.board).map_err(|e| CalibSetError::Settings(e.to_string()))?;
     let grid = RayGrid::new(&truth.camera, scene.supersample);
     let jobs: Vec<_> = truth
         .views
@@ -116,6 +122,7 @@ pub fn write_calib_set(
             let img = render_view(
                 &grid,
                 scene,
+                &pattern,
                 &view.board_to_camera,
                 *floor,
                 seed.wrapping_mul(1000).wrapping_add(*i as u64),

@@ -16,7 +16,7 @@
 use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardSpec, BoardToCamera};
 use odocal_core::Pose2;
-use odocal_synth::board::{render_view, true_corners, CalibScene};
+use odocal_synth::board::{render_view, true_corners, BoardPattern, CalibScene};
 use odocal_synth::raycast::RayGrid;
 use odocal_synth::scene::{nadir, tag36h11_pattern, SceneConfig, SceneRenderer};
 use opencv::core::{Mat, Point2f, Size, TermCriteria, TermCriteria_Type, Vector};
@@ -111,17 +111,14 @@ fn checkerboard_corners_are_drawn_where_opencv_finds_them() {
     let scene = CalibScene {
         width: 640,
         height: 360,
-        board: BoardSpec {
-            cols: 9,
-            rows: 6,
-            square_m: 0.05,
-        },
+        board: BoardSpec::checkerboard(9, 6, 0.05),
         noise_sigma: 0.0,
         ..CalibScene::default()
     };
     let camera = scene.camera();
     let grid = RayGrid::new(&camera, scene.supersample);
     let b = scene.board;
+    let pattern = BoardPattern::new(&b).unwrap();
     let centre = Vector3::new(
         (b.cols - 1) as f64 * b.square_m / 2.0,
         (b.rows - 1) as f64 * b.square_m / 2.0,
@@ -140,7 +137,7 @@ fn checkerboard_corners_are_drawn_where_opencv_finds_them() {
     let views: Vec<Offsets> = poses
         .iter()
         .map(|pose| {
-            let img = render_view(&grid, &scene, pose, None, 1);
+            let img = render_view(&grid, &scene, &pattern, pose, None, 1);
             let corners = true_corners(&camera, pose, &b);
             assert_eq!(corners.len(), (b.cols * b.rows) as usize);
             let o = locate(img.as_raw(), camera.width as usize, &corners, 5);

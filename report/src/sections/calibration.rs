@@ -28,6 +28,11 @@ pub struct CalibInput {
     pub corners_source: Option<String>,
     /// Extra lines (intrinsics, comparison with the truth).
     pub facts: Vec<String>,
+    /// Projection uncertainty of a camera-frame direction over the image, if the
+    /// calibration's covariance is known.
+    pub projection_sigma: Option<odocal_calib::UncertaintyMap>,
+    /// Floor-position uncertainty over the image, if floor views were given.
+    pub floor_sigma: Option<odocal_calib::FloorUncertaintyMap>,
 }
 
 /// Calibration: per-view residuals and the coverage of the image by corners.
@@ -129,6 +134,56 @@ pub fn calibration_section(c: &CalibInput) -> Result<Section, ReportError> {
             &ch,
         )?);
     }
+    if let Some(m) = &c.projection_sigma {
+        let cells = Cells {
+            origin: (0.0, 0.0),
+            cell: (f64::from(m.cell_px), f64::from(m.cell_px)),
+            cols: m.cols as usize,
+            values: m.sigma_px.iter().map(|v| Some(*v)).collect(),
+            missing_label: String::new(),
+            unit: "px".into(),
+        };
+        let mut v: Vec<f64> = m
+            .sigma_px
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .collect();
+        v.sort_by(f64::total_cmp);
+        let median = v.get(v.len() / 2).copied().unwrap_or(f64::NAN);
+        s.blocks.push(figure(
+            "calib-projection-uncertainty",
+            &format!(
+                "How uncertain the projection of a camera-frame direction is, over the image: one standard deviation along the worst image direction (pixels), from the intrinsics' covariance with the board poses marginalised out. Median {median:.3} px, largest {:.3} px. Large values where no corners were seen (compare the coverage plot) mean more views are needed there.",
+                m.max_px()
+            ),
+            &image_heat_map("Projection uncertainty (1σ, px)", cells, (w, h), &[]),
+        )?);
+    }
+    if let Some(m) = &c.floor_sigma {
+        let cells = Cells {
+            origin: (0.0, 0.0),
+            cell: (f64::from(m.cell_px), f64::from(m.cell_px)),
+            cols: m.cols as usize,
+            values: m.sigma_mm.clone(),
+            missing_label: "does not see the floor".into(),
+            unit: "mm".into(),
+        };
+        let boards: Vec<Vec<(f64, f64)>> = m
+            .floor_boards_px
+            .iter()
+            .map(|b| b.iter().map(|p| (p[0], p[1])).collect())
+            .collect();
+        let (median, max) = m.median_and_max_mm().unwrap_or((f64::NAN, f64::NAN));
+        s.blocks.push(figure(
+            "calib-floor-uncertainty",
+            &format!(
+                "How uncertain the floor position of what each part of the image sees is: one standard deviation along the worst floor direction (millimetres), from the intrinsics' covariance (which moves both the ray and the floor plane located with the same intrinsics) and the floor boards' corner noise. Grey: the ray is more than {:.0}° from straight down, so it does not see the floor. Orange dots: the floor boards' corners, where the floor plane was measured. Median {median:.3} mm, largest {max:.3} mm where the floor is seen.",
+                odocal_calib::floor_uncertainty::FLOOR_SEEN_MAX_OFF_NADIR_DEG
+            ),
+            &image_heat_map("Floor position uncertainty (1σ, mm)", cells, (w, h), &boards),
+        )?);
+    }
     let mut t = Table {
         caption: "Calibration views".into(),
         header: vec![
@@ -151,6 +206,33 @@ pub fn calibration_section(c: &CalibInput) -> Result<Section, ReportError> {
     }
     s.blocks.push(Block::Table(t));
     Ok(s)
+}
+
+/// A heat map over the image (pixel coordinates, rows down) with the image border and `dots`.
+fn image_heat_map(
+    title: &str,
+    cells: Cells,
+    (w, h): (f64, f64),
+    dots: &[Vec<(f64, f64)>],
+) -> Chart {
+    let mut ch = Chart::new(title, "image column u (px)", "image row v (px, down)");
+    ch.y_down = true;
+    ch.equal_aspect = true;
+    ch.x_range = Some((0.0, w));
+    ch.y_range = Some((0.0, h));
+    ch.size_px = (760, 500);
+    ch.cells = Some(cells);
+    for (i, d) in dots.iter().enumerate() {
+        let label = if i == 0 { "floor board corners" } else { "" };
+        ch.series.push(Series::new(label, d.clone(), Mark::Dots, 1));
+    }
+    ch.series.push(Series::new(
+        "",
+        vec![(0.0, 0.0), (w, 0.0), (w, h), (0.0, h), (0.0, 0.0)],
+        Mark::Line,
+        7,
+    ));
+    ch
 }
 
 // ---------------------------------------------------------------- runs

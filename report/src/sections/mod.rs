@@ -19,7 +19,7 @@ use odocal_dataset::{RobotParams, Sample, WheelGeometry};
 use odocal_lrf::TruthPose;
 use odocal_trainer::SweepReport;
 
-use crate::chart::{Chart, Mark, Series};
+use crate::chart::{Cells, Chart, Mark, Series};
 use crate::html::{Block, Section, Table};
 use crate::inputs::{Clock, TrackFile};
 use crate::ReportError;

@@ -1,0 +1,219 @@
+//! ChArUco detection checked against OpenCV alone: OpenCV draws its own ChArUco board
+//! (`CharucoBoard::draw`, not odocal's renderer), the image is warped by a known homography,
+//! and odocal must find every corner where OpenCV's board geometry and the homography put it.
+
+use nalgebra::{Matrix3, Point2, Vector2, Vector3};
+use odocal_calib::charuco::{find_charuco_corners, CharucoCorners};
+use odocal_calib::{ArucoDictionary, BoardSpec, BoardTarget};
+use opencv::aruco::{self, CharucoBoardTrait, CharucoBoardTraitConst};
+use opencv::core::{self, Mat, Point2f, Scalar, Size, Vector};
+use opencv::imgproc;
+use opencv::prelude::*;
+
+const SQUARES: (i32, i32) = (11, 8);
+const SQUARE_M: f32 = 0.04;
+const MARKER_M: f32 = 0.03;
+/// Pixels per square of OpenCV's drawing, and its white margin.
+const PPS: i32 = 40;
+
+fn spec() -> BoardSpec {
+    BoardSpec {
+        cols: SQUARES.0 as u32 - 1,
+        rows: SQUARES.1 as u32 - 1,
+        square_m: SQUARE_M as f64,
+        target: BoardTarget::Charuco {
+            marker_m: MARKER_M as f64,
+            dictionary: ArucoDictionary::from_name("4X4_50").expect("known dictionary"),
+        },
+    }
+}
+
+/// OpenCV's drawing of the board and its inner corners in OpenCV's board frame (metres).
+fn opencv_board() -> (Mat, Vec<(f64, f64)>) {
+    let dict = aruco::get_predefined_dictionary_i32(aruco::DICT_4X4_50).expect("dictionary");
+    let mut board = aruco::CharucoBoard::create(SQUARES.0, SQUARES.1, SQUARE_M, MARKER_M, &dict)
+        .expect("board");
+    let mut img = Mat::default();
+    let size = Size::new(SQUARES.0 * PPS + 2 * PPS, SQUARES.1 * PPS + 2 * PPS);
+    board.draw(size, &mut img, PPS, 1).expect("draw");
+    let corners = board
+        .chessboard_corners()
+        .iter()
+        .map(|p| (p.x as f64, p.y as f64))
+        .collect();
+    (img, corners)
+}
+
+/// The homography taking the drawing's four outer corners to `quad` (pixels).
+fn homography(img: &Mat, quad: [(f32, f32); 4]) -> Matrix3<f64> {
+    let (w, h) = (img.cols() as f32 - 0.5, img.rows() as f32 - 0.5);
+    let src: Vector<Point2f> = [(-0.5, -0.5), (w, -0.5), (w, h), (-0.5, h)]
+        .iter()
+        .map(|&(x, y)| Point2f::new(x, y))
+        .collect();
+    let dst: Vector<Point2f> = quad.iter().map(|&(x, y)| Point2f::new(x, y)).collect();
+    let m = imgproc::get_perspective_transform(&src, &dst, core::DECOMP_LU).expect("homography");
+    Matrix3::from_fn(|r, c| *m.at_2d::<f64>(r as i32, c as i32).expect("element"))
+}
+
+/// The drawing warped by `h` into a 1280x720 grey image, blurred like a lens (σ 1 px).
+fn warp(img: &Mat, h: &Matrix3<f64>) -> Mat {
+    let hm = Mat::from_slice_2d(&[
+        [h[(0, 0)], h[(0, 1)], h[(0, 2)]],
+        [h[(1, 0)], h[(1, 1)], h[(1, 2)]],
+        [h[(2, 0)], h[(2, 1)], h[(2, 2)]],
+    ])
+    .expect("matrix");
+    let mut out = Mat::default();
+    imgproc::warp_perspective(
+        img,
+        &mut out,
+        &hm,
+        Size::new(1280, 720),
+        imgproc::INTER_LINEAR,
+        core::BORDER_CONSTANT,
+        Scalar::all(128.0),
+    )
+    .expect("warp");
+    let mut blurred = Mat::default();
+    imgproc::gaussian_blur(
+        &out,
+        &mut blurred,
+        Size::new(0, 0),
+        1.0,
+        1.0,
+        core::BORDER_REPLICATE,
+    )
+    .expect("blur");
+    blurred
+}
+
+/// Where corner (x, y) of OpenCV's board frame (metres) lies in the warped image: OpenCV draws
+/// square (i, j) over pixels PPS + i PPS .. PPS + (i + 1) PPS of the drawing, so a board point
+/// lies at pixel-centre coordinate PPS + x / square PPS − 0.5, then through `h`.
+fn predicted(h: &Matrix3<f64>, (x, y): (f64, f64)) -> Point2<f64> {
+    let s = PPS as f64 / SQUARE_M as f64;
+    let p = h * Vector3::new(PPS as f64 + x * s - 0.5, PPS as f64 + y * s - 0.5, 1.0);
+    Point2::new(p.x / p.z, p.y / p.z)
+}
+
+/// RMS and largest distance (pixels) of the found corners from their predicted places, and
+/// the mean offset (a bias would show there).
+fn errors(
+    found: &CharucoCorners,
+    h: &Matrix3<f64>,
+    corners: &[(f64, f64)],
+) -> (f64, f64, Vector2<f64>) {
+    let d: Vec<Vector2<f64>> = found
+        .corners
+        .iter()
+        .zip(&found.ids)
+        .map(|(p, &id)| p - predicted(h, corners[id as usize]))
+        .collect();
+    let n = d.len() as f64;
+    let rms = (d.iter().map(|v| v.norm_squared()).sum::<f64>() / n).sqrt();
+    let max = d.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    (rms, max, d.iter().sum::<Vector2<f64>>() / n)
+}
+
+#[test]
+fn opencv_drawn_board_is_found_where_opencv_geometry_puts_it() {
+    let (img, corners) = opencv_board();
+    let first = corners[0];
+    // The whole board, tilted in perspective.
+    let h = homography(
+        &img,
+        [
+            (180.0, 110.0),
+            (1100.0, 60.0),
+            (1190.0, 660.0),
+            (120.0, 620.0),
+        ],
+    );
+    let view = warp(&img, &h);
+    let found = find_charuco_corners(&view, &spec())
+        .expect("OpenCV runs")
+        .expect("board found");
+    assert_eq!(found.ids.len(), corners.len(), "every inner corner found");
+    let (rms, max, mean) = errors(&found, &h, &corners);
+    println!(
+        "whole board: {} corners, error RMS {rms:.4} px, max {max:.4} px, mean ({:.4}, {:.4}) px",
+        found.ids.len(),
+        mean.x,
+        mean.y
+    );
+    assert!(rms < 0.06 && max < 0.15, "RMS {rms} px, max {max} px");
+    assert!(mean.norm() < 0.02, "bias {mean:?} px");
+    // Each corner's board position is OpenCV's, moved to corner 0.
+    for (p, &id) in found.object_points.iter().zip(&found.ids) {
+        let (x, y) = corners[id as usize];
+        assert!((p.x - (x - first.0)).abs() < 1e-9 && (p.y - (y - first.1)).abs() < 1e-9);
+        assert_eq!(p.z, 0.0);
+    }
+
+    // A third of the board beyond the image's right edge: the corners inside are found, with
+    // their ids, and nothing beyond the edge.
+    let h = homography(
+        &img,
+        [
+            (700.0, 150.0),
+            (1500.0, 120.0),
+            (1560.0, 640.0),
+            (660.0, 600.0),
+        ],
+    );
+    let view = warp(&img, &h);
+    let found = find_charuco_corners(&view, &spec())
+        .expect("OpenCV runs")
+        .expect("part of the board found");
+    let inside = corners
+        .iter()
+        .filter(|&&c| {
+            let p = predicted(&h, c);
+            p.x > 10.0 && p.x < 1270.0 && p.y > 10.0 && p.y < 710.0
+        })
+        .count();
+    let (rms, max, _) = errors(&found, &h, &corners);
+    println!(
+        "partial board: {} of {} corners found ({inside} inside the image), error RMS {rms:.4} px, max {max:.4} px",
+        found.ids.len(),
+        corners.len()
+    );
+    assert!(
+        found.ids.len() * 10 >= inside * 8,
+        "most corners in view found"
+    );
+    for &id in &found.ids {
+        let p = predicted(&h, corners[id as usize]);
+        assert!(
+            p.x < 1280.0,
+            "corner {id} found, but it lies beyond the image at {p}"
+        );
+    }
+    assert!(rms < 0.06 && max < 0.15, "RMS {rms} px, max {max} px");
+}
+
+/// Views holding too little of the board are skipped with their reason: a sliver with one
+/// marker gives no corner, one with a single column of corners cannot fix the board's pose.
+#[test]
+fn a_sliver_of_the_board_is_too_little() {
+    let (img, _) = opencv_board();
+    // Only the board's leftmost squares stay inside the image's right edge: about half a
+    // square, then about two.
+    for (left, needle) in [(1150.0, "at least 6 needed"), (1000.0, "lie on one line")] {
+        let h = homography(
+            &img,
+            [
+                (left, 150.0),
+                (left + 1150.0, 120.0),
+                (left + 1210.0, 640.0),
+                (left - 40.0, 600.0),
+            ],
+        );
+        let reason = find_charuco_corners(&warp(&img, &h), &spec())
+            .expect("OpenCV runs")
+            .expect_err("too little of the board");
+        println!("{reason}");
+        assert!(reason.contains(needle), "{reason}");
+    }
+}
