@@ -180,7 +180,8 @@ impl FuseOptions {
 pub struct ClockOffsets {
     /// Offset of each camera, seconds (the first camera's is 0).
     pub offset_s: Vec<f64>,
-    /// Standard deviation of each offset from the fit, seconds (0 for the first camera).
+    /// Standard deviation of each offset from the fit, seconds (0 for the first camera; NaN
+    /// for a camera that saw no robot, whose offset is unknown and unused).
     pub sigma_s: Vec<f64>,
     /// Pairs of cameras that saw a robot at once, with how many fixes matched.
     pub pairs: Vec<(usize, usize, usize)>,
@@ -283,11 +284,12 @@ pub fn estimate_clock_offsets(
             break;
         }
     }
-    let missing: Vec<String> = offset
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| o.is_none())
-        .map(|(k, _)| k.to_string())
+    // A camera that saw no robot needs no offset; one that saw a robot but never at once with
+    // a camera tied to the first cannot be placed in time.
+    let saw = |k: usize| tracks.iter().any(|t| t.camera == k && !t.fixes.is_empty());
+    let missing: Vec<String> = (0..cameras)
+        .filter(|&k| offset[k].is_none() && saw(k))
+        .map(|k| k.to_string())
         .collect();
     if !missing.is_empty() {
         return Err(ArenaError::Refused(format!(
@@ -296,10 +298,12 @@ pub fn estimate_clock_offsets(
             opts.min_matches
         )));
     }
-    let init: Vec<f64> = offset.into_iter().flatten().collect();
+    // The fitted offsets: every camera but the first that has a first guess.
+    let free: Vec<usize> = (1..cameras).filter(|&k| offset[k].is_some()).collect();
+    let init: Vec<f64> = free.iter().filter_map(|&k| offset[k]).collect();
     let all: Vec<(usize, usize, usize)> = pair_best.values().flat_map(|(_, m)| m.clone()).collect();
     let residuals = |p: &[f64]| -> Vec<f64> {
-        let off = |k: usize| if k == 0 { 0.0 } else { p[k - 1] };
+        let off = |k: usize| free.iter().position(|&f| f == k).map_or(0.0, |i| p[i]);
         let mut r = Vec::with_capacity(all.len() * 2);
         for &(tj, f, ti) in &all {
             let (a, b) = (&tracks[ti], &tracks[tj]);
@@ -311,7 +315,7 @@ pub fn estimate_clock_offsets(
         }
         r
     };
-    let (p, _) = odocal_core::lsq::minimize(&residuals, init[1..].to_vec(), 100);
+    let (p, _) = odocal_core::lsq::minimize(&residuals, init, 100);
     let r = residuals(&p);
     let m = r.len();
     let ssr: f64 = r.iter().map(|v| v * v).sum();
@@ -330,15 +334,16 @@ pub fn estimate_clock_offsets(
     }
     let s2 = ssr / (m.saturating_sub(np)).max(1) as f64;
     let cov = (jac.transpose() * &jac).try_inverse();
-    let mut sigma_s = vec![0.0];
-    for c in 0..np {
-        sigma_s.push(
-            cov.as_ref()
-                .map_or(f64::INFINITY, |cv| (s2 * cv[(c, c)]).sqrt()),
-        );
+    // Cameras that saw no robot keep offset 0 with an unknown (NaN) standard deviation.
+    let mut offset_s = vec![0.0; cameras];
+    let mut sigma_s = vec![f64::NAN; cameras];
+    sigma_s[0] = 0.0;
+    for (i, &k) in free.iter().enumerate() {
+        offset_s[k] = p[i];
+        sigma_s[k] = cov
+            .as_ref()
+            .map_or(f64::INFINITY, |cv| (s2 * cv[(i, i)]).sqrt());
     }
-    let mut offset_s = vec![0.0];
-    offset_s.extend_from_slice(&p);
     Ok(ClockOffsets {
         offset_s,
         sigma_s,
@@ -562,6 +567,15 @@ mod tests {
             .map(|h| h.disagreement_m)
             .fold(0.0, f64::max);
         assert!(worst > 0.02, "{worst}");
+    }
+
+    #[test]
+    fn a_camera_that_saw_no_robot_needs_no_offset() {
+        let mut tr = tracks(&[0.0, 0.01, 0.02], 5);
+        tr.truncate(2);
+        let found = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0)).unwrap();
+        assert!((found.offset_s[1] - 0.01).abs() < 3e-4, "{found:?}");
+        assert!(found.sigma_s[2].is_nan() && found.sigma_s[1].is_finite());
     }
 
     #[test]

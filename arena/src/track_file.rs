@@ -69,7 +69,7 @@ pub struct RobotEntry {
 pub struct ArenaTrackFile {
     /// Always [`ARENA_TRACK_FORMAT`].
     pub format: String,
-    /// Every camera's clock offset.
+    /// Every camera's clock offset (cameras that saw no robot have none).
     pub offsets: Vec<OffsetEntry>,
     /// RMS distance between simultaneous fixes of two cameras after the offsets, millimetres.
     pub offset_fit_rms_mm: f64,
@@ -82,7 +82,9 @@ impl ArenaTrackFile {
     pub fn of(tracking: &ArenaTracking, files: &[String]) -> Self {
         Self {
             format: ARENA_TRACK_FORMAT.into(),
+            // Cameras that saw no robot have no offset to write.
             offsets: (0..tracking.offsets.offset_s.len())
+                .filter(|&k| !tracking.offsets.sigma_s[k].is_nan())
                 .map(|k| OffsetEntry {
                     camera: k,
                     offset_s: tracking.offsets.offset_s[k],

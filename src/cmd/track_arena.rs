@@ -194,11 +194,16 @@ fn track_arena(
         "frame rate {fps:.3} frames/s, taken to be every camera's (clocks without drift, one constant offset each)"
     );
     for k in 0..arena.cameras.len() {
-        println!(
-            "camera {k} clock offset {:+.3} ms ± {:.3} ms (t_arena = t_camera + offset)",
-            tracking.offsets.offset_s[k] * 1e3,
-            tracking.offsets.sigma_s[k] * 1e3
-        );
+        let (o, sd) = (tracking.offsets.offset_s[k], tracking.offsets.sigma_s[k]);
+        if sd.is_nan() {
+            println!("camera {k} clock offset unknown: it saw no robot");
+        } else {
+            println!(
+                "camera {k} clock offset {:+.3} ms ± {:.3} ms (t_arena = t_camera + offset)",
+                o * 1e3,
+                sd * 1e3
+            );
+        }
     }
     println!(
         "simultaneous fixes of two cameras after the offsets: {:.2} mm RMS apart ({} pairs of cameras)",

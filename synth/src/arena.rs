@@ -214,6 +214,21 @@ impl ArenaScene {
                 self.tag_size_m
             ));
         }
+        if !(1..=8).contains(&self.supersample) {
+            return bad(format!(
+                "supersample {}: 1 to 8 sub-samples per pixel along each axis",
+                self.supersample
+            ));
+        }
+        if !(self.noise_sigma >= 0.0 && self.noise_sigma <= 50.0) {
+            return bad(format!("--noise {}: 0 to 50 grey levels", self.noise_sigma));
+        }
+        if self.calib_views > 60 {
+            return bad(format!(
+                "--calib-views {}: at most 60 per camera",
+                self.calib_views
+            ));
+        }
         if self.calib_views < 6 {
             return bad(format!(
                 "--calib-views {}: need at least 6 hand-held views per camera",
