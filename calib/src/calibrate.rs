@@ -164,26 +164,9 @@ fn opencv_calibrate(
     let size = Size::new(w as i32, h as i32);
     match model {
         LensModel::Fisheye => {
-            calib3d::calibrate(
-                &object_points,
-                &image_points,
-                size,
-                &mut k,
-                &mut dist,
-                &mut rvecs,
-                &mut tvecs,
-                calib3d::Fisheye_CALIB_RECOMPUTE_EXTRINSIC | calib3d::Fisheye_CALIB_FIX_SKEW,
-                criteria,
-            )
-            .map_err(degenerate)?;
-        }
-        LensModel::Pinhole5 | LensModel::Rational => {
-            let flags = if model == LensModel::Rational {
-                calib3d::CALIB_RATIONAL_MODEL
-            } else {
-                0
-            };
-            calib3d::calibrate_camera(
+            let flags =
+                calib3d::Fisheye_CALIB_RECOMPUTE_EXTRINSIC | calib3d::Fisheye_CALIB_FIX_SKEW;
+            let first = calib3d::calibrate(
                 &object_points,
                 &image_points,
                 size,
@@ -193,8 +176,130 @@ fn opencv_calibrate(
                 &mut tvecs,
                 flags,
                 criteria,
+            );
+            let finite = |m: &Mat| {
+                m.data_typed::<f64>()
+                    .is_ok_and(|v| !v.is_empty() && v.iter().all(|x| x.is_finite()))
+            };
+            // On a failed start cv::fisheye can return its initial guess with boards behind
+            // the camera and no error.
+            let in_front = tvecs.iter().all(|t| {
+                t.data_typed::<f64>()
+                    .is_ok_and(|v| v.len() == 3 && v[2] > 0.0 && v.iter().all(|x| x.is_finite()))
+            });
+            if !(matches!(first, Ok(rms) if rms.is_finite())
+                && in_front
+                && finite(&k)
+                && finite(&dist))
+            {
+                // cv::fisheye's own start (a focal length from the image size alone) diverges
+                // on some view sets with boards near the edge of a wide image; started from
+                // OpenCV's rational fit of the same corners (which follows a fisheye closely
+                // enough to be a start) it converges.
+                let (mut kr, mut dr) = (Mat::default(), Mat::default());
+                let (mut rr, mut tr) = (Vector::<Mat>::new(), Vector::<Mat>::new());
+                calib3d::calibrate_camera(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut kr,
+                    &mut dr,
+                    &mut rr,
+                    &mut tr,
+                    calib3d::CALIB_RATIONAL_MODEL,
+                    criteria,
+                )
+                .map_err(degenerate)?;
+                k = kr;
+                dist = Mat::from_slice(&[0.0f64; 4])?.try_clone()?;
+                rvecs = Vector::new();
+                tvecs = Vector::new();
+                calib3d::calibrate(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut k,
+                    &mut dist,
+                    &mut rvecs,
+                    &mut tvecs,
+                    flags | calib3d::Fisheye_CALIB_USE_INTRINSIC_GUESS,
+                    criteria,
+                )
+                .map_err(degenerate)?;
+            }
+        }
+        LensModel::Pinhole5 => {
+            calib3d::calibrate_camera(
+                &object_points,
+                &image_points,
+                size,
+                &mut k,
+                &mut dist,
+                &mut rvecs,
+                &mut tvecs,
+                0,
+                criteria,
             )
             .map_err(degenerate)?;
+        }
+        LensModel::Rational => {
+            // OpenCV starts the rational fit from a distortion-free homography guess, which a
+            // wide lens seen through partial boards near the image's edge can lead into a
+            // wrong minimum (fx 12 % off on 110° ChArUco views); started from the
+            // five-coefficient fit it finds the right one (and never a worse one on the
+            // synthetic lenses). OpenCV's own start remains the fallback.
+            let seeded = (|| -> Option<f64> {
+                let (mut k5, mut d5) = (Mat::default(), Mat::default());
+                let (mut r5, mut t5) = (Vector::<Mat>::new(), Vector::<Mat>::new());
+                calib3d::calibrate_camera(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut k5,
+                    &mut d5,
+                    &mut r5,
+                    &mut t5,
+                    0,
+                    criteria,
+                )
+                .ok()?;
+                let c = d5.data_typed::<f64>().ok()?.to_vec();
+                let mut d8 = [0.0f64; 8];
+                for (d, v) in d8.iter_mut().zip(&c) {
+                    *d = *v;
+                }
+                dist = Mat::from_slice(&d8).ok()?.try_clone().ok()?;
+                k = k5;
+                calib3d::calibrate_camera(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut k,
+                    &mut dist,
+                    &mut rvecs,
+                    &mut tvecs,
+                    calib3d::CALIB_RATIONAL_MODEL | calib3d::CALIB_USE_INTRINSIC_GUESS,
+                    criteria,
+                )
+                .ok()
+                .filter(|rms| rms.is_finite())
+            })();
+            if seeded.is_none() {
+                (k, dist) = (Mat::default(), Mat::default());
+                (rvecs, tvecs) = (Vector::new(), Vector::new());
+                calib3d::calibrate_camera(
+                    &object_points,
+                    &image_points,
+                    size,
+                    &mut k,
+                    &mut dist,
+                    &mut rvecs,
+                    &mut tvecs,
+                    calib3d::CALIB_RATIONAL_MODEL,
+                    criteria,
+                )
+                .map_err(degenerate)?;
+            }
         }
     }
     let mut poses = Vec::with_capacity(views.len());

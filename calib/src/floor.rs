@@ -74,6 +74,11 @@ pub(crate) fn plane_from_poses(
     let Some(&first_pose) = poses.first() else {
         return Err(CalibError::Input("no floor view".into()));
     };
+    if !pts.iter().all(|p| p.coords.iter().all(|v| v.is_finite())) {
+        return Err(CalibError::Input(
+            "a floor board could not be located (its pose is not finite)".into(),
+        ));
+    }
     let n = pts.len() as f64;
     let centroid = pts.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
     let mut scatter = Matrix3::zeros();

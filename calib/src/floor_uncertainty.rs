@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix6, Point2, UnitQuaternion, Vec
 use serde::{Deserialize, Serialize};
 
 use crate::floor::{board_pose, plane_from_poses};
-use crate::uncertainty::{residuals, steps, view_jacobians};
+use crate::uncertainty::{residuals, steps, view_jacobians, worst_sigma};
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorToCamera, Observation,
     UncertaintyMap,
@@ -148,8 +148,8 @@ impl FloorUncertaintyMap {
             .iter()
             .zip(&seen)
             .map(|(c, &s)| {
-                let worst = c.symmetric_eigenvalues().max();
-                (s && worst.is_finite()).then(|| worst.max(0.0).sqrt() * 1000.0)
+                let worst = worst_sigma(c);
+                (s && worst.is_finite()).then_some(worst * 1000.0)
             })
             .collect();
         Ok(Self {

@@ -181,7 +181,15 @@ pub fn calibrate_session(
             // The held-out error is a judgement, not a requirement: with too few views for
             // folds the calibration stands without it.
             let held = if views.len() >= 4 {
-                crate::select::held_out_errors(&views, board, m).unwrap_or_default()
+                match crate::select::held_out_errors(&views, board, m) {
+                    Ok(h) => h,
+                    Err(e) => {
+                        notes.push(format!(
+                            "no held-out error: calibrating without some of the views failed ({e}); the fit below may rest on a few decisive views"
+                        ));
+                        vec![]
+                    }
+                }
             } else {
                 vec![]
             };

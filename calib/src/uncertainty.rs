@@ -136,10 +136,8 @@ pub fn covariance(camera: &CameraModel, observations: &[Observation]) -> Fit {
         .saturating_sub(ni + 6 * observations.len())
         .max(1);
     let sigma2 = sum_sq / dof as f64;
-    let covariance = schur
-        .clone()
-        .pseudo_inverse(1e-300)
-        .unwrap_or_else(|_| DMatrix::from_element(ni, ni, f64::NAN))
+    let covariance = bounded_pseudo_inverse(schur)
+        .unwrap_or_else(|| DMatrix::from_element(ni, ni, f64::NAN))
         * sigma2;
     Fit {
         rms_px: (sum_sq / n_points.max(1) as f64).sqrt(),
@@ -178,8 +176,30 @@ pub fn projection_sigma_px(
     }
     let s = &j * covariance * j.transpose();
     let m = Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
-    let worst = m.symmetric_eigenvalues().max();
+    worst_sigma(&m)
+}
+
+/// The square root of the largest eigenvalue of a 2x2 covariance: the standard deviation
+/// along its worst direction (NaN if the matrix is not finite).
+pub(crate) fn worst_sigma(m: &Matrix2<f64>) -> f64 {
+    if !m.iter().all(|v| v.is_finite()) {
+        return f64::NAN;
+    }
+    // Closed form for a symmetric 2x2: no iteration that a bad matrix could keep spinning.
+    let (a, b, d) = (m[(0, 0)], 0.5 * (m[(0, 1)] + m[(1, 0)]), m[(1, 1)]);
+    let worst = 0.5 * (a + d) + (0.25 * (a - d).powi(2) + b * b).sqrt();
     worst.max(0.0).sqrt()
+}
+
+/// The pseudo-inverse of a normal matrix, or `None` if it holds non-finite values or its SVD
+/// does not converge (nalgebra's SVD would otherwise iterate forever on NaN).
+fn bounded_pseudo_inverse(m: DMatrix<f64>) -> Option<DMatrix<f64>> {
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    nalgebra::SVD::try_new(m, true, true, f64::EPSILON, 10_000)?
+        .pseudo_inverse(1e-300)
+        .ok()
 }
 
 /// Projection uncertainty over the image on a grid of cells: the σ of each cell centre.

@@ -50,12 +50,12 @@ pub struct Args {
     /// squares (default 11x8).
     #[arg(long)]
     board: Option<String>,
-    /// Board square size, metres [default: 0.04 for ChArUco; for a checkerboard 0.05 with the
+    /// Board square size, metres [default: 0.05 (checkerboard) or 0.04 (ChArUco) with the
     /// pinhole5 lens, 0.08 with the wide lenses, whose floor views at 2.2 m would otherwise show
-    /// squares too small to detect].
+    /// squares and markers too small to detect].
     #[arg(long)]
     square: Option<f64>,
-    /// The board (ChArUco defaults: 0.03 m markers of 4X4_50).
+    /// The board (ChArUco defaults: markers 0.75 of the square, of 4X4_50).
     #[command(flatten)]
     target: TargetArgs,
 }
@@ -79,13 +79,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         )
     })?;
     let charuco = a.target.target == TargetArg::Charuco;
-    let square = a.square.unwrap_or(if charuco {
-        0.04
-    } else if lens == LensModel::Pinhole5 {
-        0.05
-    } else {
-        0.08
-    });
+    let square = a
+        .square
+        .unwrap_or(match (charuco, lens == LensModel::Pinhole5) {
+            (true, true) => 0.04,
+            (true, false) => 0.08,
+            (false, true) => 0.05,
+            (false, false) => 0.08,
+        });
     let board = a.target.board_spec(
         a.board.as_deref(),
         square,
