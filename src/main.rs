@@ -22,6 +22,8 @@ enum Command {
     Synth(SynthCommand),
     /// Calibrate a camera from checkerboard or ChArUco images (Zhang's method) and fix the floor plane.
     Calibrate(cmd::calibrate::Args),
+    /// Tie several calibrated cameras into one floor frame with boards on the floor in their overlaps.
+    Arena(cmd::arena::Args),
     /// Track the robot's AprilTag through a video into a floor trajectory.
     Track(cmd::track::Args),
     /// Build the training set from runs (videos or trajectories) and odometry logs.
@@ -49,6 +51,8 @@ enum SynthCommand {
     Track(cmd::synth_track::Args),
     /// The whole odometry experiment: runs, logs, videos and truth.
     Experiment(cmd::synth_experiment::Args),
+    /// A 6 x 4 m arena under four cameras, shared floor boards and two robots, with truth.
+    Arena(cmd::synth_arena::Args),
     /// A landmark map, a sensor trajectory and laser scans.
     Lrf(cmd::synth_lrf::Args),
 }
@@ -67,6 +71,8 @@ fn main() {
         Command::Synth(SynthCommand::Track(a)) => cmd::synth_track::run(a),
         Command::Synth(SynthCommand::Experiment(a)) => cmd::synth_experiment::run(a),
         Command::Synth(SynthCommand::Lrf(a)) => cmd::synth_lrf::run(a),
+        Command::Synth(SynthCommand::Arena(a)) => cmd::synth_arena::run(a),
+        Command::Arena(a) => cmd::arena::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Track(a) => cmd::track::run(a),
         Command::Dataset(a) => cmd::dataset::run(a),

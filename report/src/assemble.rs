@@ -38,6 +38,8 @@ pub struct ReportInputs {
     pub lrf_truth: Option<PathBuf>,
     /// The landmark map.
     pub lrf_map: Option<PathBuf>,
+    /// The arena file and, optionally, the arena tracking summary.
+    pub arena: Option<(PathBuf, Option<PathBuf>)>,
     /// Runs drawn in the trajectory and heading figures.
     pub runs: usize,
     /// The report's title.
@@ -207,6 +209,14 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
             "Laser positioning",
             "no laser poses given (--lrf-poses from `odocal lrf localize --out`)",
         ),
+    }
+
+    if let Some((a, t)) = &inp.arena {
+        used.push(format!("arena {}", a.display()));
+        let arena = crate::sections::ArenaInput::read(a, t.as_deref())?;
+        report
+            .sections
+            .push(crate::sections::arena_section(&arena)?);
     }
 
     report.intro.push(format!(

@@ -50,6 +50,12 @@ pub struct Args {
     /// Landmark map (map.json) to draw the landmarks.
     #[arg(long)]
     pub lrf_map: Option<PathBuf>,
+    /// arena.json from `odocal arena` (draws the cameras' views and overlaps).
+    #[arg(long)]
+    pub arena: Option<PathBuf>,
+    /// The --arena-report of `odocal track --arena` (robots coloured by camera; with --arena).
+    #[arg(long, requires = "arena")]
+    pub arena_track: Option<PathBuf>,
     /// Also write every plot as its own SVG file into this folder.
     #[arg(long)]
     pub svg_dir: Option<PathBuf>,
@@ -110,6 +116,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         lrf_poses,
         lrf_truth,
         lrf_map,
+        arena: match input(&a.arena, &None, "")? {
+            Some(p) => Some((p, input(&a.arena_track, &None, "")?)),
+            None => None,
+        },
         runs: a.runs,
         title: a.title.clone(),
     })?;

@@ -17,7 +17,7 @@ pub struct Args {
     /// Video file (MP4/H.264, MJPG AVI, anything FFmpeg reads) or a folder of PNG/JPEG frames.
     pub video: PathBuf,
     /// camera.json with the floor plane (from `odocal calibrate`).
-    #[arg(long)]
+    #[arg(long, required_unless_present = "arena", default_value = "none")]
     pub camera: PathBuf,
     /// Id of the robot's tag.
     #[arg(long, default_value_t = 0)]
@@ -65,6 +65,8 @@ pub struct Args {
     /// position and heading RMS error against it (rows matched by timestamp).
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    #[command(flatten)]
+    pub multi: super::track_arena::MultiArgs,
 }
 
 /// The tracker's options from the command line.
@@ -121,6 +123,9 @@ fn write_report(
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.multi.wanted() {
+        return super::track_arena::run(args);
+    }
     check_output_file(&args.out, "--out")?;
     for (p, opt) in [(&args.tum, "--tum"), (&args.report, "--report")] {
         if let Some(p) = p {

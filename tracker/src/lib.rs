@@ -8,6 +8,7 @@
 pub mod detect;
 mod edges;
 mod error;
+pub mod multi;
 pub mod overlay;
 pub mod pose;
 mod report;

@@ -1,11 +1,13 @@
 //! The report's sections, each built from the outputs of one pipeline stage.
 
+mod arena;
 mod calibration;
 mod corrector;
 mod laser;
 mod runs;
 mod training;
 
+pub use arena::{arena_section, ArenaInput};
 pub use calibration::{calibration_section, CalibInput, CalibView};
 pub use corrector::corrector_section;
 pub use laser::{laser_section, LaserInput};

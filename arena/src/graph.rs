@@ -1,0 +1,461 @@
+//! The arena's pose graph: every camera's pose in the floor frame and every shared board's
+//! place on the floor, fitted together to the boards' corners in every image.
+//!
+//! Unknowns: each camera's pose but the first's (six numbers: a small rotation and a
+//! translation applied to its first guess) and each shared board's place (x, y and a turn
+//! about the vertical: the board lies on the floor, a hard constraint rather than a prior).
+//! The first camera keeps the floor pose its own calibration gave, so the arena's floor frame
+//! is that camera's: the origin and axes of its first floor board. The residuals are the
+//! corners' pixel errors in every camera that saw the board, minimised by
+//! Levenberg–Marquardt (`odocal_core::lsq`). The first guess chains solvePnP poses from the
+//! first camera through the shared views.
+//!
+//! Corner numbering: a ChArUco board names every corner, so any cameras agree on it. OpenCV
+//! numbers a plain checkerboard's corners from the one nearest the image's top-left, so two
+//! cameras name its corners alike only when their images are turned alike (within ±45° about
+//! the vertical). Cameras mounted otherwise number them differently; the fit then cannot make
+//! them agree, and the consistency check refuses the result.
+
+use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
+use odocal_calib::{board_pose, BoardSpec, CameraFile, CameraModel, FloorToCamera};
+use std::path::Path;
+
+use crate::{ArenaError, Consistency, PairConsistency, SharedView};
+
+/// Two cameras disagreeing by more than this (RMS over the shared corners, millimetres) means
+/// the fit failed (corners numbered differently, a board moved between shots, a wrong
+/// calibration): the arena is refused.
+pub const REFUSE_RMS_MM: f64 = 20.0;
+
+/// One camera's image of one shared board, as the fit uses it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SharedObservation {
+    /// Index of the shared view.
+    pub view: usize,
+    /// Index of the camera.
+    pub camera: usize,
+    /// The detected inner corners, pixels.
+    pub corners: Vec<Point2<f64>>,
+    /// Each corner's index among the board's inner corners (a ChArUco board's ids).
+    pub ids: Vec<u32>,
+    /// Each corner's place on the board (board frame), metres.
+    pub object_points: Vec<nalgebra::Point3<f64>>,
+}
+
+/// The fitted arena.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArenaSolution {
+    /// Each camera's pose: maps the arena's floor frame into the camera frame.
+    pub arena_to_camera: Vec<FloorToCamera>,
+    /// Each shared board's pose: maps board points into the arena's floor frame.
+    pub board_to_arena: Vec<Isometry3<f64>>,
+    /// RMS pixel residual of each camera's shared-view corners, pixels.
+    pub rms_px: Vec<f64>,
+    /// Shared views each camera took part in.
+    pub views_per_camera: Vec<usize>,
+    /// Agreement of all pairs over the shared boards.
+    pub consistency: Consistency,
+    /// Agreement of each pair that shares a board.
+    pub pairs: Vec<PairConsistency>,
+}
+
+/// A board lying face up on the floor at (x, y) turned by `yaw_rad`: its z axis points into
+/// the floor.
+fn board_on_floor(x: f64, y: f64, yaw_rad: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(x, y, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_rad)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+    )
+}
+
+/// The board's place on the floor (x, y, yaw) closest to a full pose.
+fn floor_place(board_to_arena: &Isometry3<f64>) -> [f64; 3] {
+    let x = board_to_arena.rotation * Vector3::x();
+    let t = board_to_arena.translation.vector;
+    [t.x, t.y, x.y.atan2(x.x)]
+}
+
+fn camera_pose(init: &FloorToCamera, p: &[f64]) -> Isometry3<f64> {
+    let delta = Isometry3::from_parts(
+        Translation3::new(p[3], p[4], p[5]),
+        UnitQuaternion::from_scaled_axis(Vector3::new(p[0], p[1], p[2])),
+    );
+    delta * init.0
+}
+
+/// Fits the arena from the camera files (the first must have its floor plane) and the shared
+/// views. The board is the one every shared view shows.
+pub fn solve_arena(
+    cameras: &[CameraFile],
+    camera_paths: &[&Path],
+    shared: &[SharedView],
+    board: &BoardSpec,
+) -> Result<ArenaSolution, ArenaError> {
+    let n = cameras.len();
+    if n < 2 {
+        return Err(ArenaError::Input(
+            "an arena needs at least two --camera files".into(),
+        ));
+    }
+    let first_floor = *cameras[0].require_floor(camera_paths[0])?;
+    let models: Vec<CameraModel> = cameras.iter().map(|c| c.camera).collect();
+    // First guesses: solvePnP of every image, chained from the first camera.
+    let mut pnp = Vec::new();
+    for (s, view) in shared.iter().enumerate() {
+        for (k, bv) in &view.views {
+            pnp.push((s, *k, board_pose(&models[*k], bv, board)?, bv));
+        }
+    }
+    let mut cam_init: Vec<Option<FloorToCamera>> = vec![None; n];
+    cam_init[0] = Some(first_floor);
+    let mut board_init: Vec<Option<[f64; 3]>> = vec![None; shared.len()];
+    loop {
+        let mut progress = false;
+        for (s, k, pose, _) in &pnp {
+            if let (Some(cam), None) = (cam_init[*k], board_init[*s]) {
+                board_init[*s] = Some(floor_place(&(cam.0.inverse() * pose.0)));
+                progress = true;
+            }
+        }
+        for (s, k, pose, _) in &pnp {
+            if let (None, Some([x, y, yaw])) = (cam_init[*k], board_init[*s]) {
+                cam_init[*k] = Some(FloorToCamera(pose.0 * board_on_floor(x, y, yaw).inverse()));
+                progress = true;
+            }
+        }
+        if !progress {
+            break;
+        }
+    }
+    let unlinked: Vec<String> = cam_init
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.is_none())
+        .map(|(k, _)| format!("{k} ({})", camera_paths[k].display()))
+        .collect();
+    if !unlinked.is_empty() {
+        return Err(ArenaError::Input(format!(
+            "camera {} shares no board with the first camera, directly or through others: photograph a board on the floor where its view overlaps another's, with both cameras at once",
+            unlinked.join(", ")
+        )));
+    }
+    let cam_init: Vec<FloorToCamera> = cam_init.into_iter().flatten().collect();
+    let board_init: Vec<[f64; 3]> = board_init.into_iter().flatten().collect();
+    let observations: Vec<SharedObservation> = pnp
+        .into_iter()
+        .map(|(view, camera, _, bv)| SharedObservation {
+            view,
+            camera,
+            corners: bv.corners.clone(),
+            ids: bv.ids.clone(),
+            object_points: bv.object_points.clone(),
+        })
+        .collect();
+    let n_cam = 6 * (n - 1);
+    let n_residuals: usize = observations.iter().map(|o| 2 * o.corners.len()).sum();
+    let unpack = |p: &[f64]| -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>) {
+        let cams = (0..n)
+            .map(|k| {
+                if k == 0 {
+                    cam_init[0].0
+                } else {
+                    camera_pose(&cam_init[k], &p[6 * (k - 1)..6 * k])
+                }
+            })
+            .collect();
+        let boards = (0..board_init.len())
+            .map(|s| {
+                let q = &p[n_cam + 3 * s..n_cam + 3 * s + 3];
+                board_on_floor(q[0], q[1], q[2])
+            })
+            .collect();
+        (cams, boards)
+    };
+    let residuals = |p: &[f64]| -> Vec<f64> {
+        let (cams, boards) = unpack(p);
+        let mut r = Vec::with_capacity(n_residuals);
+        for o in &observations {
+            let to_cam = cams[o.camera] * boards[o.view];
+            for (q, seen) in o.object_points.iter().zip(&o.corners) {
+                match models[o.camera].project(&(to_cam * q)) {
+                    Some(px) => {
+                        r.push(px.x - seen.x);
+                        r.push(px.y - seen.y);
+                    }
+                    None => {
+                        r.push(1e3);
+                        r.push(1e3);
+                    }
+                }
+            }
+        }
+        r
+    };
+    let mut p0 = vec![0.0; n_cam];
+    for b in &board_init {
+        p0.extend_from_slice(b);
+    }
+    let (p, _report) = odocal_core::lsq::minimize(&residuals, p0, 200);
+    let (cams, boards) = unpack(&p);
+    let r = residuals(&p);
+    let mut sq = vec![0.0; n];
+    let mut count = vec![0usize; n];
+    let mut views_per_camera = vec![0usize; n];
+    let mut at = 0;
+    for o in &observations {
+        let m = 2 * o.corners.len();
+        sq[o.camera] += r[at..at + m].iter().map(|v| v * v).sum::<f64>();
+        at += m;
+        count[o.camera] += o.corners.len();
+        views_per_camera[o.camera] += 1;
+    }
+    let rms_px = sq
+        .iter()
+        .zip(&count)
+        .map(|(s, c)| if *c > 0 { (s / *c as f64).sqrt() } else { 0.0 })
+        .collect();
+    let arena_to_camera: Vec<FloorToCamera> = cams.into_iter().map(FloorToCamera).collect();
+    let (consistency, pairs) = consistency(&models, &arena_to_camera, &observations)?;
+    if consistency.rms_mm > REFUSE_RMS_MM {
+        return Err(ArenaError::Refused(format!(
+            "the cameras put the shared boards' corners {:.1} mm apart (RMS; refused above {REFUSE_RMS_MM} mm): check that every camera file belongs to its _cK images, that the board did not move between the cameras' shots, and that the cameras' images are turned alike (within 45°), so that they number the corners alike",
+            consistency.rms_mm
+        )));
+    }
+    Ok(ArenaSolution {
+        arena_to_camera,
+        board_to_arena: boards,
+        rms_px,
+        views_per_camera,
+        consistency,
+        pairs,
+    })
+}
+
+fn summarise(d: &[f64]) -> Consistency {
+    let rms = (d.iter().map(|v| v * v).sum::<f64>() / d.len().max(1) as f64).sqrt();
+    Consistency {
+        rms_mm: rms * 1e3,
+        max_mm: d.iter().copied().fold(0.0, f64::max) * 1e3,
+        points: d.len(),
+    }
+}
+
+/// Where two cameras saw the same corner: the distance between the floor points each camera's
+/// pixel maps to, over all pairs and for each pair.
+fn consistency(
+    models: &[CameraModel],
+    poses: &[FloorToCamera],
+    observations: &[SharedObservation],
+) -> Result<(Consistency, Vec<PairConsistency>), ArenaError> {
+    let mut all = Vec::new();
+    let mut by_pair: std::collections::BTreeMap<(usize, usize), Vec<f64>> = Default::default();
+    for (i, a) in observations.iter().enumerate() {
+        for b in observations[i + 1..].iter().filter(|b| b.view == a.view) {
+            // The same corner in both images: by its index on the board.
+            let in_b: std::collections::HashMap<u32, &Point2<f64>> =
+                b.ids.iter().copied().zip(&b.corners).collect();
+            for (pa, pb) in a
+                .ids
+                .iter()
+                .zip(&a.corners)
+                .filter_map(|(id, pa)| in_b.get(id).map(|pb| (pa, *pb)))
+            {
+                let fa = models[a.camera].pixel_to_floor(&poses[a.camera], pa, 0.0);
+                let fb = models[b.camera].pixel_to_floor(&poses[b.camera], pb, 0.0);
+                if let (Some(fa), Some(fb)) = (fa, fb) {
+                    let d = (fa - fb).norm();
+                    all.push(d);
+                    by_pair
+                        .entry((a.camera.min(b.camera), a.camera.max(b.camera)))
+                        .or_default()
+                        .push(d);
+                }
+            }
+        }
+    }
+    if all.is_empty() {
+        return Err(ArenaError::Input(
+            "no floor point was seen by two cameras: the shared views tie nothing".into(),
+        ));
+    }
+    Ok((
+        summarise(&all),
+        by_pair
+            .into_iter()
+            .map(|(cameras, d)| PairConsistency {
+                cameras,
+                consistency: summarise(&d),
+            })
+            .collect(),
+    ))
+}
+
+/// Fits the arena ([`solve_arena`]) and assembles the arena file.
+pub fn build_arena(
+    cameras: &[CameraFile],
+    camera_paths: &[&Path],
+    shared: &[SharedView],
+    board: &BoardSpec,
+) -> Result<(crate::ArenaFile, ArenaSolution), ArenaError> {
+    let solution = solve_arena(cameras, camera_paths, shared, board)?;
+    let file = crate::ArenaFile {
+        format: crate::ARENA_FORMAT.into(),
+        cameras: cameras
+            .iter()
+            .enumerate()
+            .map(|(k, c)| crate::ArenaCamera {
+                source: camera_paths[k].display().to_string(),
+                calibration: c.clone(),
+                arena_to_camera: solution.arena_to_camera[k],
+                shared_views: solution.views_per_camera[k],
+                rms_px: solution.rms_px[k],
+            })
+            .collect(),
+        shared_views: shared.iter().map(|s| s.name.clone()).collect(),
+        consistency: solution.consistency,
+        pairs: solution.pairs.clone(),
+    };
+    Ok((file, solution))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_calib::{board_points, BoardView, FloorPlane};
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    const BOARD: BoardSpec = BoardSpec {
+        cols: 9,
+        rows: 6,
+        square_m: 0.08,
+        target: odocal_calib::BoardTarget::Checkerboard,
+    };
+
+    /// Three 90° cameras 2.5 m up, and boards on the floor where their views overlap; the
+    /// corners are the true projections with 0.1 px of noise.
+    fn scene() -> (Vec<CameraModel>, Vec<FloorToCamera>, Vec<SharedView>) {
+        let cams = vec![CameraModel::from_hfov(960, 540, 90.0); 3];
+        let poses: Vec<FloorToCamera> = [(0.0, 0.0, 1.0), (2.5, 0.2, -2.0), (1.2, 1.6, 3.0)]
+            .iter()
+            .map(|&(x, y, yaw)| {
+                let above = odocal_synth::scene::ceiling_camera(2.5, 1.0, -0.5, yaw);
+                FloorToCamera(above.0 * Isometry3::translation(-x, -y, 0.0))
+            })
+            .collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let object = board_points(&BOARD);
+        let mut shared = Vec::new();
+        for (i, &(x, y)) in [(1.0, -0.3), (1.5, 0.4), (0.4, 0.9), (1.4, 1.0), (2.0, 1.1)]
+            .iter()
+            .enumerate()
+        {
+            let board = board_on_floor(x, y, 0.3 * (i as f64 - 2.0));
+            let views: Vec<(usize, BoardView)> = (0..3)
+                .filter_map(|k| {
+                    let corners: Vec<Point2<f64>> = object
+                        .iter()
+                        .filter_map(|p| cams[k].project(&(poses[k].0 * board * p)))
+                        .filter(|p| p.x > 5.0 && p.y > 5.0 && p.x < 955.0 && p.y < 535.0)
+                        .map(|p| {
+                            p + nalgebra::Vector2::new(
+                                rng.gen_range(-0.17..0.17),
+                                rng.gen_range(-0.17..0.17),
+                            )
+                        })
+                        .collect();
+                    (corners.len() == object.len()).then(|| {
+                        (
+                            k,
+                            BoardView::checkerboard(
+                                format!("s{i}_c{k}.png"),
+                                (960, 540),
+                                corners,
+                                &BOARD,
+                            ),
+                        )
+                    })
+                })
+                .collect();
+            if views.len() >= 2 {
+                shared.push(SharedView {
+                    name: format!("s{i}"),
+                    views,
+                });
+            }
+        }
+        (cams, poses, shared)
+    }
+
+    fn files(cams: &[CameraModel], poses: &[FloorToCamera]) -> Vec<CameraFile> {
+        cams.iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let floor = (k == 0).then(|| FloorPlane {
+                    floor_to_camera: poses[0],
+                    plane_rms_m: 0.0,
+                    camera_height_m: 2.5,
+                    views: vec![],
+                });
+                CameraFile::from_model(*c, floor)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_pose_graph_puts_every_camera_where_it_is() {
+        let (cams, poses, shared) = scene();
+        assert!(shared.len() >= 4, "{} shared views", shared.len());
+        let paths = [
+            Path::new("a.json"),
+            Path::new("b.json"),
+            Path::new("c.json"),
+        ];
+        let sol = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD).unwrap();
+        // Corner noise of 0.1 px is 0.5-0.8 mm of floor at these cameras, twice over for a pair.
+        assert!(sol.consistency.rms_mm < 1.5, "{:?}", sol.consistency);
+        // Each camera maps its pixels to the floor as the true camera does where the shared
+        // boards tie it (a camera's far side, tied by nothing, is extrapolated).
+        for k in 1..3 {
+            let mut worst: f64 = 0.0;
+            for px in shared
+                .iter()
+                .flat_map(|s| s.views.iter())
+                .filter(|(c, _)| *c == k)
+                .flat_map(|(_, bv)| bv.corners.iter())
+            {
+                let est = cams[k]
+                    .pixel_to_floor(&sol.arena_to_camera[k], px, 0.0)
+                    .unwrap();
+                let tru = cams[k].pixel_to_floor(&poses[k], px, 0.0).unwrap();
+                worst = worst.max((est - tru).norm());
+            }
+            // The fit averages hundreds of corners: below one corner's noise.
+            assert!(worst < 1e-3, "camera {k}: {worst} m");
+            assert!(sol.rms_px[k] < 0.2, "{:?}", sol.rms_px);
+        }
+    }
+
+    #[test]
+    fn corners_numbered_the_other_way_round_are_refused() {
+        let (cams, poses, mut shared) = scene();
+        // Camera 1 numbers one board's corners from the other end (a camera turned 180°).
+        let (_, bv) = shared
+            .iter_mut()
+            .flat_map(|s| s.views.iter_mut())
+            .find(|(k, _)| *k == 1)
+            .unwrap();
+        bv.corners.reverse();
+        let paths = [
+            Path::new("a.json"),
+            Path::new("b.json"),
+            Path::new("c.json"),
+        ];
+        let e = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("number the corners alike"), "{e}");
+    }
+}

@@ -1,0 +1,37 @@
+//! odocal-arena: several ceiling cameras in one floor frame, and robots tracked across them.
+//!
+//! Each camera is calibrated on its own (`odocal calibrate`). Boards lying on the floor where
+//! views overlap, photographed by two or more cameras at once (the shared views), tie the
+//! cameras together: [`solve_arena`] fits every camera's pose in the floor frame of the first
+//! camera and every shared board's place on the floor by least squares over the corners'
+//! pixel residuals (a small pose graph through `odocal_core::lsq`), and reports how far apart
+//! two cameras put the same floor point ([`Consistency`]). The result is the arena file
+//! (`odocal.arena/1`, [`ArenaFile`]).
+//!
+//! Tracking across cameras ([`fuse`]): each camera's video is tracked on its own, already in
+//! the arena's floor frame; the cameras' clock offsets are estimated from robots seen by two
+//! cameras at once, and simultaneous fixes are fused with weights that fade out towards each
+//! image's border, so a robot handed from one view to the next does not jump.
+
+mod error;
+mod file;
+pub mod fuse;
+mod graph;
+mod shared;
+pub mod track;
+mod track_file;
+
+pub use error::ArenaError;
+pub use file::{ArenaCamera, ArenaFile, Consistency, PairConsistency, ARENA_FORMAT};
+pub use fuse::{
+    estimate_clock_offsets, fix_weight, fuse_robot, CameraFix, CameraTrack, ClockOffsets,
+    FuseOptions, FusedTrack, Handoff,
+};
+pub use graph::{build_arena, solve_arena, ArenaSolution, SharedObservation, REFUSE_RMS_MM};
+pub use shared::{detect_shared, parse_shared_name, SharedView};
+pub use track::{
+    camera_tracks, fuse_all, track_camera, track_cameras, ArenaTracking, CameraResult,
+};
+pub use track_file::{
+    ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,
+};

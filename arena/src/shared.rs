@@ -1,0 +1,162 @@
+//! Shared views: one board lying on the floor, photographed at the same moment by every camera
+//! that sees it. Images are named `<view>_c<K>.<ext>`, K the camera's place (from 0) in the
+//! list of camera files, so all images of one view share `<view>`.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use odocal_calib::{detect_file, BoardSpec, BoardView, Detection};
+use rayon::prelude::*;
+
+use crate::ArenaError;
+
+/// One shared view: the board as each camera that found it saw it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SharedView {
+    /// The view's name (the file names' common part).
+    pub name: String,
+    /// (camera index, the detected board), cameras in increasing order.
+    pub views: Vec<(usize, BoardView)>,
+}
+
+/// Splits `s03_c1.png` into ("s03", 1); the message says what was expected.
+pub fn parse_shared_name(path: &Path, cameras: usize) -> Result<(String, usize), ArenaError> {
+    let bad = |why: &str| {
+        ArenaError::Input(format!(
+            "{}: {why}; shared views are named VIEW_cK.png, K the camera's place (0..{}) in --camera",
+            path.display(),
+            cameras.saturating_sub(1)
+        ))
+    };
+    let stem = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .ok_or_else(|| bad("the name is not text"))?;
+    let (view, cam) = stem
+        .rsplit_once("_c")
+        .ok_or_else(|| bad("the name does not end in _cK"))?;
+    let k: usize = cam
+        .parse()
+        .map_err(|_| bad(&format!("{cam:?} after _c is not a camera number")))?;
+    if k >= cameras {
+        return Err(bad(&format!(
+            "camera {k} does not exist ({cameras} camera files given)"
+        )));
+    }
+    if view.is_empty() {
+        return Err(bad("the view's name before _cK is empty"));
+    }
+    Ok((view.to_string(), k))
+}
+
+/// Expands folders into their PNG/JPEG files (sorted), keeps files as given.
+fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>, ArenaError> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let rd = std::fs::read_dir(p).map_err(|e| {
+                ArenaError::Input(format!("{}: cannot list the folder: {e}", p.display()))
+            })?;
+            let mut files: Vec<PathBuf> = rd
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                        ["png", "jpg", "jpeg"].contains(&e.to_ascii_lowercase().as_str())
+                    })
+                })
+                .collect();
+            files.sort();
+            out.extend(files);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// Finds the board in every shared image (folders are read for their PNG/JPEG files) and
+/// groups the images by view. A camera's image without the board is left out with a note;
+/// views with the board in fewer than two cameras tie nothing and are left out with a note.
+pub fn detect_shared(
+    paths: &[PathBuf],
+    cameras: usize,
+    board: &BoardSpec,
+    sizes: &[(u32, u32)],
+) -> Result<(Vec<SharedView>, Vec<String>), ArenaError> {
+    let files = expand(paths)?;
+    if files.is_empty() {
+        return Err(ArenaError::Input(
+            "no shared views: give --shared images of a board on the floor seen by two cameras at once".into(),
+        ));
+    }
+    let named = files
+        .iter()
+        .map(|f| parse_shared_name(f, cameras).map(|(v, k)| (f.clone(), v, k)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let detections = named
+        .par_iter()
+        .map(|(f, v, k)| detect_file(f, board).map(|d| (v.clone(), *k, d)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut notes = Vec::new();
+    let mut by_view: BTreeMap<String, Vec<(usize, BoardView)>> = BTreeMap::new();
+    for (view, k, d) in detections {
+        match d {
+            Detection::Found(bv) => {
+                if bv.size != sizes[k] {
+                    return Err(ArenaError::Input(format!(
+                        "{}: {}x{} pixels, but camera {k}'s file describes {}x{} images; is _c{k} the right camera?",
+                        bv.image, bv.size.0, bv.size.1, sizes[k].0, sizes[k].1
+                    )));
+                }
+                let list = by_view.entry(view.clone()).or_default();
+                if list.iter().any(|(c, _)| *c == k) {
+                    return Err(ArenaError::Input(format!(
+                        "{}: view {view} has two images from camera {k}",
+                        bv.image
+                    )));
+                }
+                list.push((k, bv));
+            }
+            Detection::NotFound { image, .. } => {
+                notes.push(format!(
+                    "skipped {image}: no {}x{} board found",
+                    board.cols, board.rows
+                ));
+            }
+        }
+    }
+    let mut views = Vec::new();
+    for (name, mut list) in by_view {
+        if list.len() < 2 {
+            notes.push(format!(
+                "skipped view {name}: the board was found by only one camera"
+            ));
+            continue;
+        }
+        list.sort_by_key(|(k, _)| *k);
+        views.push(SharedView { name, views: list });
+    }
+    Ok((views, notes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shared_names_give_view_and_camera() {
+        let ok = parse_shared_name(Path::new("d/s_03_c2.png"), 4).unwrap();
+        assert_eq!(ok, ("s_03".to_string(), 2));
+        for (name, why) in [
+            ("d/s03.png", "does not end in _cK"),
+            ("d/s03_cx.png", "is not a camera number"),
+            ("d/s03_c4.png", "camera 4 does not exist"),
+            ("d/_c1.png", "is empty"),
+        ] {
+            let e = parse_shared_name(Path::new(name), 4)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(why) && e.contains("VIEW_cK"), "{name}: {e}");
+        }
+    }
+}

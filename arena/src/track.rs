@@ -1,0 +1,134 @@
+//! Tracking every camera's video of the arena: each video tracked on its own (all selected
+//! tags in one pass, the camera's arena pose, so every fix is already in the arena's floor
+//! frame), the videos in parallel, then the clock offsets and one fused trajectory per robot.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use odocal_tracker::multi::{track_source_multi, TagSelection};
+use odocal_tracker::{open_source, Outcome, SourceOptions, TrackOptions, TrackResult};
+use rayon::prelude::*;
+
+use crate::fuse::{estimate_clock_offsets, fix_weight, fuse_robot};
+use crate::{ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseOptions, FusedTrack};
+
+/// One camera's tracking: every selected tag's result.
+pub type CameraResult = BTreeMap<u32, TrackResult>;
+
+/// Tracks camera k's video (or image folder) with its arena pose.
+pub fn track_camera(
+    arena: &ArenaFile,
+    k: usize,
+    video: &std::path::Path,
+    opts: &TrackOptions,
+    selection: &TagSelection,
+) -> Result<CameraResult, ArenaError> {
+    let cam = &arena.cameras[k];
+    let source = open_source(video, &SourceOptions::default())?;
+    Ok(track_source_multi(
+        source,
+        &cam.calibration.camera,
+        &cam.arena_to_camera,
+        opts,
+        selection,
+        &mut |_| {},
+    )?)
+}
+
+/// Tracks every camera's video, `parallel` on rayon's pool or one after another.
+pub fn track_cameras(
+    arena: &ArenaFile,
+    videos: &[PathBuf],
+    opts: &TrackOptions,
+    selection: &TagSelection,
+    parallel: bool,
+) -> Result<Vec<CameraResult>, ArenaError> {
+    if videos.len() != arena.cameras.len() {
+        return Err(ArenaError::Input(format!(
+            "{} videos for an arena of {} cameras: give one video per camera, in the arena file's order",
+            videos.len(),
+            arena.cameras.len()
+        )));
+    }
+    let one = |(k, v): (usize, &PathBuf)| track_camera(arena, k, v, opts, selection);
+    if parallel {
+        videos.par_iter().enumerate().map(one).collect()
+    } else {
+        videos.iter().enumerate().map(one).collect()
+    }
+}
+
+/// Every camera's fixes as [`CameraTrack`]s with their fusion weights.
+pub fn camera_tracks(
+    arena: &ArenaFile,
+    results: &[CameraResult],
+    marker_height_m: f64,
+) -> Vec<CameraTrack> {
+    let mut tracks = Vec::new();
+    for (k, per_id) in results.iter().enumerate() {
+        let cam = &arena.cameras[k];
+        for (id, result) in per_id {
+            let fixes: Vec<CameraFix> = result
+                .records
+                .iter()
+                .filter_map(|r| match &r.outcome {
+                    Outcome::Fix(f) => Some(CameraFix {
+                        t_s: r.t_s,
+                        pose: f.pose,
+                        // The tracker gives no per-fix σ yet: the pixel footprint stands in.
+                        weight: fix_weight(
+                            &cam.calibration.camera,
+                            &cam.arena_to_camera,
+                            &f.corners_px,
+                            marker_height_m,
+                            None,
+                        ),
+                        quality: f.quality,
+                    }),
+                    Outcome::Gap(_) => None,
+                })
+                .collect();
+            if fixes.len() >= 2 {
+                tracks.push(CameraTrack {
+                    camera: k,
+                    tag_id: *id,
+                    fixes,
+                });
+            }
+        }
+    }
+    tracks
+}
+
+/// The clock offsets and every robot's fused trajectory.
+pub struct ArenaTracking {
+    /// The cameras' clock offsets.
+    pub offsets: ClockOffsets,
+    /// One fused trajectory per tag id seen, in id order.
+    pub robots: Vec<FusedTrack>,
+    /// Every camera's fixes, for plots.
+    pub tracks: Vec<CameraTrack>,
+}
+
+/// Offsets and fusion from every camera's tracking.
+pub fn fuse_all(
+    arena: &ArenaFile,
+    results: &[CameraResult],
+    marker_height_m: f64,
+    opts: &FuseOptions,
+) -> Result<ArenaTracking, ArenaError> {
+    let tracks = camera_tracks(arena, results, marker_height_m);
+    let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts)?;
+    let mut ids: Vec<u32> = tracks.iter().map(|t| t.tag_id).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let robots = ids
+        .iter()
+        .map(|id| fuse_robot(*id, &tracks, &offsets, opts))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(ArenaTracking {
+        offsets,
+        robots,
+        tracks,
+    })
+}

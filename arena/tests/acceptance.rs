@@ -1,0 +1,244 @@
+//! The arena against the synthetic truth: four cameras, each calibrated from its own rendered
+//! views, tied into one floor frame by shared floor boards, two robots tracked across them.
+//!
+//! The bounds are asserted at 960×540 per camera (120 frames at 30 fps, boards rendered with
+//! 2×2 sub-samples): at 640×360 the shared boards far off the cameras' axes are too small for
+//! OpenCV's checkerboard detector. `odocal synth arena` at its default 1280×720 gives the
+//! full-size figures (README, "A multi-camera arena").
+
+use std::path::{Path, PathBuf};
+
+use odocal_arena::{build_arena, detect_shared, fuse_all, track_cameras, FuseOptions};
+use odocal_calib::{calibrate_session, CameraFile, LensModel, ModelChoice};
+use odocal_core::Trajectory;
+use odocal_synth::arena::{write_arena, ArenaScene};
+use odocal_tracker::multi::TagSelection;
+use odocal_tracker::TrackOptions;
+
+fn pngs(dir: &Path, prefix: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with(prefix) && n.ends_with(".png"))
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn arena_meets_the_bounds() {
+    let scene = ArenaScene {
+        width: 960,
+        height: 540,
+        frames: 120,
+        supersample: 2,
+        calib_views: 10,
+        board: odocal_calib::BoardSpec::checkerboard(9, 6, 0.08),
+        ..ArenaScene::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let t0 = std::time::Instant::now();
+    let written = write_arena(d, &scene, &|| {}).unwrap();
+    let truth = written.truth;
+    eprintln!(
+        "rendered in {:.1} s, {} shared views",
+        t0.elapsed().as_secs_f64(),
+        truth.shared.len()
+    );
+    let t0 = std::time::Instant::now();
+    let mut files: Vec<CameraFile> = Vec::new();
+    for cam in &truth.cameras {
+        let cd = d.join(&cam.name);
+        let s = calibrate_session(
+            &pngs(&cd, "view_"),
+            &pngs(&cd, "floor_"),
+            &scene.board,
+            ModelChoice::Fixed(LensModel::Pinhole5),
+            &|| {},
+        )
+        .unwrap();
+        files.push(s.file);
+    }
+    eprintln!("calibrated in {:.1} s", t0.elapsed().as_secs_f64());
+    let paths: Vec<PathBuf> = truth
+        .cameras
+        .iter()
+        .map(|c| d.join(&c.name).join("camera.json"))
+        .collect();
+    let path_refs: Vec<&Path> = paths.iter().map(|p| p.as_path()).collect();
+    let sizes: Vec<(u32, u32)> = files
+        .iter()
+        .map(|f| (f.camera.width, f.camera.height))
+        .collect();
+    let (shared, notes) = detect_shared(&[d.join("shared")], 4, &scene.board, &sizes).unwrap();
+    assert!(notes.is_empty(), "{notes:?}");
+    let (arena, solution) = build_arena(&files, &path_refs, &shared, &scene.board).unwrap();
+    eprintln!(
+        "arena consistency {:.3} mm RMS, {:.3} mm max over {} points; shared-view residual per camera {:?} px",
+        arena.consistency.rms_mm, arena.consistency.max_mm, arena.consistency.points, solution.rms_px
+    );
+    assert!(
+        arena.consistency.rms_mm <= 2.0,
+        "consistency {:?}",
+        arena.consistency
+    );
+    // Every pair of neighbouring cameras shares a board.
+    for pair in [(0, 1), (0, 2), (1, 3), (2, 3)] {
+        assert!(
+            arena.pairs.iter().any(|p| p.cameras == pair),
+            "no shared board for {pair:?}"
+        );
+    }
+    let t0 = std::time::Instant::now();
+    let videos: Vec<PathBuf> = (0..4).map(|k| d.join(format!("video_c{k}"))).collect();
+    let opts = TrackOptions {
+        tag_size_m: scene.tag_size_m,
+        marker_height_m: truth.marker_height_m,
+        ..TrackOptions::default()
+    };
+    let results =
+        track_cameras(&arena, &videos, &opts, &TagSelection::Ids(vec![0, 3]), true).unwrap();
+    eprintln!("tracked in {:.1} s", t0.elapsed().as_secs_f64());
+    let tracking = fuse_all(
+        &arena,
+        &results,
+        truth.marker_height_m,
+        &FuseOptions::for_fps(scene.fps),
+    )
+    .unwrap();
+    for (k, c) in truth.cameras.iter().enumerate() {
+        eprintln!(
+            "camera {k}: offset {:.3} ms (truth {:.3} ms, σ {:.3} ms)",
+            tracking.offsets.offset_s[k] * 1e3,
+            c.clock_offset_s * 1e3,
+            tracking.offsets.sigma_s[k] * 1e3
+        );
+    }
+    for (k, c) in truth.cameras.iter().enumerate() {
+        let err = (tracking.offsets.offset_s[k] - c.clock_offset_s).abs();
+        assert!(
+            err <= 1e-3,
+            "camera {k}: clock offset off by {:.3} ms",
+            err * 1e3
+        );
+    }
+    let truths: Vec<(u32, Trajectory)> = truth
+        .robots
+        .iter()
+        .map(|r| {
+            (
+                r.tag_id,
+                Trajectory::read_csv(&d.join(&r.trajectory)).unwrap(),
+            )
+        })
+        .collect();
+    let truth_of = |id: u32| &truths.iter().find(|(i, _)| *i == id).unwrap().1;
+    // Never swapped: every camera's every fix filed under an id is that robot, never the other.
+    for (k, per_id) in results.iter().enumerate() {
+        for (id, result) in per_id {
+            let own = truth_of(*id);
+            for (rec, fix) in result.fixes() {
+                let t = rec.t_s + truth.cameras[k].clock_offset_s;
+                let e = (fix.pose.position() - own.position_at(t, 0.01).unwrap()).norm();
+                assert!(
+                    e < 0.01,
+                    "camera {k}, tag {id}, frame {}: {e} m from its robot",
+                    rec.index
+                );
+            }
+        }
+    }
+    assert_eq!(tracking.robots.len(), 2, "one trajectory per robot");
+    for robot in &tracking.robots {
+        let own = truth_of(robot.tag_id);
+        let err = |row: &odocal_core::TrajectoryRow| {
+            row.pose.position() - own.position_at(row.t_s, 0.01).unwrap()
+        };
+        let rows = &robot.trajectory.rows;
+        let rms =
+            (rows.iter().map(|r| err(r).norm_squared()).sum::<f64>() / rows.len() as f64).sqrt();
+        // A handoff's jump: how much the error steps between the rows either side of it.
+        let mut jump: f64 = 0.0;
+        for h in &robot.handoffs {
+            let i = rows
+                .iter()
+                .position(|r| (r.t_s - h.t_s).abs() < 1e-9)
+                .unwrap();
+            let (a, b) = if h.joins { (i - 1, i) } else { (i, i + 1) };
+            jump = jump.max((err(&rows[b]) - err(&rows[a])).norm());
+        }
+        let fused_jump = robot.handoffs.iter().map(|h| h.jump_m).fold(0.0, f64::max);
+        eprintln!(
+            "robot {}: {} rows over {:.2} s, position RMS {:.3} mm, {} handoffs, largest error step at a handoff {:.3} mm (the fusion's own measure {:.3} mm)",
+            robot.tag_id,
+            rows.len(),
+            robot.trajectory.end_s() - robot.trajectory.start_s(),
+            rms * 1e3,
+            robot.handoffs.len(),
+            jump * 1e3,
+            fused_jump * 1e3
+        );
+        assert!(
+            rows.len() as f64 >= 0.95 * scene.frames as f64,
+            "robot {} has only {} rows",
+            robot.tag_id,
+            rows.len()
+        );
+        assert!(
+            rms <= 1.5e-3,
+            "robot {}: position RMS {:.3} mm",
+            robot.tag_id,
+            rms * 1e3
+        );
+        assert!(
+            !robot.handoffs.is_empty(),
+            "robot {} was never handed over",
+            robot.tag_id
+        );
+        assert!(
+            jump <= 2e-3,
+            "robot {}: a handoff jumps {:.3} mm",
+            robot.tag_id,
+            jump * 1e3
+        );
+        assert!(fused_jump <= 2e-3);
+    }
+    // Never merged: at every instant both robots have a pose, their poses are their own.
+    let (a, b) = (
+        &tracking.robots[0].trajectory,
+        &tracking.robots[1].trajectory,
+    );
+    let mut both = 0;
+    for row in &a.rows {
+        if let Some(p) = b.position_at(row.t_s, 1e-6).or_else(|| {
+            b.rows
+                .iter()
+                .find(|r| (r.t_s - row.t_s).abs() < 1e-9)
+                .map(|r| r.pose.position())
+        }) {
+            both += 1;
+            assert!((row.pose.position() - p).norm() > 0.5);
+        }
+    }
+    assert!(
+        both as f64 >= 0.9 * scene.frames as f64,
+        "both robots at once in only {both} rows"
+    );
+    // Every camera saw both robots at some point and handed them on: all four overlaps used.
+    for k in 0..4 {
+        for id in [0, 3] {
+            assert!(
+                tracking
+                    .tracks
+                    .iter()
+                    .any(|t| t.camera == k && t.tag_id == id),
+                "camera {k} never saw tag {id}"
+            );
+        }
+    }
+}

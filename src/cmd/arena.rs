@@ -1,0 +1,94 @@
+//! `odocal arena`: several calibrated cameras in one floor frame, tied together by boards
+//! lying on the floor where their views overlap, photographed by both cameras at once.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+use odocal_arena::{build_arena, detect_shared};
+use odocal_calib::{BoardSpec, CameraFile};
+
+use crate::output::{check_output_file, write_json};
+
+/// Arguments of `odocal arena`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// camera.json of every camera (from `odocal calibrate`); the first, calibrated with
+    /// --floor, fixes the arena's floor frame.
+    #[arg(long, num_args = 2.., required = true)]
+    pub camera: Vec<PathBuf>,
+    /// Shared views (files or folders): a board lying on the floor, photographed at once by
+    /// two or more cameras, named VIEW_cK.png with K the camera's place (from 0) in --camera.
+    #[arg(long, num_args = 1.., required = true)]
+    pub shared: Vec<PathBuf>,
+    /// Board size in inner corners, COLSxROWS (default: the first camera file's board).
+    #[arg(long)]
+    pub board: Option<String>,
+    /// Side of one square, metres (default: the first camera file's board).
+    #[arg(long)]
+    pub square: Option<f64>,
+    /// Where to write the arena file (`odocal.arena/1`).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+fn board_of(args: &Args, first: &CameraFile) -> anyhow::Result<BoardSpec> {
+    Ok(match (&args.board, args.square, first.board) {
+        (Some(b), Some(s), _) => BoardSpec::parse(b, s)?,
+        (None, None, Some(b)) => b,
+        (Some(b), None, Some(fb)) => BoardSpec::parse(b, fb.square_m)?,
+        (None, Some(s), Some(fb)) => BoardSpec::parse(&format!("{}x{}", fb.cols, fb.rows), s)?,
+        _ => bail!(
+            "{} names no board: give --board COLSxROWS and --square METRES of the shared views' board",
+            args.camera[0].display()
+        ),
+    })
+}
+
+/// Runs `odocal arena`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    check_output_file(&args.out, "--out")?;
+    let files = args
+        .camera
+        .iter()
+        .map(|p| CameraFile::load(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let board = board_of(&args, &files[0])?;
+    let sizes: Vec<(u32, u32)> = files
+        .iter()
+        .map(|f| (f.camera.width, f.camera.height))
+        .collect();
+    let (shared, notes) = detect_shared(&args.shared, files.len(), &board, &sizes)?;
+    for n in &notes {
+        eprintln!("{n}");
+    }
+    let paths: Vec<&Path> = args.camera.iter().map(|p| p.as_path()).collect();
+    let (arena, _) = build_arena(&files, &paths, &shared, &board)?;
+    write_json(&args.out, &arena)?;
+    for (k, c) in arena.cameras.iter().enumerate() {
+        let at = c.arena_to_camera.0.inverse().translation.vector;
+        println!(
+            "camera {k} ({}): at ({:.3}, {:.3}) m, {:.3} m above the floor; {} shared views, corner residual {:.3} px RMS",
+            c.source, at.x, at.y, at.z, c.shared_views, c.rms_px
+        );
+    }
+    for p in &arena.pairs {
+        println!(
+            "cameras {} and {}: the same floor point {:.2} mm apart RMS, {:.2} mm at most ({} corners)",
+            p.cameras.0,
+            p.cameras.1,
+            p.consistency.rms_mm,
+            p.consistency.max_mm,
+            p.consistency.points
+        );
+    }
+    let c = &arena.consistency;
+    println!(
+        "consistency in the overlaps: {:.2} mm RMS, {:.2} mm max over {} corners of {} shared views",
+        c.rms_mm,
+        c.max_mm,
+        c.points,
+        arena.shared_views.len()
+    );
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

@@ -1,0 +1,340 @@
+//! `odocal track --tags 0,3,7` and `odocal track --arena arena.json a.mp4 b.mp4 …`: several
+//! robots in one video, and robots tracked across the cameras of an arena, one trajectory
+//! file per robot.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+use odocal_arena::{fuse_all, track_cameras, ArenaFile, ArenaTrackFile, FuseOptions};
+use odocal_calib::CameraFile;
+use odocal_core::Trajectory;
+use odocal_synth::arena::ArenaTruth;
+use odocal_tracker::multi::{track_source_multi, TagSelection};
+use odocal_tracker::{open_source, quiet_video_logs, SourceOptions, TrackOptions, TrackResult};
+
+use crate::output::{check_output_file, progress, write_atomic, write_json};
+
+/// The options of `odocal track` for several robots and several cameras.
+#[derive(clap::Args)]
+pub struct MultiArgs {
+    /// Several robots: tag ids separated by commas (0,3,7), or all. One trajectory file per
+    /// id: --out traj.csv writes traj_tag0.csv, traj_tag3.csv, … (a single id writes --out).
+    #[arg(long)]
+    pub tags: Option<String>,
+    /// arena.json from `odocal arena`: VIDEO and the videos after it are the arena's cameras
+    /// in its order; one fused trajectory per robot (arena floor frame, first camera's
+    /// clock). All cameras must run at the same frame rate; their clock offsets are
+    /// estimated from robots seen by two cameras at once.
+    #[arg(long)]
+    pub arena: Option<PathBuf>,
+    /// The other cameras' videos or frame folders (with --arena).
+    #[arg(requires = "arena")]
+    pub more_videos: Vec<PathBuf>,
+    /// With --arena: also write the fusion's summary (clock offsets, cameras per pose,
+    /// handoffs; `odocal.arena-track/1`) for `odocal report --arena-track`.
+    #[arg(long, requires = "arena")]
+    pub arena_report: Option<PathBuf>,
+    /// With --arena: the output folder of `odocal synth arena`; prints each robot's error
+    /// against its true path and the clock offsets against the true ones.
+    #[arg(long, requires = "arena")]
+    pub arena_truth: Option<PathBuf>,
+}
+
+impl MultiArgs {
+    /// Whether this run tracks several tags or several cameras.
+    pub fn wanted(&self) -> bool {
+        self.tags.is_some() || self.arena.is_some()
+    }
+}
+
+fn options(args: &super::track::Args) -> TrackOptions {
+    TrackOptions {
+        family: args.family.clone(),
+        tag_id: args.tag_id,
+        tag_size_m: args.tag_size,
+        marker_height_m: args.marker_height,
+        use_roi: !args.no_roi,
+        max_speed_mps: args.max_speed,
+        max_reprojection_px: args.max_reprojection,
+        pnp_cross_check: args.pnp_check,
+        ..TrackOptions::default()
+    }
+}
+
+/// The trajectory file of tag `id`: `--out` itself for a single id, else `STEM_tagID.EXT`.
+fn out_path(out: &Path, id: u32, single: bool) -> PathBuf {
+    if single {
+        return out.to_path_buf();
+    }
+    let stem = out
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("trajectory");
+    let ext = out.extension().and_then(|s| s.to_str()).unwrap_or("csv");
+    out.with_file_name(format!("{stem}_tag{id}.{ext}"))
+}
+
+/// Runs `odocal track` for several tags or an arena.
+pub fn run(args: super::track::Args) -> anyhow::Result<()> {
+    let m = &args.multi;
+    let selection = match &m.tags {
+        Some(s) => TagSelection::parse(s)?,
+        None => TagSelection::Ids(vec![args.tag_id]),
+    };
+    let single = matches!(&selection, TagSelection::Ids(ids) if ids.len() == 1);
+    if let TagSelection::Ids(ids) = &selection {
+        for id in ids {
+            check_output_file(&out_path(&args.out, *id, single), "--out")?;
+        }
+    }
+    for (flag, given) in [
+        ("--tum", args.tum.is_some()),
+        ("--overlay", args.overlay.is_some()),
+        ("--report", args.report.is_some()),
+        ("--truth", args.truth.is_some()),
+    ] {
+        if given {
+            bail!("{flag} is for one tag in one video; with --tags or --arena use --arena-report and --arena-truth");
+        }
+    }
+    quiet_video_logs();
+    let opts = options(&args);
+    let trajectories: Vec<(u32, Trajectory)> = match &m.arena {
+        Some(arena_path) => track_arena(&args, arena_path, &opts, &selection)?,
+        None => track_one_video(&args, &opts, &selection)?,
+    };
+    for (id, t) in &trajectories {
+        let path = out_path(&args.out, *id, single);
+        check_output_file(&path, "--out")?;
+        write_atomic(&path, t.to_csv().as_bytes())?;
+        eprintln!("tag {id}: {} poses → {}", t.rows.len(), path.display());
+    }
+    Ok(())
+}
+
+fn fixes_to_trajectories(
+    results: BTreeMap<u32, TrackResult>,
+) -> anyhow::Result<Vec<(u32, Trajectory)>> {
+    let mut out = Vec::new();
+    for (id, r) in results {
+        if r.fixes().next().is_none() {
+            eprintln!("warning: tag {id} never gave a confident fix; no file written for it");
+            continue;
+        }
+        out.push((id, r.trajectory()?));
+    }
+    Ok(out)
+}
+
+fn track_one_video(
+    args: &super::track::Args,
+    opts: &TrackOptions,
+    selection: &TagSelection,
+) -> anyhow::Result<Vec<(u32, Trajectory)>> {
+    let camera_file = CameraFile::load(&args.camera)?;
+    let floor = *camera_file.require_floor(&args.camera)?;
+    opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
+    let source = open_source(
+        &args.video,
+        &SourceOptions {
+            fps: args.fps,
+            timestamps: args.timestamps.clone(),
+        },
+    )?;
+    let bar = progress(source.info().frame_count.unwrap_or(0) as u64, "tracking");
+    let results = track_source_multi(
+        source,
+        &camera_file.camera,
+        &floor,
+        opts,
+        selection,
+        &mut |_| bar.inc(1),
+    );
+    bar.finish_and_clear();
+    let out = fixes_to_trajectories(results?)?;
+    if out.is_empty() {
+        bail!(
+            "no selected tag gave a confident fix in {}: check --tags, --tag-size and the camera file",
+            args.video.display()
+        );
+    }
+    Ok(out)
+}
+
+fn track_arena(
+    args: &super::track::Args,
+    arena_path: &Path,
+    opts: &TrackOptions,
+    selection: &TagSelection,
+) -> anyhow::Result<Vec<(u32, Trajectory)>> {
+    let m = &args.multi;
+    if let Some(p) = &m.arena_report {
+        check_output_file(p, "--arena-report")?;
+    }
+    if args.fps.is_some() || args.timestamps.is_some() {
+        bail!("--fps and --timestamps are for one video; arena videos carry their own timestamps (a frame folder its timestamps.csv)");
+    }
+    let arena = ArenaFile::load(arena_path)?;
+    let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
+        .chain(m.more_videos.iter().cloned())
+        .collect();
+    let lowest = arena
+        .cameras
+        .iter()
+        .map(|c| c.arena_to_camera.0.inverse().translation.vector.z)
+        .fold(f64::INFINITY, f64::min);
+    opts.check(Some(lowest))?;
+    eprintln!("tracking {} videos in parallel", videos.len());
+    let results = track_cameras(&arena, &videos, opts, selection, true)?;
+    let fps = frame_rate(&results, &videos)?;
+    let fuse = FuseOptions::for_fps(fps);
+    let tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
+    println!(
+        "frame rate {fps:.3} frames/s, taken to be every camera's (clocks without drift, one constant offset each)"
+    );
+    for k in 0..arena.cameras.len() {
+        let (o, sd) = (tracking.offsets.offset_s[k], tracking.offsets.sigma_s[k]);
+        if sd.is_nan() {
+            println!("camera {k} clock offset unknown: it saw no robot");
+        } else {
+            println!(
+                "camera {k} clock offset {:+.3} ms ± {:.3} ms (t_arena = t_camera + offset)",
+                o * 1e3,
+                sd * 1e3
+            );
+        }
+    }
+    println!(
+        "simultaneous fixes of two cameras after the offsets: {:.2} mm RMS apart ({} pairs of cameras)",
+        tracking.offsets.rms_m * 1e3,
+        tracking.offsets.pairs.len()
+    );
+    for r in &tracking.robots {
+        let jump = r.handoffs.iter().map(|h| h.jump_m).fold(0.0, f64::max);
+        let dis = r
+            .handoffs
+            .iter()
+            .map(|h| h.disagreement_m)
+            .fold(0.0, f64::max);
+        println!(
+            "tag {}: {} fused poses over {:.2} s, {} handoffs, largest jump at a handoff {:.3} mm (the cameras disagreed by up to {:.2} mm there)",
+            r.tag_id,
+            r.trajectory.rows.len(),
+            r.trajectory.end_s() - r.trajectory.start_s(),
+            r.handoffs.len(),
+            jump * 1e3,
+            dis * 1e3
+        );
+    }
+    if let Some(dir) = &m.arena_truth {
+        print_against_truth(dir, &tracking)?;
+    }
+    let single = matches!(selection, TagSelection::Ids(ids) if ids.len() == 1);
+    if let Some(p) = &m.arena_report {
+        let files: Vec<String> = tracking
+            .robots
+            .iter()
+            .map(|r| out_path(&args.out, r.tag_id, single).display().to_string())
+            .collect();
+        write_json(p, &ArenaTrackFile::of(&tracking, &files))?;
+    }
+    Ok(tracking
+        .robots
+        .into_iter()
+        .map(|r| (r.tag_id, r.trajectory))
+        .collect())
+}
+
+/// The common frame rate: each camera's median frame interval, which must agree (the fusion
+/// assumes one frame rate for all cameras).
+fn frame_rate(results: &[odocal_arena::CameraResult], videos: &[PathBuf]) -> anyhow::Result<f64> {
+    let mut rates = Vec::new();
+    for (k, per_id) in results.iter().enumerate() {
+        let Some(first) = per_id.values().next() else {
+            bail!(
+                "no selected tag was tracked in {}: check --tags",
+                videos[k].display()
+            );
+        };
+        let mut dt: Vec<f64> = first
+            .records
+            .windows(2)
+            .map(|w| w[1].t_s - w[0].t_s)
+            .filter(|d| *d > 0.0)
+            .collect();
+        dt.sort_by(f64::total_cmp);
+        match dt.get(dt.len() / 2) {
+            Some(d) if d.is_finite() && *d > 0.0 => rates.push(1.0 / d),
+            _ => bail!(
+                "{}: too few frames to tell the frame rate",
+                videos[k].display()
+            ),
+        }
+    }
+    for (k, r) in rates.iter().enumerate() {
+        if (r / rates[0] - 1.0).abs() > 0.005 {
+            bail!(
+                "{} runs at {r:.3} frames/s but {} at {:.3}: the arena's cameras must share one frame rate (set them alike and record again)",
+                videos[k].display(),
+                videos[0].display(),
+                rates[0]
+            );
+        }
+    }
+    Ok(rates[0])
+}
+
+/// Each robot's error against the synthetic truth, and the offsets against the true ones.
+fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> anyhow::Result<()> {
+    let truth = ArenaTruth::read(&dir.join("truth.json"))?;
+    for (k, c) in truth.cameras.iter().enumerate() {
+        if let Some(o) = tracking.offsets.offset_s.get(k) {
+            println!(
+                "against the truth: camera {k} clock offset off by {:.3} ms",
+                (o - c.clock_offset_s).abs() * 1e3
+            );
+        }
+    }
+    for r in &tracking.robots {
+        let Some(rt) = truth.robots.iter().find(|t| t.tag_id == r.tag_id) else {
+            println!(
+                "against the truth: tag {} is no robot of the arena",
+                r.tag_id
+            );
+            continue;
+        };
+        let tt = Trajectory::read_csv(&dir.join(&rt.trajectory))?;
+        let err = |row: &odocal_core::TrajectoryRow| {
+            tt.position_at(row.t_s, 0.01)
+                .map(|p| row.pose.position() - p)
+        };
+        let errs: Vec<_> = r.trajectory.rows.iter().filter_map(err).collect();
+        let rms =
+            (errs.iter().map(|e| e.norm_squared()).sum::<f64>() / errs.len().max(1) as f64).sqrt();
+        let max = errs.iter().map(|e| e.norm()).fold(0.0, f64::max);
+        let rows = &r.trajectory.rows;
+        let mut step: f64 = 0.0;
+        for h in &r.handoffs {
+            if let Some(i) = rows.iter().position(|x| (x.t_s - h.t_s).abs() < 1e-9) {
+                let (a, b) = if h.joins {
+                    (i.saturating_sub(1), i)
+                } else {
+                    (i, (i + 1).min(rows.len() - 1))
+                };
+                if let (Some(ea), Some(eb)) = (err(&rows[a]), err(&rows[b])) {
+                    step = step.max((eb - ea).norm());
+                }
+            }
+        }
+        println!(
+            "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses; largest error step at a handoff {:.3} mm",
+            r.tag_id,
+            rms * 1e3,
+            max * 1e3,
+            errs.len(),
+            step * 1e3
+        );
+    }
+    Ok(())
+}

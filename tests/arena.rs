@@ -1,0 +1,153 @@
+//! End-to-end tests of `odocal track --tags`, `odocal arena` and `odocal track --arena` on
+//! the command line: one file per robot, single-robot output unchanged, bad input refused.
+//! (The arena's accuracy is tested against the truth in arena/tests/acceptance.rs.)
+
+mod common;
+
+use common::{fails, odocal, ok, p, succeeded};
+
+#[test]
+fn several_tags_give_a_file_each_and_one_tag_the_same_file_as_before() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    succeeded(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        "24",
+        "--seed",
+        "5",
+        "--video",
+        "png",
+        "--tag-id",
+        "5",
+    ]));
+    let (video, cam) = (d.join("frames"), d.join("camera.json"));
+    let plain = d.join("plain.csv");
+    ok(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&cam),
+        "--tag-id",
+        "5",
+        "--out",
+        p(&plain),
+    ]);
+    let one = d.join("one.csv");
+    ok(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&cam),
+        "--tags",
+        "5",
+        "--out",
+        p(&one),
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(&plain).unwrap(),
+        std::fs::read_to_string(&one).unwrap(),
+        "--tags with one id writes what --tag-id writes"
+    );
+    let many = d.join("many.csv");
+    let out = odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&cam),
+        "--tags",
+        "9,5",
+        "--out",
+        p(&many),
+    ]);
+    succeeded(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("tag 9 never gave a confident fix"), "{err}");
+    assert!(!many.exists() && !d.join("many_tag9.csv").exists());
+    assert_eq!(
+        std::fs::read_to_string(d.join("many_tag5.csv")).unwrap(),
+        std::fs::read_to_string(&plain).unwrap()
+    );
+    let all = d.join("all.csv");
+    ok(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&cam),
+        "--tags",
+        "all",
+        "--out",
+        p(&all),
+    ]);
+    let t = odocal_core::Trajectory::read_csv(&d.join("all_tag5.csv")).unwrap();
+    assert!(t.rows.len() >= 20, "{} rows", t.rows.len());
+}
+
+#[test]
+fn bad_arena_inputs_give_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let e = fails(&[
+        "track",
+        "v.mp4",
+        "--camera",
+        "c.json",
+        "--tags",
+        "0,x",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert!(e.contains("\"x\" is not a tag id"), "{e}");
+    let e = fails(&[
+        "track",
+        "v.mp4",
+        "--camera",
+        "c.json",
+        "--tags",
+        "0,0",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert!(e.contains("given twice"), "{e}");
+    let e = fails(&[
+        "track",
+        "v.mp4",
+        "--camera",
+        "c.json",
+        "--tags",
+        "0,3",
+        "--tum",
+        "x.tum",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert!(e.contains("--tum is for one tag"), "{e}");
+    // A camera file that is not one, and a shared view without a camera number.
+    let bogus = d.join("a.json");
+    std::fs::write(&bogus, "{\"format\": \"odocal.model/1\"}").unwrap();
+    let e = fails(&[
+        "arena",
+        "--camera",
+        p(&bogus),
+        p(&bogus),
+        "--shared",
+        p(d),
+        "--out",
+        p(&d.join("arena.json")),
+    ]);
+    assert!(e.contains("a.json") && e.contains("odocal.camera/1"), "{e}");
+    let e = fails(&[
+        "track",
+        "--arena",
+        p(&bogus),
+        "v0",
+        "v1",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert!(e.contains("odocal.arena/1"), "{e}");
+    assert!(!d.join("arena.json").exists() && !d.join("t.csv").exists());
+}
