@@ -421,6 +421,7 @@ mod tests {
                     t_s: tc,
                     pose: start.compose(&Pose2::new(s, 0.0, 0.0)),
                     quality: 1.0,
+                    sigma: None,
                 }
             })
             .collect();
