@@ -548,12 +548,41 @@ impl Tracker {
         })
     }
 
+    /// Under a rolling shutter each corner was read at its own row's time: moves each corner
+    /// back along the track's image velocity to where it was when the tag centre's row was
+    /// read, which undoes the shear that would otherwise tilt the fitted heading.
+    fn unshear(&self, d: &mut TagDetection) {
+        let readout = self.opts.rolling_shutter_s;
+        if readout <= 0.0 || self.history.len() < 2 {
+            return;
+        }
+        let (t0, p0, _) = self.history[self.history.len() - 2];
+        let (t1, p1, _) = self.history[self.history.len() - 1];
+        let h = self.opts.marker_height_m;
+        let (Some(a), Some(b)) = (
+            self.camera.floor_to_pixel(&self.floor, &p0.position(), h),
+            self.camera.floor_to_pixel(&self.floor, &p1.position(), h),
+        ) else {
+            return;
+        };
+        if !(t1 - t0 > 1e-6 && t1 - t0 < 0.5) {
+            return;
+        }
+        let v = (b - a) / (t1 - t0);
+        let rows = self.camera.height.max(1) as f64;
+        let yc = d.centre_px().y;
+        for c in &mut d.corners_px {
+            *c -= v * ((c.y - yc) / rows * readout);
+        }
+    }
+
     fn grade(
         &mut self,
         frame: &Frame,
-        d: TagDetection,
+        mut d: TagDetection,
         from_roi: bool,
     ) -> (Outcome, Option<Rejected>) {
+        self.unshear(&mut d);
         let o = &self.opts;
         let planar = planar_pose(
             &self.camera,

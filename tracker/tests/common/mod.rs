@@ -213,9 +213,9 @@ fn render_one(
             }
         }
     }
-    let band = 2usize;
-    let first = ((y0 - 40.0).max(0.0) as usize / band) * band;
-    let last = ((y1 + 40.0).min(h as f64 - 1.0)) as usize;
+    let band = 3usize;
+    let first = ((y0 - 12.0).max(0.0) as usize / band) * band;
+    let last = ((y1 + 12.0).min(h as f64 - 1.0)) as usize;
     let mut y = first;
     while y <= last {
         let tt = t + readout_s * (y as f64 + 0.5 * band as f64 - 0.5) / h as f64;
