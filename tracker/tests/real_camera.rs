@@ -29,9 +29,11 @@ fn assert_sigma_honest(name: &str, s: &Score) {
 
 #[test]
 fn rolling_shutter_and_10ms_exposure() {
-    let mut cfg = SceneConfig::default();
-    cfg.exposure_s = 0.010;
-    cfg.motion_samples = 9;
+    let cfg = SceneConfig {
+        exposure_s: 0.010,
+        motion_samples: 9,
+        ..SceneConfig::default()
+    };
     let n = 30;
     let traj = fast_trajectory(&cfg, n as f64 / 30.0 + 0.1, 31);
     let d = Degrade {

@@ -1,12 +1,14 @@
 //! The report's sections, each built from the outputs of one pipeline stage.
 
 mod calibration;
+mod conditions;
 mod corrector;
 mod laser;
 mod runs;
 mod training;
 
 pub use calibration::{calibration_section, CalibInput, CalibView};
+pub use conditions::{conditions_section, ConditionRow};
 pub use corrector::corrector_section;
 pub use laser::{laser_section, LaserInput};
 pub use runs::{heading_section, pick_runs, trajectory_section, RunView};
