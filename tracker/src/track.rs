@@ -32,7 +32,7 @@ use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
 use crate::source::{Frame, FrameSource, SourceInfo};
 use crate::uncertainty::{
-    calibration_covariance, corner_covariance, sigma_of, CORNER_RESIDUAL_DOF,
+    calibration_covariance, corner_covariance, expected_residual_px2, sigma_of,
 };
 use crate::TrackError;
 
@@ -131,7 +131,9 @@ impl Default for TrackOptions {
             marker_height_m: 0.08,
             use_roi: true,
             search_decimate: 2.0,
-            max_hamming: 1,
+            // AprilTag's own default: tag36h11 codes are 11 bits apart, so two corrected bits
+            // leave a wrong id far away, and the geometric gates check every detection.
+            max_hamming: 2,
             min_decision_margin: 0.0,
             max_size_error: 0.15,
             rolling_shutter_s: 0.0,
@@ -189,7 +191,7 @@ pub struct Fix {
     /// Standard deviations of the pose (detection noise and, when the camera file has it, the
     /// calibration's covariance).
     pub sigma: PoseSigma,
-    /// The corner noise behind `sigma`, pixels per coordinate.
+    /// The corner noise behind `sigma`, pixels per coordinate (RMS over the eight).
     pub corner_sigma_px: f64,
     /// Quality in (0, 1]: 1 / (1 + reprojection RMS in pixels).
     pub quality: f64,
@@ -272,28 +274,56 @@ pub struct Tracker {
     last_fix_index: Option<usize>,
     consecutive_jumps: usize,
     seen: BTreeMap<u32, usize>,
-    /// Pooled corner residuals: decayed sum of squared residuals and of degrees of freedom.
+    /// Pooled corner residuals: decayed sums of each fix's squared residuals over what its
+    /// corners' covariance expects of them, and of the weights.
     residual_pool: (f64, f64),
     /// Covariance of the intrinsics (camera.json), if known.
     intrinsics_covariance: Option<nalgebra::DMatrix<f64>>,
+    /// Which of the search directions the whole-frame blurred search tries next.
+    blurred_search_turn: usize,
 }
 
-/// Blur lengths (pixels) and Wiener noise-to-signal ratios tried along the track's motion when
-/// the tag is not found in the ROI: the likeliest first, a smoother one last for noisy frames.
-const DEBLUR_TRIALS: [(f64, f64); 6] = [
-    (9.0, 0.003),
-    (6.0, 0.003),
-    (12.0, 0.003),
-    (9.0, 0.02),
-    (6.0, 0.02),
-    (4.0, 0.01),
+/// Blur lengths (pixels), Wiener noise-to-signal ratios and quad blurs (σ, pixels) tried along
+/// the track's motion when the tag is not found in the ROI: the likeliest first, smoother ones
+/// last for noisy frames (the quad blur steadies the quad search on the restored image's noise
+/// and ringing; the code is still read from the restored image itself).
+const DEBLUR_TRIALS: [(f64, f64, f32); 10] = [
+    (9.0, 0.003, 0.0),
+    (6.0, 0.003, 0.0),
+    (12.0, 0.003, 0.0),
+    (9.0, 0.02, 0.0),
+    (6.0, 0.02, 0.0),
+    (4.0, 0.01, 0.0),
+    (9.0, 0.003, 0.8),
+    (6.0, 0.003, 0.8),
+    (7.5, 0.01, 0.8),
+    (7.5, 0.03, 0.0),
+];
+
+/// Directions of an unknown motion blur tried by the whole-frame search (unit image vectors:
+/// right, down-right, down, down-left).
+const SEARCH_DIRECTIONS: [[f64; 2]; 4] = [
+    [1.0, 0.0],
+    [
+        std::f64::consts::FRAC_1_SQRT_2,
+        std::f64::consts::FRAC_1_SQRT_2,
+    ],
+    [0.0, 1.0],
+    [
+        -std::f64::consts::FRAC_1_SQRT_2,
+        std::f64::consts::FRAC_1_SQRT_2,
+    ],
 ];
 
 /// Weight of older fixes in the pooled corner noise per new fix (about the last 30 fixes).
 const POOL_DECAY: f64 = 0.97;
-/// Prior of the pooled corner noise: σ per coordinate, pixels, worth this many degrees of freedom.
-const PRIOR_CORNER_SIGMA_PX: f64 = 0.1;
-const PRIOR_DOF: f64 = 10.0;
+/// Corner σ per coordinate before any fix, pixels (what the edge refit gives a sharp tag).
+const PRIOR_CORNER_SIGMA_PX: f64 = 0.05;
+/// Weight of that prior, in fixes.
+const PRIOR_FIXES: f64 = 2.0;
+/// The 99.99 % point of χ² with 5 degrees of freedom over 5: a frame's corner residuals this
+/// far above what the track's noise expects do not belong to a square of the tag's size.
+const RESIDUAL_GATE: f64 = 25.7 / 5.0;
 
 impl Tracker {
     /// A tracker for frames of `camera` above `floor`.
@@ -316,6 +346,7 @@ impl Tracker {
             seen: BTreeMap::new(),
             residual_pool: (0.0, 0.0),
             intrinsics_covariance: None,
+            blurred_search_turn: 0,
         };
         if let Some(cov) = covariance {
             tracker.set_intrinsics_covariance(cov)?;
@@ -342,13 +373,13 @@ impl Tracker {
         Ok(())
     }
 
-    /// The corner noise pooled over recent fixes, pixels per coordinate, with the frame's own
-    /// squared residual sum `sq` (the prior keeps the first fixes from trusting 5 dof).
-    fn corner_sigma_px(&self, sq: f64) -> f64 {
+    /// The factor (variance ratio) that scales the corners' covariance to the residuals seen
+    /// over recent fixes, with this frame's `ratio` of squared residuals to their expectation
+    /// (the prior keeps the first fixes from trusting 5 degrees of freedom).
+    fn noise_scale(&self, ratio: Option<f64>) -> f64 {
         let (s, n) = self.residual_pool;
-        ((s + sq + PRIOR_DOF * PRIOR_CORNER_SIGMA_PX.powi(2))
-            / (n + CORNER_RESIDUAL_DOF + PRIOR_DOF))
-            .sqrt()
+        let (r, k) = ratio.map_or((0.0, 0.0), |r| (r, 1.0));
+        (s + r + PRIOR_FIXES) / (n + k + PRIOR_FIXES)
     }
 
     /// The time the tag centred at image row `row_px` was read, for a frame stamped `t_s`.
@@ -386,7 +417,11 @@ impl Tracker {
     }
 
     /// A whole-frame search for a tag smeared by motion in an unknown direction: the blur is
-    /// undone along four directions in turn (a smear within 22.5° of one is mostly undone).
+    /// undone along the four [`SEARCH_DIRECTIONS`] (a smear within 22.5° of one is mostly
+    /// undone) and the restored frame searched decimated. Before the first fix and within a
+    /// second of the last one all four are tried; a track lost for longer (the robot out of
+    /// view, a person in the way) tries one per frame in turn, so that a long gap costs one
+    /// deconvolution per frame, not four.
     fn search_blurred(
         &mut self,
         frame: &Frame,
@@ -399,22 +434,36 @@ impl Tracker {
             width: w,
             height: h,
         };
-        for k in 0..4 {
-            let a = std::f64::consts::FRAC_PI_4 * k as f64;
-            let dir = nalgebra::Vector2::new(a.cos(), a.sin());
-            let dets = self.detector.detect_deblurred(
-                &frame.image,
-                whole,
-                dir,
-                DEBLUR_TRIALS[0].0,
-                DEBLUR_TRIALS[0].1,
-            )?;
+        let recently = match self.history.last() {
+            None => true,
+            Some(&(t, _, _)) => frame.t_s - t < 1.0,
+        };
+        let tries = if recently { 4 } else { 1 };
+        self.detector
+            .set_decimate(self.opts.search_decimate.max(1.0));
+        let mut found = None;
+        for _ in 0..tries {
+            let dir = SEARCH_DIRECTIONS[self.blurred_search_turn % 4];
+            self.blurred_search_turn += 1;
+            let (len, nsr, _) = DEBLUR_TRIALS[0];
+            let dets = self
+                .detector
+                .detect_deblurred(&frame.image, whole, dir.into(), len, nsr);
+            let dets = match dets {
+                Ok(d) => d,
+                Err(e) => {
+                    self.detector.set_decimate(1.0);
+                    return Err(e);
+                }
+            };
             ids.extend(dets.iter().map(|d| d.id));
-            if let Some(d) = self.pick(&dets, None) {
-                return Ok(Some(d));
+            found = self.pick(&dets, None);
+            if found.is_some() {
+                break;
             }
         }
-        Ok(None)
+        self.detector.set_decimate(1.0);
+        Ok(found)
     }
 
     /// The unit image direction in which the tag moves, from the last fix to `predicted`.
@@ -481,19 +530,30 @@ impl Tracker {
                         found = self.pick(&dets, None).map(|d| (d, true));
                     }
                     if found.is_none() {
-                        if let Some(dir) = self.image_motion(&pose) {
-                            for (len, nsr) in DEBLUR_TRIALS {
+                        // Along the track's motion with every trial first, then along each
+                        // search direction with the likeliest ones (the motion may have turned):
+                        // still far cheaper than a search of the whole frame.
+                        let mut dirs: Vec<(nalgebra::Vector2<f64>, usize)> = Vec::new();
+                        if let Some(d) = self.image_motion(&pose) {
+                            dirs.push((d, DEBLUR_TRIALS.len()));
+                        }
+                        dirs.extend(SEARCH_DIRECTIONS.iter().map(|&d| (d.into(), 2)));
+                        'trials: for (dir, n_trials) in dirs {
+                            for &(len, nsr, sigma) in &DEBLUR_TRIALS[..n_trials] {
+                                self.detector.set_quad_sigma(sigma);
                                 let dets = self.detector.detect_deblurred(
                                     &frame.image,
                                     roi,
                                     dir,
                                     len,
                                     nsr,
-                                )?;
+                                );
+                                self.detector.set_quad_sigma(0.0);
+                                let dets = dets?;
                                 ids_in_frame.extend(dets.iter().map(|d| d.id));
                                 found = self.pick(&dets, None).map(|d| (d, true));
                                 if found.is_some() {
-                                    break;
+                                    break 'trials;
                                 }
                             }
                         }
@@ -605,10 +665,22 @@ impl Tracker {
         let Some(planar) = planar else {
             return reject(GapReason::BadGeometry);
         };
-        // The corners' misfit must be within what the track's own noise allows (the 99.99 %
-        // point of χ² with 5 degrees of freedom is 25.7: RMS over 4 corners ≤ 2.53 σ), and
-        // never beyond the fixed limit on a clean track. NaN never passes.
-        let limit_px = o.max_reprojection_px.max(2.53 * self.corner_sigma_px(0.0));
+        // The corners as independent, with the prior σ; scaled below by the residuals.
+        let base_cov = nalgebra::SMatrix::<f64, 8, 8>::identity() * PRIOR_CORNER_SIGMA_PX.powi(2);
+        let sq = 4.0 * planar.reprojection_rms_px.powi(2);
+        let expected = expected_residual_px2(
+            &self.camera,
+            &self.floor,
+            &planar.pose,
+            o.tag_size_m,
+            o.marker_height_m,
+            &base_cov,
+        )
+        .unwrap_or(f64::NAN);
+        // The corners' misfit must be within what the track's own noise allows, and never
+        // beyond the fixed limit on a clean track. NaN never passes.
+        let allowed_px2 = RESIDUAL_GATE * self.noise_scale(None) * expected;
+        let limit_px = o.max_reprojection_px.max((allowed_px2 / 4.0).sqrt());
         if planar.reprojection_rms_px.is_nan() || planar.reprojection_rms_px > limit_px {
             return reject(GapReason::BadGeometry);
         }
@@ -647,17 +719,19 @@ impl Tracker {
         } else {
             None
         };
-        let sq = 4.0 * planar.reprojection_rms_px.powi(2);
-        let corner_sigma_px = self.corner_sigma_px(sq);
+        let ratio = sq / expected;
+        let scale = self.noise_scale(Some(ratio));
         let (s, n) = self.residual_pool;
-        self.residual_pool = (POOL_DECAY * s + sq, POOL_DECAY * n + CORNER_RESIDUAL_DOF);
+        self.residual_pool = (POOL_DECAY * s + ratio, POOL_DECAY * n + 1.0);
+        let corner_cov = base_cov * scale;
+        let corner_sigma_px = (corner_cov.trace() / 8.0).sqrt();
         let mut cov = corner_covariance(
             &self.camera,
             &self.floor,
             &d.corners_px,
             o.tag_size_m,
             o.marker_height_m,
-            corner_sigma_px,
+            &corner_cov,
         )
         .unwrap_or_else(|| nalgebra::Matrix3::from_diagonal_element(f64::INFINITY));
         if let Some(ic) = &self.intrinsics_covariance {

@@ -9,21 +9,29 @@
 //! bias of the whole track at that place), but a user comparing poses with anything else
 //! needs it in the error bar.
 //!
-//! The corner σ comes from the fits' own residuals: four corners against a square of known
-//! size leave 8 − 3 = 5 degrees of freedom per frame, far too few for one frame alone, so the
-//! tracker pools them over recent fixes (see `track.rs`).
+//! The corner σ comes from the planar fits' own residuals: four corners against a square of
+//! known size leave 8 − 3 = 5 degrees of freedom per frame, far too few for one frame alone,
+//! so the tracker pools them over recent fixes (see `track.rs`), as the ratio of the residuals
+//! to what [`expected_residual_px2`] expects of the corners' covariance.
+//!
+//! The edge refit's own covariance (grey-level residuals through its Jacobian, with the
+//! correlation of corners that share a side) was tried as the corners' covariance, scaled by
+//! the same residuals: it made position σ two to three times too small on synthetic truth,
+//! since an error common to all four corners (a shift of the whole tag) leaves no residual.
 
 use nalgebra::{DMatrix, Matrix3, Point2, SMatrix};
 use odocal_calib::{CameraModel, FloorToCamera};
-use odocal_core::{wrap_angle, PoseSigma};
+use odocal_core::{fit_rigid, wrap_angle, PoseSigma};
 
-use crate::pose::{planar_pose, PlanarPose};
+use crate::pose::{planar_pose, tag_model, PlanarPose};
 
 /// Degrees of freedom of the corner residuals of one planar fit (8 coordinates, 3 pose parameters).
 pub const CORNER_RESIDUAL_DOF: f64 = 5.0;
 
 /// Step of the finite differences over corner coordinates, pixels.
 const CORNER_STEP_PX: f64 = 0.05;
+/// Step of the finite differences over marker-plane coordinates, metres.
+const FLOOR_STEP_M: f64 = 1e-6;
 
 /// Differences of two poses as (x, y, θ), the heading wrapped.
 fn delta(a: &PlanarPose, b: &PlanarPose) -> [f64; 3] {
@@ -34,30 +42,90 @@ fn delta(a: &PlanarPose, b: &PlanarPose) -> [f64; 3] {
     ]
 }
 
-/// Covariance of (x, y, θ) for independent corner coordinates of σ `corner_sigma_px`.
+/// Covariance of (x, y, θ) for corners of covariance `corner_cov_px2` (x0, y0, x1, y1, …).
+///
+/// The Jacobian is taken in two steps, each by finite differences: pixel → marker plane for
+/// each corner on its own (2 × 2; the lens is undistorted 8 times, not 64), then the rigid fit
+/// of the square to the four plane points (3 × 8, a closed form, cheap).
 pub fn corner_covariance(
     camera: &CameraModel,
     floor: &FloorToCamera,
     corners_px: &[Point2<f64>; 4],
     tag_size_m: f64,
     marker_height_m: f64,
-    corner_sigma_px: f64,
+    corner_cov_px2: &SMatrix<f64, 8, 8>,
 ) -> Option<Matrix3<f64>> {
-    let mut j = SMatrix::<f64, 3, 8>::zeros();
-    for k in 0..8 {
-        let mut plus = *corners_px;
-        let mut minus = *corners_px;
-        let (i, axis) = (k / 2, k % 2);
-        plus[i][axis] += CORNER_STEP_PX;
-        minus[i][axis] -= CORNER_STEP_PX;
-        let a = planar_pose(camera, floor, &plus, tag_size_m, marker_height_m)?;
-        let b = planar_pose(camera, floor, &minus, tag_size_m, marker_height_m)?;
-        let d = delta(&a, &b);
-        for r in 0..3 {
-            j[(r, k)] = d[r] / (2.0 * CORNER_STEP_PX);
+    let mut on_floor = [Point2::origin(); 4];
+    let mut to_floor = SMatrix::<f64, 8, 8>::zeros();
+    for (i, c) in corners_px.iter().enumerate() {
+        let q = camera.pixel_to_floor(floor, c, marker_height_m)?;
+        on_floor[i] = q;
+        for axis in 0..2 {
+            let mut p = *c;
+            p[axis] += CORNER_STEP_PX;
+            let d = (camera.pixel_to_floor(floor, &p, marker_height_m)? - q) / CORNER_STEP_PX;
+            to_floor[(2 * i, 2 * i + axis)] = d.x;
+            to_floor[(2 * i + 1, 2 * i + axis)] = d.y;
         }
     }
-    Some(j * j.transpose() * corner_sigma_px.powi(2))
+    let model = tag_model(tag_size_m);
+    let base = fit_rigid(&model, &on_floor).ok()?.pose;
+    let mut fit = SMatrix::<f64, 3, 8>::zeros();
+    for k in 0..8 {
+        let mut q = on_floor;
+        q[k / 2][k % 2] += FLOOR_STEP_M;
+        let p = fit_rigid(&model, &q).ok()?.pose;
+        let d = [
+            p.x_m - base.x_m,
+            p.y_m - base.y_m,
+            wrap_angle(p.theta_rad - base.theta_rad),
+        ];
+        for r in 0..3 {
+            fit[(r, k)] = d[r] / FLOOR_STEP_M;
+        }
+    }
+    let j = fit * to_floor;
+    Some(j * corner_cov_px2 * j.transpose())
+}
+
+/// The expected sum of squared corner residuals of the planar fit (pixels²) if the corners
+/// had covariance `corner_cov_px2`: tr(M Σ Mᵀ), M the projection onto what a square at
+/// `pose` cannot explain (8 coordinates minus the 3 of the pose).
+pub fn expected_residual_px2(
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    pose: &odocal_core::Pose2,
+    tag_size_m: f64,
+    marker_height_m: f64,
+    corner_cov_px2: &SMatrix<f64, 8, 8>,
+) -> Option<f64> {
+    let model = tag_model(tag_size_m);
+    let project = |p: &odocal_core::Pose2| -> Option<[Point2<f64>; 4]> {
+        let mut out = [Point2::origin(); 4];
+        for (o, m) in out.iter_mut().zip(&model) {
+            *o = camera.floor_to_pixel(floor, &p.transform_point(m), marker_height_m)?;
+        }
+        Some(out)
+    };
+    let base = project(pose)?;
+    let mut a = SMatrix::<f64, 8, 3>::zeros();
+    let steps = [1e-5, 1e-5, 1e-4];
+    for k in 0..3 {
+        let mut p = *pose;
+        match k {
+            0 => p.x_m += steps[0],
+            1 => p.y_m += steps[1],
+            _ => p.theta_rad += steps[2],
+        }
+        let moved = project(&p)?;
+        for c in 0..4 {
+            a[(2 * c, k)] = (moved[c].x - base[c].x) / steps[k];
+            a[(2 * c + 1, k)] = (moved[c].y - base[c].y) / steps[k];
+        }
+    }
+    let hat = a * (a.transpose() * a).try_inverse()? * a.transpose();
+    let m = SMatrix::<f64, 8, 8>::identity() - hat;
+    Some((m * corner_cov_px2 * m.transpose()).trace())
 }
 
 /// Covariance of (x, y, θ) from the intrinsics' covariance `cov` (in the order of
@@ -117,7 +185,6 @@ pub fn sigma_of(cov: &Matrix3<f64>) -> PoseSigma {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::tag_model;
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
     use odocal_core::Pose2;
     use rand::SeedableRng;
@@ -136,7 +203,8 @@ mod tests {
             cam.floor_to_pixel(&floor, &pose.transform_point(&m), 0.08)
                 .unwrap()
         });
-        let s = sigma_of(&corner_covariance(&cam, &floor, &corners, 0.08, 0.08, 0.2).unwrap());
+        let iid = SMatrix::<f64, 8, 8>::identity() * 0.04;
+        let s = sigma_of(&corner_covariance(&cam, &floor, &corners, 0.08, 0.08, &iid).unwrap());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let noise = Normal::new(0.0, 0.2).unwrap();
         let n = 4000;

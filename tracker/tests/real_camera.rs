@@ -145,8 +145,7 @@ fn everything_combined() {
     assert_sigma_honest("combined", &s);
 }
 
-/// Short of the 95 % asked for: 91 % on this drive, 93 % on a 150-frame one (see the README).
-const MIN_COMBINED_TRACKED: f64 = 0.90;
+const MIN_COMBINED_TRACKED: f64 = 0.95;
 
 #[test]
 fn dropped_frames_keep_their_times() {
