@@ -88,7 +88,7 @@ fn rolling_shutter_and_10ms_exposure() {
         s.nees_rms_xy
     );
     assert!(
-        (0.5..=1.4).contains(&s.nees_rms_theta),
+        (0.7..=1.4).contains(&s.nees_rms_theta),
         "error/σ RMS (θ) {:.2}",
         s.nees_rms_theta
     );
