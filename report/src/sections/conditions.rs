@@ -1,7 +1,9 @@
-//! The tracking-conditions section: how the tracker fares on video as real cameras record it
-//! (motion blur, rolling shutter, dim light, noise, compression), each condition measured
-//! against synthetic truth, with AprilTag 3's own detection rate on the same frames, and how
-//! honest each fix's σ is there (the RMS of error/σ, 1 when σ is right).
+//! How good the camera's poses are: the tracking-conditions section (how the tracker fares on
+//! video as real cameras record it — motion blur, rolling shutter, dim light, noise,
+//! compression — each condition measured against synthetic truth, with AprilTag 3's own
+//! detection rate on the same frames, and how honest each fix's σ is there: the RMS of
+//! error/σ, 1 when σ is right), and the target-uncertainty section (each run's target σ in
+//! dataset.json, carried from the per-pose σ of the trajectories).
 
 use super::*;
 
@@ -80,9 +82,75 @@ pub fn conditions_section(rows: &[ConditionRow]) -> Result<Section, ReportError>
     Ok(s)
 }
 
+/// The σ of each run's target (dataset.json's `target_sigma_m`, `target_sigma_theta_rad`),
+/// or `None` when no sample has one (trajectories without σ).
+pub fn target_sigma_section(samples: &[Sample]) -> Option<Section> {
+    let with: Vec<&Sample> = samples
+        .iter()
+        .filter(|s| s.target_sigma_m.is_some())
+        .collect();
+    if with.is_empty() {
+        return None;
+    }
+    let mut s = Section::new("target-sigma", "Target uncertainty");
+    let mut pos: Vec<f64> = with
+        .iter()
+        .filter_map(|x| x.target_sigma_m)
+        .map(|[a, b]| a.hypot(b) * 1e3)
+        .collect();
+    pos.sort_by(f64::total_cmp);
+    s.blocks.push(Block::Text(format!(
+        "{} of {} runs carry the camera's σ on their target (the σ of each fix averaged over the rest frames at both ends): median position σ {:.3} mm, largest {:.3} mm.",
+        with.len(),
+        samples.len(),
+        pos[pos.len() / 2],
+        pos[pos.len() - 1]
+    )));
+    s.blocks.push(Block::Table(Table {
+        caption: "Target σ per run (start frame of the run)".into(),
+        header: ["run", "σ x (mm)", "σ y (mm)", "σ θ (°)"]
+            .map(String::from)
+            .to_vec(),
+        rows: with
+            .iter()
+            .map(|x| {
+                let [a, b] = x.target_sigma_m.unwrap_or([f64::NAN; 2]);
+                vec![
+                    x.run_id.clone(),
+                    format!("{:.3}", a * 1e3),
+                    format!("{:.3}", b * 1e3),
+                    x.target_sigma_theta_rad
+                        .map_or("–".into(), |t| format!("{:.4}", t.to_degrees())),
+                ]
+            })
+            .collect(),
+    }));
+    Some(s)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn target_sigma_only_when_samples_have_it() {
+        let mut a = Sample {
+            run_id: "run001".into(),
+            ..Sample::default()
+        };
+        assert!(target_sigma_section(std::slice::from_ref(&a)).is_none());
+        a.target_sigma_m = Some([0.0003, 0.0004]);
+        a.target_sigma_theta_rad = Some(0.001);
+        let s = target_sigma_section(&[a]).unwrap();
+        let Some(Block::Table(t)) = s.blocks.last() else {
+            panic!("no table")
+        };
+        assert_eq!(t.rows[0], vec!["run001", "0.300", "0.400", "0.0573"]);
+        let Some(Block::Text(text)) = s.blocks.first() else {
+            panic!("no text")
+        };
+        assert!(text.contains("median position σ 0.500 mm"), "{text}");
+    }
 
     #[test]
     fn one_row_per_condition_and_none_is_refused() {

@@ -8,7 +8,7 @@ mod runs;
 mod training;
 
 pub use calibration::{calibration_section, CalibInput, CalibView};
-pub use conditions::{conditions_section, ConditionRow};
+pub use conditions::{conditions_section, target_sigma_section, ConditionRow};
 pub use corrector::corrector_section;
 pub use laser::{laser_section, LaserInput};
 pub use runs::{heading_section, pick_runs, trajectory_section, RunView};
