@@ -300,6 +300,10 @@ const DEBLUR_TRIALS: [(f64, f64, f32); 10] = [
     (7.5, 0.03, 0.0),
 ];
 
+/// The quad decimation and quad blur (σ, pixels) of the searches in the region of interest,
+/// in order.
+const ROI_SEARCHES: [(f32, f32); 3] = [(2.0, 0.0), (1.0, 0.0), (1.0, 0.8)];
+
 /// Directions of an unknown motion blur tried by the whole-frame search (unit image vectors:
 /// right, down-right, down, down-left).
 const SEARCH_DIRECTIONS: [[f64; 2]; 4] = [
@@ -511,12 +515,10 @@ impl Tracker {
             if let Some((pose, side, step)) = prediction {
                 let px_per_m = side / self.opts.tag_size_m;
                 if let Some(roi) = self.roi_around(&pose, side, 0.5 * step * px_per_m, w, h) {
-                    let dets = self.detector.detect(&frame.image, Some(roi))?;
-                    ids_in_frame.extend(dets.iter().map(|d| d.id));
-                    found = self.pick(&dets, None).map(|d| (d, true));
-                    // Decimation or a quad blur average noise away (decimation 2 is what
-                    // AprilTag 3 does by default).
-                    for (decimate, sigma) in [(2.0, 0.0), (1.0, 0.8)] {
+                    // Decimated first: a quarter of the pixels for the quad search, and the
+                    // corners come from the edge refit at full resolution all the same. Then
+                    // full resolution, then a quad blur against noise.
+                    for (decimate, sigma) in ROI_SEARCHES {
                         if found.is_some() {
                             break;
                         }
