@@ -25,9 +25,6 @@ use odocal_core::{fit_rigid, wrap_angle, PoseSigma};
 
 use crate::pose::{planar_pose, tag_model, PlanarPose};
 
-/// Degrees of freedom of the corner residuals of one planar fit (8 coordinates, 3 pose parameters).
-pub const CORNER_RESIDUAL_DOF: f64 = 5.0;
-
 /// Step of the finite differences over corner coordinates, pixels.
 const CORNER_STEP_PX: f64 = 0.05;
 /// Step of the finite differences over marker-plane coordinates, metres.
