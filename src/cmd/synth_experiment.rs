@@ -8,6 +8,7 @@ use odocal_synth::board::CalibScene;
 use odocal_synth::experiment::{self, simulate_experiment, ExperimentSettings};
 use odocal_synth::robot::{PathKind, RobotSimConfig};
 
+use crate::cmd::synth_track::CameraArgs;
 use crate::output::{count, progress, staged_dir};
 
 /// What stands for the camera.
@@ -73,6 +74,14 @@ pub struct Args {
     /// `odocal synth calib` has already written them (same camera, any seed works).
     #[arg(long)]
     pub no_calib_views: bool,
+    /// Container of the videos: avi (MJPG) or mp4 (H.264) [default: avi; mp4 with
+    /// --realistic or --bitrate-kbps].
+    #[arg(long)]
+    pub video: Option<String>,
+    /// A realistic camera for the videos (the camera's truth per frame goes to
+    /// truth/<id>.frames.csv).
+    #[command(flatten)]
+    pub camera: CameraArgs,
 }
 
 /// Runs the subcommand.
@@ -85,7 +94,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Frames::Video => experiment::Frames::Video,
         Frames::None => experiment::Frames::None,
     };
+    let video = args.camera.format(args.video.as_deref())?;
+    let (exposure_s, effects) = args.camera.effects(video);
     let settings = ExperimentSettings {
+        video,
+        exposure_s,
+        effects,
         paths: match args.paths {
             Paths::Straight => PathKind::Straight,
             Paths::Tours => PathKind::Tours,

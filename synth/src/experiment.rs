@@ -1,7 +1,9 @@
 //! The whole odometry experiment with known truth, as `odocal synth experiment` writes it:
 //! a run manifest, per recording a 200 ms tick log and a ceiling video (or the camera
 //! trajectory taken from the truth), and the truth itself (truth/oracle.json,
-//! truth/simulator.json, truth/experiment.json, truth/<id>.true.csv).
+//! truth/simulator.json, truth/experiment.json, `truth/<id>.true.csv`, and with videos the
+//! camera's truth per frame, `truth/<id>.frames.csv`). The videos can be taken by a realistic
+//! camera ([`ExperimentSettings::effects`]).
 
 use std::path::{Path, PathBuf};
 
@@ -17,7 +19,10 @@ use crate::robot::{
     simulate_plan, simulate_recording, CameraTiming, PathKind, Plan, RobotSimConfig, RobotSimError,
     RunTruth, SimulatedRecording, TruthTrack,
 };
-use crate::scene::{render_video as render_scene_video, SceneConfig, SceneError, VideoFormat};
+use crate::scene::{
+    frames_csv, render_video as render_scene_video, CameraEffects, FrameTruth, SceneConfig,
+    SceneError, VideoFormat, ROW_TIME_CONVENTION,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -88,6 +93,12 @@ pub struct ExperimentSettings {
     pub tour_legs: usize,
     /// Side of the square the tour's waypoints lie in, metres.
     pub tour_area_m: f64,
+    /// Container of the videos: MJPG AVI or H.264 MP4.
+    pub video: VideoFormat,
+    /// Exposure time of the videos, seconds.
+    pub exposure_s: f64,
+    /// What a real camera adds to the videos (all off by default).
+    pub effects: CameraEffects,
 }
 
 impl ExperimentSettings {
@@ -110,6 +121,19 @@ impl ExperimentSettings {
             square_speed_mps: 0.5,
             tour_legs: 10,
             tour_area_m: 3.0,
+            video: VideoFormat::Avi,
+            exposure_s: SceneConfig::default().exposure_s,
+            effects: CameraEffects::default(),
+        }
+    }
+
+    /// The scene the videos are rendered in: the default camera and robot with this
+    /// experiment's exposure and camera effects.
+    pub fn scene(&self) -> SceneConfig {
+        SceneConfig {
+            exposure_s: self.exposure_s,
+            effects: self.effects,
+            ..SceneConfig::default()
         }
     }
 
@@ -166,6 +190,17 @@ struct ExperimentTruth<'a> {
     runs_per_recording: usize,
     config: &'a RobotSimConfig,
     recordings: Vec<RecordingTruth>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    camera: Option<CameraTruth>,
+}
+
+/// The realistic camera of the videos, as truth/experiment.json states it.
+#[derive(Serialize)]
+struct CameraTruth {
+    row_time: &'static str,
+    exposure_s: f64,
+    height_px: u32,
+    effects: CameraEffects,
 }
 
 /// What [`simulate_experiment`] wrote.
@@ -197,15 +232,17 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), ExperimentErro
     write(path, s.as_bytes())
 }
 
-/// Renders the ceiling video of one recording to `path` (MJPG AVI): frame k at camera time
-/// k / fps, the robot at its true floor pose, seen by the same camera as `synth calib`
-/// renders.
+/// Renders the ceiling video of one recording to `path` (`format`: MJPG AVI or H.264 MP4) in
+/// `scene`: frame k at camera time k / fps, the robot at its true floor pose, seen by the same
+/// camera as `synth calib` renders. Returns the truth of every frame.
 pub fn render_recording_video(
     rec: &SimulatedRecording,
     camera: &CameraTiming,
+    scene: &SceneConfig,
+    format: VideoFormat,
     path: &Path,
     seed: u64,
-) -> Result<(), ExperimentError> {
+) -> Result<Vec<FrameTruth>, ExperimentError> {
     let times = rec.frame_times(camera.fps);
     let trajectory: Vec<(f64, Pose2)> = times
         .iter()
@@ -218,15 +255,14 @@ pub fn render_recording_video(
                 .into(),
         ));
     }
-    render_scene_video(
+    Ok(render_scene_video(
         path,
-        VideoFormat::Avi,
-        &SceneConfig::default(),
+        format,
+        scene,
         &trajectory,
         camera.fps,
         seed,
-    )?;
-    Ok(())
+    )?)
 }
 
 /// Simulates the experiment into the directory `out` (which the caller makes all-or-nothing);
@@ -261,6 +297,28 @@ pub fn simulate_experiment(
         return Err(ExperimentError::Settings(
             "--square-m and --square-speed must be > 0, --tour-area-m >= 1 and --tour-legs >= 1"
                 .into(),
+        ));
+    }
+    if s.video == VideoFormat::Png {
+        return Err(ExperimentError::Settings(
+            "--video png: an experiment's videos are avi (MJPG) or mp4 (H.264)".into(),
+        ));
+    }
+    if s.effects.h264_bitrate_kbps.is_some() && s.video != VideoFormat::Mp4 {
+        return Err(ExperimentError::Settings(
+            "--bitrate-kbps sets the H.264 bitrate: use it with --video mp4".into(),
+        ));
+    }
+    if !(s.exposure_s >= 0.0 && s.exposure_s < 1.0 / s.config.camera.fps) {
+        return Err(ExperimentError::Settings(format!(
+            "--exposure-ms {}: must be between 0 and the frame period",
+            s.exposure_s * 1e3
+        )));
+    }
+    s.effects.check(s.config.camera.fps)?;
+    if s.frames == Frames::None && s.effects != CameraEffects::default() {
+        return Err(ExperimentError::Settings(
+            "the camera options (--exposure-ms, --rolling-shutter-ms, --realistic, ...) shape rendered videos: use them with --frames video".into(),
         ));
     }
     if s.frames == Frames::Video && per > 1 {
@@ -314,6 +372,14 @@ pub fn simulate_experiment(
             runs_per_recording: per,
             config: &s.config,
             recordings: truths,
+            camera: (s.frames == Frames::Video && s.effects != CameraEffects::default()).then(
+                || CameraTruth {
+                    row_time: ROW_TIME_CONVENTION,
+                    exposure_s: s.exposure_s,
+                    height_px: s.scene().camera.height,
+                    effects: s.effects,
+                },
+            ),
         },
     )?;
     Ok(ExperimentSummary {
@@ -364,9 +430,26 @@ fn one_recording(
             (None, Some(rel))
         }
         Frames::Video => {
-            let rel = format!("runs/{id}.avi");
+            let ext = if s.video == VideoFormat::Mp4 {
+                "mp4"
+            } else {
+                "avi"
+            };
+            let rel = format!("runs/{id}.{ext}");
             let seed = s.seed.wrapping_mul(1_000_003).wrapping_add(r as u64);
-            render_recording_video(&rec, &cfg.camera, &out.join(&rel), seed)?;
+            let frames = render_recording_video(
+                &rec,
+                &cfg.camera,
+                &s.scene(),
+                s.video,
+                &out.join(&rel),
+                seed,
+            )?;
+            // The camera's truth per frame: dropped, occluded, blur, rolling-shutter rows.
+            write(
+                &out.join(format!("truth/{id}.frames.csv")),
+                frames_csv(&frames).as_bytes(),
+            )?;
             (Some(rel), None)
         }
     };

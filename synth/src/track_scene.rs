@@ -1,6 +1,9 @@
 //! A tracking scene on disk, as `odocal synth track` writes it: a ceiling video of the robot
 //! driving the demonstration path (video.avi, video.mp4 or frames/), the true camera.json,
-//! the true trajectory (truth.csv) and the scene's settings (scene.json).
+//! the true trajectory (truth.csv), the camera's truth per frame (frames.csv: dropped,
+//! occluded, blur, the rolling shutter's row times; see [`frames_csv`]) and the scene's
+//! settings (scene.json, with the camera's effects and its row-time convention when any is
+//! on).
 
 use std::path::{Path, PathBuf};
 
@@ -8,8 +11,8 @@ use odocal_calib::{CameraFile, FloorPlane};
 use serde::Serialize;
 
 use crate::scene::{
-    demo_trajectory, nadir, render_video_with_progress, truth_csv, SceneConfig, SceneError,
-    VideoFormat,
+    demo_trajectory, frames_csv, nadir, render_video_with_progress, truth_csv, CameraEffects,
+    SceneConfig, SceneError, VideoFormat, ROW_TIME_CONVENTION,
 };
 
 /// The `format` tag of scene.json.
@@ -36,6 +39,33 @@ pub struct TrackScene {
     pub exposure_s: f64,
     /// Id of the robot's tag36h11 marker.
     pub tag_id: u32,
+    /// What a real camera adds (all off by default).
+    pub effects: CameraEffects,
+}
+
+/// The camera's effects as scene.json states them.
+#[derive(Serialize)]
+struct EffectsInfo {
+    /// How the time of a pixel row follows from the frame's timestamp.
+    row_time: &'static str,
+    rolling_shutter_s: f64,
+    exposure_s: f64,
+    height_px: u32,
+    flicker_hz: f64,
+    flicker_depth: f64,
+    auto_exposure_sigma: f64,
+    vignetting: f64,
+    gradient: f64,
+    paper_contrast: Option<f64>,
+    paper_gloss: Option<f64>,
+    occlusion_s: f64,
+    drop_rate: f64,
+    h264_bitrate_kbps: Option<f64>,
+    blur_step_px: Option<f64>,
+    /// Frames missing from the video.
+    dropped_frames: Vec<usize>,
+    /// Frames in which a person hides part of the tag.
+    occluded_frames: Vec<usize>,
 }
 
 #[derive(Serialize)]
@@ -55,6 +85,8 @@ struct SceneInfo {
     speed_max_mps: f64,
     /// Frames in which the whole tag is not inside the image.
     tag_not_fully_visible: Vec<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    camera_effects: Option<EffectsInfo>,
 }
 
 /// What [`write_track_scene`] wrote.
@@ -109,7 +141,18 @@ impl TrackScene {
                 self.exposure_s * 1000.0
             ));
         }
-        Ok(())
+        if self.effects.h264_bitrate_kbps.is_some() && self.format != VideoFormat::Mp4 {
+            return bad("--bitrate-kbps sets the H.264 bitrate: use it with --video mp4".into());
+        }
+        let duration_s = (self.frames.max(1) - 1) as f64 / self.fps;
+        if self.effects.occlusion_s > 0.0 && duration_s < 2.5 * self.effects.occlusion_s {
+            return bad(format!(
+                "--occlusion-s {}: the {duration_s:.2} s video is too short for the person to walk through; use at least {} frames",
+                self.effects.occlusion_s,
+                (2.5 * self.effects.occlusion_s * self.fps).ceil() as usize + 1
+            ));
+        }
+        self.effects.check(self.fps)
     }
 }
 
@@ -125,6 +168,7 @@ pub fn write_track_scene(
     cfg.robot.tag_id = s.tag_id;
     cfg.exposure_s = s.exposure_s;
     cfg.sensor.noise_sigma = s.noise_sigma;
+    cfg.effects = s.effects;
     let duration = (s.frames - 1) as f64 / s.fps;
     let traj = demo_trajectory(
         nadir(&cfg.floor),
@@ -159,6 +203,35 @@ pub fn write_track_scene(
         &CameraFile::from_model(cfg.camera, Some(floor)),
     )?;
     write(&out.join("truth.csv"), truth_csv(&truths, false).as_bytes())?;
+    write(&out.join("frames.csv"), frames_csv(&truths).as_bytes())?;
+    let e = &s.effects;
+    let camera_effects = (*e != CameraEffects::default()).then(|| EffectsInfo {
+        row_time: ROW_TIME_CONVENTION,
+        rolling_shutter_s: e.rolling_shutter_s,
+        exposure_s: cfg.exposure_s,
+        height_px: cfg.camera.height,
+        flicker_hz: e.flicker.frequency_hz,
+        flicker_depth: e.flicker.depth,
+        auto_exposure_sigma: e.auto_exposure.sigma,
+        vignetting: e.vignetting,
+        gradient: e.gradient,
+        paper_contrast: e.paper.map(|p| p.contrast),
+        paper_gloss: e.paper.map(|p| p.gloss),
+        occlusion_s: e.occlusion_s,
+        drop_rate: e.drop_rate,
+        h264_bitrate_kbps: e.h264_bitrate_kbps,
+        blur_step_px: e.blur_step_px,
+        dropped_frames: truths
+            .iter()
+            .filter(|t| t.dropped)
+            .map(|t| t.index)
+            .collect(),
+        occluded_frames: truths
+            .iter()
+            .filter(|t| t.occluded())
+            .map(|t| t.index)
+            .collect(),
+    });
     let hidden: Vec<usize> = truths
         .iter()
         .filter(|t| !t.tag_visible)
@@ -181,6 +254,7 @@ pub fn write_track_scene(
             speed_min_mps: s.speed_min_mps,
             speed_max_mps: s.speed_max_mps,
             tag_not_fully_visible: hidden,
+            camera_effects,
         },
     )?;
     Ok(TrackSceneSummary {

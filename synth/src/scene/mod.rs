@@ -5,19 +5,30 @@
 //! the exposure, slow lighting change, sensor noise) and written as an MJPG
 //! AVI, an H.264 MP4 or a PNG sequence with a timestamp CSV.
 //!
+//! A realistic camera ([`CameraEffects`], `sensor.rs`: rolling shutter, flicker, exposure
+//! drift, vignetting, a paper tag, a person walking through, dropped frames, H.264 at a set
+//! bitrate) is off by default.
+//!
 //! Only the robot moves, so the floor is rendered once per video and each frame
 //! re-renders just the pixels the robot can cover during the exposure.
 
+mod encode;
 mod paths;
 mod render;
+mod sensor;
 mod tag;
 mod truth;
 mod video;
+mod walker;
 
 pub use paths::{demo_trajectory, frame_times, pose_at, straight_trajectory};
 pub use render::SceneRenderer;
+pub use sensor::{
+    dropped_frames, AutoExposure, CameraEffects, Flicker, PaperTag, LAMP_FROM_CAMERA_M,
+    REALISTIC_BLUR_STEP_PX, REALISTIC_EXPOSURE_S, ROW_TIME_CONVENTION,
+};
 pub use tag::tag36h11_pattern;
-pub use truth::{truth_csv, FrameTruth};
+pub use truth::{frames_csv, truth_csv, FrameTruth, FramesTruth, FRAMES_CSV_HEADER};
 pub use video::{png_name, png_timestamps, render_video, render_video_with_progress, VideoFormat};
 
 use std::path::{Path, PathBuf};
@@ -36,6 +47,8 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::raycast::{expose, FastNoise, RayRows, Sensor};
+use sensor::Photometry;
+use walker::{PersonAt, Walker};
 
 /// Everything that can go wrong while rendering a scene.
 #[derive(Debug, Error)]
@@ -105,6 +118,9 @@ pub struct SceneConfig {
     pub sensor: Sensor,
     /// Slow lighting change.
     pub lighting: Lighting,
+    /// What a real camera adds (rolling shutter, flicker, a person walking through, ...):
+    /// all off by default.
+    pub effects: CameraEffects,
 }
 
 /// The default camera of the synthetic world, the same as `synth calib`'s
@@ -167,6 +183,7 @@ impl Default for SceneConfig {
                 amplitude: 0.12,
                 period_s: 6.0,
             },
+            effects: CameraEffects::default(),
         }
     }
 }

@@ -32,7 +32,10 @@ impl std::str::FromStr for VideoFormat {
 /// and [`Pose2`]) seen by the scene's camera at `fps`, and writes it to `out`:
 /// an `.avi` (MJPG) or `.mp4` (H.264) file, or for [`VideoFormat::Png`] a folder
 /// of `frame_NNNNNN.png` plus `timestamps.csv`. Frame k is at
-/// t = t_first + k / fps. Same seed → same frames. Returns the per-frame truth.
+/// t = t_first + k / fps. Same seed → same frames. Returns the per-frame truth (every
+/// frame, dropped ones too). With the config's [`CameraEffects`], frames are dropped (left
+/// out of the file, the others keeping their timestamps) and MP4 is encoded at the set
+/// H.264 bitrate, both by FFmpeg's command-line program.
 pub fn render_video(
     out: &Path,
     format: VideoFormat,
@@ -69,24 +72,41 @@ pub fn render_video_with_progress(
             "trajectory times must increase strictly".into(),
         ));
     }
+    config.effects.check(fps)?;
     let renderer = SceneRenderer::new(config.clone(), seed)?;
     let times = frame_times(trajectory, fps);
+    let dropped = dropped_frames(times.len(), config.effects.drop_rate, seed);
     let (w, h) = (config.camera.width as i32, config.camera.height as i32);
     let mut truths = Vec::with_capacity(times.len());
+    // Renders frames `c·8 ..` of a batch in parallel; a dropped frame is not rendered.
+    let batch = |c: usize, ts: &[f64]| {
+        ts.par_iter()
+            .enumerate()
+            .map(|(j, &t)| {
+                let k = c * 8 + j;
+                if dropped[k] {
+                    let mut truth = renderer.frame_truth(trajectory, k, t)?;
+                    truth.dropped = true;
+                    Ok((None, truth))
+                } else {
+                    let (img, truth) = renderer.render_frame(trajectory, k, t)?;
+                    Ok((Some(img), truth))
+                }
+            })
+            .collect::<Result<Vec<_>, SceneError>>()
+    };
+    let through_ffmpeg = dropped.iter().any(|&d| d)
+        || (format == VideoFormat::Mp4 && config.effects.h264_bitrate_kbps.is_some());
     match format {
         VideoFormat::Png => {
             std::fs::create_dir_all(out).map_err(|e| io_err(out, e))?;
             let mut csv = String::from("file,t\n");
             // Render in small batches; encode the PNGs of a batch in parallel.
-            for chunk in times.chunks(8).enumerate() {
-                let (c, ts) = chunk;
-                let frames = ts
-                    .par_iter()
-                    .enumerate()
-                    .map(|(j, &t)| renderer.render_frame(trajectory, c * 8 + j, t))
-                    .collect::<Result<Vec<_>, SceneError>>()?;
+            for (c, ts) in times.chunks(8).enumerate() {
+                let frames = batch(c, ts)?;
                 frames
                     .par_iter()
+                    .filter_map(|(img, truth)| img.as_ref().map(|img| (img, truth)))
                     .map(|(img, truth)| {
                         let path = out.join(png_name(truth.index));
                         img.save(&path).map_err(|e| SceneError::Encode {
@@ -95,14 +115,48 @@ pub fn render_video_with_progress(
                         })
                     })
                     .collect::<Result<Vec<()>, SceneError>>()?;
-                for (_, truth) in frames {
-                    csv.push_str(&format!("{},{}\n", png_name(truth.index), truth.t_s));
+                for (img, truth) in frames {
+                    if img.is_some() {
+                        csv.push_str(&format!("{},{}\n", png_name(truth.index), truth.t_s));
+                    }
                     on_frame(truth.index);
                     truths.push(truth);
                 }
             }
             let ts_path = out.join("timestamps.csv");
             std::fs::write(&ts_path, csv).map_err(|e| io_err(&ts_path, e))?;
+        }
+        VideoFormat::Avi | VideoFormat::Mp4 if through_ffmpeg => {
+            let drops: Vec<usize> = (0..dropped.len()).filter(|&k| dropped[k]).collect();
+            let mut writer = encode::FfmpegWriter::start(
+                out,
+                format,
+                fps,
+                (config.camera.width, config.camera.height),
+                config.effects.h264_bitrate_kbps,
+                &drops,
+            )?;
+            // FFmpeg's `select` removes the dropped frames; it is sent the previous image.
+            let mut last: Option<GrayImage> = None;
+            for (c, ts) in times.chunks(8).enumerate() {
+                for (img, truth) in batch(c, ts)? {
+                    if let Some(img) = img {
+                        last = Some(img);
+                    }
+                    let bytes = last.as_ref().map(|i| i.as_raw().as_slice());
+                    match bytes {
+                        Some(b) => writer.write(b)?,
+                        None => {
+                            return Err(SceneError::Input(
+                                "the first frame cannot be dropped".into(),
+                            ))
+                        }
+                    }
+                    on_frame(truth.index);
+                    truths.push(truth);
+                }
+            }
+            writer.finish()?;
         }
         VideoFormat::Avi | VideoFormat::Mp4 => {
             // Both through FFmpeg: OpenCV 4.6's own MJPEG encoder fails on 1-channel
@@ -126,14 +180,11 @@ pub fn render_video_with_progress(
                 });
             }
             for (c, ts) in times.chunks(8).enumerate() {
-                let frames = ts
-                    .par_iter()
-                    .enumerate()
-                    .map(|(j, &t)| renderer.render_frame(trajectory, c * 8 + j, t))
-                    .collect::<Result<Vec<_>, SceneError>>()?;
-                for (img, truth) in frames {
-                    let mat = Mat::new_rows_cols_with_data(h, w, img.as_raw())?;
-                    writer.write(&mat)?;
+                for (img, truth) in batch(c, ts)? {
+                    if let Some(img) = img {
+                        let mat = Mat::new_rows_cols_with_data(h, w, img.as_raw())?;
+                        writer.write(&mat)?;
+                    }
                     on_frame(truth.index);
                     truths.push(truth);
                 }
