@@ -22,4 +22,6 @@ pub use pose::{wrap_angle, Pose2};
 pub use ray::ray_segment;
 pub use table::{csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, TextFormat};
 pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};
-pub use trajectory::{mean_pose, Trajectory, TrajectoryRow, TRAJECTORY_HEADER};
+pub use trajectory::{
+    mean_pose, PoseSigma, Trajectory, TrajectoryRow, TRAJECTORY_HEADER, TRAJECTORY_SIGMA_HEADER,
+};

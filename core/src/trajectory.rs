@@ -1,6 +1,10 @@
 //! Trajectory files: CSV `t,x,y,theta,quality`, floor frame, metres and radians, one row per
 //! frame with a detection; missed frames are absent. Written by the tracker (or the simulator
 //! with `--frames none`), read by the dataset builder; see ARCHITECTURE.md for the conventions.
+//!
+//! The tracker adds three columns, `sigma_x,sigma_y,sigma_theta` (metres, metres, radians): the
+//! standard deviation of each fix. Files without them (older tracks, synthetic truth) still
+//! read; their rows have no σ. A file has the σ columns on every row or on none.
 
 use std::path::Path;
 
@@ -12,6 +16,29 @@ use nalgebra::Point2;
 /// Header of a trajectory CSV.
 pub const TRAJECTORY_HEADER: [&str; 5] = ["t", "x", "y", "theta", "quality"];
 
+/// Header of a trajectory CSV whose rows carry their standard deviations.
+pub const TRAJECTORY_SIGMA_HEADER: [&str; 8] = [
+    "t",
+    "x",
+    "y",
+    "theta",
+    "quality",
+    "sigma_x",
+    "sigma_y",
+    "sigma_theta",
+];
+
+/// Standard deviations of a floor pose along the floor axes and of its heading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSigma {
+    /// σ of x, metres.
+    pub x_m: f64,
+    /// σ of y, metres.
+    pub y_m: f64,
+    /// σ of the heading, radians.
+    pub theta_rad: f64,
+}
+
 /// One detected frame: camera-clock time and the robot's floor pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrajectoryRow {
@@ -21,6 +48,8 @@ pub struct TrajectoryRow {
     pub pose: Pose2,
     /// Detection quality in [0, 1] (tracker-defined; 1 for synthetic truth).
     pub quality: f64,
+    /// The pose's standard deviations, when known (the tracker's; none for truth and old files).
+    pub sigma: Option<PoseSigma>,
 }
 
 /// A camera trajectory: rows in strictly increasing time.
@@ -54,13 +83,14 @@ impl Trajectory {
         };
         let (line, header) = &table.header;
         let fields: Vec<&str> = header.iter().collect();
-        if fields != TRAJECTORY_HEADER {
+        let with_sigma = fields == TRAJECTORY_SIGMA_HEADER;
+        if fields != TRAJECTORY_HEADER && !with_sigma {
             return Err(FileError::parse(
                 name,
                 *line,
                 1,
                 format!(
-                    "header is \"{}\", expected \"t,x,y,theta,quality\"",
+                    "header is \"{}\", expected \"t,x,y,theta,quality\" or \"t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\"",
                     fields.join(",")
                 ),
             ));
@@ -68,12 +98,39 @@ impl Trajectory {
         let mut rows = Vec::new();
         let mut lines = Vec::new();
         for &(line, ref rec) in &table.rows {
-            let v: [f64; 5] = numeric_row(name, line, rec)?;
-            rows.push(TrajectoryRow {
-                t_s: v[0],
-                pose: Pose2::new(v[1], v[2], v[3]),
-                quality: v[4],
-            });
+            let row = if with_sigma {
+                let v: [f64; 8] = numeric_row(name, line, rec)?;
+                if let Some(c) = v[5..].iter().position(|s| *s <= 0.0) {
+                    return Err(FileError::parse(
+                        name,
+                        line,
+                        c as u64 + 6,
+                        format!(
+                            "σ {} is not positive: a standard deviation is above 0",
+                            v[5 + c]
+                        ),
+                    ));
+                }
+                TrajectoryRow {
+                    t_s: v[0],
+                    pose: Pose2::new(v[1], v[2], v[3]),
+                    quality: v[4],
+                    sigma: Some(PoseSigma {
+                        x_m: v[5],
+                        y_m: v[6],
+                        theta_rad: v[7],
+                    }),
+                }
+            } else {
+                let v: [f64; 5] = numeric_row(name, line, rec)?;
+                TrajectoryRow {
+                    t_s: v[0],
+                    pose: Pose2::new(v[1], v[2], v[3]),
+                    quality: v[4],
+                    sigma: None,
+                }
+            };
+            rows.push(row);
             lines.push(line);
         }
         let t = Self { rows };
@@ -82,7 +139,29 @@ impl Trajectory {
     }
 
     fn validate(&self, name: &str, line_of: impl Fn(usize) -> u64) -> Result<(), FileError> {
+        let with_sigma = self.rows.first().is_some_and(|r| r.sigma.is_some());
         for (i, r) in self.rows.iter().enumerate() {
+            if r.sigma.is_some() != with_sigma {
+                return Err(FileError::parse(
+                    name,
+                    line_of(i),
+                    6,
+                    "some rows have σ and some not: give σ on every row or on none",
+                ));
+            }
+            if let Some(s) = r.sigma {
+                if ![s.x_m, s.y_m, s.theta_rad]
+                    .iter()
+                    .all(|v| v.is_finite() && *v > 0.0)
+                {
+                    return Err(FileError::parse(
+                        name,
+                        line_of(i),
+                        6,
+                        "σ must be finite and above 0",
+                    ));
+                }
+            }
             let vals = [r.t_s, r.pose.x_m, r.pose.y_m, r.pose.theta_rad, r.quality];
             if let Some(c) = vals.iter().position(|v| !v.is_finite()) {
                 return Err(FileError::parse(
@@ -115,15 +194,30 @@ impl Trajectory {
         Ok(())
     }
 
-    /// The trajectory as CSV text with its header (full round-trip precision).
+    /// Whether the rows carry standard deviations.
+    pub fn has_sigma(&self) -> bool {
+        self.rows.first().is_some_and(|r| r.sigma.is_some())
+    }
+
+    /// The trajectory as CSV text with its header (full round-trip precision); the σ columns
+    /// are written when the rows have them.
     pub fn to_csv(&self) -> String {
-        let mut s = TRAJECTORY_HEADER.join(",");
+        let with_sigma = self.has_sigma();
+        let mut s = if with_sigma {
+            TRAJECTORY_SIGMA_HEADER.join(",")
+        } else {
+            TRAJECTORY_HEADER.join(",")
+        };
         s.push('\n');
         for r in &self.rows {
             s.push_str(&format!(
-                "{},{},{},{},{}\n",
+                "{},{},{},{},{}",
                 r.t_s, r.pose.x_m, r.pose.y_m, r.pose.theta_rad, r.quality
             ));
+            if let (true, Some(g)) = (with_sigma, r.sigma) {
+                s.push_str(&format!(",{},{},{}", g.x_m, g.y_m, g.theta_rad));
+            }
+            s.push('\n');
         }
         s
     }
@@ -237,6 +331,7 @@ mod tests {
                 t_s: i as f64 / 30.0,
                 pose: Pose2::new(0.1 * i as f64, -0.2, 0.3),
                 quality: 1.0,
+                sigma: None,
             })
             .collect();
         let t = Trajectory::new(rows).unwrap();
@@ -263,5 +358,33 @@ mod tests {
             .starts_with("tr.csv:3:1: duplicated timestamp"));
         let e = Trajectory::parse_csv("t,x,y\n", "tr.csv").unwrap_err();
         assert!(e.to_string().contains("expected \"t,x,y,theta,quality\""));
+    }
+
+    #[test]
+    fn sigma_columns_round_trip_and_old_files_still_read() {
+        let text = "t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\n0,1,2,0.5,0.9,0.001,0.002,0.003\n0.1,1,2,0.5,0.9,0.001,0.002,0.003\n";
+        let t = Trajectory::parse_csv(text, "s.csv").unwrap();
+        assert!(t.has_sigma());
+        assert_eq!(
+            t.rows[0].sigma,
+            Some(PoseSigma {
+                x_m: 0.001,
+                y_m: 0.002,
+                theta_rad: 0.003
+            })
+        );
+        assert_eq!(Trajectory::parse_csv(&t.to_csv(), "s.csv").unwrap(), t);
+        let old = Trajectory::parse_csv("t,x,y,theta,quality\n0,1,2,0.5,0.9\n", "o.csv").unwrap();
+        assert!(!old.has_sigma() && old.rows[0].sigma.is_none());
+        assert!(old.to_csv().starts_with("t,x,y,theta,quality\n"));
+        let e = Trajectory::parse_csv(
+            "t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\n0,1,2,0.5,0.9,0.001,0,0.003\n",
+            "z.csv",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().starts_with("z.csv:2:7: σ 0 is not positive"),
+            "{e}"
+        );
     }
 }

@@ -9,7 +9,7 @@ use crate::kinematics::{RunOdometry, WheelGeometry};
 use crate::odometry::OdometryLog;
 use crate::segment::{split_runs, RunSegment};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
-use odocal_core::{mean_pose, Trajectory, TrajectoryRow};
+use odocal_core::{mean_pose, PoseSigma, Trajectory, TrajectoryRow};
 
 /// Shortest rest, seconds, that separates two runs in one log.
 pub const DEFAULT_MIN_GAP_S: f64 = 1.0;
@@ -287,6 +287,7 @@ pub fn process_recording(
             continue;
         };
         let rel = end.relative_to(&start);
+        let target_sigma = target_sigma(&start_rows, &end_rows, &start, &rel);
         // Real path length: camera positions at the aligned log rows, rest poses at the ends.
         let mut pts = vec![start.position()];
         for k in seg.start_row + 1..seg.end_row {
@@ -329,10 +330,52 @@ pub fn process_recording(
             start_pose_floor: Pose2::new(start.x_m, start.y_m, start.theta_rad),
             target_theta_rad: wrap_angle(rel.theta_rad),
             rest_frames: [start_rows.len(), end_rows.len()],
+            target_sigma_m: target_sigma.map(|s| [s.x_m, s.y_m]),
+            target_sigma_theta_rad: target_sigma.map(|s| s.theta_rad),
             odometry: odo,
         })));
     }
     Ok(out)
+}
+
+/// σ of the mean of rest poses: the RMS of their σ over √n (the frames' detection noise is
+/// independent from frame to frame); none unless every row has σ.
+fn rest_sigma(rows: &[TrajectoryRow]) -> Option<PoseSigma> {
+    let n = rows.len() as f64;
+    let mut sum = [0.0; 3];
+    for r in rows {
+        let s = r.sigma?;
+        sum[0] += s.x_m * s.x_m;
+        sum[1] += s.y_m * s.y_m;
+        sum[2] += s.theta_rad * s.theta_rad;
+    }
+    (n > 0.0).then(|| PoseSigma {
+        x_m: (sum[0] / n / n).sqrt(),
+        y_m: (sum[1] / n / n).sqrt(),
+        theta_rad: (sum[2] / n / n).sqrt(),
+    })
+}
+
+/// σ of the target `rel` (the end rest pose in the frame of the start rest pose `start`):
+/// both rest poses' position σ turned into the start frame, plus the start heading's σ
+/// swinging the end point about the start.
+fn target_sigma(
+    start_rows: &[TrajectoryRow],
+    end_rows: &[TrajectoryRow],
+    start: &Pose2,
+    rel: &Pose2,
+) -> Option<PoseSigma> {
+    let (a, b) = (rest_sigma(start_rows)?, rest_sigma(end_rows)?);
+    let (s, c) = start.theta_rad.sin_cos();
+    // Floor-frame position covariance (diagonal) of end − start, rotated into the start frame.
+    let (vx, vy) = (a.x_m.powi(2) + b.x_m.powi(2), a.y_m.powi(2) + b.y_m.powi(2));
+    let var_x = c * c * vx + s * s * vy + (rel.y_m * a.theta_rad).powi(2);
+    let var_y = s * s * vx + c * c * vy + (rel.x_m * a.theta_rad).powi(2);
+    Some(PoseSigma {
+        x_m: var_x.sqrt(),
+        y_m: var_y.sqrt(),
+        theta_rad: a.theta_rad.hypot(b.theta_rad),
+    })
 }
 
 /// Collects the outcomes of all recordings (in manifest order) into a dataset.
@@ -421,6 +464,7 @@ mod tests {
                     t_s: tc,
                     pose: start.compose(&Pose2::new(s, 0.0, 0.0)),
                     quality: 1.0,
+                    sigma: None,
                 }
             })
             .collect();
@@ -454,6 +498,58 @@ mod tests {
         assert!(s.alignment_residual_mps < 0.05);
         let f = features_from_log(&log, &RobotParams::default()).unwrap();
         assert_eq!(f.inputs.to_vec(), s.inputs);
+    }
+
+    #[test]
+    fn the_target_carries_the_trajectory_sigma() {
+        let (log, mut cam) = synthetic(0.8373, false);
+        let rec = Recording {
+            id: "r1",
+            speed_mps: Some(0.5),
+            log: &log,
+            camera: &cam,
+        };
+        let out = process_recording(&rec, &BuildOptions::default()).unwrap();
+        let RunOutcome::Sample(plain) = &out[0] else {
+            panic!("rejected: {out:?}")
+        };
+        assert_eq!(plain.target_sigma_m, None, "truth without σ gives none");
+        let plain_json = serde_json::to_string(&**plain).unwrap();
+        drop(out);
+        let sigma = PoseSigma {
+            x_m: 0.001,
+            y_m: 0.002,
+            theta_rad: 0.003,
+        };
+        cam.rows.iter_mut().for_each(|r| r.sigma = Some(sigma));
+        let rec = Recording {
+            id: "r1",
+            speed_mps: Some(0.5),
+            log: &log,
+            camera: &cam,
+        };
+        let out = process_recording(&rec, &BuildOptions::default()).unwrap();
+        let RunOutcome::Sample(s) = &out[0] else {
+            panic!("rejected: {out:?}")
+        };
+        // Start heading 0.3 rad, the run 1.5 m straight ahead: x along the run, y across.
+        let [n0, n1] = s.rest_frames.map(|n| n as f64);
+        let (c, sn) = (0.3f64.cos(), 0.3f64.sin());
+        let vx = 1e-6 / n0 + 1e-6 / n1;
+        let vy = 4e-6 / n0 + 4e-6 / n1;
+        let ex = (c * c * vx + sn * sn * vy).sqrt();
+        let ey = (sn * sn * vx + c * c * vy + (1.5 * 0.003 / n0.sqrt()).powi(2)).sqrt();
+        let [sx, sy] = s.target_sigma_m.unwrap();
+        assert!(
+            (sx - ex).abs() < 1e-9 && (sy - ey).abs() < 1e-8,
+            "{sx} {sy} vs {ex} {ey}"
+        );
+        let et = (9e-6 / n0 + 9e-6 / n1).sqrt();
+        assert!((s.target_sigma_theta_rad.unwrap() - et).abs() < 1e-12);
+        // Written and read back in dataset.json; absent when none.
+        let json = serde_json::to_string(&**s).unwrap();
+        assert!(json.contains("target_sigma_m"));
+        assert!(!plain_json.contains("target_sigma"));
     }
 
     #[test]

@@ -83,6 +83,13 @@ pub struct Sample {
     /// Camera frames averaged for the start and end poses.
     #[serde(default)]
     pub rest_frames: [usize; 2],
+    /// σ of `target_m` (x, y), metres, from the trajectory's per-pose σ (absent when the
+    /// trajectory has none, e.g. synthetic truth or files written before odocal gave σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_sigma_m: Option<[f64; 2]>,
+    /// σ of `target_theta_rad`, radians (absent like `target_sigma_m`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_sigma_theta_rad: Option<f64>,
     /// The run's odometry (rows t_b..t_e, wheel revolutions since t_b), to re-dead-reckon with
     /// other wheel geometry (calibration baselines, the oracle).
     #[serde(default)]

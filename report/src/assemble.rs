@@ -135,6 +135,9 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 ));
             }
             report.sections.push(trajectory_section(&views)?);
+            report
+                .sections
+                .extend(crate::sections::target_sigma_section(&ds.samples));
             match heading_section(&views)? {
                 Some(sec) => report.sections.push(sec),
                 None => omit(

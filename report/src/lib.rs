@@ -14,8 +14,9 @@ pub use chart::{Chart, Mark, Series};
 pub use html::{Block, Report, Section, Table};
 pub use inputs::{parse_track_csv, Clock, TrackFile};
 pub use sections::{
-    calibration_section, corrector_section, heading_section, laser_section, pick_runs,
-    training_section, trajectory_section, CalibInput, CalibView, LaserInput, RunView,
+    calibration_section, conditions_section, corrector_section, heading_section, laser_section,
+    pick_runs, training_section, trajectory_section, CalibInput, CalibView, ConditionRow,
+    LaserInput, RunView,
 };
 
 /// Errors of report building.

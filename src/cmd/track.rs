@@ -31,7 +31,8 @@ pub struct Args {
     /// Height of the marker above the floor, metres.
     #[arg(long, default_value_t = 0.08)]
     pub marker_height: f64,
-    /// Output trajectory CSV (`t,x,y,theta,quality`; frames without a confident fix are absent).
+    /// Output trajectory CSV (`t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta`: σ in metres and
+    /// radians per fix; frames without a confident fix are absent).
     #[arg(long)]
     pub out: PathBuf,
     /// Also write the trajectory in TUM format (for `evo`).
@@ -58,6 +59,11 @@ pub struct Args {
     /// Largest accepted corner reprojection RMS, pixels.
     #[arg(long, default_value_t = 1.5)]
     pub max_reprojection: f64,
+    /// Rolling-shutter readout time, seconds: from reading the first row of a frame to reading
+    /// its last (0 for a global shutter; typically 0.01–0.04 s). Each fix is then timed at the
+    /// rows where the tag was read: t = frame time + tag centre row / rows × readout.
+    #[arg(long, default_value_t = 0.0)]
+    pub rolling_shutter_s: f64,
     /// Run the solvePnP (IPPE_SQUARE) cross-check on every fix and report it.
     #[arg(long)]
     pub pnp_check: bool,
@@ -80,6 +86,7 @@ fn options(args: &Args) -> TrackOptions {
         max_speed_mps: args.max_speed,
         max_reprojection_px: args.max_reprojection,
         pnp_cross_check: args.pnp_check,
+        rolling_shutter_s: args.rolling_shutter_s,
         ..TrackOptions::default()
     }
 }
@@ -139,7 +146,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let floor = *camera_file.require_floor(&args.camera)?;
-    let opts = options(&args);
+    let mut opts = options(&args);
+    // The calibration's uncertainty goes into every fix's σ.
+    opts.intrinsics_covariance = camera_file.covariance_matrix();
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(
         &args.video,

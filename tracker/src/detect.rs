@@ -112,6 +112,20 @@ impl TagDetector {
         })
     }
 
+    /// AprilTag 3's own detector as its authors configure it by default (quad decimation 2,
+    /// no quad blur, edge refinement, decode sharpening 0.25, no odocal refit): the reference
+    /// that odocal's detection rate is compared with. Use [`TagDetector::detect_raw`].
+    pub fn reference(family: &str) -> Result<Self, TrackError> {
+        Self::new(family, 2, 2.0)
+    }
+
+    /// Gaussian blur (σ, pixels) applied before the quad search (the C library's `quad_sigma`;
+    /// 0 for none). It steadies the segmentation of noisy or blurred frames; the corners are
+    /// refined on the unblurred image.
+    pub fn set_quad_sigma(&mut self, sigma: f32) {
+        self.det.set_sigma(sigma);
+    }
+
     /// Quad decimation in use.
     pub fn decimate(&self) -> f32 {
         self.decimate
@@ -126,8 +140,51 @@ impl TagDetector {
     }
 
     /// Detects tags in `frame`, restricted to `roi` if given. Corners are in
-    /// full-frame pixel coordinates.
+    /// full-frame pixel coordinates, refined from the tag's edges.
     pub fn detect(
+        &mut self,
+        frame: &GrayFrame,
+        roi: Option<Roi>,
+    ) -> Result<Vec<TagDetection>, TrackError> {
+        let mut out = self.detect_in(frame, roi)?;
+        // The C library's quad fit is biased by up to a tenth of a pixel; refit the sides.
+        for d in &mut out {
+            if let Some(c) = crate::edges::refine_corners(frame, &d.corners_px) {
+                d.corners_px = c;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Detects tags in `roi` after undoing a motion blur of `len_px` along the unit image
+    /// vector `dir` with a Wiener filter of noise-to-signal ratio `nsr` (see `deblur.rs`); the
+    /// corners are refitted on the original frame.
+    pub fn detect_deblurred(
+        &mut self,
+        frame: &GrayFrame,
+        roi: Roi,
+        dir: nalgebra::Vector2<f64>,
+        len_px: f64,
+        nsr: f64,
+    ) -> Result<Vec<TagDetection>, TrackError> {
+        let sharp = crate::deblur::deblur_roi(frame, roi, dir, len_px, nsr)?;
+        let mut out = self.detect_in(&sharp, None)?;
+        let shift = nalgebra::Vector2::new(roi.x0 as f64, roi.y0 as f64);
+        for d in &mut out {
+            d.corners_px = d.corners_px.map(|p| p + shift);
+            if let Some(c) = crate::edges::refine_corners(frame, &d.corners_px) {
+                d.corners_px = c;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Detects tags in the whole frame exactly as the C library reports them (no refit).
+    pub fn detect_raw(&mut self, frame: &GrayFrame) -> Result<Vec<TagDetection>, TrackError> {
+        self.detect_in(frame, None)
+    }
+
+    fn detect_in(
         &mut self,
         frame: &GrayFrame,
         roi: Option<Roi>,
@@ -159,7 +216,7 @@ impl TagDetector {
         let dets = self.det.detect(img);
         // The C library puts pixel centres at +0.5; OpenCV at integers.
         let (ox, oy) = (r.x0 as f64 - 0.5, r.y0 as f64 - 0.5);
-        let mut out: Vec<TagDetection> = dets
+        let out: Vec<TagDetection> = dets
             .iter()
             .map(|d| {
                 let c = d.corners();
@@ -171,12 +228,6 @@ impl TagDetector {
                 }
             })
             .collect();
-        // The C library's quad fit is biased by up to a tenth of a pixel; refit the sides.
-        for d in &mut out {
-            if let Some(c) = crate::edges::refine_corners(frame, &d.corners_px) {
-                d.corners_px = c;
-            }
-        }
         Ok(out)
     }
 }

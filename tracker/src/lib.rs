@@ -3,8 +3,9 @@
 //! AprilTag detection, the planar floor pose of a horizontal marker at a known
 //! height (solvePnP as a cross-check), ROI tracking with full-frame fallback,
 //! per-frame quality, gaps and jump rejection, and overlays. Trajectory files
-//! are `odocal_core::Trajectory` (CSV `t,x,y,theta,quality`, TUM export).
+//! are `odocal_core::Trajectory` (CSV `t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta`, TUM export).
 
+mod deblur;
 pub mod detect;
 mod edges;
 mod error;
@@ -15,10 +16,11 @@ mod report;
 pub mod source;
 pub mod timing;
 pub mod track;
+pub mod uncertainty;
 
 pub use detect::{Roi, TagDetection, TagDetector};
 pub use error::TrackError;
-pub use odocal_core::{Trajectory, TrajectoryRow};
+pub use odocal_core::{PoseSigma, Trajectory, TrajectoryRow};
 pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
 pub use report::{
     errors_against, quiet_video_logs, track_report, track_video, TrackReport, TRACK_REPORT_FORMAT,

@@ -35,6 +35,9 @@ pub struct PlanarPose {
     /// RMS distance between the detected corners and the fitted square
     /// reprojected into the image, pixels.
     pub reprojection_rms_px: f64,
+    /// Side of the square the corners span on the marker plane, metres (the RMS distance of
+    /// the floor points from their centre times √2): `tag_size_m` for the right tag.
+    pub size_m: f64,
 }
 
 /// Planar pose of a tag whose corners were detected at `corners_px`.
@@ -56,10 +59,20 @@ pub fn planar_pose(
         let p = camera.floor_to_pixel(floor, &fit.pose.transform_point(m), marker_height_m)?;
         sq += (p - c).norm_squared();
     }
+    let centre = on_floor
+        .iter()
+        .fold(nalgebra::Vector2::zeros(), |s, p| s + p.coords)
+        / 4.0;
+    let spread = on_floor
+        .iter()
+        .map(|p| (p.coords - centre).norm_squared())
+        .sum::<f64>()
+        / 4.0;
     Some(PlanarPose {
         pose: Pose2::new(fit.pose.x_m, fit.pose.y_m, wrap_angle(fit.pose.theta_rad)),
         fit_rms_m: fit.rms,
         reprojection_rms_px: (sq / 4.0).sqrt(),
+        size_m: (2.0 * spread).sqrt(),
     })
 }
 
@@ -144,6 +157,7 @@ mod tests {
             assert!((p.pose.position() - pose.position()).norm() < 1e-9);
             assert!(wrap_angle(p.pose.theta_rad - pose.theta_rad).abs() < 1e-9);
             assert!(p.reprojection_rms_px < 1e-6 && p.fit_rms_m < 1e-9);
+            assert!((p.size_m - 0.08).abs() < 1e-9, "{p:?}");
             let chk = pnp_cross_check(&cam, &floor, &c, 0.08, &p).unwrap();
             assert!((chk.height_m - 0.08).abs() < 1e-4, "{chk:?}");
             assert!(

@@ -24,11 +24,22 @@ pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize)
 }
 
 /// One frame in the track report: its fix (reprojection RMS, decision margin, whether the
-/// region of interest found it, the PnP cross-check) or the reason it has none.
+/// region of interest found it, its σ, the time the tag was read, the PnP cross-check) or the
+/// reason it has none.
 #[derive(serde::Serialize)]
 pub struct FrameReport {
     index: usize,
     t: f64,
+    /// When the tag was read (differs from `t` under a rolling shutter), seconds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    t_fix: Option<f64>,
+    /// The fix's σ: x and y in millimetres, heading in degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sigma_x_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sigma_y_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sigma_theta_deg: Option<f64>,
     fix: bool,
     reason: Option<&'static str>,
     reprojection_px: Option<f64>,
@@ -68,6 +79,10 @@ pub struct TrackReport {
     frames: usize,
     fixes: usize,
     median_reprojection_px: f64,
+    /// Median of the fixes' σ: position (the larger of x and y) in millimetres, heading in
+    /// degrees.
+    median_sigma_position_mm: Option<f64>,
+    median_sigma_heading_deg: Option<f64>,
     ids_seen: std::collections::BTreeMap<u32, usize>,
     /// How the frames were timed; dropped, duplicate and repeated frames; a file cut short.
     timing: crate::TimingReport,
@@ -95,6 +110,16 @@ pub fn track_report(
         frames: r.records.len(),
         fixes: reproj.len(),
         median_reprojection_px: reproj.get(reproj.len() / 2).copied().unwrap_or(f64::NAN),
+        median_sigma_position_mm: median(
+            r.fixes()
+                .map(|(_, f)| 1e3 * f.sigma.x_m.max(f.sigma.y_m))
+                .collect(),
+        ),
+        median_sigma_heading_deg: median(
+            r.fixes()
+                .map(|(_, f)| f.sigma.theta_rad.to_degrees())
+                .collect(),
+        ),
         ids_seen: r.seen_ids.clone(),
         timing: crate::TimingReport::of(r),
         rejections: rejections(r),
@@ -116,6 +141,10 @@ pub fn track_report(
                 Outcome::Fix(f) => FrameReport {
                     index: rec.index,
                     t: rec.t_s,
+                    t_fix: Some(f.t_s),
+                    sigma_x_mm: Some(1e3 * f.sigma.x_m),
+                    sigma_y_mm: Some(1e3 * f.sigma.y_m),
+                    sigma_theta_deg: Some(f.sigma.theta_rad.to_degrees()),
                     fix: true,
                     reason: None,
                     reprojection_px: Some(f.reprojection_rms_px),
@@ -127,6 +156,10 @@ pub fn track_report(
                 Outcome::Gap(g) => FrameReport {
                     index: rec.index,
                     t: rec.t_s,
+                    t_fix: None,
+                    sigma_x_mm: None,
+                    sigma_y_mm: None,
+                    sigma_theta_deg: None,
                     fix: false,
                     reason: Some(g.as_str()),
                     reprojection_px: rec.rejected.and_then(|x| x.reprojection_px),

@@ -2,18 +2,38 @@
 //! predicted position (full frame when lost), turn the corners into a planar
 //! floor pose, grade it, reject impossible jumps, and never invent a pose for a
 //! frame without a confident detection.
+//!
+//! A detection is judged by its geometry, not by the detector's decision margin: blur, dim
+//! light and compression lower the margin of perfectly good detections (to 5–12 where a
+//! sharp frame gives 60 and more), while a wrong detection shows itself in its shape. The
+//! corners must fit a square of the tag's size lying flat at the marker height (reprojection
+//! RMS), the square's size in the image must be what the camera's height implies (a tag of
+//! another size, a reflection), and the pose must follow from the track's motion (a jump
+//! faster than the robot can move is rejected).
+//!
+//! Each fix is timed where the tag was read: with a rolling shutter (`rolling_shutter_s`, the
+//! time from reading the first row to reading the last) row y of a frame stamped t is read at
+//! t + y / rows · readout, so the fix is at the frame time plus the tag centre's row over the
+//! rows times the readout. Frame times themselves are the container's (dropped frames leave
+//! a gap in time).
+//!
+//! Every fix carries its σ (see `uncertainty.rs`); the corner noise behind it is pooled over
+//! recent fixes from the planar fits' residuals.
 
 use std::collections::BTreeMap;
 use std::sync::mpsc;
 
 use nalgebra::Point2;
 use odocal_calib::{CameraModel, FloorToCamera};
-use odocal_core::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2, PoseSigma};
 use odocal_core::{Trajectory, TrajectoryRow};
 
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
 use crate::source::{Frame, FrameSource, SourceInfo};
+use crate::uncertainty::{
+    calibration_covariance, corner_covariance, expected_residual_px2, sigma_of,
+};
 use crate::TrackError;
 
 /// Tracking settings.
@@ -34,8 +54,17 @@ pub struct TrackOptions {
     pub search_decimate: f32,
     /// Largest number of corrected bits accepted.
     pub max_hamming: u32,
-    /// Smallest decision margin accepted.
+    /// Smallest decision margin accepted (0: none; detections are judged by their geometry).
     pub min_decision_margin: f32,
+    /// Largest relative difference between the tag's fitted size on the floor and
+    /// `tag_size_m` (0.15 = 15 %): a larger or smaller square is another tag or a reflection.
+    pub max_size_error: f64,
+    /// Rolling-shutter readout time, seconds: from reading the frame's first row to its last
+    /// (0 for a global shutter). Each fix is then timed at the rows where the tag was read.
+    pub rolling_shutter_s: f64,
+    /// Covariance of the camera's intrinsic parameters (camera.json's `covariance`, in the
+    /// order of `CameraModel::parameters`): added to every fix's σ when given.
+    pub intrinsics_covariance: Option<nalgebra::DMatrix<f64>>,
     /// Largest reprojection RMS accepted, pixels.
     pub max_reprojection_px: f64,
     /// Fastest plausible robot speed, m/s (faster apparent motion is a jump).
@@ -71,6 +100,18 @@ impl TrackOptions {
                 self.max_speed_mps
             ));
         }
+        if !(self.rolling_shutter_s >= 0.0 && self.rolling_shutter_s < 1.0) {
+            return bad(format!(
+                "--rolling-shutter-s {}: the readout time from the first row to the last is 0 (global shutter) to under 1 s (typically 0.01 to 0.04 s)",
+                self.rolling_shutter_s
+            ));
+        }
+        if !(self.max_size_error > 0.0 && self.max_size_error < 1.0) {
+            return bad(format!(
+                "max size error {}: a relative difference between 0 and 1",
+                self.max_size_error
+            ));
+        }
         if !(self.max_reprojection_px > 0.0 && self.max_reprojection_px.is_finite()) {
             return bad(format!(
                 "--max-reprojection {}: must be a positive number of pixels",
@@ -90,8 +131,13 @@ impl Default for TrackOptions {
             marker_height_m: 0.08,
             use_roi: true,
             search_decimate: 2.0,
-            max_hamming: 1,
-            min_decision_margin: 20.0,
+            // AprilTag's own default: tag36h11 codes are 11 bits apart, so two corrected bits
+            // leave a wrong id far away, and the geometric gates check every detection.
+            max_hamming: 2,
+            min_decision_margin: 0.0,
+            max_size_error: 0.15,
+            rolling_shutter_s: 0.0,
+            intrinsics_covariance: None,
             max_reprojection_px: 1.5,
             max_speed_mps: 2.0,
             max_turn_rate_rad_s: 8.0,
@@ -107,7 +153,8 @@ pub enum GapReason {
     NotDetected,
     /// Found, but with too many corrected bits or too small a decision margin.
     LowConfidence,
-    /// Found, but its corners do not fit a horizontal square at the marker height.
+    /// Found, but its corners do not fit a horizontal square of the tag's size at the marker
+    /// height.
     BadGeometry,
     /// Found, but it moved impossibly far since the last fix.
     Jump,
@@ -138,6 +185,14 @@ impl GapReason {
 pub struct Fix {
     /// Tag frame → floor frame (metres, radians).
     pub pose: Pose2,
+    /// When the tag was read, seconds: the frame time, plus with a rolling shutter the time
+    /// the sensor took to reach the tag centre's row.
+    pub t_s: f64,
+    /// Standard deviations of the pose (detection noise and, when the camera file has it, the
+    /// calibration's covariance).
+    pub sigma: PoseSigma,
+    /// The corner noise behind `sigma`, pixels per coordinate (RMS over the eight).
+    pub corner_sigma_px: f64,
     /// Quality in (0, 1]: 1 / (1 + reprojection RMS in pixels).
     pub quality: f64,
     /// RMS reprojection error of the corners, pixels.
@@ -158,6 +213,8 @@ pub struct Fix {
 
 /// The outcome of one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Most frames are fixes: boxing them would cost an allocation per frame to save space on gaps.
+#[allow(clippy::large_enum_variant)]
 pub enum Outcome {
     /// A confident pose.
     Fix(Fix),
@@ -217,7 +274,60 @@ pub struct Tracker {
     last_fix_index: Option<usize>,
     consecutive_jumps: usize,
     seen: BTreeMap<u32, usize>,
+    /// Pooled corner residuals: decayed sums of each fix's squared residuals over what its
+    /// corners' covariance expects of them, and of the weights.
+    residual_pool: (f64, f64),
+    /// Covariance of the intrinsics (camera.json), if known.
+    intrinsics_covariance: Option<nalgebra::DMatrix<f64>>,
+    /// Which of the search directions the whole-frame blurred search tries next.
+    blurred_search_turn: usize,
 }
+
+/// Blur lengths (pixels), Wiener noise-to-signal ratios and quad blurs (σ, pixels) tried along
+/// the track's motion when the tag is not found in the ROI: the likeliest first, smoother ones
+/// last for noisy frames (the quad blur steadies the quad search on the restored image's noise
+/// and ringing; the code is still read from the restored image itself).
+const DEBLUR_TRIALS: [(f64, f64, f32); 10] = [
+    (9.0, 0.003, 0.0),
+    (6.0, 0.003, 0.0),
+    (12.0, 0.003, 0.0),
+    (9.0, 0.02, 0.0),
+    (6.0, 0.02, 0.0),
+    (4.0, 0.01, 0.0),
+    (9.0, 0.003, 0.8),
+    (6.0, 0.003, 0.8),
+    (7.5, 0.01, 0.8),
+    (7.5, 0.03, 0.0),
+];
+
+/// The quad decimation and quad blur (σ, pixels) of the searches in the region of interest,
+/// in order.
+const ROI_SEARCHES: [(f32, f32); 3] = [(2.0, 0.0), (1.0, 0.0), (1.0, 0.8)];
+
+/// Directions of an unknown motion blur tried by the whole-frame search (unit image vectors:
+/// right, down-right, down, down-left).
+const SEARCH_DIRECTIONS: [[f64; 2]; 4] = [
+    [1.0, 0.0],
+    [
+        std::f64::consts::FRAC_1_SQRT_2,
+        std::f64::consts::FRAC_1_SQRT_2,
+    ],
+    [0.0, 1.0],
+    [
+        -std::f64::consts::FRAC_1_SQRT_2,
+        std::f64::consts::FRAC_1_SQRT_2,
+    ],
+];
+
+/// Weight of older fixes in the pooled corner noise per new fix (about the last 30 fixes).
+const POOL_DECAY: f64 = 0.97;
+/// Corner σ per coordinate before any fix, pixels (what the edge refit gives a sharp tag).
+const PRIOR_CORNER_SIGMA_PX: f64 = 0.05;
+/// Weight of that prior, in fixes.
+const PRIOR_FIXES: f64 = 2.0;
+/// The 99.99 % point of χ² with 5 degrees of freedom over 5: a frame's corner residuals this
+/// far above what the track's noise expects do not belong to a square of the tag's size.
+const RESIDUAL_GATE: f64 = 25.7 / 5.0;
 
 impl Tracker {
     /// A tracker for frames of `camera` above `floor`.
@@ -228,7 +338,8 @@ impl Tracker {
     ) -> Result<Self, TrackError> {
         opts.check(None)?;
         let detector = TagDetector::new(&opts.family, opts.max_hamming.min(3) as usize, 1.0)?;
-        Ok(Self {
+        let covariance = opts.intrinsics_covariance.clone();
+        let mut tracker = Self {
             camera,
             floor,
             opts,
@@ -237,7 +348,48 @@ impl Tracker {
             last_fix_index: None,
             consecutive_jumps: 0,
             seen: BTreeMap::new(),
-        })
+            residual_pool: (0.0, 0.0),
+            intrinsics_covariance: None,
+            blurred_search_turn: 0,
+        };
+        if let Some(cov) = covariance {
+            tracker.set_intrinsics_covariance(cov)?;
+        }
+        Ok(tracker)
+    }
+
+    /// Adds the calibration's uncertainty to every fix's σ: `cov` is the covariance of the
+    /// camera's intrinsic parameters in the order of [`CameraModel::parameters`] (camera.json's
+    /// `covariance`). Refused when its size does not match the camera's lens model.
+    pub fn set_intrinsics_covariance(
+        &mut self,
+        cov: nalgebra::DMatrix<f64>,
+    ) -> Result<(), TrackError> {
+        let n = self.camera.parameters().len();
+        if cov.nrows() != n || cov.ncols() != n || !cov.iter().all(|v| v.is_finite()) {
+            return Err(TrackError::Options(format!(
+                "the camera's covariance is {}×{}, its lens model has {n} parameters: recalibrate to get a matching covariance",
+                cov.nrows(),
+                cov.ncols()
+            )));
+        }
+        self.intrinsics_covariance = Some(cov);
+        Ok(())
+    }
+
+    /// The factor (variance ratio) that scales the corners' covariance to the residuals seen
+    /// over recent fixes, with this frame's `ratio` of squared residuals to their expectation
+    /// (the prior keeps the first fixes from trusting 5 degrees of freedom).
+    fn noise_scale(&self, ratio: Option<f64>) -> f64 {
+        let (s, n) = self.residual_pool;
+        let (r, k) = ratio.map_or((0.0, 0.0), |r| (r, 1.0));
+        (s + r + PRIOR_FIXES) / (n + k + PRIOR_FIXES)
+    }
+
+    /// The time the tag centred at image row `row_px` was read, for a frame stamped `t_s`.
+    fn read_time(&self, t_s: f64, row_px: f64) -> f64 {
+        let rows = self.camera.height.max(1) as f64;
+        t_s + (row_px / rows).clamp(0.0, 1.0) * self.opts.rolling_shutter_s
     }
 
     /// Ids seen so far (any id of the family) and in how many frames.
@@ -266,6 +418,70 @@ impl Tracker {
             self.camera
                 .floor_to_pixel(&self.floor, &pose.position(), self.opts.marker_height_m)?;
         Roi::around(c, 0.95 * side_px + extra_px + 6.0, w, h)
+    }
+
+    /// A whole-frame search for a tag smeared by motion in an unknown direction: the blur is
+    /// undone along the four [`SEARCH_DIRECTIONS`] (a smear within 22.5° of one is mostly
+    /// undone) and the restored frame searched decimated. Before the first fix and within a
+    /// second of the last one all four are tried; a track lost for longer (the robot out of
+    /// view, a person in the way) tries one per frame in turn, so that a long gap costs one
+    /// deconvolution per frame, not four.
+    fn search_blurred(
+        &mut self,
+        frame: &Frame,
+        ids: &mut Vec<u32>,
+    ) -> Result<Option<TagDetection>, TrackError> {
+        let (w, h) = (frame.image.width, frame.image.height);
+        let whole = Roi {
+            x0: 0,
+            y0: 0,
+            width: w,
+            height: h,
+        };
+        let recently = match self.history.last() {
+            None => true,
+            Some(&(t, _, _)) => frame.t_s - t < 1.0,
+        };
+        let tries = if recently { 4 } else { 1 };
+        self.detector
+            .set_decimate(self.opts.search_decimate.max(1.0));
+        let mut found = None;
+        for _ in 0..tries {
+            let dir = SEARCH_DIRECTIONS[self.blurred_search_turn % 4];
+            self.blurred_search_turn += 1;
+            let (len, nsr, _) = DEBLUR_TRIALS[0];
+            let dets = self
+                .detector
+                .detect_deblurred(&frame.image, whole, dir.into(), len, nsr);
+            let dets = match dets {
+                Ok(d) => d,
+                Err(e) => {
+                    self.detector.set_decimate(1.0);
+                    return Err(e);
+                }
+            };
+            ids.extend(dets.iter().map(|d| d.id));
+            found = self.pick(&dets, None);
+            if found.is_some() {
+                break;
+            }
+        }
+        self.detector.set_decimate(1.0);
+        Ok(found)
+    }
+
+    /// The unit image direction in which the tag moves, from the last fix to `predicted`.
+    fn image_motion(&self, predicted: &Pose2) -> Option<nalgebra::Vector2<f64>> {
+        let &(_, last, _) = self.history.last()?;
+        let h = self.opts.marker_height_m;
+        let a = self
+            .camera
+            .floor_to_pixel(&self.floor, &last.position(), h)?;
+        let b = self
+            .camera
+            .floor_to_pixel(&self.floor, &predicted.position(), h)?;
+        let d = b - a;
+        (d.norm() > 0.5).then(|| d / d.norm())
     }
 
     fn pick(&self, dets: &[TagDetection], near: Option<Point2<f64>>) -> Option<TagDetection> {
@@ -299,9 +515,51 @@ impl Tracker {
             if let Some((pose, side, step)) = prediction {
                 let px_per_m = side / self.opts.tag_size_m;
                 if let Some(roi) = self.roi_around(&pose, side, 0.5 * step * px_per_m, w, h) {
-                    let dets = self.detector.detect(&frame.image, Some(roi))?;
-                    ids_in_frame.extend(dets.iter().map(|d| d.id));
-                    found = self.pick(&dets, None).map(|d| (d, true));
+                    // Decimated first: a quarter of the pixels for the quad search, and the
+                    // corners come from the edge refit at full resolution all the same. Then
+                    // full resolution, then a quad blur against noise.
+                    for (decimate, sigma) in ROI_SEARCHES {
+                        if found.is_some() {
+                            break;
+                        }
+                        self.detector.set_decimate(decimate);
+                        self.detector.set_quad_sigma(sigma);
+                        let dets = self.detector.detect(&frame.image, Some(roi));
+                        self.detector.set_decimate(1.0);
+                        self.detector.set_quad_sigma(0.0);
+                        let dets = dets?;
+                        ids_in_frame.extend(dets.iter().map(|d| d.id));
+                        found = self.pick(&dets, None).map(|d| (d, true));
+                    }
+                    if found.is_none() {
+                        // Along the track's motion with every trial first, then along each
+                        // search direction with the likeliest ones (the motion may have turned):
+                        // still far cheaper than a search of the whole frame.
+                        let mut dirs: Vec<(nalgebra::Vector2<f64>, usize)> = Vec::new();
+                        if let Some(d) = self.image_motion(&pose) {
+                            dirs.push((d, DEBLUR_TRIALS.len()));
+                        }
+                        dirs.extend(SEARCH_DIRECTIONS.iter().map(|&d| (d.into(), 2)));
+                        'trials: for (dir, n_trials) in dirs {
+                            for &(len, nsr, sigma) in &DEBLUR_TRIALS[..n_trials] {
+                                self.detector.set_quad_sigma(sigma);
+                                let dets = self.detector.detect_deblurred(
+                                    &frame.image,
+                                    roi,
+                                    dir,
+                                    len,
+                                    nsr,
+                                );
+                                self.detector.set_quad_sigma(0.0);
+                                let dets = dets?;
+                                ids_in_frame.extend(dets.iter().map(|d| d.id));
+                                found = self.pick(&dets, None).map(|d| (d, true));
+                                if found.is_some() {
+                                    break 'trials;
+                                }
+                            }
+                        }
+                    }
                 }
             }
             if found.is_none() {
@@ -312,7 +570,11 @@ impl Tracker {
                 self.detector.set_decimate(1.0);
                 let dets = dets?;
                 ids_in_frame.extend(dets.iter().map(|d| d.id));
-                if let Some(coarse) = self.pick(&dets, None) {
+                let mut coarse = self.pick(&dets, None);
+                if coarse.is_none() {
+                    coarse = self.search_blurred(frame, &mut ids_in_frame)?;
+                }
+                if let Some(coarse) = coarse {
                     found = Some((coarse, false));
                     if self.opts.search_decimate > 1.0 {
                         if let Some(roi) =
@@ -348,12 +610,41 @@ impl Tracker {
         })
     }
 
+    /// Under a rolling shutter each corner was read at its own row's time: moves each corner
+    /// back along the track's image velocity to where it was when the tag centre's row was
+    /// read, which undoes the shear that would otherwise tilt the fitted heading.
+    fn unshear(&self, d: &mut TagDetection) {
+        let readout = self.opts.rolling_shutter_s;
+        if readout <= 0.0 || self.history.len() < 2 {
+            return;
+        }
+        let (t0, p0, _) = self.history[self.history.len() - 2];
+        let (t1, p1, _) = self.history[self.history.len() - 1];
+        let h = self.opts.marker_height_m;
+        let (Some(a), Some(b)) = (
+            self.camera.floor_to_pixel(&self.floor, &p0.position(), h),
+            self.camera.floor_to_pixel(&self.floor, &p1.position(), h),
+        ) else {
+            return;
+        };
+        if !(t1 - t0 > 1e-6 && t1 - t0 < 0.5) {
+            return;
+        }
+        let v = (b - a) / (t1 - t0);
+        let rows = self.camera.height.max(1) as f64;
+        let yc = d.centre_px().y;
+        for c in &mut d.corners_px {
+            *c -= v * ((c.y - yc) / rows * readout);
+        }
+    }
+
     fn grade(
         &mut self,
         frame: &Frame,
-        d: TagDetection,
+        mut d: TagDetection,
         from_roi: bool,
     ) -> (Outcome, Option<Rejected>) {
+        self.unshear(&mut d);
         let o = &self.opts;
         let planar = planar_pose(
             &self.camera,
@@ -376,13 +667,35 @@ impl Tracker {
         let Some(planar) = planar else {
             return reject(GapReason::BadGeometry);
         };
-        // NaN never passes.
-        if planar.reprojection_rms_px.is_nan() || planar.reprojection_rms_px > o.max_reprojection_px
+        // The corners as independent, with the prior σ; scaled below by the residuals.
+        let base_cov = nalgebra::SMatrix::<f64, 8, 8>::identity() * PRIOR_CORNER_SIGMA_PX.powi(2);
+        let sq = 4.0 * planar.reprojection_rms_px.powi(2);
+        let expected = expected_residual_px2(
+            &self.camera,
+            &self.floor,
+            &planar.pose,
+            o.tag_size_m,
+            o.marker_height_m,
+            &base_cov,
+        )
+        .unwrap_or(f64::NAN);
+        // The corners' misfit must be within what the track's own noise allows, and never
+        // beyond the fixed limit on a clean track. NaN never passes.
+        let allowed_px2 = RESIDUAL_GATE * self.noise_scale(None) * expected;
+        let limit_px = o.max_reprojection_px.max((allowed_px2 / 4.0).sqrt());
+        if planar.reprojection_rms_px.is_nan() || planar.reprojection_rms_px > limit_px {
+            return reject(GapReason::BadGeometry);
+        }
+        // The square's size: the floor points' spread against the model's (side / √2 from the centre).
+        if !(planar.size_m / o.tag_size_m - 1.0)
+            .abs()
+            .le(&o.max_size_error)
         {
             return reject(GapReason::BadGeometry);
         }
+        let t_fix = self.read_time(frame.t_s, d.centre_px().y);
         if let Some(&(t_last, p_last, _)) = self.history.last() {
-            let dt = (frame.t_s - t_last).abs();
+            let dt = (t_fix - t_last).abs();
             let dist = (planar.pose.position() - p_last.position()).norm();
             let turn = wrap_angle(planar.pose.theta_rad - p_last.theta_rad).abs();
             if dist > o.max_speed_mps * dt + 0.02 || turn > o.max_turn_rate_rad_s * dt + 0.2 {
@@ -408,13 +721,50 @@ impl Tracker {
         } else {
             None
         };
-        self.history.push((frame.t_s, planar.pose, d.side_px()));
+        let ratio = sq / expected;
+        let scale = self.noise_scale(Some(ratio));
+        let (s, n) = self.residual_pool;
+        self.residual_pool = (POOL_DECAY * s + ratio, POOL_DECAY * n + 1.0);
+        let corner_cov = base_cov * scale;
+        let corner_sigma_px = (corner_cov.trace() / 8.0).sqrt();
+        let mut cov = corner_covariance(
+            &self.camera,
+            &self.floor,
+            &d.corners_px,
+            o.tag_size_m,
+            o.marker_height_m,
+            &corner_cov,
+        )
+        .unwrap_or_else(|| nalgebra::Matrix3::from_diagonal_element(f64::INFINITY));
+        if let Some(ic) = &self.intrinsics_covariance {
+            if let Some(c) = calibration_covariance(
+                &self.camera,
+                &self.floor,
+                &d.corners_px,
+                o.tag_size_m,
+                o.marker_height_m,
+                ic,
+            ) {
+                cov += c;
+            }
+        }
+        let sigma = sigma_of(&cov);
+        if ![sigma.x_m, sigma.y_m, sigma.theta_rad]
+            .iter()
+            .all(|v| v.is_finite() && *v > 0.0)
+        {
+            return reject(GapReason::BadGeometry);
+        }
+        self.history.push((t_fix, planar.pose, d.side_px()));
         if self.history.len() > 2 {
             self.history.remove(0);
         }
         self.last_fix_index = Some(frame.index);
         let fix = Outcome::Fix(Fix {
             pose: planar.pose,
+            t_s: t_fix,
+            sigma,
+            corner_sigma_px,
             quality: 1.0 / (1.0 + planar.reprojection_rms_px),
             reprojection_rms_px: planar.reprojection_rms_px,
             fit_rms_m: planar.fit_rms_m,
@@ -454,10 +804,11 @@ impl TrackResult {
     pub fn trajectory(&self) -> Result<Trajectory, TrackError> {
         let rows = self
             .fixes()
-            .map(|(r, f)| TrajectoryRow {
-                t_s: r.t_s,
+            .map(|(_, f)| TrajectoryRow {
+                t_s: f.t_s,
                 pose: f.pose,
                 quality: f.quality,
+                sigma: Some(f.sigma),
             })
             .collect();
         Trajectory::new(rows).map_err(|e| TrackError::Mismatch(format!("frame timestamps: {e}")))

@@ -2,6 +2,7 @@
 
 mod arena;
 mod calibration;
+mod conditions;
 mod corrector;
 mod laser;
 mod runs;
@@ -9,6 +10,7 @@ mod training;
 
 pub use arena::{arena_section, ArenaInput};
 pub use calibration::{calibration_section, CalibInput, CalibView};
+pub use conditions::{conditions_section, target_sigma_section, ConditionRow};
 pub use corrector::corrector_section;
 pub use laser::{laser_section, LaserInput};
 pub use runs::{heading_section, pick_runs, trajectory_section, RunView};

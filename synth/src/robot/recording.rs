@@ -133,6 +133,7 @@ impl SimulatedRecording {
                     t_s,
                     pose,
                     quality: 1.0,
+                    sigma: None,
                 })
                 .collect(),
         )
