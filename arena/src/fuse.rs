@@ -474,6 +474,8 @@ pub fn fuse_robot(
             t_s: t,
             pose,
             quality: quality.clamp(0.0, 1.0),
+            // Fixes interpolated between frames and blended across cameras: no per-row σ yet.
+            sigma: None,
         });
         prev = Some(parts);
     }

@@ -73,15 +73,18 @@ pub fn camera_tracks(
                 .iter()
                 .filter_map(|r| match &r.outcome {
                     Outcome::Fix(f) => Some(CameraFix {
-                        t_s: r.t_s,
+                        // The time the tag's rows were read (the frame's time unless a
+                        // rolling shutter was given).
+                        t_s: f.t_s,
                         pose: f.pose,
-                        // The tracker gives no per-fix σ yet: the pixel footprint stands in.
+                        // The fix's own position σ (detection noise and calibration), the
+                        // mean of its two axes' variances.
                         weight: fix_weight(
                             &cam.calibration.camera,
                             &cam.arena_to_camera,
                             &f.corners_px,
                             marker_height_m,
-                            None,
+                            Some((0.5 * (f.sigma.x_m.powi(2) + f.sigma.y_m.powi(2))).sqrt()),
                         ),
                         quality: f.quality,
                     }),
