@@ -162,21 +162,40 @@ fn opencv_calibrate(
         ))
     };
     let size = Size::new(w as i32, h as i32);
+    // One OpenCV fit of these corners with its own output buffers and flags.
+    let pinhole_fit =
+        |k: &mut Mat, d: &mut Mat, r: &mut Vector<Mat>, t: &mut Vector<Mat>, flags: i32| {
+            calib3d::calibrate_camera(
+                &object_points,
+                &image_points,
+                size,
+                k,
+                d,
+                r,
+                t,
+                flags,
+                criteria,
+            )
+        };
+    let fisheye_fit =
+        |k: &mut Mat, d: &mut Mat, r: &mut Vector<Mat>, t: &mut Vector<Mat>, flags: i32| {
+            calib3d::calibrate(
+                &object_points,
+                &image_points,
+                size,
+                k,
+                d,
+                r,
+                t,
+                flags,
+                criteria,
+            )
+        };
     match model {
         LensModel::Fisheye => {
             let flags =
                 calib3d::Fisheye_CALIB_RECOMPUTE_EXTRINSIC | calib3d::Fisheye_CALIB_FIX_SKEW;
-            let first = calib3d::calibrate(
-                &object_points,
-                &image_points,
-                size,
-                &mut k,
-                &mut dist,
-                &mut rvecs,
-                &mut tvecs,
-                flags,
-                criteria,
-            );
+            let first = fisheye_fit(&mut k, &mut dist, &mut rvecs, &mut tvecs, flags);
             let finite = |m: &Mat| {
                 m.data_typed::<f64>()
                     .is_ok_and(|v| !v.is_empty() && v.iter().all(|x| x.is_finite()))
@@ -198,49 +217,30 @@ fn opencv_calibrate(
                 // enough to be a start) it converges.
                 let (mut kr, mut dr) = (Mat::default(), Mat::default());
                 let (mut rr, mut tr) = (Vector::<Mat>::new(), Vector::<Mat>::new());
-                calib3d::calibrate_camera(
-                    &object_points,
-                    &image_points,
-                    size,
+                pinhole_fit(
                     &mut kr,
                     &mut dr,
                     &mut rr,
                     &mut tr,
                     calib3d::CALIB_RATIONAL_MODEL,
-                    criteria,
                 )
                 .map_err(degenerate)?;
                 k = kr;
                 dist = Mat::from_slice(&[0.0f64; 4])?.try_clone()?;
                 rvecs = Vector::new();
                 tvecs = Vector::new();
-                calib3d::calibrate(
-                    &object_points,
-                    &image_points,
-                    size,
+                fisheye_fit(
                     &mut k,
                     &mut dist,
                     &mut rvecs,
                     &mut tvecs,
                     flags | calib3d::Fisheye_CALIB_USE_INTRINSIC_GUESS,
-                    criteria,
                 )
                 .map_err(degenerate)?;
             }
         }
         LensModel::Pinhole5 => {
-            calib3d::calibrate_camera(
-                &object_points,
-                &image_points,
-                size,
-                &mut k,
-                &mut dist,
-                &mut rvecs,
-                &mut tvecs,
-                0,
-                criteria,
-            )
-            .map_err(degenerate)?;
+            pinhole_fit(&mut k, &mut dist, &mut rvecs, &mut tvecs, 0).map_err(degenerate)?;
         }
         LensModel::Rational => {
             // OpenCV starts the rational fit from a distortion-free homography guess, which a
@@ -251,18 +251,7 @@ fn opencv_calibrate(
             let seeded = (|| -> Option<f64> {
                 let (mut k5, mut d5) = (Mat::default(), Mat::default());
                 let (mut r5, mut t5) = (Vector::<Mat>::new(), Vector::<Mat>::new());
-                calib3d::calibrate_camera(
-                    &object_points,
-                    &image_points,
-                    size,
-                    &mut k5,
-                    &mut d5,
-                    &mut r5,
-                    &mut t5,
-                    0,
-                    criteria,
-                )
-                .ok()?;
+                pinhole_fit(&mut k5, &mut d5, &mut r5, &mut t5, 0).ok()?;
                 let c = d5.data_typed::<f64>().ok()?.to_vec();
                 let mut d8 = [0.0f64; 8];
                 for (d, v) in d8.iter_mut().zip(&c) {
@@ -270,16 +259,12 @@ fn opencv_calibrate(
                 }
                 dist = Mat::from_slice(&d8).ok()?.try_clone().ok()?;
                 k = k5;
-                calib3d::calibrate_camera(
-                    &object_points,
-                    &image_points,
-                    size,
+                pinhole_fit(
                     &mut k,
                     &mut dist,
                     &mut rvecs,
                     &mut tvecs,
                     calib3d::CALIB_RATIONAL_MODEL | calib3d::CALIB_USE_INTRINSIC_GUESS,
-                    criteria,
                 )
                 .ok()
                 .filter(|rms| rms.is_finite())
@@ -287,16 +272,12 @@ fn opencv_calibrate(
             if seeded.is_none() {
                 (k, dist) = (Mat::default(), Mat::default());
                 (rvecs, tvecs) = (Vector::new(), Vector::new());
-                calib3d::calibrate_camera(
-                    &object_points,
-                    &image_points,
-                    size,
+                pinhole_fit(
                     &mut k,
                     &mut dist,
                     &mut rvecs,
                     &mut tvecs,
                     calib3d::CALIB_RATIONAL_MODEL,
-                    criteria,
                 )
                 .map_err(degenerate)?;
             }
