@@ -16,7 +16,9 @@ use odocal_calib::{CameraModel, FloorToCamera};
 
 use crate::detect::TagDetector;
 use crate::source::{Frame, FrameSource};
-use crate::track::{FrameRecord, GapReason, Outcome, TrackOptions, TrackResult, Tracker};
+use crate::track::{
+    check_frame_size, FrameRecord, GapReason, Outcome, TrackOptions, TrackResult, Tracker,
+};
 use crate::TrackError;
 
 /// Frames after its last fix during which a tracker still follows its tag by itself.
@@ -77,16 +79,7 @@ pub fn track_source_multi(
     on_frame: &mut dyn FnMut(&Frame),
 ) -> Result<BTreeMap<u32, TrackResult>, TrackError> {
     let info = source.info().clone();
-    if (info.width, info.height) != (camera.width, camera.height) {
-        return Err(TrackError::Mismatch(format!(
-            "{} is {}×{} but the camera file describes {}×{} images: use the camera.json calibrated for this camera at this resolution",
-            info.path.display(),
-            info.width,
-            info.height,
-            camera.width,
-            camera.height
-        )));
-    }
+    check_frame_size(&info, camera)?;
     let new_state = |id: u32| -> Result<IdState, TrackError> {
         Ok(IdState {
             tracker: Tracker::new(

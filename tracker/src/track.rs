@@ -922,6 +922,21 @@ impl TrackResult {
 
 /// Tracks a whole source: frames are decoded on a separate thread (and in
 /// parallel within a batch where the source allows) while this thread tracks.
+/// The video's frames must be the size the camera was calibrated at.
+pub(crate) fn check_frame_size(info: &SourceInfo, camera: &CameraModel) -> Result<(), TrackError> {
+    if (info.width, info.height) != (camera.width, camera.height) {
+        return Err(TrackError::Mismatch(format!(
+            "{} is {}×{} but the camera file describes {}×{} images: use the camera.json calibrated for this camera at this resolution",
+            info.path.display(),
+            info.width,
+            info.height,
+            camera.width,
+            camera.height
+        )));
+    }
+    Ok(())
+}
+
 /// `on_frame` is called for every frame in order (progress, overlays). Fails
 /// if the frame size differs from the camera's, or if the tag never gives a
 /// confident fix (naming the ids that were seen).
@@ -933,16 +948,7 @@ pub fn track_source(
     on_frame: &mut dyn FnMut(&Frame, &FrameRecord) -> Result<(), TrackError>,
 ) -> Result<TrackResult, TrackError> {
     let info = source.info().clone();
-    if (info.width, info.height) != (camera.width, camera.height) {
-        return Err(TrackError::Mismatch(format!(
-            "{} is {}×{} but the camera file describes {}×{} images: use the camera.json calibrated for this camera at this resolution",
-            info.path.display(),
-            info.width,
-            info.height,
-            camera.width,
-            camera.height
-        )));
-    }
+    check_frame_size(&info, camera)?;
     let mut tracker = Tracker::new(*camera, *floor, opts.clone())?;
     let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
     let (records, final_info) = std::thread::scope(|scope| -> Result<_, TrackError> {
