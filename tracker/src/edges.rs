@@ -20,6 +20,8 @@ use crate::source::GrayFrame;
 const REACH_PX: f64 = 2.5;
 /// Fraction of each side left out at both ends (the neighbouring side's edge is there).
 const END_FRACTION: f64 = 0.12;
+/// Fraction of each side's length whose pixels are fitted.
+pub(crate) const FITTED_FRACTION: f64 = 1.0 - 2.0 * END_FRACTION;
 /// Pixels farther than this from the detected line are grouped in the first fit, pixels (a
 /// sharp edge's ramp is at most 0.71 px either side of its line; on the default scene's video
 /// every fit stays exact, with 220 rows instead of 540).

@@ -1,7 +1,8 @@
 //! How well each pose is known: σx, σy, σθ of a fix.
 //!
-//! Two sources add up. Detection noise: the four corners are taken as independent with the
-//! same σ per pixel coordinate, and that σ is carried through the planar pose fit by its
+//! Two sources add up. Detection noise: the four corners' covariance is part independent per
+//! corner and part from their four fitted sides ([`corner_covariance_from_sides`]; the mix in
+//! `track.rs`), scaled to the noise seen, and carried through the planar pose fit by its
 //! Jacobian (finite differences of [`planar_pose`] over the eight corner coordinates), so the
 //! geometry of each view (distance, tilt, lens distortion at that place) shapes the result.
 //! Calibration: the intrinsics' covariance from camera.json carried through the same fit by
@@ -83,6 +84,56 @@ pub fn corner_covariance(
     }
     let j = fit * to_floor;
     Some(j * corner_cov_px2 * j.transpose())
+}
+
+/// The covariance of four corners found as the intersections of four fitted sides, each side's
+/// offset and angle independent, for a side offset σ of 1 pixel: a side fitted to pixels along
+/// a length L has an angle σ of √12 / L per pixel of offset σ. An angle error moves a side's
+/// two corners in opposite directions, so the corners are correlated: turns of the whole tag
+/// (heading) are likelier, and shifts (position) less likely, than four independent corners
+/// of the same spread would make them. Normalised to a mean variance of 1 per coordinate.
+pub fn corner_covariance_from_sides(
+    corners_px: &[Point2<f64>; 4],
+    fitted_fraction: f64,
+) -> SMatrix<f64, 8, 8> {
+    // Side i runs from corner i to corner i + 1.
+    let side = |i: usize| {
+        let (a, b) = (corners_px[i], corners_px[(i + 1) % 4]);
+        let len = (b - a).norm().max(1e-9);
+        let u = (b - a) / len;
+        (nalgebra::Vector2::new(-u.y, u.x), len)
+    };
+    // d corner / d (ρ_j, φ_j): corner i is on side i − 1 at +L/2 and on side i at −L/2.
+    let mut jac = SMatrix::<f64, 8, 8>::zeros();
+    let mut var = [0.0; 8];
+    for i in 0..4 {
+        let a = (i + 3) % 4;
+        let (na, la) = side(a);
+        let (nb, lb) = side(i);
+        let n = nalgebra::Matrix2::new(na.x, na.y, nb.x, nb.y);
+        let Some(inv) = n.try_inverse() else {
+            return SMatrix::identity();
+        };
+        // Line j's normal displacement at arc position s is δρ_j + s δφ_j.
+        for (col, (j, s)) in [(0, (a, 0.5 * la)), (1, (i, -0.5 * lb))] {
+            let d_rho = inv.column(col).into_owned();
+            jac.fixed_view_mut::<2, 1>(2 * i, 2 * j).copy_from(&d_rho);
+            jac.fixed_view_mut::<2, 1>(2 * i, 2 * j + 1)
+                .copy_from(&(d_rho * s));
+        }
+    }
+    for j in 0..4 {
+        let (_, len) = side(j);
+        var[2 * j] = 1.0;
+        var[2 * j + 1] = 12.0 / (fitted_fraction * len).powi(2);
+    }
+    let cov = jac * SMatrix::<f64, 8, 8>::from_diagonal(&var.into()) * jac.transpose();
+    let mean = cov.trace() / 8.0;
+    if mean.is_finite() && mean > 0.0 {
+        cov / mean
+    } else {
+        SMatrix::identity()
+    }
 }
 
 /// The expected sum of squared corner residuals of the planar fit (pixels²) if the corners
@@ -186,6 +237,63 @@ mod tests {
     use odocal_core::Pose2;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
+
+    /// The sides' corner covariance matches the scatter of corners intersected from sides
+    /// drawn with independent offset and angle errors (a turned, uneven quadrilateral).
+    #[test]
+    fn side_covariance_matches_monte_carlo() {
+        let corners = [
+            Point2::new(100.0, 80.0),
+            Point2::new(141.0, 86.0),
+            Point2::new(135.0, 124.0),
+            Point2::new(96.0, 119.0),
+        ];
+        let fitted = 0.76;
+        let model = corner_covariance_from_sides(&corners, fitted);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let unit = Normal::new(0.0, 1.0).unwrap();
+        let n = 40_000;
+        let mut samples = Vec::with_capacity(n);
+        for _ in 0..n {
+            // Each side moved along its normal by δρ and turned by δφ about its midpoint.
+            let lines: Vec<(Point2<f64>, nalgebra::Vector2<f64>)> = (0..4)
+                .map(|i| {
+                    let (a, b) = (corners[i], corners[(i + 1) % 4]);
+                    let len = (b - a).norm();
+                    let u = (b - a) / len;
+                    let nrm = nalgebra::Vector2::new(-u.y, u.x);
+                    let rho = unit.sample(&mut rng);
+                    let phi = unit.sample(&mut rng) * 12f64.sqrt() / (fitted * len);
+                    let mid = nalgebra::center(&a, &b) + nrm * rho;
+                    (mid, nalgebra::Rotation2::new(phi) * u)
+                })
+                .collect();
+            let mut x = nalgebra::SVector::<f64, 8>::zeros();
+            for i in 0..4 {
+                let (p, u) = lines[(i + 3) % 4];
+                let (q, v) = lines[i];
+                let cross = u.x * v.y - u.y * v.x;
+                let d = q - p;
+                let c = p + u * ((d.x * v.y - d.y * v.x) / cross);
+                x[2 * i] = c.x - corners[i].x;
+                x[2 * i + 1] = c.y - corners[i].y;
+            }
+            samples.push(x);
+        }
+        let mut cov = SMatrix::<f64, 8, 8>::zeros();
+        for x in &samples {
+            cov += x * x.transpose();
+        }
+        cov /= n as f64;
+        let cov = cov / (cov.trace() / 8.0);
+        let worst = (cov - model).abs().max();
+        assert!(
+            worst < 0.04,
+            "largest difference {worst:.3}\n{cov:.3}\n{model:.3}"
+        );
+        // Corners that share a side are correlated: not the identity.
+        assert!((model - SMatrix::<f64, 8, 8>::identity()).abs().max() > 0.2);
+    }
 
     /// The propagated σ matches the scatter of poses fitted to corners with that noise.
     #[test]

@@ -14,7 +14,7 @@ mod common;
 
 use common::*;
 use odocal_core::Pose2;
-use odocal_synth::scene::{pose_at, SceneConfig};
+use odocal_synth::scene::{pose_at, CameraEffects, SceneConfig};
 use odocal_tracker::{GapReason, Outcome, TrackOptions};
 
 /// The RMS of error/σ must show that σ is neither much too small nor much too large.
@@ -29,18 +29,19 @@ fn assert_sigma_honest(name: &str, s: &Score) {
 
 #[test]
 fn rolling_shutter_and_10ms_exposure() {
+    // The synthetic camera's own rolling shutter: every row exposed at its own time.
     let cfg = SceneConfig {
         exposure_s: 0.010,
         motion_samples: 9,
+        effects: CameraEffects {
+            rolling_shutter_s: 0.030,
+            ..CameraEffects::default()
+        },
         ..SceneConfig::default()
     };
-    let n = 30;
+    let n = 300;
     let traj = fast_trajectory(&cfg, n as f64 / 30.0 + 0.1, 31);
-    let d = Degrade {
-        readout_s: 0.030,
-        ..Degrade::none()
-    };
-    let (frames, _) = render(&cfg, &traj, 30.0, n, 31, &d);
+    let (frames, _) = render(&cfg, &traj, 30.0, n, 31, &Degrade::none());
     let at3 = apriltag_rate(&frames, 0);
     let truth_at = |_: usize, t: f64| pose_at(&traj, t).expect("truth");
     let corrected = track(
@@ -79,8 +80,9 @@ fn rolling_shutter_and_10ms_exposure() {
         u.pos_rms_mm,
         s.pos_rms_mm
     );
-    // Position σ is conservative here (error/σ RMS about 0.25): the residuals that set the
-    // corner noise include a shape misfit of the smeared, sheared tag that leaves the centre
+    // Position σ is conservative here (error/σ RMS 0.63 over these 300 frames, 0.78 on
+    // `synth track`'s drive): the tag's shear is undone with the velocity of the last two
+    // fixes, and what that leaves of it counts as corner noise, though it leaves the centre
     // where it is. σ is never too small; heading's σ is honest.
     assert!(
         s.nees_rms_xy <= 1.4,
