@@ -432,3 +432,104 @@ fn malformed_inputs_are_one_line_errors() {
     assert!(e.contains("nope.json"), "{e}");
     assert!(!html.exists(), "a failed report must not leave a file");
 }
+
+/// `odocal track --truth frames.csv --report` carries its comparison with the truth into the
+/// report's table of tracking conditions; the figures are checked here against the truth.
+#[test]
+fn tracking_conditions_from_track_reports() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let c = d.join("c");
+    ok(&[
+        "synth",
+        "track",
+        "--out",
+        p(&c),
+        "--frames",
+        "30",
+        "--seed",
+        "4",
+        "--speed-min",
+        "0.7",
+        "--speed-max",
+        "0.7",
+        "--exposure-ms",
+        "10",
+        "--rolling-shutter-ms",
+        "30",
+    ]);
+    let (csv, rep) = (d.join("t.csv"), d.join("r.json"));
+    let out = ok(&[
+        "track",
+        p(&c.join("video.avi")),
+        "--camera",
+        p(&c.join("camera.json")),
+        "--out",
+        p(&csv),
+        "--rolling-shutter-s",
+        "0.03",
+        "--truth",
+        p(&c.join("frames.csv")),
+        "--report",
+        p(&rep),
+        "--condition",
+        "10 ms exposure, 30 ms readout",
+    ]);
+    assert!(out.contains("error/σ RMS"), "{out}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rep).expect("report")).expect("json");
+    let a = &r["against_truth"];
+    assert_eq!(a["condition"], "10 ms exposure, 30 ms readout");
+    assert_eq!(a["frames"], 30);
+    // The same figure from the files: each fix against the truth at the time its tag was read.
+    let truth = std::fs::read_to_string(c.join("frames.csv")).expect("frames.csv");
+    let est = std::fs::read_to_string(&csv).expect("trajectory");
+    let rows = |t: &str| -> Vec<Vec<f64>> {
+        t.lines()
+            .skip(1)
+            .map(|l| {
+                l.split(',')
+                    .map(|v| v.parse().unwrap_or(f64::NAN))
+                    .collect()
+            })
+            .collect()
+    };
+    let truth = rows(&truth);
+    let (mut sum, mut n) = (0.0, 0);
+    for e in rows(&est) {
+        let f = truth
+            .iter()
+            .find(|f| (f[8] - e[0]).abs() < 1e-4)
+            .expect("a truth row at the fix's time");
+        sum += (e[1] - f[12]).powi(2) + (e[2] - f[13]).powi(2);
+        n += 1;
+    }
+    let rms = (sum / n as f64).sqrt();
+    let reported = a["errors"]["position_rms_m"].as_f64().expect("number");
+    assert_eq!(n, 30);
+    assert!((rms - reported).abs() < 1e-9, "{rms} vs {reported}");
+    assert!(reported < 1e-3, "position RMS {reported} m");
+    let z = a["errors"]["error_over_sigma_theta"].as_f64().expect("σ");
+    assert!(z > 0.0 && z.is_finite());
+
+    let html = d.join("r.html");
+    let out = ok(&["report", "--track-report", p(&rep), "--out", p(&html)]);
+    assert!(out.contains("1 sections"), "{out}");
+    let text = std::fs::read_to_string(&html).expect("html");
+    assert!(text.contains("Tracking under real-camera conditions"));
+    assert!(text.contains("10 ms exposure, 30 ms readout"));
+    // A track report without the truth cannot make a row: one line says what to do.
+    let plain = d.join("plain.json");
+    ok(&[
+        "track",
+        p(&c.join("video.avi")),
+        "--camera",
+        p(&c.join("camera.json")),
+        "--out",
+        p(&csv),
+        "--report",
+        p(&plain),
+    ]);
+    let e = fails(&["report", "--track-report", p(&plain), "--out", p(&html)]);
+    assert!(e.contains("--truth"), "{e}");
+}

@@ -40,6 +40,8 @@ pub struct ReportInputs {
     pub lrf_map: Option<PathBuf>,
     /// The arena file and, optionally, the arena tracking summary.
     pub arena: Option<(PathBuf, Option<PathBuf>)>,
+    /// Track reports of `odocal track --truth … --report` (one tracking condition each).
+    pub track_reports: Vec<PathBuf>,
     /// Runs drawn in the trajectory and heading figures.
     pub runs: usize,
     /// The report's title.
@@ -212,6 +214,40 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
             "Laser positioning",
             "no laser poses given (--lrf-poses from `odocal lrf localize --out`)",
         ),
+    }
+
+    // Tracking conditions: each track report compared with its video's truth.
+    if inp.track_reports.is_empty() {
+        omit(
+            &mut report,
+            "Tracking under real-camera conditions",
+            "no track reports given (--track-report: `odocal track --truth frames.csv --report`)",
+        );
+    } else {
+        let mut rows = Vec::new();
+        for p in &inp.track_reports {
+            let r = odocal_tracker::TrackReportTruth::load(p)?;
+            let Some(a) = r.against_truth else {
+                return Err(ReportError::Mismatch(format!(
+                    "{}: this track report of {} has no comparison with the truth: run `odocal track` with --truth (the video's frames.csv or truth.csv) and --report",
+                    p.display(),
+                    r.video
+                )));
+            };
+            used.push(format!("track report {} ({})", p.display(), a.condition));
+            rows.push(crate::sections::ConditionRow {
+                condition: a.condition,
+                frames: a.frames,
+                fixes: a.errors.matched,
+                position_rms_m: a.errors.position_rms_m,
+                position_max_m: a.errors.position_max_m,
+                heading_rms_rad: a.errors.heading_rms_rad,
+                normalised_xy: a.errors.error_over_sigma_xy.unwrap_or(f64::NAN),
+                normalised_theta: a.errors.error_over_sigma_theta.unwrap_or(f64::NAN),
+                apriltag3_rate: None,
+            });
+        }
+        report.sections.push(crate::conditions_section(&rows)?);
     }
 
     if let Some((a, t)) = &inp.arena {

@@ -56,6 +56,10 @@ pub struct Args {
     /// The --arena-report of `odocal track --arena` (robots coloured by camera; with --arena).
     #[arg(long, requires = "arena")]
     pub arena_track: Option<PathBuf>,
+    /// Track reports of `odocal track --truth … --report` (each a tracking condition: the
+    /// report's table of conditions; `--condition` names them).
+    #[arg(long, num_args = 1..)]
+    pub track_report: Vec<PathBuf>,
     /// Also write every plot as its own SVG file into this folder.
     #[arg(long)]
     pub svg_dir: Option<PathBuf>,
@@ -120,6 +124,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             Some(p) => Some((p, input(&a.arena_track, &None, "")?)),
             None => None,
         },
+        track_reports: a
+            .track_report
+            .iter()
+            .map(|p| input(&Some(p.clone()), &None, ""))
+            .collect::<anyhow::Result<Vec<_>>>()?
+            .into_iter()
+            .flatten()
+            .collect(),
         runs: a.runs,
         title: a.title.clone(),
     })?;

@@ -1,12 +1,14 @@
 //! `odocal track`: the robot's floor trajectory from a ceiling-camera video.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use odocal_calib::CameraFile;
+use odocal_core::TextFormat;
+use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
-    SourceOptions, TimingReport, TrackError, TrackOptions, TrackResult,
+    AgainstTruth, SourceOptions, TimingReport, TrackError, TrackOptions, TrackResult,
 };
 
 use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
@@ -67,10 +69,16 @@ pub struct Args {
     /// Run the solvePnP (IPPE_SQUARE) cross-check on every fix and report it.
     #[arg(long)]
     pub pnp_check: bool,
-    /// A reference trajectory CSV (e.g. `synth track`'s truth.csv): print the
-    /// position and heading RMS error against it (rows matched by timestamp).
+    /// A reference trajectory CSV (e.g. `synth track`'s truth.csv), or `synth track`'s
+    /// frames.csv (the truth at each frame's own time and at its tag rows' read time): print
+    /// the errors against it and how honest the σ are (rows matched by timestamp); with
+    /// --report, the report carries them (the HTML report's table of conditions reads them).
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// With --truth: what the video went through, for the report's table of conditions
+    /// (e.g. "9 px motion blur"; default: the video's path).
+    #[arg(long, requires = "truth")]
+    pub condition: Option<String>,
     #[command(flatten)]
     pub multi: super::track_arena::MultiArgs,
 }
@@ -91,40 +99,67 @@ fn options(args: &Args) -> TrackOptions {
     }
 }
 
-/// Prints the trajectory's error against a reference trajectory (rows matched by time).
-fn print_against_truth(
+/// The truth to compare with and the frames it says are in the file (when it knows).
+fn read_truth(path: &Path) -> anyhow::Result<(Trajectory, Option<usize>)> {
+    let text = odocal_core::read_text(path)?;
+    if text.starts_with("frame,") {
+        let frames = FramesTruth::parse(&text, &path.display().to_string())?;
+        return Ok((frames.trajectory()?, Some(frames.frames_in_file())));
+    }
+    Ok((Trajectory::read_csv(path)?, None))
+}
+
+/// The trajectory against the truth; prints the figures.
+fn against_truth(
+    args: &Args,
+    result: &TrackResult,
     trajectory: &Trajectory,
-    truth: &Trajectory,
-    path: &std::path::Path,
-) -> anyhow::Result<()> {
-    let (pos, head, n) = errors_against(trajectory, truth);
-    if n == 0 {
+    (truth, frames): &(Trajectory, Option<usize>),
+    path: &Path,
+) -> anyhow::Result<AgainstTruth> {
+    let e = errors_against(trajectory, truth);
+    if e.matched == 0 {
         anyhow::bail!(
-            "{}: no row has the timestamp of a tracked frame",
+            "{}: no row has the timestamp of a tracked frame: give the truth of this video (synth track's truth.csv or frames.csv)",
             path.display()
         );
     }
+    let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
     println!(
-        "against {}: position RMS {:.3} mm, heading RMS {:.3} deg over {n} frames",
+        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over {} frames; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
         path.display(),
-        pos * 1e3,
-        head.to_degrees()
+        e.position_rms_m * 1e3,
+        e.position_max_m * 1e3,
+        e.heading_rms_rad.to_degrees(),
+        e.matched,
+        z(e.error_over_sigma_xy),
+        z(e.error_over_sigma_theta),
     );
-    Ok(())
+    Ok(AgainstTruth {
+        condition: args
+            .condition
+            .clone()
+            .unwrap_or_else(|| args.video.display().to_string()),
+        truth: path.display().to_string(),
+        frames: frames.unwrap_or(result.records.len()),
+        errors: e,
+    })
 }
 
 fn write_report(
     args: &Args,
     opts: &TrackOptions,
     result: &TrackResult,
-    path: &std::path::Path,
+    against_truth: Option<AgainstTruth>,
+    path: &Path,
 ) -> anyhow::Result<()> {
-    let report = track_report(
+    let mut report = track_report(
         &args.video.display().to_string(),
         &args.camera.display().to_string(),
         opts,
         result,
     );
+    report.against_truth = against_truth;
     write_json(path, &report)
 }
 
@@ -142,7 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     quiet_video_logs();
     let camera_file = CameraFile::load(&args.camera)?;
     let truth = match &args.truth {
-        Some(path) => Some(odocal_tracker::Trajectory::read_csv(path)?),
+        Some(path) => Some(read_truth(path)?),
         None => None,
     };
     let floor = *camera_file.require_floor(&args.camera)?;
@@ -191,7 +226,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Err(TrackError::NoFix { message, result }) => {
             // The report is what tells the user why: it is written even though nothing else is.
             if let Some(path) = &args.report {
-                write_report(&args, &opts, &result, path)?;
+                write_report(&args, &opts, &result, None, path)?;
                 commit()?;
                 anyhow::bail!("{message}; per-frame figures in {}", path.display());
             }
@@ -200,17 +235,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r => r?,
     };
     let trajectory = result.trajectory()?;
+    let compared = match (&truth, &args.truth) {
+        (Some(truth), Some(path)) => Some(against_truth(&args, &result, &trajectory, truth, path)?),
+        _ => None,
+    };
     // All outputs are built before anything is written; each is written atomically.
     write_atomic(&args.out, trajectory.to_csv().as_bytes())?;
     if let Some(tum) = &args.tum {
         write_atomic(tum, trajectory.to_tum().as_bytes())?;
     }
     if let Some(path) = &args.report {
-        write_report(&args, &opts, &result, path)?;
+        write_report(&args, &opts, &result, compared, path)?;
     }
     eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
-    if let (Some(truth), Some(path)) = (&truth, &args.truth) {
-        print_against_truth(&trajectory, truth, path)?;
-    }
     Ok(())
 }

@@ -23,7 +23,8 @@ pub use error::TrackError;
 pub use odocal_core::{PoseSigma, Trajectory, TrajectoryRow};
 pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
 pub use report::{
-    errors_against, quiet_video_logs, track_report, track_video, TrackReport, TRACK_REPORT_FORMAT,
+    errors_against, quiet_video_logs, track_report, track_video, AgainstTruth, TrackReport,
+    TrackReportTruth, TruthErrors, TRACK_REPORT_FORMAT,
 };
 pub use source::{
     open_source, Frame, FrameSource, GrayFrame, MemorySource, SourceInfo, SourceOptions,

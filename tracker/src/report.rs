@@ -7,20 +7,86 @@ use crate::{Outcome, TrackOptions, TrackResult, Trajectory};
 /// The `format` tag of the track report.
 pub const TRACK_REPORT_FORMAT: &str = "odocal.track-report/1";
 
-/// Position RMS (m), heading RMS (rad) and matched rows of `est` against `truth`;
-/// rows are matched by timestamp (within 0.1 ms).
-pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
-    let (mut sp, mut sh, mut n) = (0.0, 0.0, 0usize);
+/// A trajectory's errors against the truth, and how honest its σ is there.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TruthErrors {
+    /// Rows of the trajectory matched with a truth row (at the fix's own time, within 0.1 ms).
+    pub matched: usize,
+    /// RMS and largest position error, metres.
+    pub position_rms_m: f64,
+    pub position_max_m: f64,
+    /// RMS heading error, radians.
+    pub heading_rms_rad: f64,
+    /// RMS of error/σ over x and y, and of the heading's (1 when σ is right; absent when the
+    /// trajectory has no σ).
+    pub error_over_sigma_xy: Option<f64>,
+    pub error_over_sigma_theta: Option<f64>,
+}
+
+/// `est`'s errors against `truth`, rows matched by timestamp (within 0.1 ms).
+pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> TruthErrors {
+    let (mut sp, mut sh, mut max, mut n) = (0.0, 0.0, 0.0f64, 0usize);
+    let (mut zxy, mut zt, mut nz) = (0.0, 0.0, 0usize);
     for r in &est.rows {
         let i = truth.rows.partition_point(|t| t.t_s < r.t_s - 1e-4);
         if let Some(t) = truth.rows.get(i).filter(|t| (t.t_s - r.t_s).abs() <= 1e-4) {
-            sp += (r.pose.position() - t.pose.position()).norm_squared();
-            sh += odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad).powi(2);
+            let d = r.pose.position() - t.pose.position();
+            let dh = odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad);
+            sp += d.norm_squared();
+            sh += dh.powi(2);
+            max = max.max(d.norm());
             n += 1;
+            if let Some(s) = r.sigma {
+                zxy += (d.x / s.x_m).powi(2) + (d.y / s.y_m).powi(2);
+                zt += (dh / s.theta_rad).powi(2);
+                nz += 1;
+            }
         }
     }
     let k = n.max(1) as f64;
-    ((sp / k).sqrt(), (sh / k).sqrt(), n)
+    let z = |sum: f64, per: usize| (nz > 0).then(|| (sum / (per * nz) as f64).sqrt());
+    TruthErrors {
+        matched: n,
+        position_rms_m: (sp / k).sqrt(),
+        position_max_m: max,
+        heading_rms_rad: (sh / k).sqrt(),
+        error_over_sigma_xy: z(zxy, 2),
+        error_over_sigma_theta: z(zt, 1),
+    }
+}
+
+/// A tracking run compared with the truth, as the track report carries it (and the HTML
+/// report's table of conditions reads it).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AgainstTruth {
+    /// What the video went through (`odocal track --condition`; the video's name by default).
+    pub condition: String,
+    /// The truth file.
+    pub truth: String,
+    /// Frames the truth says are in the file.
+    pub frames: usize,
+    /// The errors.
+    pub errors: TruthErrors,
+}
+
+/// What a track report says of the truth, read back (`odocal report --track-report`).
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct TrackReportTruth {
+    /// The tracked video.
+    pub video: String,
+    /// The comparison with the truth, when `odocal track` had `--truth`.
+    pub against_truth: Option<AgainstTruth>,
+}
+
+impl TrackReportTruth {
+    /// Reads a track report (`"format": "odocal.track-report/1"`).
+    pub fn load(path: &std::path::Path) -> Result<Self, odocal_core::FileError> {
+        odocal_core::read_tagged_json(
+            path,
+            TRACK_REPORT_FORMAT,
+            "expected the --report file of `odocal track`",
+        )
+    }
 }
 
 /// One frame in the track report: its fix (reprojection RMS, decision margin, whether the
@@ -89,6 +155,9 @@ pub struct TrackReport {
     /// Frames without a fix by reason, with the median figures of the rejected detections.
     rejections: std::collections::BTreeMap<&'static str, RejectionReport>,
     gaps: Vec<GapReport>,
+    /// The trajectory against the truth (`odocal track --truth`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub against_truth: Option<AgainstTruth>,
     per_frame: Vec<FrameReport>,
 }
 
@@ -134,6 +203,7 @@ pub fn track_report(
                 reasons: g.reasons,
             })
             .collect(),
+        against_truth: None,
         per_frame: r
             .records
             .iter()

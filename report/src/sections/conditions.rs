@@ -30,6 +30,15 @@ pub struct ConditionRow {
     pub apriltag3_rate: Option<f64>,
 }
 
+/// error/σ with two decimals; "–" when the fixes had no σ.
+fn normalised(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.2}")
+    } else {
+        "–".into()
+    }
+}
+
 /// A table of the conditions, one row each.
 pub fn conditions_section(rows: &[ConditionRow]) -> Result<Section, ReportError> {
     if rows.is_empty() {
@@ -71,8 +80,8 @@ pub fn conditions_section(rows: &[ConditionRow]) -> Result<Section, ReportError>
                     format!("{:.2}", r.position_rms_m * 1e3),
                     format!("{:.2}", r.position_max_m * 1e3),
                     format!("{:.3}", r.heading_rms_rad.to_degrees()),
-                    format!("{:.2}", r.normalised_xy),
-                    format!("{:.2}", r.normalised_theta),
+                    normalised(r.normalised_xy),
+                    normalised(r.normalised_theta),
                     r.apriltag3_rate
                         .map_or("–".into(), |a| format!("{:.1}", 100.0 * a)),
                 ]

@@ -99,6 +99,35 @@ pub struct FramesTruth {
     pub frames: Vec<FrameTruth>,
 }
 
+impl FramesTruth {
+    /// The true trajectory to compare a track with: every frame in the file (not dropped) at
+    /// its own time and, under a rolling shutter, also at the time its tag's rows were read,
+    /// so a fix finds its truth whichever way the tracker timed it.
+    pub fn trajectory(&self) -> Result<odocal_core::Trajectory, odocal_core::FileError> {
+        let row = |t_s: f64, pose: Pose2| odocal_core::TrajectoryRow {
+            t_s,
+            pose,
+            quality: 1.0,
+            sigma: None,
+        };
+        let mut rows = Vec::new();
+        for f in self.frames.iter().filter(|f| !f.dropped) {
+            rows.push(row(f.t_s, f.pose));
+            if (f.t_tag_row_s - f.t_s).abs() > 1e-6 {
+                rows.push(row(f.t_tag_row_s, f.pose_tag_row));
+            }
+        }
+        rows.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+        rows.dedup_by(|a, b| (a.t_s - b.t_s).abs() < 1e-9);
+        odocal_core::Trajectory::new(rows)
+    }
+
+    /// Frames in the file (not dropped).
+    pub fn frames_in_file(&self) -> usize {
+        self.frames.iter().filter(|f| !f.dropped).count()
+    }
+}
+
 impl odocal_core::TextFormat for FramesTruth {
     fn parse(text: &str, name: &str) -> Result<Self, odocal_core::FileError> {
         use odocal_core::{csv_table_with_header, numeric_row};
