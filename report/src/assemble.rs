@@ -238,7 +238,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
             rows.push(crate::sections::ConditionRow {
                 condition: a.condition,
                 frames: a.frames,
-                fixes: a.errors.matched,
+                fixes: a.fixes,
                 position_rms_m: a.errors.position_rms_m,
                 position_max_m: a.errors.position_max_m,
                 heading_rms_rad: a.errors.heading_rms_rad,

@@ -126,7 +126,7 @@ fn against_truth(
     }
     let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
     println!(
-        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over {} frames; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
+        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth row at their time; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
         path.display(),
         e.position_rms_m * 1e3,
         e.position_max_m * 1e3,
@@ -142,6 +142,7 @@ fn against_truth(
             .unwrap_or_else(|| args.video.display().to_string()),
         truth: path.display().to_string(),
         frames: frames.unwrap_or(result.records.len()),
+        fixes: result.fixes().count(),
         errors: e,
     })
 }

@@ -65,6 +65,9 @@ pub struct AgainstTruth {
     pub truth: String,
     /// Frames the truth says are in the file.
     pub frames: usize,
+    /// Frames with a fix (the errors are over those of them with a truth row at the fix's
+    /// time: `errors.matched`).
+    pub fixes: usize,
     /// The errors.
     pub errors: TruthErrors,
 }
