@@ -474,8 +474,10 @@ fn tracking_conditions_from_track_reports() {
         p(&rep),
         "--condition",
         "10 ms exposure, 30 ms readout",
+        "--apriltag3",
     ]);
     assert!(out.contains("error/σ RMS"), "{out}");
+    assert!(out.contains("AprilTag 3 alone"), "{out}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&rep).expect("report")).expect("json");
     let a = &r["against_truth"];
@@ -511,6 +513,9 @@ fn tracking_conditions_from_track_reports() {
     assert!(reported < 1e-3, "position RMS {reported} m");
     let z = a["errors"]["error_over_sigma_theta"].as_f64().expect("σ");
     assert!(z > 0.0 && z.is_finite());
+    // A sharp, well-lit tag: AprilTag 3 alone finds it in nearly every frame too.
+    let at3 = a["apriltag3_rate"].as_f64().expect("AprilTag 3's rate");
+    assert!((0.9..=1.0).contains(&at3), "{at3}");
 
     let html = d.join("r.html");
     let out = ok(&["report", "--track-report", p(&rep), "--out", p(&html)]);

@@ -244,7 +244,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 heading_rms_rad: a.errors.heading_rms_rad,
                 normalised_xy: a.errors.error_over_sigma_xy.unwrap_or(f64::NAN),
                 normalised_theta: a.errors.error_over_sigma_theta.unwrap_or(f64::NAN),
-                apriltag3_rate: None,
+                apriltag3_rate: a.apriltag3_rate,
             });
         }
         report.sections.push(crate::conditions_section(&rows)?);

@@ -8,7 +8,7 @@ use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
-    AgainstTruth, SourceOptions, TimingReport, TrackError, TrackOptions, TrackResult,
+    AgainstTruth, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions, TrackResult,
 };
 
 use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
@@ -79,6 +79,10 @@ pub struct Args {
     /// (e.g. "9 px motion blur"; default: the video's path).
     #[arg(long, requires = "truth")]
     pub condition: Option<String>,
+    /// With --truth: also run AprilTag 3 alone (its C library, decimation 2, its defaults) on
+    /// every frame and report in how many it finds the tag, beside odocal's own rate.
+    #[arg(long, requires = "truth")]
+    pub apriltag3: bool,
     #[command(flatten)]
     pub multi: super::track_arena::MultiArgs,
 }
@@ -143,6 +147,7 @@ fn against_truth(
         truth: path.display().to_string(),
         frames: frames.unwrap_or(result.records.len()),
         fixes: result.fixes().count(),
+        apriltag3_rate: None,
         errors: e,
     })
 }
@@ -198,6 +203,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let bar = progress(source.info().frame_count.unwrap_or(0) as u64, "tracking");
+    let mut reference = match args.apriltag3 {
+        true => Some(TagDetector::reference(&args.family)?),
+        false => None,
+    };
+    let (mut at3_frames, mut at3_hits) = (0usize, 0usize);
     let result = track_source(
         source,
         &camera_file.camera,
@@ -205,6 +215,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &opts,
         &mut |frame, rec| {
             bar.inc(1);
+            if let Some(det) = reference.as_mut() {
+                at3_frames += 1;
+                if det
+                    .detect_raw(&frame.image)?
+                    .iter()
+                    .any(|d| d.id == args.tag_id)
+                {
+                    at3_hits += 1;
+                }
+            }
             match &overlay_dir {
                 Some(dir) => overlay::write_overlay(dir, frame, rec),
                 None => Ok(()),
@@ -237,7 +257,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let trajectory = result.trajectory()?;
     let compared = match (&truth, &args.truth) {
-        (Some(truth), Some(path)) => Some(against_truth(&args, &result, &trajectory, truth, path)?),
+        (Some(truth), Some(path)) => {
+            let mut a = against_truth(&args, &result, &trajectory, truth, path)?;
+            if args.apriltag3 && at3_frames > 0 {
+                let rate = at3_hits as f64 / at3_frames as f64;
+                println!(
+                    "AprilTag 3 alone (decimation 2, its defaults) finds tag {} in {at3_hits} of {at3_frames} frames ({:.1} %); odocal tracks {} ({:.1} %)",
+                    args.tag_id,
+                    100.0 * rate,
+                    a.fixes,
+                    100.0 * a.fixes as f64 / at3_frames as f64
+                );
+                a.apriltag3_rate = Some(rate);
+            }
+            Some(a)
+        }
         _ => None,
     };
     // All outputs are built before anything is written; each is written atomically.

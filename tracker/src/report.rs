@@ -68,6 +68,10 @@ pub struct AgainstTruth {
     /// Frames with a fix (the errors are over those of them with a truth row at the fix's
     /// time: `errors.matched`).
     pub fixes: usize,
+    /// Fraction of the frames in which AprilTag 3 alone (its C library, decimation 2, its
+    /// defaults) finds the tag (`odocal track --apriltag3`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub apriltag3_rate: Option<f64>,
     /// The errors.
     pub errors: TruthErrors,
 }
