@@ -113,7 +113,7 @@ fn read_truth(path: &Path) -> anyhow::Result<(Trajectory, Option<usize>)> {
     Ok((Trajectory::read_csv(path)?, None))
 }
 
-/// The trajectory against the truth; prints the figures.
+/// The trajectory against the truth.
 fn against_truth(
     args: &Args,
     result: &TrackResult,
@@ -128,17 +128,6 @@ fn against_truth(
             path.display()
         );
     }
-    let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
-    println!(
-        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth row at their time; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
-        path.display(),
-        e.position_rms_m * 1e3,
-        e.position_max_m * 1e3,
-        e.heading_rms_rad.to_degrees(),
-        e.matched,
-        z(e.error_over_sigma_xy),
-        z(e.error_over_sigma_theta),
-    );
     Ok(AgainstTruth {
         condition: args
             .condition
@@ -150,6 +139,31 @@ fn against_truth(
         apriltag3_rate: None,
         errors: e,
     })
+}
+
+/// Prints the comparison with the truth (and AprilTag 3's rate when measured).
+fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
+    let e = &a.errors;
+    let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
+    println!(
+        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth row at their time; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
+        a.truth,
+        e.position_rms_m * 1e3,
+        e.position_max_m * 1e3,
+        e.heading_rms_rad.to_degrees(),
+        e.matched,
+        z(e.error_over_sigma_xy),
+        z(e.error_over_sigma_theta),
+    );
+    if let Some(rate) = a.apriltag3_rate {
+        println!(
+            "AprilTag 3 alone (decimation 2, its defaults) finds tag {tag_id} in {:.1} % of the {} frames; odocal tracks {} ({:.1} %)",
+            100.0 * rate,
+            a.frames,
+            a.fixes,
+            100.0 * a.fixes as f64 / a.frames.max(1) as f64
+        );
+    }
 }
 
 fn write_report(
@@ -260,15 +274,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (Some(truth), Some(path)) => {
             let mut a = against_truth(&args, &result, &trajectory, truth, path)?;
             if args.apriltag3 && at3_frames > 0 {
-                let rate = at3_hits as f64 / at3_frames as f64;
-                println!(
-                    "AprilTag 3 alone (decimation 2, its defaults) finds tag {} in {at3_hits} of {at3_frames} frames ({:.1} %); odocal tracks {} ({:.1} %)",
-                    args.tag_id,
-                    100.0 * rate,
-                    a.fixes,
-                    100.0 * a.fixes as f64 / at3_frames as f64
-                );
-                a.apriltag3_rate = Some(rate);
+                a.apriltag3_rate = Some(at3_hits as f64 / at3_frames as f64);
             }
             Some(a)
         }
@@ -280,8 +286,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_atomic(tum, trajectory.to_tum().as_bytes())?;
     }
     if let Some(path) = &args.report {
-        write_report(&args, &opts, &result, compared, path)?;
+        write_report(&args, &opts, &result, compared.clone(), path)?;
     }
     eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
+    if let Some(a) = &compared {
+        print_against_truth(a, args.tag_id);
+    }
     Ok(())
 }
