@@ -66,6 +66,11 @@ pub struct TrackOptions {
     /// Covariance of the camera's intrinsic parameters (camera.json's `covariance`, in the
     /// order of `CameraModel::parameters`): added to every fix's σ when given.
     pub intrinsics_covariance: Option<nalgebra::DMatrix<f64>>,
+    /// camera.json's floor-position uncertainty map: when given, the calibration's part of a
+    /// fix's position σ is the map's at the tag (the floor plane located with the same
+    /// intrinsics moves with them, which the intrinsics' covariance alone, carried with the
+    /// floor held fixed, leaves out and so overstates many times over).
+    pub floor_uncertainty: Option<odocal_calib::FloorUncertaintyMap>,
     /// Largest reprojection RMS accepted, pixels.
     pub max_reprojection_px: f64,
     /// Fastest plausible robot speed, m/s (faster apparent motion is a jump).
@@ -139,6 +144,7 @@ impl Default for TrackOptions {
             max_size_error: 0.15,
             rolling_shutter_s: 0.0,
             intrinsics_covariance: None,
+            floor_uncertainty: None,
             max_reprojection_px: 1.5,
             max_speed_mps: 2.0,
             max_turn_rate_rad_s: 8.0,
@@ -764,6 +770,19 @@ impl Tracker {
                 o.marker_height_m,
                 ic,
             ) {
+                let mut c = c;
+                let centre = d.centre_px();
+                if let Some(s_mm) = o.floor_uncertainty.as_ref().and_then(|m| m.at(&centre)) {
+                    // Position from the floor map (its worst direction both ways); the
+                    // heading's part stays: a turn of the tag does not move with the floor.
+                    let var = (s_mm * 1e-3).powi(2);
+                    c.fixed_view_mut::<2, 2>(0, 0)
+                        .copy_from(&(nalgebra::Matrix2::identity() * var));
+                    for k in 0..2 {
+                        c[(k, 2)] = 0.0;
+                        c[(2, k)] = 0.0;
+                    }
+                }
                 cov += c;
             }
         }
