@@ -28,7 +28,7 @@ pub fn track_camera(
         source,
         &cam.calibration.camera,
         &cam.arena_to_camera,
-        opts,
+        &opts.clone().with_calibration(&cam.calibration),
         selection,
         &mut |_| {},
     )?)

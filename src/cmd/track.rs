@@ -201,10 +201,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let floor = *camera_file.require_floor(&args.camera)?;
-    let mut opts = options(&args);
     // The calibration's uncertainty goes into every fix's σ.
-    opts.intrinsics_covariance = camera_file.covariance_matrix();
-    opts.floor_uncertainty = camera_file.floor_uncertainty.clone();
+    let opts = options(&args).with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(
         &args.video,

@@ -143,6 +143,7 @@ fn track_one_video(
         },
     )?;
     let bar = progress(source.info().frame_count.unwrap_or(0) as u64, "tracking");
+    let opts = &opts.clone().with_calibration(&camera_file);
     let results = track_source_multi(
         source,
         &camera_file.camera,

@@ -297,7 +297,7 @@ pub fn track_video(
         source,
         &camera.camera,
         &floor,
-        &TrackOptions::default(),
+        &TrackOptions::default().with_calibration(camera),
         &mut |_, _| Ok(()),
     )?;
     Ok((

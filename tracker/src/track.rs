@@ -82,6 +82,14 @@ pub struct TrackOptions {
 }
 
 impl TrackOptions {
+    /// These options with `camera`'s calibration uncertainty (camera.json's intrinsics
+    /// covariance and floor-uncertainty map) added to every fix's σ.
+    pub fn with_calibration(mut self, camera: &odocal_calib::CameraFile) -> Self {
+        self.intrinsics_covariance = camera.covariance_matrix();
+        self.floor_uncertainty = camera.floor_uncertainty.clone();
+        self
+    }
+
     /// Checks the options for physical sense (the message names the command-line option);
     /// with the camera's height above the floor, the marker must be below the camera.
     pub fn check(&self, camera_height_m: Option<f64>) -> Result<(), TrackError> {
