@@ -31,7 +31,7 @@ stage "3/8 ground truth: a 1280x720 ceiling video of the robot, tracked with the
 run synth-track "$odocal" synth track --out "$out/track" --seed 1
 run track "$odocal" track "$out/track/video.avi" --camera "$out/camera.json" \
   --out "$out/track/traj.csv" --tum "$out/track/traj.tum" --report "$out/track/report.json" \
-  --truth "$out/track/truth.csv"
+  --truth "$out/track/frames.csv" --condition "the demo's video (default scene: 4 ms exposure, global shutter)"
 
 stage "4/8 the odometry experiment: $runs straight runs at 0.2/0.5/0.7 m/s, each a 1280x720 ceiling video and a 200 ms log"
 run synth-experiment "$odocal" synth experiment --out "$out/experiment" --runs "$runs" --seed 1 \

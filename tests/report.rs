@@ -76,6 +76,22 @@ fn demo_outputs(d: &Path) {
         "3",
     ]);
 
+    // A tracked video compared with its truth: the table of tracking conditions.
+    let track = d.join("track");
+    ok(&["synth", "track", "--out", p(&track), "--frames", "12"]);
+    ok(&[
+        "track",
+        p(&track.join("video.avi")),
+        "--camera",
+        p(&track.join("camera.json")),
+        "--out",
+        p(&track.join("traj.csv")),
+        "--truth",
+        p(&track.join("frames.csv")),
+        "--report",
+        p(&track.join("report.json")),
+    ]);
+
     let lrf = d.join("lrf");
     ok(&[
         "synth",

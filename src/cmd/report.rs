@@ -57,7 +57,8 @@ pub struct Args {
     #[arg(long, requires = "arena")]
     pub arena_track: Option<PathBuf>,
     /// Track reports of `odocal track --truth … --report` (each a tracking condition: the
-    /// report's table of conditions; `--condition` names them).
+    /// report's table of conditions; `--condition` names them). Default with --demo-dir: its
+    /// track/report.json.
     #[arg(long, num_args = 1..)]
     pub track_report: Vec<PathBuf>,
     /// Also write every plot as its own SVG file into this folder.
@@ -124,14 +125,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             Some(p) => Some((p, input(&a.arena_track, &None, "")?)),
             None => None,
         },
-        track_reports: a
-            .track_report
-            .iter()
-            .map(|p| input(&Some(p.clone()), &None, ""))
-            .collect::<anyhow::Result<Vec<_>>>()?
-            .into_iter()
-            .flatten()
-            .collect(),
+        // The demo folder's own tracked video (track/report.json) when none are named.
+        track_reports: if a.track_report.is_empty() {
+            input(&None, demo, "track/report.json")?
+                .into_iter()
+                .collect()
+        } else {
+            a.track_report
+                .iter()
+                .map(|p| input(&Some(p.clone()), &None, ""))
+                .collect::<anyhow::Result<Vec<_>>>()?
+                .into_iter()
+                .flatten()
+                .collect()
+        },
         runs: a.runs,
         title: a.title.clone(),
     })?;
