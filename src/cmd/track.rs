@@ -141,6 +141,10 @@ fn against_truth(
     })
 }
 
+/// A trajectory this far from its truth (RMS, metres) is compared with the wrong file: the
+/// tracker's own errors are millimetres even under heavy blur.
+const TRUTH_MISMATCH_M: f64 = 0.05;
+
 /// Prints the comparison with the truth (and AprilTag 3's rate when measured).
 fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
     let e = &a.errors;
@@ -155,6 +159,13 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
         z(e.error_over_sigma_xy),
         z(e.error_over_sigma_theta),
     );
+    if e.position_rms_m > TRUTH_MISMATCH_M {
+        eprintln!(
+            "warning: the trajectory is {:.0} mm RMS from {}: is that the truth of this video, and camera.json this camera's?",
+            e.position_rms_m * 1e3,
+            a.truth
+        );
+    }
     if let Some(rate) = a.apriltag3_rate {
         println!(
             "AprilTag 3 alone (decimation 2, its defaults) finds tag {tag_id} in {:.1} % of the {} frames; odocal tracks {} ({:.1} %)",
