@@ -75,7 +75,7 @@ fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
     succeeded(&run);
     let said = String::from_utf8_lossy(&run.stdout);
     assert!(
-        said.contains("position RMS") && said.contains("over 45 frames"),
+        said.contains("position RMS") && said.contains("over the 45 fixes"),
         "{said}"
     );
     let est = Trajectory::read_csv(&out).unwrap();
