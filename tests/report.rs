@@ -475,13 +475,13 @@ fn tracking_conditions_from_track_reports() {
         "30",
     ]);
     let (csv, rep) = (d.join("t.csv"), d.join("r.json"));
-    let out = ok(&[
-        "track",
-        p(&c.join("video.avi")),
-        "--camera",
-        p(&c.join("camera.json")),
-        "--out",
-        p(&csv),
+    let (video, camera) = (c.join("video.avi"), c.join("camera.json"));
+    let track = |more: &[&str]| {
+        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&csv)];
+        args.extend_from_slice(more);
+        ok(&args)
+    };
+    let out = track(&[
         "--rolling-shutter-s",
         "0.03",
         "--truth",
@@ -541,16 +541,7 @@ fn tracking_conditions_from_track_reports() {
     assert!(text.contains("10 ms exposure, 30 ms readout"));
     // A track report without the truth cannot make a row: one line says what to do.
     let plain = d.join("plain.json");
-    ok(&[
-        "track",
-        p(&c.join("video.avi")),
-        "--camera",
-        p(&c.join("camera.json")),
-        "--out",
-        p(&csv),
-        "--report",
-        p(&plain),
-    ]);
+    track(&["--report", p(&plain)]);
     let e = fails(&["report", "--track-report", p(&plain), "--out", p(&html)]);
     assert!(e.contains("--truth"), "{e}");
 }
