@@ -639,8 +639,10 @@ impl Tracker {
     }
 
     /// Under a rolling shutter each corner was read at its own row's time: moves each corner
-    /// back along the track's image velocity to where it was when the tag centre's row was
-    /// read, which undoes the shear that would otherwise tilt the fitted heading.
+    /// back along the tag's image motion (its centre's velocity and its turn, from the last two
+    /// fixes) to where it was when the tag centre's row was read. That undoes the shear that
+    /// would otherwise tilt the fitted heading, and the sideways shift a turning tag shows (its
+    /// upper and lower corners swing the same way across the image).
     fn unshear(&self, d: &mut TagDetection) {
         let readout = self.opts.rolling_shutter_s;
         if readout <= 0.0 || self.history.len() < 2 {
@@ -649,20 +651,34 @@ impl Tracker {
         let (t0, p0, _) = self.history[self.history.len() - 2];
         let (t1, p1, _) = self.history[self.history.len() - 1];
         let h = self.opts.marker_height_m;
-        let (Some(a), Some(b)) = (
-            self.camera.floor_to_pixel(&self.floor, &p0.position(), h),
-            self.camera.floor_to_pixel(&self.floor, &p1.position(), h),
-        ) else {
-            return;
-        };
         if !(t1 - t0 > 1e-6 && t1 - t0 < 0.5) {
             return;
         }
-        let v = (b - a) / (t1 - t0);
+        // The tag's image motion between the last two fixes as a rigid motion: its centre's
+        // velocity and its turn in the image (a point half a tag ahead along the heading).
+        let ahead = |p: &Pose2| {
+            let r = 0.5 * self.opts.tag_size_m;
+            nalgebra::Point2::new(p.x_m + r * p.theta_rad.cos(), p.y_m + r * p.theta_rad.sin())
+        };
+        let px = |q: &nalgebra::Point2<f64>| self.camera.floor_to_pixel(&self.floor, q, h);
+        let (Some(a), Some(b), Some(a2), Some(b2)) = (
+            px(&p0.position()),
+            px(&p1.position()),
+            px(&ahead(&p0)),
+            px(&ahead(&p1)),
+        ) else {
+            return;
+        };
+        let dt = t1 - t0;
+        let v = (b - a) / dt;
+        let (da, db) = (a2 - a, b2 - b);
+        let omega = wrap_angle(db.y.atan2(db.x) - da.y.atan2(da.x)) / dt;
         let rows = self.camera.height.max(1) as f64;
-        let yc = d.centre_px().y;
+        let centre = d.centre_px();
         for c in &mut d.corners_px {
-            *c -= v * ((c.y - yc) / rows * readout);
+            let r = *c - centre;
+            let vc = v + nalgebra::Vector2::new(-r.y, r.x) * omega;
+            *c -= vc * ((c.y - centre.y) / rows * readout);
         }
     }
 
