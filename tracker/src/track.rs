@@ -1011,9 +1011,12 @@ pub fn track_source(
 ) -> Result<TrackResult, TrackError> {
     let info = source.info().clone();
     check_frame_size(&info, camera)?;
-    let mut tracker = Tracker::new(*camera, *floor, opts.clone())?;
+    // Three threads: the decoder, the tracker, and this one (the caller's `on_frame`). The
+    // tracker builds its detector while the first frames decode, and neither the tracker
+    // nor the decoder waits for `on_frame` (overlays, progress).
     let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
-    let (records, final_info) = std::thread::scope(|scope| -> Result<_, TrackError> {
+    let (done_tx, done_rx) = mpsc::sync_channel::<Result<Vec<(Frame, FrameRecord)>, TrackError>>(3);
+    let (records, seen_ids, final_info) = std::thread::scope(|scope| -> Result<_, TrackError> {
         let decoder = scope.spawn(move || {
             loop {
                 let batch = source.next_batch(16);
@@ -1024,61 +1027,53 @@ pub fn track_source(
             }
             source.info().clone()
         });
+        let path = info.path.clone();
+        let worker = scope.spawn(move || -> Option<BTreeMap<u32, usize>> {
+            let mut tracker = match Tracker::new(*camera, *floor, opts.clone()) {
+                Ok(t) => t,
+                Err(e) => {
+                    let _ = done_tx.send(Err(e));
+                    return None;
+                }
+            };
+            let mut previous: Option<Frame> = None;
+            for batch in rx {
+                let out = batch.and_then(|batch| {
+                    track_batch(&mut tracker, camera, &path, batch, &mut previous)
+                });
+                let stop = !matches!(&out, Ok(b) if !b.is_empty());
+                if done_tx.send(out).is_err() || stop {
+                    break;
+                }
+            }
+            Some(tracker.seen_ids().clone())
+        });
         let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
-        let mut previous: Option<Frame> = None;
-        for batch in rx {
-            let mut batch = batch?;
+        for batch in done_rx {
+            let batch = batch?;
             if batch.is_empty() {
                 break;
             }
-            for k in 0..batch.len() {
-                let frame = &batch[k];
-                let before = if k > 0 {
-                    batch.get(k - 1)
-                } else {
-                    previous.as_ref()
-                };
-                if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
-                    return Err(TrackError::Mismatch(format!(
-                        "frame {} of {} is {}×{}, the camera file describes {}×{} images",
-                        frame.index,
-                        info.path.display(),
-                        frame.image.width,
-                        frame.image.height,
-                        camera.width,
-                        camera.height
-                    )));
-                }
-                let unusable = match before {
-                    Some(b) if frame.t_s <= b.t_s => Some(GapReason::DuplicateTime),
-                    Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
-                    _ => None,
-                };
-                let rec = match unusable {
-                    Some(reason) => FrameRecord {
-                        index: frame.index,
-                        t_s: frame.t_s,
-                        outcome: Outcome::Gap(reason),
-                        rejected: None,
-                    },
-                    None => tracker.process(frame)?,
-                };
-                on_frame(frame, &rec)?;
+            for (frame, rec) in batch {
+                on_frame(&frame, &rec)?;
                 records.push(rec);
             }
-            previous = batch.pop();
         }
+        let seen_ids = worker
+            .join()
+            .map_err(|_| TrackError::bad_input(&info.path, "the tracker stopped on a panic"))?
+            .unwrap_or_default();
         let final_info = decoder.join().map_err(|_| {
             TrackError::bad_input(&info.path, "the frame decoder stopped on a panic")
         })?;
-        Ok((records, final_info))
+        Ok((records, seen_ids, final_info))
     })?;
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
     let result = TrackResult {
         records,
-        seen_ids: tracker.seen_ids().clone(),
+        seen_ids,
         frame_size: (info.width, info.height),
         source: final_info,
     };
@@ -1089,6 +1084,51 @@ pub fn track_source(
         });
     }
     Ok(result)
+}
+
+/// Tracks one decoded batch: each frame's record, or a gap when the frame repeats the one
+/// before it (same time or same pixels). `previous` is the last frame of the batch before.
+fn track_batch(
+    tracker: &mut Tracker,
+    camera: &CameraModel,
+    path: &std::path::Path,
+    batch: Vec<Frame>,
+    previous: &mut Option<Frame>,
+) -> Result<Vec<(Frame, FrameRecord)>, TrackError> {
+    let mut out: Vec<(Frame, FrameRecord)> = Vec::with_capacity(batch.len());
+    for frame in batch {
+        if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
+            return Err(TrackError::Mismatch(format!(
+                "frame {} of {} is {}×{}, the camera file describes {}×{} images",
+                frame.index,
+                path.display(),
+                frame.image.width,
+                frame.image.height,
+                camera.width,
+                camera.height
+            )));
+        }
+        let before = out.last().map(|(f, _)| f).or(previous.as_ref());
+        let unusable = match before {
+            Some(b) if frame.t_s <= b.t_s => Some(GapReason::DuplicateTime),
+            Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
+            _ => None,
+        };
+        let rec = match unusable {
+            Some(reason) => FrameRecord {
+                index: frame.index,
+                t_s: frame.t_s,
+                outcome: Outcome::Gap(reason),
+                rejected: None,
+            },
+            None => tracker.process(&frame)?,
+        };
+        out.push((frame, rec));
+    }
+    if let Some((last, _)) = out.last() {
+        *previous = Some(last.clone());
+    }
+    Ok(out)
 }
 
 /// The median of `v` (none when empty).
