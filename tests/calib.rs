@@ -11,8 +11,8 @@ use common::{odocal, succeeded};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardTarget, BoardToCamera, CameraFile};
 use odocal_synth::board::{
-    calibration_errors, render_view, visible_share, BoardPattern, CalibErrors, CalibScene,
-    CalibTruth,
+    calibration_errors, render_view, visible_share, vouched_floor_error, BoardPattern, CalibErrors,
+    CalibScene, CalibTruth,
 };
 use odocal_synth::raycast::RayGrid;
 
@@ -312,6 +312,30 @@ fn missing_file_and_wrong_camera_json() {
     assert!(e.contains("odocal.camera/1"), "{e}");
 }
 
+/// The floor `odocal calibrate` vouches for (its floor-uncertainty map within 2 mm at 3σ)
+/// is mapped within 2 mm against the truth, and is all the floor seen or reaches at least 35°
+/// off the nadir.
+fn assert_vouched_floor_holds(lens: &str, cam: &CameraFile, truth: &CalibTruth) {
+    let (reach, max) = vouched_floor_error(cam, truth).expect("a floor plane and its map");
+    println!(
+        "{lens}: floor vouched for out to {:.2} m ({:.0}° off the nadir{}), largest true error there {:.2} mm",
+        reach.radius_m,
+        reach.off_nadir_deg,
+        if reach.whole { ", all the floor seen" } else { "" },
+        max * 1e3
+    );
+    assert!(
+        max <= 0.002,
+        "{lens}: {:.2} mm within the vouched floor",
+        max * 1e3
+    );
+    assert!(
+        reach.whole || reach.off_nadir_deg >= 35.0,
+        "{lens}: vouched for only {:.0}° off the nadir",
+        reach.off_nadir_deg
+    );
+}
+
 /// The lens-model acceptance figures: for a 70° five-coefficient lens, a 110° rational lens
 /// and a 150° fisheye (20 views each, 1280x720, noise σ 2 grey levels), `--model auto` picks
 /// the true family and the calibration meets the bounds: focal length within 0.2 %,
@@ -375,6 +399,7 @@ fn every_lens_model_is_recovered_and_chosen() {
         );
         assert_intrinsics_within_bounds(lens, &e, cam.rms_px);
         assert!(within_45 <= 0.002, "{lens}: floor {within_45} m within 45°");
+        assert_vouched_floor_holds(lens, &cam, &truth);
         assert!(
             cam.views.len() >= 15,
             "{lens}: only {} views detected",
@@ -487,6 +512,7 @@ fn charuco_calibration_matches_truth_with_boards_partly_outside_the_image() {
         );
         assert_intrinsics_within_bounds(lens, &e, cam.rms_px);
         assert!(bounded <= 0.002, "{lens}: floor error {bounded} m");
+        assert_vouched_floor_holds(lens, &cam, &truth);
         assert!(cam.board.is_some_and(|b| b.is_charuco()));
         // The partial views count: views with fewer corners than the board's 70 were used.
         assert!(cam.views.iter().any(|v| v.corners_px.len() < 40));

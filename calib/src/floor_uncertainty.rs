@@ -24,6 +24,25 @@ use crate::{
 /// (walls, or the floor so far off that one pixel spans decimetres).
 pub const FLOOR_SEEN_MAX_OFF_NADIR_DEG: f64 = 80.0;
 
+/// The floor-mapping bound whose reach `odocal calibrate` reports, millimetres ...
+pub const FLOOR_BOUND_MM: f64 = 2.0;
+/// ... held at this many standard deviations of [`FloorUncertaintyMap`]'s σ.
+pub const FLOOR_BOUND_SIGMAS: f64 = 3.0;
+
+/// The floor around the point under the camera that a calibration maps within a given
+/// uncertainty ([`FloorUncertaintyMap::reach`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FloorReach {
+    /// Radius of the disc, metres on the floor from the point under the camera.
+    pub radius_m: f64,
+    /// The same as an angle off the nadir, degrees.
+    pub off_nadir_deg: f64,
+    /// Whether the disc holds every mapped cell (no cell exceeds the uncertainty).
+    pub whole: bool,
+    /// The largest σ over the mapped floor, millimetres.
+    pub worst_sigma_mm: f64,
+}
+
 /// Floor-position uncertainty over the image on a grid of cells.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FloorUncertaintyMap {
@@ -178,6 +197,50 @@ impl FloorUncertaintyMap {
             .get((r * self.cols + c) as usize)
             .copied()
             .flatten()
+    }
+
+    /// How far out from the point under the camera the floor is mapped with at most
+    /// `sigma_mm` of uncertainty (1σ): the disc around that point in which every mapped cell
+    /// stays within it, up to the nearest cell that does not (or, when none exceeds it, out
+    /// to the farthest mapped cell). `camera` and `floor` are the calibration's own.
+    pub fn reach(
+        &self,
+        camera: &CameraModel,
+        floor: &FloorToCamera,
+        sigma_mm: f64,
+    ) -> Option<FloorReach> {
+        let above = floor.0.inverse().translation.vector;
+        let under = Point2::new(above.x, above.y);
+        let (mut nearest_over, mut farthest) = (f64::INFINITY, 0.0f64);
+        let mut worst_mm: f64 = 0.0;
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                let Some(Some(s)) = self.sigma_mm.get((r * self.cols + c) as usize) else {
+                    continue;
+                };
+                let pix = UncertaintyMap::centre(camera, self.cell_px, c, r);
+                let Some(p) = camera.pixel_to_floor(floor, &pix, 0.0) else {
+                    continue;
+                };
+                let d = (p - under).norm();
+                farthest = farthest.max(d);
+                worst_mm = worst_mm.max(*s);
+                if *s > sigma_mm {
+                    nearest_over = nearest_over.min(d);
+                }
+            }
+        }
+        if farthest == 0.0 {
+            return None;
+        }
+        let whole = nearest_over.is_infinite();
+        let radius_m = if whole { farthest } else { nearest_over };
+        Some(FloorReach {
+            radius_m,
+            off_nadir_deg: radius_m.atan2(above.z.abs()).to_degrees(),
+            whole,
+            worst_sigma_mm: worst_mm,
+        })
     }
 
     /// The median and the largest σ over the cells that see the floor, millimetres.

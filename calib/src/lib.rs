@@ -25,7 +25,7 @@ pub use charuco::ArucoDictionary;
 pub use detect::{detect_file, BoardView, Detection};
 pub use error::CalibError;
 pub use floor::{board_pose, fit_floor};
-pub use floor_uncertainty::FloorUncertaintyMap;
+pub use floor_uncertainty::{FloorReach, FloorUncertaintyMap, FLOOR_BOUND_MM, FLOOR_BOUND_SIGMAS};
 pub use model::{
     intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics, LensModel,
 };

@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use clap::Args as ClapArgs;
 use odocal_calib::{CameraFile, LensModel};
 use odocal_synth::board::{
-    calibration_errors, lens_preset, visible_share, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
+    calibration_errors, lens_preset, visible_share, vouched_floor_error, CalibScene, CalibTruth,
+    FLOOR_RINGS_DEG,
 };
 use odocal_synth::calib_set::{self, check_scene};
 
@@ -196,6 +197,16 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             );
         }
         lo = *r;
+    }
+    if let Some((reach, max)) = vouched_floor_error(&cam, &truth) {
+        println!(
+            "  floor `calibrate` vouches for ({} mm at {}σ: out to {:.2} m from the point under the camera, {:.0}° off the nadir): largest mapping error {:.2} mm",
+            odocal_calib::FLOOR_BOUND_MM,
+            odocal_calib::FLOOR_BOUND_SIGMAS,
+            reach.radius_m,
+            reach.off_nadir_deg,
+            max * 1e3
+        );
     }
     Ok(())
 }

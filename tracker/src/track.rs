@@ -982,8 +982,6 @@ impl TrackResult {
     }
 }
 
-/// Tracks a whole source: frames are decoded on a separate thread (and in
-/// parallel within a batch where the source allows) while this thread tracks.
 /// The video's frames must be the size the camera was calibrated at.
 pub(crate) fn check_frame_size(info: &SourceInfo, camera: &CameraModel) -> Result<(), TrackError> {
     if (info.width, info.height) != (camera.width, camera.height) {
@@ -999,7 +997,9 @@ pub(crate) fn check_frame_size(info: &SourceInfo, camera: &CameraModel) -> Resul
     Ok(())
 }
 
-/// `on_frame` is called for every frame in order (progress, overlays). Fails
+/// Tracks a whole source: frames are decoded on one thread (and in parallel within a batch
+/// where the source allows) and tracked on another, while the calling thread runs
+/// `on_frame` for every frame in order (progress, overlays). Fails
 /// if the frame size differs from the camera's, or if the tag never gives a
 /// confident fix (naming the ids that were seen).
 pub fn track_source(
