@@ -43,6 +43,26 @@ pub struct FloorReach {
     pub worst_sigma_mm: f64,
 }
 
+impl FloorReach {
+    /// One line for people: how far out the floor is vouched for, at [`FLOOR_BOUND_MM`] and
+    /// [`FLOOR_BOUND_SIGMAS`] (the bound [`FloorUncertaintyMap::vouched_reach`] uses), and
+    /// what extends it.
+    pub fn sentence(&self) -> String {
+        let bound = format!("within {FLOOR_BOUND_MM} mm ({FLOOR_BOUND_SIGMAS}σ)");
+        if self.whole {
+            format!(
+                "the whole floor the image sees is mapped {bound}: out to {:.2} m from the point under the camera ({:.0}° off the nadir)",
+                self.radius_m, self.off_nadir_deg
+            )
+        } else {
+            format!(
+                "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out 1σ grows to {:.1} mm: add floor views farther out and hand-held views reaching the image's edges",
+                self.radius_m, self.off_nadir_deg, self.worst_sigma_mm
+            )
+        }
+    }
+}
+
 /// Floor-position uncertainty over the image on a grid of cells.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FloorUncertaintyMap {
@@ -241,6 +261,12 @@ impl FloorUncertaintyMap {
             whole,
             worst_sigma_mm: worst_mm,
         })
+    }
+
+    /// [`Self::reach`] at the bound odocal vouches for: [`FLOOR_BOUND_MM`] at
+    /// [`FLOOR_BOUND_SIGMAS`].
+    pub fn vouched_reach(&self, camera: &CameraModel, floor: &FloorToCamera) -> Option<FloorReach> {
+        self.reach(camera, floor, FLOOR_BOUND_MM / FLOOR_BOUND_SIGMAS)
     }
 
     /// The median and the largest σ over the cells that see the floor, millimetres.

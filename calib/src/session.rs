@@ -10,7 +10,7 @@ use crate::detect::guess_board_size;
 use crate::{
     calibrate, compare_models, detect_file, fit_floor, ArucoDictionary, BoardSpec, BoardTarget,
     BoardView, CalibError, CameraFile, Detection, FloorUncertaintyMap, LensModel, SkippedView,
-    UncertaintyMap, CAMERA_FORMAT, FLOOR_BOUND_MM, FLOOR_BOUND_SIGMAS,
+    UncertaintyMap, CAMERA_FORMAT,
 };
 
 impl BoardSpec {
@@ -562,26 +562,12 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
                 "  floor position uncertainty (1σ along the worst direction, from the intrinsics' covariance and the floor boards' corner noise): median {median:.3} mm, largest {max:.3} mm over the image where it sees the floor"
             ));
         }
-        let reach = f.floor_uncertainty.as_ref().and_then(|m| {
-            m.reach(
-                &f.camera,
-                &fl.floor_to_camera,
-                FLOOR_BOUND_MM / FLOOR_BOUND_SIGMAS,
-            )
-        });
-        if let Some(r) = reach {
-            let bound = format!("within {FLOOR_BOUND_MM} mm ({FLOOR_BOUND_SIGMAS}σ)");
-            out.push(if r.whole {
-                format!(
-                    "  the whole floor the image sees is mapped {bound}: out to {:.2} m from the point under the camera ({:.0}° off the nadir)",
-                    r.radius_m, r.off_nadir_deg
-                )
-            } else {
-                format!(
-                    "  floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out 1σ grows to {:.1} mm: add floor views farther out and hand-held views reaching the image's edges",
-                    r.radius_m, r.off_nadir_deg, r.worst_sigma_mm
-                )
-            });
+        if let Some(r) = f
+            .floor_uncertainty
+            .as_ref()
+            .and_then(|m| m.vouched_reach(&f.camera, &fl.floor_to_camera))
+        {
+            out.push(format!("  {}", r.sentence()));
         }
     } else {
         out.push(

@@ -326,24 +326,15 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
             1000.0 * f.plane_rms_m,
             f.views.len()
         ));
-        let bound_mm = odocal_calib::FLOOR_BOUND_MM;
-        let sigmas = odocal_calib::FLOOR_BOUND_SIGMAS;
         if let Some(r) = cam
             .floor_uncertainty
             .as_ref()
-            .and_then(|m| m.reach(&cam.camera, &f.floor_to_camera, bound_mm / sigmas))
+            .and_then(|m| m.vouched_reach(&cam.camera, &f.floor_to_camera))
         {
-            facts.push(if r.whole {
-                format!(
-                    "All the floor the image sees is mapped within {bound_mm} mm at {sigmas}σ (out to {:.2} m from the point under the camera, {:.0}° off the nadir).",
-                    r.radius_m, r.off_nadir_deg
-                )
-            } else {
-                format!(
-                    "The floor is mapped within {bound_mm} mm at {sigmas}σ out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out σ grows to {:.1} mm (floor views farther out and hand-held views reaching the image's edges extend it).",
-                    r.radius_m, r.off_nadir_deg, r.worst_sigma_mm
-                )
-            });
+            let text = r.sentence();
+            let mut chars = text.chars();
+            let first = chars.next().map(|c| c.to_uppercase().to_string());
+            facts.push(format!("{}{}.", first.unwrap_or_default(), chars.as_str()));
         }
     }
     if let Some(t) = truth {
