@@ -313,7 +313,7 @@ fn missing_file_and_wrong_camera_json() {
 }
 
 /// The floor `odocal calibrate` vouches for (its floor-uncertainty map within 2 mm at 3σ)
-/// is mapped within 2 mm against the truth, and is all the floor seen or reaches at least 35°
+/// is mapped within 2 mm against the truth, and is all the floor seen or reaches at least 30°
 /// off the nadir.
 fn assert_vouched_floor_holds(lens: &str, cam: &CameraFile, truth: &CalibTruth) {
     let (reach, max) = vouched_floor_error(cam, truth).expect("a floor plane and its map");
@@ -330,7 +330,7 @@ fn assert_vouched_floor_holds(lens: &str, cam: &CameraFile, truth: &CalibTruth) 
         max * 1e3
     );
     assert!(
-        reach.whole || reach.off_nadir_deg >= 35.0,
+        reach.whole || reach.off_nadir_deg >= 30.0,
         "{lens}: vouched for only {:.0}° off the nadir",
         reach.off_nadir_deg
     );
@@ -528,4 +528,56 @@ fn camera_files_without_a_board_target_are_checkerboards() {
     let board = cam.board.expect("board");
     assert_eq!(board.target, BoardTarget::Checkerboard);
     assert_eq!((board.cols, board.rows), (9, 6));
+}
+
+/// Whether camera.json's floor-uncertainty map is honest: over six calibrations of the
+/// default scene (fresh noise and hand-held views each), the floor-mapping error divided by
+/// the map's σ at the same pixel, pooled per ring off the nadir, has an RMS near 1. Each
+/// calibration's errors are one draw shared by all its pixels, hence several calibrations.
+/// Minutes of work, so run on demand:
+/// `cargo test --release --test calib floor_sigma -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn floor_sigma_is_honest_over_calibrations() {
+    use nalgebra::Point2;
+    let rings_deg = [20.0, 30.0, 45.0];
+    let mut pooled = [(0.0f64, 0usize); 3];
+    for seed in 11..17u64 {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = synth(dir.path(), seed, &[]);
+        let out = dir.path().join("camera.json");
+        succeeded(&calibrate(dir.path(), &out, "9x6", "0.05"));
+        let cam = CameraFile::load(&out).unwrap();
+        let (ef, tf) = (
+            &cam.floor.as_ref().unwrap().floor_to_camera,
+            &truth.floor_to_camera,
+        );
+        let map = cam.floor_uncertainty.as_ref().unwrap();
+        let above = tf.0.inverse().translation.vector;
+        for y in (4..truth.camera.height).step_by(16) {
+            for x in (4..truth.camera.width).step_by(16) {
+                let pix = Point2::new(x as f64, y as f64);
+                let (Some(p), Some(e), Some(s_mm)) = (
+                    truth.camera.pixel_to_floor(tf, &pix, 0.0),
+                    cam.camera.pixel_to_floor(ef, &pix, 0.0),
+                    map.at(&pix),
+                ) else {
+                    continue;
+                };
+                let off = (p - Point2::new(above.x, above.y)).norm();
+                let angle = off.atan2(above.z).to_degrees();
+                if let Some(i) = rings_deg.iter().position(|r| angle < *r) {
+                    pooled[i].0 += ((e - p).norm() * 1e3 / s_mm).powi(2);
+                    pooled[i].1 += 1;
+                }
+            }
+        }
+    }
+    let mut lo = 0.0;
+    for (r, (sum, n)) in rings_deg.iter().zip(pooled) {
+        let z = (sum / n.max(1) as f64).sqrt();
+        println!("floor {lo:.0}-{r:.0}° off the nadir: RMS of error/σ {z:.2} over six calibrations");
+        assert!(n > 0 && (0.5..=2.0).contains(&z), "{lo}-{r}°: error/σ RMS {z:.2}");
+        lo = *r;
+    }
 }

@@ -155,7 +155,7 @@ impl FloorUncertaintyMap {
             };
             let info_inv = DMatrix::from_iterator(6, 6, info_inv.iter().copied());
             let dpose_dtheta = -(&info_inv * jp.transpose() * &ji);
-            let pose_cov = info_inv * corner_sigma_px.powi(2);
+            let pose_cov = info_inv * board_corner_sigma_px(camera, &o, corner_sigma_px).powi(2);
             // d(floor point)/d(this board's pose), through the plane fit.
             let mut jb = vec![DMatrix::<f64>::zeros(2, 6); pixels.len()];
             for d in 0..6 {
@@ -274,6 +274,26 @@ impl FloorUncertaintyMap {
         let mut v: Vec<f64> = self.sigma_mm.iter().flatten().copied().collect();
         v.sort_by(f64::total_cmp);
         Some((*v.get(v.len() / 2)?, *v.last()?))
+    }
+}
+
+/// A floor board's corner noise per coordinate, pixels: the calibration's `corner_sigma_px`,
+/// unless the board's own fit residuals are larger beyond chance (their variance above the
+/// 99.9 % point of its spread over the board's degrees of freedom), which they are when,
+/// say, the board's edges run along the pixel grid and its sub-pixel corners are pulled
+/// towards it: several times the views' noise, on the board that fixes the floor's origin.
+fn board_corner_sigma_px(camera: &CameraModel, o: &Observation, corner_sigma_px: f64) -> f64 {
+    let own: Vec<f64> = residuals(camera, &o.pose.0, o)
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .collect();
+    let dof = own.len().saturating_sub(6).max(1) as f64;
+    let own_var = own.iter().map(|v| v * v).sum::<f64>() / dof;
+    let beyond_chance = 1.0 + 3.1 * (2.0 / dof).sqrt();
+    if own_var > beyond_chance * corner_sigma_px.powi(2) {
+        own_var.sqrt()
+    } else {
+        corner_sigma_px
     }
 }
 
