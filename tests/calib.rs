@@ -576,8 +576,13 @@ fn floor_sigma_is_honest_over_calibrations() {
     let mut lo = 0.0;
     for (r, (sum, n)) in rings_deg.iter().zip(pooled) {
         let z = (sum / n.max(1) as f64).sqrt();
-        println!("floor {lo:.0}-{r:.0}° off the nadir: RMS of error/σ {z:.2} over six calibrations");
-        assert!(n > 0 && (0.5..=2.0).contains(&z), "{lo}-{r}°: error/σ RMS {z:.2}");
+        println!(
+            "floor {lo:.0}-{r:.0}° off the nadir: RMS of error/σ {z:.2} over six calibrations"
+        );
+        assert!(
+            n > 0 && (0.5..=2.0).contains(&z),
+            "{lo}-{r}°: error/σ RMS {z:.2}"
+        );
         lo = *r;
     }
 }
