@@ -29,14 +29,39 @@ pub struct Args {
     pub allow_extrapolation: bool,
 }
 
+/// The robot (`--robot`, else the model's) and the log to correct.
+fn robot_and_log(
+    args: &Args,
+    model_robot: RobotParams,
+) -> anyhow::Result<(RobotParams, OdometryLog)> {
+    let robot = match &args.robot {
+        Some(p) => RobotParams::read(p)?,
+        None => model_robot,
+    };
+    Ok((robot, OdometryLog::read_csv(&args.log)?))
+}
+
+/// Warns of each way the log lies outside the training domain (a flagged guess, not an error
+/// with `--allow-extrapolation`).
+fn warn_outside_domain(outside_domain: &[String]) {
+    for why in outside_domain {
+        eprintln!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
+    }
+}
+
+/// Writes the corrected track to `--out`, when given.
+fn write_track(args: &Args, csv: String) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        write_atomic(out, csv.as_bytes())?;
+        println!("wrote {}", out.display());
+    }
+    Ok(())
+}
+
 /// Corrects a log of any path with a path model: the whole corrected trajectory.
 fn correct_path(args: &Args) -> anyhow::Result<()> {
     let model = PathModelFile::read(&args.model)?;
-    let robot = match &args.robot {
-        Some(p) => RobotParams::read(p)?,
-        None => model.robot,
-    };
-    let log = OdometryLog::read_csv(&args.log)?;
+    let (robot, log) = robot_and_log(args, model.robot)?;
     let run = model
         .correct_log(
             &log,
@@ -45,9 +70,7 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
             args.allow_extrapolation,
         )
         .with_context(|| format!("{}", args.model.display()))?;
-    for why in &run.outside_domain {
-        eprintln!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
-    }
+    warn_outside_domain(&run.outside_domain);
     let (raw, corrected) = run.ends();
     println!(
         "raw odometry end: x {:.4} m, y {:.4} m, heading {:.2} deg; corrected end: x {:.4} m, y {:.4} m, heading {:.2} deg (start frame; correction {:.2} cm over {:.3} m of wheel travel)",
@@ -60,11 +83,7 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
         100.0 * (corrected.x_m - raw.x_m).hypot(corrected.y_m - raw.y_m),
         run.path_length_m
     );
-    if let Some(out) = &args.out {
-        write_atomic(out, run.to_csv().as_bytes())?;
-        println!("wrote {}", out.display());
-    }
-    Ok(())
+    write_track(args, run.to_csv())
 }
 
 /// Runs the subcommand.
@@ -80,11 +99,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return correct_path(&args);
     }
     let model = ModelFile::read(&args.model)?;
-    let robot = match &args.robot {
-        Some(p) => RobotParams::read(p)?,
-        None => model.robot,
-    };
-    let log = OdometryLog::read_csv(&args.log)?;
+    let (robot, log) = robot_and_log(&args, model.robot)?;
     let run = model
         .correct_log(
             &log,
@@ -94,9 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
         .with_context(|| format!("{}", args.model.display()))?;
     let (raw, corrected) = (run.raw_end_m, run.corrected_end_m);
-    for why in &run.outside_domain {
-        eprintln!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
-    }
+    warn_outside_domain(&run.outside_domain);
     println!(
         "raw odometry end: x {:.4} m, y {:.4} m; corrected end: x {:.4} m, y {:.4} m (start frame; correction {:.2} cm over {:.3} m of odometry)",
         raw[0],
@@ -106,9 +119,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         100.0 * (corrected[0] - raw[0]).hypot(corrected[1] - raw[1]),
         run.path_length_m
     );
-    if let Some(out) = &args.out {
-        write_atomic(out, run.to_csv().as_bytes())?;
-        println!("wrote {}", out.display());
-    }
-    Ok(())
+    write_track(&args, run.to_csv())
 }
