@@ -69,7 +69,12 @@ fn main() {
     let floor_views: Vec<BoardView> = floor.iter().filter_map(detect).collect();
     let t = Instant::now();
     if let Some(c) = &cal {
-        let _ = fit_floor(&c.camera, &floor_views, &scene.board);
+        let _ = fit_floor(
+            &c.camera,
+            &floor_views,
+            &scene.board,
+            c.rms_px / std::f64::consts::SQRT_2,
+        );
     }
     let floor_s = t.elapsed().as_secs_f64();
     let n = hand.len() as f64;

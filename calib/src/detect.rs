@@ -121,7 +121,17 @@ pub fn find_corners(gray: &Mat, board: &BoardSpec) -> Result<Option<Vec<Point2<f
     let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH
         | calib3d::CALIB_CB_NORMALIZE_IMAGE
         | calib3d::CALIB_CB_FAST_CHECK;
-    if !calib3d::find_chessboard_corners(gray, pattern, &mut corners, flags)? {
+    // The classic detector needs straight rows of squares; a board far out in a wide lens's
+    // image is bent too much for it, so fall back to OpenCV's sector-based detector, which
+    // follows curved rows. Both are refined the same way below.
+    if !calib3d::find_chessboard_corners(gray, pattern, &mut corners, flags)?
+        && !calib3d::find_chessboard_corners_sb(
+            gray,
+            pattern,
+            &mut corners,
+            calib3d::CALIB_CB_NORMALIZE_IMAGE | calib3d::CALIB_CB_EXHAUSTIVE,
+        )?
+    {
         return Ok(None);
     }
     // The refinement window must stay inside one square: half the smallest

@@ -1,14 +1,21 @@
-//! The floor plane: boards lying flat on the floor, each located by solvePnP,
-//! one plane fitted through all their corners. The first floor view fixes the
-//! floor frame's origin (its first inner corner; for a ChArUco board corner 0, whether or
-//! not it is in view) and x axis (along its rows); z points up, towards the camera.
+//! The floor plane: boards lying flat on the floor, located together on one plane. Each board
+//! is first located by solvePnP and a plane fitted through all their corners; that start is
+//! then refined by least squares on the corners' reprojection, with every board held on the
+//! one plane (the floor's pose, and each board's place and turn on it). Located one by one, a
+//! small board's depth and tilt are loose, and those errors tilt the plane; held on the plane,
+//! the boards' spread over the floor fixes its tilt, which decides the mapping far from the
+//! point under the camera. The first floor view fixes the floor frame's origin (its first
+//! inner corner; for a ChArUco board corner 0, whether or not it is in view) and x axis (along
+//! its rows); z points up, towards the camera.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use opencv::calib3d;
 
 use crate::opencv_glue::solve_pnp;
+use crate::uncertainty::residuals;
 use crate::{
     BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorPlane, FloorToCamera,
+    Observation,
 };
 
 /// Locates one board in the camera frame with a calibrated camera, from the view's corners
@@ -42,22 +49,195 @@ pub fn board_pose(
     }
 }
 
-/// Fits the floor plane through the boards of all floor views.
+/// Fits the floor plane through the boards of all floor views, each board's corners weighted
+/// by their noise ([`board_corner_sigma_px`], from `corner_sigma_px`, the calibration's corner
+/// noise per coordinate).
 pub fn fit_floor(
     camera: &CameraModel,
     views: &[BoardView],
     board: &BoardSpec,
+    corner_sigma_px: f64,
 ) -> Result<FloorPlane, CalibError> {
     if views.is_empty() {
         return Err(CalibError::Input(
             "no floor view: lay the board flat on the floor and photograph it".into(),
         ));
     }
-    let poses = views
+    let boards = FloorBoards::locate(camera, views, board, corner_sigma_px)?;
+    let floor = boards.fit(camera);
+    // The PnP corners' scatter about the plane says how flat the floor and boards are.
+    let up = floor.0.rotation * Vector3::z();
+    let origin = floor.0.translation.vector;
+    let pnp: Vec<Vector3<f64>> = boards
+        .pnp
         .iter()
-        .map(|v| board_pose(camera, v, board))
-        .collect::<Result<Vec<_>, _>>()?;
-    plane_from_poses(&poses, views)
+        .zip(views)
+        .flat_map(|(pose, v)| v.object_points.iter().map(|p| (pose.0 * p).coords))
+        .collect();
+    let plane_rms_m = (pnp
+        .iter()
+        .map(|p| (p - origin).dot(&up).powi(2))
+        .sum::<f64>()
+        / pnp.len() as f64)
+        .sqrt();
+    Ok(FloorPlane {
+        floor_to_camera: floor,
+        plane_rms_m,
+        camera_height_m: -origin.dot(&up),
+        views: views.iter().map(|v| v.image.clone()).collect(),
+    })
+}
+
+/// The noise of one board's corners, pixels per coordinate: the calibration's
+/// (`corner_sigma_px`), or the board's own residual noise about its PnP pose when that is
+/// beyond chance (the 99.9 % point of its variance). One board can be much noisier than the
+/// calibration's views: a board whose edges run along the pixel grid has its sub-pixel
+/// corners pulled towards pixel positions.
+pub(crate) fn board_corner_sigma_px(
+    camera: &CameraModel,
+    o: &Observation,
+    corner_sigma_px: f64,
+) -> f64 {
+    let own: Vec<f64> = residuals(camera, &o.pose.0, o)
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .collect();
+    let dof = own.len().saturating_sub(6).max(1) as f64;
+    let own_var = own.iter().map(|v| v * v).sum::<f64>() / dof;
+    let beyond_chance = 1.0 + 3.1 * (2.0 / dof).sqrt();
+    if own_var > beyond_chance * corner_sigma_px.powi(2) {
+        own_var.sqrt()
+    } else {
+        corner_sigma_px
+    }
+}
+
+/// Floor boards held on one plane: the unknowns are the floor's pose (a small turn and shift
+/// of the starting plane, in its own frame: 6 numbers) and each board's place and turn on the
+/// floor (x, y in metres, turn in radians: 3 numbers per board after the first, whose place
+/// fixes the floor frame).
+pub(crate) struct FloorBoards<'a> {
+    views: &'a [BoardView],
+    /// Each board located on its own (solvePnP).
+    pub pnp: Vec<BoardToCamera>,
+    /// Each board's weight: one over its corners' noise, 1/pixels.
+    weight: Vec<f64>,
+    /// The floor plane through the PnP boards, where the refinement starts.
+    start: Isometry3<f64>,
+    /// Each board's rotation into the floor frame at zero turn (its z into the floor).
+    base: Vec<UnitQuaternion<f64>>,
+    /// The starting parameters.
+    pub p0: Vec<f64>,
+}
+
+impl<'a> FloorBoards<'a> {
+    /// Locates each board by solvePnP and starts the floor at the plane through them all.
+    pub fn locate(
+        camera: &CameraModel,
+        views: &'a [BoardView],
+        board: &BoardSpec,
+        corner_sigma_px: f64,
+    ) -> Result<Self, CalibError> {
+        let pnp = views
+            .iter()
+            .map(|v| board_pose(camera, v, board))
+            .collect::<Result<Vec<_>, _>>()?;
+        let start = plane_from_poses(&pnp, views)?.floor_to_camera.0;
+        let weight = pnp
+            .iter()
+            .zip(views)
+            .map(|(pose, v)| {
+                let o = Observation {
+                    pose: *pose,
+                    object: &v.object_points,
+                    image: &v.corners,
+                };
+                1.0 / board_corner_sigma_px(camera, &o, corner_sigma_px).max(1e-6)
+            })
+            .collect();
+        let mut base = Vec::with_capacity(pnp.len());
+        let mut p0 = vec![0.0; 6];
+        for (k, pose) in pnp.iter().enumerate() {
+            let on_floor = start.inverse() * pose.0;
+            let z = on_floor.rotation * Vector3::z();
+            let b = if z.z < 0.0 {
+                UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+            } else {
+                UnitQuaternion::identity()
+            };
+            base.push(b);
+            if k > 0 {
+                let x = on_floor.rotation * Vector3::x();
+                let t = on_floor.translation.vector;
+                p0.extend([t.x, t.y, x.y.atan2(x.x)]);
+            }
+        }
+        Ok(Self {
+            views,
+            pnp,
+            weight,
+            start,
+            base,
+            p0,
+        })
+    }
+
+    /// The floor pose of parameters `p`.
+    pub fn floor(&self, p: &[f64]) -> FloorToCamera {
+        let turn = UnitQuaternion::from_scaled_axis(Vector3::new(p[0], p[1], p[2]));
+        FloorToCamera(self.start * Isometry3::from_parts(Translation3::new(p[3], p[4], p[5]), turn))
+    }
+
+    /// Board `k`'s pose in the floor frame for parameters `p`.
+    fn board_to_floor(&self, p: &[f64], k: usize) -> Isometry3<f64> {
+        if k == 0 {
+            return Isometry3::from_parts(Translation3::identity(), self.base[0]);
+        }
+        let q = &p[6 + 3 * (k - 1)..6 + 3 * k];
+        Isometry3::from_parts(
+            Translation3::new(q[0], q[1], 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q[2]) * self.base[k],
+        )
+    }
+
+    /// Every corner's reprojection error over its noise (x, y in turn), with camera `camera`
+    /// and parameters `p`; NaN where a corner falls behind the camera.
+    pub fn weighted_residuals(&self, camera: &CameraModel, p: &[f64]) -> Vec<f64> {
+        let floor = self.floor(p).0;
+        let mut r = Vec::new();
+        for (k, v) in self.views.iter().enumerate() {
+            let pose = floor * self.board_to_floor(p, k);
+            let o = Observation {
+                pose: BoardToCamera(pose),
+                object: &v.object_points,
+                image: &v.corners,
+            };
+            r.extend(
+                residuals(camera, &pose, &o)
+                    .iter()
+                    .map(|e| e * self.weight[k]),
+            );
+        }
+        r
+    }
+
+    /// The floor that best reprojects every board's corners, held on one plane; the PnP
+    /// start if the refinement fails.
+    pub fn fit(&self, camera: &CameraModel) -> FloorToCamera {
+        self.floor(&self.fit_parameters(camera))
+    }
+
+    /// The parameters of [`FloorBoards::fit`].
+    pub fn fit_parameters(&self, camera: &CameraModel) -> Vec<f64> {
+        let f = |p: &[f64]| self.weighted_residuals(camera, p);
+        let (p, report) = odocal_core::lsq::minimize(&f, self.p0.clone(), 200);
+        let cost = |p: &[f64]| f(p).iter().map(|v| v * v).sum::<f64>();
+        if report.termination.was_successful() && cost(&p) <= cost(&self.p0) {
+            p
+        } else {
+            self.p0.clone()
+        }
+    }
 }
 
 /// The floor plane through boards lying on the floor, located at `poses` (one per view):

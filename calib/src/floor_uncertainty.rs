@@ -10,15 +10,12 @@
 //! each board pose's covariance through the same plane fit. The result is
 //! one standard deviation along the worst floor direction, per cell of a grid over the image.
 
-use nalgebra::{DMatrix, Isometry3, Matrix2, Matrix6, Point2, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{DMatrix, Matrix2, Point2, Vector2};
 use serde::{Deserialize, Serialize};
 
-use crate::floor::{board_pose, plane_from_poses};
-use crate::uncertainty::{residuals, steps, view_jacobians, worst_sigma};
-use crate::{
-    BoardSpec, BoardToCamera, BoardView, CalibError, CameraModel, FloorToCamera, Observation,
-    UncertaintyMap,
-};
+use crate::floor::FloorBoards;
+use crate::uncertainty::{steps, worst_sigma};
+use crate::{BoardSpec, BoardView, CalibError, CameraModel, FloorToCamera, UncertaintyMap};
 
 /// Rays more than this far from straight down graze the floor; such cells are not mapped
 /// (walls, or the floor so far off that one pixel spans decimetres).
@@ -101,11 +98,9 @@ impl FloorUncertaintyMap {
                 p0.len()
             )));
         }
-        let poses = floor_views
-            .iter()
-            .map(|v| board_pose(camera, v, board))
-            .collect::<Result<Vec<_>, _>>()?;
-        let floor = plane_from_poses(&poses, floor_views)?.floor_to_camera;
+        let boards = FloorBoards::locate(camera, floor_views, board, corner_sigma_px)?;
+        let fitted = boards.fit_parameters(camera);
+        let floor = boards.floor(&fitted);
         let cell_px = cell_px.max(1);
         let cols = camera.width.div_ceil(cell_px);
         let rows = camera.height.div_ceil(cell_px);
@@ -118,69 +113,92 @@ impl FloorUncertaintyMap {
             .map(|p| sees_floor(camera, &floor, p))
             .collect();
         let n = p0.len();
-        // d(floor point)/d(intrinsics): the ray moves with the intrinsics directly, and the
-        // floor frame moves with the boards, which are located again with the new intrinsics;
-        // at the boards' optimum that second move is the Gauss-Newton sensitivity
-        // dpose/dθ = -(JpᵀJp)⁻¹ JpᵀJi, so nothing is refitted numerically.
-        let mut j_int = vec![DMatrix::<f64>::zeros(2, n); pixels.len()];
         let hs = steps(camera);
+        // The floor fit's residuals are weighted by each board's corner noise, so its
+        // information matrix is JpᵀJp and the floor parameters' covariance its inverse. A change
+        // of the intrinsics moves the fitted floor by the Gauss-Newton sensitivity
+        // dp/dθ = -(JpᵀJp)⁻¹ JpᵀJθ, so nothing is refitted numerically.
+        let np = fitted.len();
+        let column = |f: &dyn Fn(f64) -> Vec<f64>, h: f64| -> Vec<f64> {
+            f(h).iter()
+                .zip(f(-h))
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect()
+        };
+        let mut jp_cols = Vec::with_capacity(np);
+        for d in 0..np {
+            jp_cols.push(column(
+                &|h| {
+                    let mut q = fitted.clone();
+                    q[d] += h;
+                    boards.weighted_residuals(camera, &q)
+                },
+                1e-7,
+            ));
+        }
+        let mut jt_cols = Vec::with_capacity(n);
         for (i, h) in hs.iter().enumerate() {
-            let (mut plus, mut minus) = (p0.clone(), p0.clone());
-            plus[i] += h;
-            minus[i] -= h;
-            let (cp, cm) = (
-                camera.with_parameters(&plus),
-                camera.with_parameters(&minus),
-            );
-            for (k, pix) in pixels.iter().enumerate() {
-                if let Some(d) = difference(&cp, &floor, &cm, &floor, pix) {
-                    j_int[k][(0, i)] = d.x / (2.0 * h);
-                    j_int[k][(1, i)] = d.y / (2.0 * h);
-                }
-            }
+            jt_cols.push(column(
+                &|h| {
+                    let mut t = p0.clone();
+                    t[i] += h;
+                    boards.weighted_residuals(&camera.with_parameters(&t), &fitted)
+                },
+                *h,
+            ));
         }
+        let m = jp_cols.first().map_or(0, Vec::len);
+        let jp = DMatrix::from_fn(m, np, |r, c| jp_cols[c][r]);
+        let jt = DMatrix::from_fn(m, n, |r, c| jt_cols[c][r]);
+        if !jp.iter().chain(jt.iter()).all(|v| v.is_finite()) {
+            return Err(CalibError::Input(
+                "a floor board's corners cannot be projected: is every floor board in front of the camera?".into(),
+            ));
+        }
+        let Some(info_inv) = (jp.transpose() * &jp).try_inverse() else {
+            return Err(CalibError::Input(
+                "the floor boards do not fix the floor plane (are they all the same view?)".into(),
+            ));
+        };
+        let dp_dtheta = -(&info_inv * jp.transpose() * &jt);
+        let floor_cov = info_inv.view((0, 0), (6, 6)).into_owned();
+        let dfloor_dtheta = dp_dtheta.rows(0, 6).into_owned();
         let mut cov = vec![Matrix2::<f64>::zeros(); pixels.len()];
-        let h = 1e-6;
-        for (b, (view, pose)) in floor_views.iter().zip(&poses).enumerate() {
-            let o = Observation {
-                pose: *pose,
-                object: &view.object_points,
-                image: &view.corners,
-            };
-            let (ji, _) = view_jacobians(camera, &o);
-            let jp = pose_jacobian(camera, &o);
-            let info = jp.transpose() * &jp;
-            let Some(info_inv) = Matrix6::from_iterator(info.iter().copied()).try_inverse() else {
+        for (k, pix) in pixels.iter().enumerate() {
+            if !seen[k] {
                 continue;
-            };
-            let info_inv = DMatrix::from_iterator(6, 6, info_inv.iter().copied());
-            let dpose_dtheta = -(&info_inv * jp.transpose() * &ji);
-            let pose_cov = info_inv * board_corner_sigma_px(camera, &o, corner_sigma_px).powi(2);
-            // d(floor point)/d(this board's pose), through the plane fit.
-            let mut jb = vec![DMatrix::<f64>::zeros(2, 6); pixels.len()];
+            }
+            // d(floor point)/d(floor pose), and d(floor point)/d(intrinsics) with the floor held.
+            let mut jf = DMatrix::<f64>::zeros(2, 6);
             for d in 0..6 {
-                let plane = |sign: f64| -> Result<FloorToCamera, CalibError> {
-                    let mut moved = poses.clone();
-                    moved[b] = BoardToCamera(board_nudge(&pose.0, d, sign * h));
-                    Ok(plane_from_poses(&moved, floor_views)?.floor_to_camera)
-                };
-                let (fp, fm) = (plane(1.0)?, plane(-1.0)?);
-                for (k, pix) in pixels.iter().enumerate() {
-                    if let Some(dd) = difference(camera, &fp, camera, &fm, pix) {
-                        jb[k][(0, d)] = dd.x / (2.0 * h);
-                        jb[k][(1, d)] = dd.y / (2.0 * h);
-                    }
+                let h = 1e-7;
+                let (mut a, mut b) = (fitted.clone(), fitted.clone());
+                a[d] += h;
+                b[d] -= h;
+                if let Some(dd) =
+                    difference(camera, &boards.floor(&a), camera, &boards.floor(&b), pix)
+                {
+                    jf[(0, d)] = dd.x / (2.0 * h);
+                    jf[(1, d)] = dd.y / (2.0 * h);
                 }
             }
-            for k in 0..pixels.len() {
-                j_int[k] += &jb[k] * &dpose_dtheta;
-                let s = &jb[k] * &pose_cov * jb[k].transpose();
-                cov[k] += Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
+            let mut ji = DMatrix::<f64>::zeros(2, n);
+            for (i, h) in hs.iter().enumerate() {
+                let (mut plus, mut minus) = (p0.clone(), p0.clone());
+                plus[i] += h;
+                minus[i] -= h;
+                let (cp, cm) = (
+                    camera.with_parameters(&plus),
+                    camera.with_parameters(&minus),
+                );
+                if let Some(d) = difference(&cp, &floor, &cm, &floor, pix) {
+                    ji[(0, i)] = d.x / (2.0 * h);
+                    ji[(1, i)] = d.y / (2.0 * h);
+                }
             }
-        }
-        for (c, j) in cov.iter_mut().zip(&j_int) {
-            let s = j * covariance * j.transpose();
-            *c += Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
+            let j_int = ji + &jf * &dfloor_dtheta;
+            let s = &jf * &floor_cov * jf.transpose() + &j_int * covariance * j_int.transpose();
+            cov[k] = Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
         }
 
         let sigma_mm = cov
@@ -277,26 +295,6 @@ impl FloorUncertaintyMap {
     }
 }
 
-/// A floor board's corner noise per coordinate, pixels: the calibration's `corner_sigma_px`,
-/// unless the board's own fit residuals are larger beyond chance (their variance above the
-/// 99.9 % point of its spread over the board's degrees of freedom), which they are when,
-/// say, the board's edges run along the pixel grid and its sub-pixel corners are pulled
-/// towards it: several times the views' noise, on the board that fixes the floor's origin.
-fn board_corner_sigma_px(camera: &CameraModel, o: &Observation, corner_sigma_px: f64) -> f64 {
-    let own: Vec<f64> = residuals(camera, &o.pose.0, o)
-        .into_iter()
-        .filter(|v| v.is_finite())
-        .collect();
-    let dof = own.len().saturating_sub(6).max(1) as f64;
-    let own_var = own.iter().map(|v| v * v).sum::<f64>() / dof;
-    let beyond_chance = 1.0 + 3.1 * (2.0 / dof).sqrt();
-    if own_var > beyond_chance * corner_sigma_px.powi(2) {
-        own_var.sqrt()
-    } else {
-        corner_sigma_px
-    }
-}
-
 /// Whether the ray through `pixel` meets the floor within [`FLOOR_SEEN_MAX_OFF_NADIR_DEG`]
 /// of straight down.
 fn sees_floor(camera: &CameraModel, floor: &FloorToCamera, pixel: &Point2<f64>) -> bool {
@@ -316,36 +314,4 @@ fn difference(
     let a = cam_a.pixel_to_floor(floor_a, pixel, 0.0)?;
     let b = cam_b.pixel_to_floor(floor_b, pixel, 0.0)?;
     Some(a - b)
-}
-
-/// A board pose turned by `h` radians about camera-frame axis `k` around the board's own
-/// origin (k < 3), or moved `h` metres along axis `k - 3`. Turning about the board rather than
-/// the camera keeps rotation and translation nearly independent for a board metres away,
-/// which keeps the pose's information matrix well conditioned.
-fn board_nudge(pose: &Isometry3<f64>, k: usize, h: f64) -> Isometry3<f64> {
-    let mut p = *pose;
-    if k < 3 {
-        let mut w = Vector3::zeros();
-        w[k] = h;
-        p.rotation = UnitQuaternion::from_scaled_axis(w) * p.rotation;
-    } else {
-        p.translation.vector[k - 3] += h;
-    }
-    p
-}
-
-/// Derivatives of a view's pixel residuals with respect to its pose, as [`board_nudge`]
-/// moves it.
-fn pose_jacobian(camera: &CameraModel, o: &Observation) -> DMatrix<f64> {
-    let n = 2 * o.object.len();
-    let mut jp = DMatrix::zeros(n, 6);
-    let h = 1e-7;
-    for k in 0..6 {
-        let rp = residuals(camera, &board_nudge(&o.pose.0, k, h), o);
-        let rm = residuals(camera, &board_nudge(&o.pose.0, k, -h), o);
-        for r in 0..n {
-            jp[(r, k)] = (rp[r] - rm[r]) / (2.0 * h);
-        }
-    }
-    jp
 }

@@ -220,9 +220,9 @@ pub fn calibrate_session(
         if fviews.is_empty() {
             return Err(no_board_error(floor, board, "floor"));
         }
-        let plane = fit_floor(&cal.camera, &fviews, board)?;
         // The corners' noise per coordinate: the calibration's RMS is per corner (2-D).
         let corner_sigma_px = cal.rms_px / std::f64::consts::SQRT_2;
+        let plane = fit_floor(&cal.camera, &fviews, board, corner_sigma_px)?;
         floor_uncertainty = Some(FloorUncertaintyMap::new(
             &cal.camera,
             &cal.covariance,

@@ -377,7 +377,7 @@ fn floor_uncertainty_matches_the_spread_over_noise_draws() {
         let views = noisy_views_posed(&cam, &board, 15, sigma_px, 7, 500 + seed);
         let floor_views = noisy_floor_views(&cam, &board, &floor, sigma_px, 1000 + seed);
         let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
-        let plane = fit_floor(&cal.camera, &floor_views, &board).unwrap();
+        let plane = fit_floor(&cal.camera, &floor_views, &board, sigma_px).unwrap();
         let map = FloorUncertaintyMap::new(
             &cal.camera,
             &cal.covariance,
