@@ -597,3 +597,56 @@ fn floor_sigma_is_honest_over_calibrations() {
         lo = *r;
     }
 }
+
+/// The floor plane alone, located with the true intrinsics from the wide lenses' checkerboard
+/// floor views (the scenes of `every_lens_model_is_recovered_and_chosen`): the largest floor
+/// mapping error per ring off the nadir. The joint fit holds the boards on one plane, so
+/// the plane's tilt comes from their spread over the floor, not from each small board's own
+/// loose tilt.
+#[test]
+fn floor_plane_alone_maps_the_wide_lenses_floor() {
+    use odocal_calib::{detect_file, fit_floor, BoardSpec, Detection};
+    use odocal_synth::board::{floor_errors, FLOOR_RINGS_DEG};
+    for (lens, hfov, bound_45_60_mm) in [("rational", "110", 1.0), ("fisheye", "150", 2.5)] {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = synth(dir.path(), 3, &["--lens", lens, "--hfov", hfov]);
+        let board = BoardSpec::checkerboard(9, 6, 0.08);
+        let views: Vec<_> = images(dir.path(), "floor_")
+            .iter()
+            .filter_map(|p| {
+                match detect_file(Path::new(p), &board).expect("a readable floor view") {
+                    Detection::Found(v) => Some(v),
+                    _ => None,
+                }
+            })
+            .collect();
+        assert_eq!(
+            views.len(),
+            truth.floor_views.len(),
+            "{lens}: floor views found"
+        );
+        let plane = fit_floor(&truth.camera, &views, &board, 0.035).unwrap();
+        let height = truth.scene.camera_height_m;
+        let mut rings = [0.0f64; 5];
+        for (err, off) in floor_errors(
+            &truth.camera,
+            &plane.floor_to_camera,
+            &truth.camera,
+            &truth.floor_to_camera,
+        ) {
+            let angle = off.atan2(height).to_degrees();
+            if let Some(i) = FLOOR_RINGS_DEG.iter().position(|r| angle < *r) {
+                rings[i] = rings[i].max(err * 1e3);
+            }
+        }
+        println!(
+            "{lens} {hfov}°: floor plane alone (true intrinsics), largest mapping error per ring {FLOOR_RINGS_DEG:?}° off the nadir: {:.2?} mm",
+            rings
+        );
+        assert!(
+            rings[2] <= bound_45_60_mm,
+            "{lens}: {:.2} mm at 45-60° from the plane alone",
+            rings[2]
+        );
+    }
+}
