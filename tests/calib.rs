@@ -231,6 +231,49 @@ fn view_without_board_is_skipped_and_too_few_views_fail() {
     assert_fails(&res, "at least 3", &out2);
 }
 
+/// A floor photo given twice is one board, not two: it is skipped as a repeat, so the joint
+/// floor fit does not count it twice and halve the floor's σ.
+#[test]
+fn repeated_floor_view_is_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(
+        dir.path(),
+        5,
+        &[
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--views",
+            "6",
+            "--floor-views",
+            "2",
+        ],
+    );
+    let views = images(dir.path(), "view_");
+    let floors = images(dir.path(), "floor_");
+    let out = dir.path().join("camera.json");
+    let mut args: Vec<&str> = vec!["calibrate"];
+    args.extend(views.iter().map(|s| s.as_str()));
+    args.extend([
+        "--square",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+        "--floor",
+    ]);
+    args.extend([floors[0].as_str(), floors[1].as_str(), floors[0].as_str()]);
+    let res = odocal(&args);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("skipped floor view") && err.contains("the same view as"),
+        "{err}"
+    );
+    let cam = CameraFile::load(&out).unwrap();
+    assert_eq!(cam.floor.expect("a floor plane").views.len(), 2);
+}
+
 #[test]
 fn mixed_image_sizes_fail() {
     let dir = tempfile::tempdir().unwrap();

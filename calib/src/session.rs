@@ -207,7 +207,10 @@ pub fn calibrate_session(
         None
     } else {
         let fd = detect_all(floor, board, on_image)?;
-        let (fviews, fskipped, fsizes) = split(fd);
+        let (fviews, mut fskipped, fsizes) = split(fd);
+        // A floor photo given twice would count its board twice in the joint floor fit and
+        // halve the floor's σ with no new information.
+        let fviews = distinct_views(fviews, &mut fskipped);
         if let Some(v) = fviews.first() {
             check_board_size(v, board)?;
         }
