@@ -231,13 +231,10 @@ fn view_without_board_is_skipped_and_too_few_views_fail() {
     assert_fails(&res, "at least 3", &out2);
 }
 
-/// A floor photo given twice is one board, not two: it is skipped as a repeat, so the joint
-/// floor fit does not count it twice and halve the floor's σ.
-#[test]
-fn repeated_floor_view_is_skipped() {
-    let dir = tempfile::tempdir().unwrap();
+/// Six hand-held views and two floor views, 640x360.
+fn floor_set(dir: &Path) {
     synth(
-        dir.path(),
+        dir,
         5,
         &[
             "--width",
@@ -250,9 +247,11 @@ fn repeated_floor_view_is_skipped() {
             "2",
         ],
     );
-    let views = images(dir.path(), "view_");
-    let floors = images(dir.path(), "floor_");
-    let out = dir.path().join("camera.json");
+}
+
+/// `odocal calibrate` on the hand-held views of `dir` with `floor` as the floor views.
+fn calibrate_floor(dir: &Path, out: &Path, floor: &[&str]) -> Output {
+    let views = images(dir, "view_");
     let mut args: Vec<&str> = vec!["calibrate"];
     args.extend(views.iter().map(|s| s.as_str()));
     args.extend([
@@ -262,8 +261,23 @@ fn repeated_floor_view_is_skipped() {
         out.to_str().unwrap(),
         "--floor",
     ]);
-    args.extend([floors[0].as_str(), floors[1].as_str(), floors[0].as_str()]);
-    let res = odocal(&args);
+    args.extend(floor);
+    odocal(&args)
+}
+
+/// A floor photo given twice is one board, not two: it is skipped as a repeat, so the joint
+/// floor fit does not count it twice and halve the floor's σ.
+#[test]
+fn repeated_floor_view_is_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    floor_set(dir.path());
+    let floors = images(dir.path(), "floor_");
+    let out = dir.path().join("camera.json");
+    let res = calibrate_floor(
+        dir.path(),
+        &out,
+        &[floors[0].as_str(), floors[1].as_str(), floors[0].as_str()],
+    );
     succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(
@@ -272,6 +286,42 @@ fn repeated_floor_view_is_skipped() {
     );
     let cam = CameraFile::load(&out).unwrap();
     assert_eq!(cam.floor.expect("a floor plane").views.len(), 2);
+}
+
+/// A hand-held view passed among the floor views would tilt the floor plane with nothing
+/// said; its board is off the others' plane, so it is refused by name. Two boards that disagree are refused too.
+#[test]
+fn hand_held_view_passed_as_floor_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    floor_set(dir.path());
+    let floors = images(dir.path(), "floor_");
+    let held = images(dir.path(), "view_03");
+    let out = dir.path().join("camera.json");
+    let res = calibrate_floor(
+        dir.path(),
+        &out,
+        &[floors[0].as_str(), floors[1].as_str(), held[0].as_str()],
+    );
+    assert_fails(&res, "floor view", &out);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("view_03.png: its board does not lie on one floor with the board in")
+            && err.contains("it agrees with 0 of the other 2 floor boards"),
+        "{err}"
+    );
+    let res = calibrate_floor(dir.path(), &out, &[floors[0].as_str(), held[0].as_str()]);
+    assert_fails(&res, "their boards do not lie on one floor", &out);
+    // The floor boards alone agree.
+    let res = calibrate_floor(dir.path(), &out, &[floors[0].as_str(), floors[1].as_str()]);
+    succeeded(&res);
+    // One board has nothing to be checked against: that is said.
+    let res = calibrate_floor(dir.path(), &out, &[held[0].as_str()]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("the floor rests on one board") && err.contains("view_03.png"),
+        "{err}"
+    );
 }
 
 #[test]

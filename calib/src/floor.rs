@@ -64,6 +64,7 @@ pub fn fit_floor(
         ));
     }
     let boards = FloorBoards::locate(camera, views, board, corner_sigma_px)?;
+    check_on_one_plane(&boards.pnp, views)?;
     let floor = boards.fit(camera);
     // The PnP corners' scatter about the plane says how flat the floor and boards are.
     let up = floor.0.rotation * Vector3::z();
@@ -86,6 +87,93 @@ pub fn fit_floor(
         camera_height_m: -origin.dot(&up),
         views: views.iter().map(|v| v.image.clone()).collect(),
     })
+}
+
+/// Two floor boards this far apart across the floor, or turned this far to each other, do not
+/// lie on one floor: a real floor is flat to millimetres over a lab, and a board located
+/// through a calibrated lens is placed to about a centimetre and a degree even far off the
+/// nadir, while a board held in the hand is decimetres above the floor and tilted.
+const OFF_PLANE_M: f64 = 0.04;
+const OFF_PLANE_TILT_DEG: f64 = 6.0;
+
+/// How boards `a` and `b` (each located alone) sit against each other: `a`'s centre's height
+/// above `b`'s along their mean normal (pointing towards the camera), metres, and the angle
+/// between their faces, degrees. The mean normal cancels most of each board's own tilt error.
+fn pair_offset(a: (&BoardToCamera, &BoardView), b: (&BoardToCamera, &BoardView)) -> (f64, f64) {
+    let centre = |(pose, v): (&BoardToCamera, &BoardView)| {
+        let c = v
+            .object_points
+            .iter()
+            .map(|p| p.coords)
+            .sum::<Vector3<f64>>()
+            / v.object_points.len().max(1) as f64;
+        (pose.0 * Point3::from(c)).coords
+    };
+    let (ca, cb) = (centre(a), centre(b));
+    let towards_camera = |pose: &BoardToCamera, c: &Vector3<f64>| {
+        let n = pose.0.rotation * Vector3::z();
+        if n.dot(c) > 0.0 {
+            -n
+        } else {
+            n
+        }
+    };
+    let (na, nb) = (towards_camera(a.0, &ca), towards_camera(b.0, &cb));
+    let tilt_deg = na.dot(&nb).clamp(-1.0, 1.0).acos().to_degrees();
+    ((ca - cb).dot(&(na + nb).normalize()), tilt_deg)
+}
+
+/// Refuses floor boards that do not lie on one floor (a hand-held view passed as a floor view,
+/// or a board propped on something). Each board is compared with every other; the board that
+/// agrees with the fewest is named, against the board that agrees with the most.
+fn check_on_one_plane(pnp: &[BoardToCamera], views: &[BoardView]) -> Result<(), CalibError> {
+    let n = pnp.len();
+    let off = |a: usize, b: usize| pair_offset((&pnp[a], &views[a]), (&pnp[b], &views[b]));
+    let score = |(h, t): (f64, f64)| (h.abs() / OFF_PLANE_M).max(t / OFF_PLANE_TILT_DEG);
+    let agree = |a: usize, b: usize| score(off(a, b)) <= 1.0;
+    let count = |k: usize| (0..n).filter(|&j| j != k && agree(k, j)).count();
+    let misfit = |k: usize| {
+        (0..n)
+            .filter(|&j| j != k)
+            .map(|j| score(off(k, j)))
+            .sum::<f64>()
+    };
+    let Some(suspect) = (0..n).filter(|&k| count(k) + 1 < n).min_by(|&a, &b| {
+        count(a)
+            .cmp(&count(b))
+            .then(misfit(b).total_cmp(&misfit(a)))
+    }) else {
+        return Ok(());
+    };
+    let Some(reference) = (0..n).filter(|&j| j != suspect).max_by(|&a, &b| {
+        count(a)
+            .cmp(&count(b))
+            .then(score(off(suspect, b)).total_cmp(&score(off(suspect, a))))
+    }) else {
+        return Ok(());
+    };
+    let (height_m, tilt_deg) = off(suspect, reference);
+    let offset = format!(
+        "{:.0} mm {} the other's, tilted {tilt_deg:.1}° to it; boards on one floor are within {:.0} mm and {OFF_PLANE_TILT_DEG:.0}°",
+        height_m.abs() * 1e3,
+        if height_m > 0.0 { "above" } else { "below" },
+        OFF_PLANE_M * 1e3,
+    );
+    let advice = "if it is a hand-held view, pass it before --floor; otherwise lay the board flat on the floor and photograph it again";
+    Err(CalibError::Input(if n == 2 {
+        format!(
+            "floor views {} and {}: their boards do not lie on one floor (the first's is {offset}), so one of them is not on the floor; {advice}",
+            views[suspect].image, views[reference].image,
+        )
+    } else {
+        format!(
+            "floor view {}: its board does not lie on one floor with the board in {} (it is {offset}; it agrees with {} of the other {} floor boards); {advice}",
+            views[suspect].image,
+            views[reference].image,
+            count(suspect),
+            n - 1
+        )
+    }))
 }
 
 /// The noise of one board's corners, pixels per coordinate: the calibration's

@@ -226,6 +226,12 @@ pub fn calibrate_session(
         // The corners' noise per coordinate: the calibration's RMS is per corner (2-D).
         let corner_sigma_px = cal.rms_px / std::f64::consts::SQRT_2;
         let plane = fit_floor(&cal.camera, &fviews, board, corner_sigma_px)?;
+        if let [only] = fviews.as_slice() {
+            notes.push(format!(
+                "the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
+                only.image
+            ));
+        }
         floor_uncertainty = Some(FloorUncertaintyMap::new(
             &cal.camera,
             &cal.covariance,
