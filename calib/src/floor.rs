@@ -64,29 +64,7 @@ pub fn fit_floor(
         ));
     }
     let boards = FloorBoards::locate(camera, views, board, corner_sigma_px)?;
-    check_on_one_plane(&boards.pnp, views)?;
-    let floor = boards.fit(camera);
-    // The PnP corners' scatter about the plane says how flat the floor and boards are.
-    let up = floor.0.rotation * Vector3::z();
-    let origin = floor.0.translation.vector;
-    let pnp: Vec<Vector3<f64>> = boards
-        .pnp
-        .iter()
-        .zip(views)
-        .flat_map(|(pose, v)| v.object_points.iter().map(|p| (pose.0 * p).coords))
-        .collect();
-    let plane_rms_m = (pnp
-        .iter()
-        .map(|p| (p - origin).dot(&up).powi(2))
-        .sum::<f64>()
-        / pnp.len() as f64)
-        .sqrt();
-    Ok(FloorPlane {
-        floor_to_camera: floor,
-        plane_rms_m,
-        camera_height_m: -origin.dot(&up),
-        views: views.iter().map(|v| v.image.clone()).collect(),
-    })
+    Ok(boards.plane(&boards.fit_parameters(camera)))
 }
 
 /// Two floor boards this far apart across the floor, or turned this far to each other, do not
@@ -205,7 +183,8 @@ pub(crate) fn board_corner_sigma_px(
 /// floor (x, y in metres, turn in radians: 3 numbers per board after the first, whose place
 /// fixes the floor frame).
 pub(crate) struct FloorBoards<'a> {
-    views: &'a [BoardView],
+    /// The floor views, the first fixing the floor frame.
+    pub views: &'a [BoardView],
     /// Each board located on its own (solvePnP).
     pub pnp: Vec<BoardToCamera>,
     /// Each board's weight: one over its corners' noise, 1/pixels.
@@ -230,6 +209,7 @@ impl<'a> FloorBoards<'a> {
             .iter()
             .map(|v| board_pose(camera, v, board))
             .collect::<Result<Vec<_>, _>>()?;
+        check_on_one_plane(&pnp, views)?;
         let start = plane_from_poses(&pnp, views)?.floor_to_camera.0;
         let weight = pnp
             .iter()
@@ -309,13 +289,34 @@ impl<'a> FloorBoards<'a> {
         r
     }
 
-    /// The floor that best reprojects every board's corners, held on one plane; the PnP
-    /// start if the refinement fails.
-    pub fn fit(&self, camera: &CameraModel) -> FloorToCamera {
-        self.floor(&self.fit_parameters(camera))
+    /// The floor plane of parameters `p`, with the PnP corners' scatter about it (which says
+    /// how flat the floor and boards are).
+    pub fn plane(&self, p: &[f64]) -> FloorPlane {
+        let floor = self.floor(p);
+        let up = floor.0.rotation * Vector3::z();
+        let origin = floor.0.translation.vector;
+        let pnp: Vec<Vector3<f64>> = self
+            .pnp
+            .iter()
+            .zip(self.views)
+            .flat_map(|(pose, v)| v.object_points.iter().map(|p| (pose.0 * p).coords))
+            .collect();
+        let plane_rms_m = (pnp
+            .iter()
+            .map(|p| (p - origin).dot(&up).powi(2))
+            .sum::<f64>()
+            / pnp.len().max(1) as f64)
+            .sqrt();
+        FloorPlane {
+            floor_to_camera: floor,
+            plane_rms_m,
+            camera_height_m: -origin.dot(&up),
+            views: self.views.iter().map(|v| v.image.clone()).collect(),
+        }
     }
 
-    /// The parameters of [`FloorBoards::fit`].
+    /// The parameters of the floor that best reprojects every board's corners, held on one
+    /// plane; the PnP start if the refinement fails.
     pub fn fit_parameters(&self, camera: &CameraModel) -> Vec<f64> {
         let f = |p: &[f64]| self.weighted_residuals(camera, p);
         let (p, report) = odocal_core::lsq::minimize(&f, self.p0.clone(), 200);

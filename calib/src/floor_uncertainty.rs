@@ -88,6 +88,19 @@ impl FloorUncertaintyMap {
         corner_sigma_px: f64,
         cell_px: u32,
     ) -> Result<Self, CalibError> {
+        let boards = FloorBoards::locate(camera, floor_views, board, corner_sigma_px)?;
+        let fitted = boards.fit_parameters(camera);
+        Self::from_fit(camera, covariance, &boards, &fitted, cell_px)
+    }
+
+    /// The map for the floor `boards` fitted at parameters `fitted` (see [`Self::new`]).
+    pub(crate) fn from_fit(
+        camera: &CameraModel,
+        covariance: &DMatrix<f64>,
+        boards: &FloorBoards,
+        fitted: &[f64],
+        cell_px: u32,
+    ) -> Result<Self, CalibError> {
         let p0 = camera.parameters();
         if covariance.nrows() != p0.len() || covariance.ncols() != p0.len() {
             return Err(CalibError::Input(format!(
@@ -98,9 +111,7 @@ impl FloorUncertaintyMap {
                 p0.len()
             )));
         }
-        let boards = FloorBoards::locate(camera, floor_views, board, corner_sigma_px)?;
-        let fitted = boards.fit_parameters(camera);
-        let floor = boards.floor(&fitted);
+        let floor = boards.floor(fitted);
         let cell_px = cell_px.max(1);
         let cols = camera.width.div_ceil(cell_px);
         let rows = camera.height.div_ceil(cell_px);
@@ -129,7 +140,7 @@ impl FloorUncertaintyMap {
         for d in 0..np {
             jp_cols.push(column(
                 &|h| {
-                    let mut q = fitted.clone();
+                    let mut q = fitted.to_vec();
                     q[d] += h;
                     boards.weighted_residuals(camera, &q)
                 },
@@ -142,7 +153,7 @@ impl FloorUncertaintyMap {
                 &|h| {
                     let mut t = p0.clone();
                     t[i] += h;
-                    boards.weighted_residuals(&camera.with_parameters(&t), &fitted)
+                    boards.weighted_residuals(&camera.with_parameters(&t), fitted)
                 },
                 *h,
             ));
@@ -172,7 +183,7 @@ impl FloorUncertaintyMap {
             let mut jf = DMatrix::<f64>::zeros(2, 6);
             for d in 0..6 {
                 let h = 1e-7;
-                let (mut a, mut b) = (fitted.clone(), fitted.clone());
+                let (mut a, mut b) = (fitted.to_vec(), fitted.to_vec());
                 a[d] += h;
                 b[d] -= h;
                 if let Some(dd) =
@@ -214,7 +225,8 @@ impl FloorUncertaintyMap {
             cols,
             rows,
             sigma_mm,
-            floor_boards_px: floor_views
+            floor_boards_px: boards
+                .views
                 .iter()
                 .map(|v| v.corners.iter().map(|p| [p.x, p.y]).collect())
                 .collect(),

@@ -7,10 +7,11 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::detect::guess_board_size;
+use crate::floor::FloorBoards;
 use crate::{
-    calibrate, compare_models, detect_file, fit_floor, ArucoDictionary, BoardSpec, BoardTarget,
-    BoardView, CalibError, CameraFile, Detection, FloorUncertaintyMap, LensModel, SkippedView,
-    UncertaintyMap, CAMERA_FORMAT,
+    calibrate, compare_models, detect_file, ArucoDictionary, BoardSpec, BoardTarget, BoardView,
+    CalibError, CameraFile, Detection, FloorUncertaintyMap, LensModel, SkippedView, UncertaintyMap,
+    CAMERA_FORMAT,
 };
 
 impl BoardSpec {
@@ -225,19 +226,20 @@ pub fn calibrate_session(
         }
         // The corners' noise per coordinate: the calibration's RMS is per corner (2-D).
         let corner_sigma_px = cal.rms_px / std::f64::consts::SQRT_2;
-        let plane = fit_floor(&cal.camera, &fviews, board, corner_sigma_px)?;
+        let boards = FloorBoards::locate(&cal.camera, &fviews, board, corner_sigma_px)?;
+        let fitted = boards.fit_parameters(&cal.camera);
+        let plane = boards.plane(&fitted);
         if let [only] = fviews.as_slice() {
             notes.push(format!(
                 "the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
                 only.image
             ));
         }
-        floor_uncertainty = Some(FloorUncertaintyMap::new(
+        floor_uncertainty = Some(FloorUncertaintyMap::from_fit(
             &cal.camera,
             &cal.covariance,
-            &fviews,
-            board,
-            corner_sigma_px,
+            &boards,
+            &fitted,
             (cal.camera.width / 32).max(8),
         )?);
         Some(plane)
