@@ -251,12 +251,17 @@ fn floor_set(dir: &Path) {
 
 /// `odocal calibrate` on the hand-held views of `dir` with `floor` as the floor views.
 fn calibrate_floor(dir: &Path, out: &Path, floor: &[&str]) -> Output {
+    calibrate_floor_square(dir, out, floor, "0.05")
+}
+
+/// [`calibrate_floor`] with the board's squares `square` metres.
+fn calibrate_floor_square(dir: &Path, out: &Path, floor: &[&str], square: &str) -> Output {
     let views = images(dir, "view_");
     let mut args: Vec<&str> = vec!["calibrate"];
     args.extend(views.iter().map(|s| s.as_str()));
     args.extend([
         "--square",
-        "0.05",
+        square,
         "--out",
         out.to_str().unwrap(),
         "--floor",
@@ -289,7 +294,8 @@ fn repeated_floor_view_is_skipped() {
 }
 
 /// A hand-held view passed among the floor views would tilt the floor plane with nothing
-/// said; its board is off the others' plane, so it is refused by name. Two boards that disagree are refused too.
+/// said; its board is off the others' plane, so it is refused by name. A camera height no
+/// ceiling has (a square size ten times too large) is flagged. Two boards that disagree are refused too.
 #[test]
 fn hand_held_view_passed_as_floor_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -314,6 +320,20 @@ fn hand_held_view_passed_as_floor_is_refused() {
     // The floor boards alone agree.
     let res = calibrate_floor(dir.path(), &out, &[floors[0].as_str(), floors[1].as_str()]);
     succeeded(&res);
+    // A square ten times too large puts the camera 22 m up: that is said.
+    let res = calibrate_floor_square(
+        dir.path(),
+        &out,
+        &[floors[0].as_str(), floors[1].as_str()],
+        "0.5",
+    );
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("warning: by these floor boards the camera is 22.")
+            && err.contains("is --square 0.5 the side of one square in metres?"),
+        "{err}"
+    );
     // One board has nothing to be checked against: that is said.
     let res = calibrate_floor(dir.path(), &out, &[held[0].as_str()]);
     succeeded(&res);

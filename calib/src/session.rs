@@ -122,6 +122,10 @@ impl ModelChoice {
     }
 }
 
+/// Heights above the floor a ceiling camera over small robots can plausibly have, metres;
+/// outside them the board's square size is more likely wrong than the camera.
+const CEILING_HEIGHT_M: std::ops::RangeInclusive<f64> = 0.5..=10.0;
+
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
 /// `on_image` is called after each image's detection and after each model's cross-validation
 /// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise).
@@ -229,6 +233,15 @@ pub fn calibrate_session(
         let boards = FloorBoards::locate(&cal.camera, &fviews, board, corner_sigma_px)?;
         let fitted = boards.fit_parameters(&cal.camera);
         let plane = boards.plane(&fitted);
+        if !CEILING_HEIGHT_M.contains(&plane.camera_height_m) {
+            notes.push(format!(
+                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is --square {} the side of one square in metres? (a square 10 times too large makes every floor distance 10 times too large)",
+                plane.camera_height_m,
+                CEILING_HEIGHT_M.start(),
+                CEILING_HEIGHT_M.end(),
+                board.square_m
+            ));
+        }
         if let [only] = fviews.as_slice() {
             notes.push(format!(
                 "the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
