@@ -476,3 +476,70 @@ fn calibrated_camera_meets_accuracy() {
     assert!(n >= 30 * 995 / 1000, "tracked only {n} of 30 frames");
     assert!(pos <= 2.5e-3, "position RMS {:.3} mm > 2.5 mm", pos * 1e3);
 }
+
+/// The marker's height is the user's word; the tag's apparent size checks it. A height 80 mm
+/// off moves the fixes tens of millimetres while every corner still fits: it is flagged, with
+/// the tag's apparent height near the true 0.08 m and the sideways shift near the true error.
+/// The right height says nothing.
+#[test]
+fn a_wrong_marker_height_is_flagged_by_the_tags_apparent_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    succeeded(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        "40",
+        "--seed",
+        "2",
+    ]));
+    let track = |height: &str| {
+        let res = odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--out",
+            p(&d.join("traj.csv")),
+            "--truth",
+            p(&d.join("truth.csv")),
+            "--marker-height",
+            height,
+        ]);
+        succeeded(&res);
+        (
+            String::from_utf8_lossy(&res.stderr).into_owned(),
+            String::from_utf8_lossy(&res.stdout).into_owned(),
+        )
+    };
+    let number_after = |text: &str, key: &str| -> f64 {
+        let at = text
+            .find(key)
+            .unwrap_or_else(|| panic!("{key:?} in {text}"))
+            + key.len();
+        text[at..]
+            .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .next()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("a number after {key:?} in {text}"))
+    };
+    let (err, _) = track("0.08");
+    assert!(!err.contains("apparent size"), "{err}");
+    let (err, out) = track("0.0");
+    assert!(
+        err.contains("warning: ") && err.contains("apparent size puts it"),
+        "{err}"
+    );
+    let apparent_m = number_after(&err, "apparent size puts it ");
+    assert!((apparent_m - 0.08).abs() < 0.01, "{err}");
+    let shift_mm = number_after(&err, "moves the fixes up to ");
+    let true_max_mm = number_after(&out, "(max ");
+    println!("apparent height {apparent_m} m; shift said {shift_mm} mm, true largest error {true_max_mm} mm");
+    assert!(true_max_mm > 20.0, "{out}");
+    assert!(
+        (shift_mm - true_max_mm).abs() < 0.2 * true_max_mm,
+        "{err}\n{out}"
+    );
+}

@@ -8,7 +8,8 @@ use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
-    AgainstTruth, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions, TrackResult,
+    AgainstTruth, MarkerHeight, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions,
+    TrackResult,
 };
 
 use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
@@ -280,6 +281,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r => r?,
     };
     let trajectory = result.trajectory()?;
+    if let Some(w) = MarkerHeight::of(&result, &camera_file.camera, &floor, opts.tag_size_m)
+        .and_then(|h| h.warning(opts.marker_height_m, opts.tag_size_m))
+    {
+        eprintln!("warning: {}: {w}", args.video.display());
+    }
     let compared = match (&truth, &args.truth) {
         (Some(truth), Some(path)) => {
             let mut a = against_truth(&args, &result, &trajectory, truth, path)?;

@@ -9,6 +9,7 @@ mod deblur;
 pub mod detect;
 mod edges;
 mod error;
+pub mod marker_height;
 pub mod multi;
 pub mod overlay;
 pub mod pose;
@@ -20,6 +21,7 @@ pub mod uncertainty;
 
 pub use detect::{Roi, TagDetection, TagDetector};
 pub use error::TrackError;
+pub use marker_height::MarkerHeight;
 pub use odocal_core::{PoseSigma, Trajectory, TrajectoryRow};
 pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
 pub use report::{

@@ -6,7 +6,7 @@
 //! rigid fit. OpenCV's 6-DoF solvePnP (IPPE_SQUARE) is computed only as a
 //! cross-check of the planar assumption.
 
-use nalgebra::{Matrix3, Point2, Point3};
+use nalgebra::{Isometry3, Matrix3, Point2, Point3};
 use odocal_calib::{CameraModel, FloorToCamera};
 use odocal_core::{fit_rigid, wrap_angle, Pose2};
 use opencv::calib3d;
@@ -89,14 +89,14 @@ pub struct PnpCheck {
     pub heading_diff_rad: f64,
 }
 
-/// solvePnP (IPPE_SQUARE) on the same corners, compared with `planar`.
-pub fn pnp_cross_check(
+/// The tag's pose in the floor frame by solvePnP (IPPE_SQUARE) on its corners alone: its depth
+/// comes from `tag_size_m`, not from the marker's height.
+pub(crate) fn pnp_tag_to_floor(
     camera: &CameraModel,
     floor: &FloorToCamera,
     corners_px: &[Point2<f64>; 4],
     tag_size_m: f64,
-    planar: &PlanarPose,
-) -> Result<PnpCheck, TrackError> {
+) -> Result<Isometry3<f64>, TrackError> {
     // IPPE_SQUARE wants (-s,+s), (+s,+s), (+s,-s), (-s,-s): detector corners 3, 2, 1, 0.
     let h = tag_size_m / 2.0;
     let object = [
@@ -109,11 +109,20 @@ pub fn pnp_cross_check(
     let tag_to_camera =
         odocal_calib::solve_pnp(camera, &object, &image, calib3d::SOLVEPNP_IPPE_SQUARE)?
             .ok_or_else(|| TrackError::Options("solvePnP failed".into()))?;
-    let t = tag_to_camera.translation.vector;
-    let r_tc = tag_to_camera.rotation.to_rotation_matrix();
-    let cam_to_floor = floor.0.inverse();
-    let centre = cam_to_floor * Point3::from(t);
-    let r_tf: Matrix3<f64> = cam_to_floor.rotation.to_rotation_matrix().matrix() * r_tc.matrix();
+    Ok(floor.0.inverse() * tag_to_camera)
+}
+
+/// solvePnP (IPPE_SQUARE) on the same corners, compared with `planar`.
+pub fn pnp_cross_check(
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    corners_px: &[Point2<f64>; 4],
+    tag_size_m: f64,
+    planar: &PlanarPose,
+) -> Result<PnpCheck, TrackError> {
+    let tag_to_floor = pnp_tag_to_floor(camera, floor, corners_px, tag_size_m)?;
+    let centre = Point3::from(tag_to_floor.translation.vector);
+    let r_tf: Matrix3<f64> = *tag_to_floor.rotation.to_rotation_matrix().matrix();
     let x_axis = r_tf.column(0);
     let normal = r_tf.column(2);
     let heading = x_axis.y.atan2(x_axis.x);

@@ -278,7 +278,8 @@ fn rejections(r: &TrackResult) -> std::collections::BTreeMap<&'static str, Rejec
 /// Tracks the robot's tag through the video (or image folder) at `video` with the camera of
 /// `camera` and the tracker's defaults (tag36h11 id 0, 8 cm, 8 cm above the floor), as
 /// `odocal dataset` does for a manifest row with a video. Also returns the warnings about
-/// the video's timeline (dropped or repeated frames, a file cut short).
+/// the video's timeline (dropped or repeated frames, a file cut short) and about a marker
+/// whose apparent height is not the default's.
 pub fn track_video(
     video: &std::path::Path,
     camera: &odocal_calib::CameraFile,
@@ -293,17 +294,14 @@ pub fn track_video(
             )
         })?;
     let source = crate::open_source(video, &crate::SourceOptions::default())?;
-    let result = crate::track_source(
-        source,
-        &camera.camera,
-        &floor,
-        &TrackOptions::default().with_calibration(camera),
-        &mut |_, _| Ok(()),
-    )?;
-    Ok((
-        result.trajectory()?,
-        crate::TimingReport::of(&result).warnings(),
-    ))
+    let options = TrackOptions::default().with_calibration(camera);
+    let result = crate::track_source(source, &camera.camera, &floor, &options, &mut |_, _| Ok(()))?;
+    let mut warnings = crate::TimingReport::of(&result).warnings();
+    warnings.extend(
+        crate::MarkerHeight::of(&result, &camera.camera, &floor, options.tag_size_m)
+            .and_then(|h| h.warning(options.marker_height_m, options.tag_size_m)),
+    );
+    Ok((result.trajectory()?, warnings))
 }
 
 /// Silences FFmpeg's and OpenCV's own complaints about bad files (unless the user set their
