@@ -32,6 +32,29 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
     Ok((scans, step.map(|s| s.0)))
 }
 
+/// Refuses scans whose returns mostly lie beyond twice the scanner's `max_range_m`: their
+/// ranges are in another unit (millimetres or centimetres), and every return would be
+/// dropped as out of range, leaving every scan lost with nothing said.
+pub fn check_range_unit(scans: &[Scan], max_range_m: f64) -> Result<(), LrfError> {
+    let mut ranges: Vec<f64> = scans
+        .iter()
+        .flat_map(|s| s.ranges_m.iter().copied())
+        .filter(|r| *r > 0.0 && r.is_finite())
+        .collect();
+    if ranges.is_empty() {
+        return Ok(());
+    }
+    ranges.sort_by(f64::total_cmp);
+    let median = ranges[ranges.len() / 2];
+    if median > 2.0 * max_range_m {
+        return Err(LrfError::Config(format!(
+            "the scans' median range is {median} against --max-range-m {max_range_m} m: ranges are in metres (if these are millimetres, {median} is {:.3} m); give ranges in metres, or the scanner's real --max-range-m",
+            median / 1000.0
+        )));
+    }
+    Ok(())
+}
+
 /// Localises every scan: with the tracker (prediction from the previous poses, global search
 /// as the fallback), or with `global_only` each scan on its own. Scans without a time stamp
 /// are timed at `index / rate_hz`. `on_scan` is called after each scan (for a progress bar).

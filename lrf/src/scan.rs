@@ -341,8 +341,8 @@ pub fn read_scans_csv(path: &Path) -> Result<Vec<Scan>, LrfError> {
 
 /// Parses scans from CSV with header `angle,range,intensity` (radians, metres,
 /// unitless), optionally with `scan` (id) and `t` (seconds) columns; rows of
-/// one scan must be contiguous. Rejects NaN or negative values and unevenly
-/// spaced angles with the line and column at fault.
+/// one scan must be contiguous. Rejects NaN or negative values, angles beyond a full turn
+/// (degrees, not radians) and unevenly spaced angles with the line and column at fault.
 pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
     let err = |line: usize, column: &str, message: String| LrfError::Scan {
         path: name.to_string(),
@@ -392,6 +392,16 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
                 line,
                 "angle",
                 format!("angle is {angle}; give a finite angle in radians"),
+            ));
+        }
+        if angle.abs() > std::f64::consts::TAU {
+            return Err(err(
+                line,
+                "angle",
+                format!(
+                    "angle {angle} is beyond a full turn; angles are in radians (if it is in degrees, {angle}° is {:.4} rad)",
+                    angle.to_radians()
+                ),
             ));
         }
         if range.is_nan() || range < 0.0 {

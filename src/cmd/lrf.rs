@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    check_map_report, evaluate, localize_scans, read_scan_files, read_truth_csv, Localizer,
-    LocalizerConfig, Map, SensorConfig, Status,
+    check_map_report, check_range_unit, evaluate, localize_scans, read_scan_files, read_truth_csv,
+    Localizer, LocalizerConfig, Map, SensorConfig, Status,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -105,6 +105,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     cfg.sensor.check()?;
     let map = Map::read(&a.map)?;
     let (scans, step_rad) = read_scan_files(&a.scans)?;
+    check_range_unit(&scans, a.max_range_m)?;
     if let Some(step) = step_rad {
         cfg.sensor.step_rad = step;
     }
@@ -130,6 +131,16 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         elapsed.as_secs_f64() * 1e6 / n as f64,
         a.out.display()
     );
+    if count(Status::Lost) * 2 > log.rows.len() {
+        eprintln!(
+            "warning: {} of {} scans found no pose: is {} the map of this room, in metres, and are the scanner's angles counter-clockwise (a scanner mounted upside down mirrors them)? Check --intensity-min {} against the reflectors' returns and --max-range-m {} m",
+            count(Status::Lost),
+            log.rows.len(),
+            a.map.display(),
+            a.intensity_min,
+            a.max_range_m
+        );
+    }
     if let Some(tp) = &a.truth {
         let truth = read_truth_csv(tp).with_context(|| "reading the truth file".to_string())?;
         let e = evaluate(&log.for_evaluation(), &truth);
