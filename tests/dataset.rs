@@ -151,6 +151,36 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     assert!(run(&manifest).contains(":6:2:"));
     std::fs::write(&log, &good).unwrap();
 
+    // Ticks per period instead of cumulative counts in both logs: no run gives a sample,
+    // and the error says how the logs may be read wrongly.
+    let log2 = d.join("runs/run002.odometry.csv");
+    let good2 = std::fs::read_to_string(&log2).unwrap();
+    for (path, text) in [(&log, &good), (&log2, &good2)] {
+        let mut prev = (0i64, 0i64);
+        let per_period: Vec<String> = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == 0 {
+                    return l.to_string();
+                }
+                let f: Vec<&str> = l.split(',').collect();
+                let (a, b) = (f[1].parse::<i64>().unwrap(), f[2].parse::<i64>().unwrap());
+                let row = format!("{},{},{}", f[0], a - prev.0, b - prev.1);
+                prev = (a, b);
+                row
+            })
+            .collect();
+        std::fs::write(path, per_period.join("\n")).unwrap();
+    }
+    let e = run(&manifest);
+    assert!(
+        e.contains("no run gave a sample") && e.contains("are the ticks cumulative counts"),
+        "{e}"
+    );
+    std::fs::write(&log, &good).unwrap();
+    std::fs::write(&log2, &good2).unwrap();
+
     // A trajectory that cannot overlap its log.
     let traj = d.join("runs/run002.trajectory.csv");
     let full = std::fs::read_to_string(&traj).unwrap();

@@ -185,6 +185,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &|| bar.inc(1),
     )?;
     bar.finish_and_clear();
+    let unmatched = ds
+        .rejected
+        .iter()
+        .filter(|r| r.reason.contains("correlation"))
+        .count();
+    // When the logs' speed never follows the camera's, the logs are read wrongly, not the runs.
+    let hint = if unmatched * 2 >= ds.rejected.len().max(1) && unmatched > 0 {
+        format!(
+            "; in {unmatched} runs the log's speed never followed the camera's: are the ticks cumulative counts (not counts per period), the times in seconds, and each log paired with its own run?"
+        )
+    } else {
+        String::new()
+    };
+    if ds.samples.is_empty() {
+        let mut why: Vec<String> = ds
+            .rejected
+            .iter()
+            .take(3)
+            .map(|r| format!("{}: {}", r.run_id, r.reason))
+            .collect();
+        if ds.rejected.len() > 3 {
+            why.push("…".into());
+        }
+        bail!(
+            "no run gave a sample, so nothing was written: all {} rejected ({}){hint}",
+            ds.rejected.len(),
+            why.join("; ")
+        );
+    }
+    if !hint.is_empty() && unmatched * 2 >= manifest.runs.len() {
+        eprintln!(
+            "warning: {} of {} runs rejected{hint}",
+            ds.rejected.len(),
+            manifest.runs.len()
+        );
+    }
     write_json(&args.out, &ds)?;
     if let Some(csv) = &args.csv {
         write_atomic(csv, samples_csv(&ds).as_bytes())?;
