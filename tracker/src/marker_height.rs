@@ -81,7 +81,7 @@ impl MarkerHeight {
             return None;
         }
         Some(format!(
-            "the tag's apparent size puts it {:.3} m above the floor (median of {} fixes), but --marker-height is {given_m:.3} m, which moves the fixes up to {:.0} mm sideways if the size is right; measure the tag's height above the floor and the side of its black square (--tag-size {tag_size_m} m: each 1 % it is off moves the apparent height by {:.0} mm)",
+            "the tag's apparent size puts it {:.3} m above the floor (median of {} fixes), but --marker-height is {given_m:.3} m, which moves the fixes up to {:.0} mm sideways if the size is right; measure the tag's height above the floor and the side of its black square (--tag-size {tag_size_m} m: each 1 % it is off moves the apparent height by {:.0} mm), and that the camera file is this camera's (its focal length scales the apparent height as the size does)",
             self.height_m,
             self.fixes,
             self.shift_m(given_m) * 1e3,
