@@ -295,6 +295,25 @@ fn odocal(args: &[&str]) -> std::process::Output {
         .expect("run odocal")
 }
 
+/// `odocal synth lrf` into `dir` with `seed` and `scans` scans.
+fn synth_lrf(dir: &Path, seed: u64, scans: usize) {
+    let out = odocal(&[
+        "synth",
+        "lrf",
+        "--out",
+        s(dir),
+        "--seed",
+        &seed.to_string(),
+        "--scans",
+        &scans.to_string(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
@@ -303,21 +322,7 @@ fn s(p: &Path) -> &str {
 fn cli_synth_then_localize_with_truth() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    let out = odocal(&[
-        "synth",
-        "lrf",
-        "--out",
-        s(d),
-        "--seed",
-        "4",
-        "--scans",
-        "120",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    synth_lrf(d, 4, 120);
     let first = std::fs::read(d.join("scans.csv")).expect("scans");
     // Same seed, same bytes.
     let d2 = d.join("again");
@@ -671,21 +676,7 @@ fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
 fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    let out = odocal(&[
-        "synth",
-        "lrf",
-        "--out",
-        s(d),
-        "--seed",
-        "4",
-        "--scans",
-        "40",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    synth_lrf(d, 4, 40);
     let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
     let mut lines = text.lines();
     let header = lines.next().expect("header");

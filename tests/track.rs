@@ -8,6 +8,20 @@ use odocal_core::wrap_angle;
 use odocal_dataset::Trajectory;
 use odocal_synth::scene::{nadir, render_video, straight_trajectory, SceneConfig, VideoFormat};
 
+/// `odocal synth track` into `dir`: `frames` frames with `seed`.
+fn synth_track(dir: &std::path::Path, frames: usize, seed: u64) {
+    succeeded(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(dir),
+        "--frames",
+        &frames.to_string(),
+        "--seed",
+        &seed.to_string(),
+    ]));
+}
+
 /// Position and heading RMS of `est` against `truth` at the same timestamps.
 fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
     let (mut sp, mut sh, mut n) = (0.0, 0.0, 0);
@@ -292,16 +306,7 @@ fn marker_leaving_the_view_gives_gaps_not_guesses() {
 fn bad_inputs_fail_clearly_without_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    succeeded(&odocal(&[
-        "synth",
-        "track",
-        "--out",
-        p(d),
-        "--frames",
-        "8",
-        "--seed",
-        "5",
-    ]));
+    synth_track(d, 8, 5);
     let cam = d.join("camera.json");
     let video = d.join("video.avi");
     let out = d.join("traj.csv");
@@ -485,16 +490,7 @@ fn calibrated_camera_meets_accuracy() {
 fn a_wrong_marker_height_is_flagged_by_the_tags_apparent_size() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    succeeded(&odocal(&[
-        "synth",
-        "track",
-        "--out",
-        p(d),
-        "--frames",
-        "40",
-        "--seed",
-        "2",
-    ]));
+    synth_track(d, 40, 2);
     let track = |height: &str| {
         let res = odocal(&[
             "track",
