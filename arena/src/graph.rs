@@ -210,7 +210,7 @@ pub fn solve_arena(
         count[o.camera] += o.corners.len();
         views_per_camera[o.camera] += 1;
     }
-    let rms_px = sq
+    let rms_px: Vec<f64> = sq
         .iter()
         .zip(&count)
         .map(|(s, c)| if *c > 0 { (s / *c as f64).sqrt() } else { 0.0 })
@@ -223,6 +223,7 @@ pub fn solve_arena(
             consistency.rms_mm
         )));
     }
+    check_residuals(cameras, camera_paths, &rms_px)?;
     Ok(ArenaSolution {
         arena_to_camera,
         board_to_arena: boards,
@@ -231,6 +232,48 @@ pub fn solve_arena(
         consistency,
         pairs,
     })
+}
+
+/// A camera whose shared-view corners fit this many times worse than its own calibration's
+/// views (and worse than [`SHARED_RESIDUAL_MIN_PX`]) is not the camera that took them: a fitted
+/// arena fits them within about its calibration's RMS (1.1 times on the synthetic arena).
+pub const SHARED_RESIDUAL_RATIO: f64 = 8.0;
+/// Shared-view residuals below this are accepted whatever the calibration's RMS, pixels.
+pub const SHARED_RESIDUAL_MIN_PX: f64 = 0.5;
+
+/// Refuses an arena in which a camera's shared views fit far worse than its calibration: its
+/// camera file belongs to another camera (files given in another order than the _cK names),
+/// or a board moved between the shots. Names the worst camera.
+fn check_residuals(
+    cameras: &[CameraFile],
+    camera_paths: &[&Path],
+    rms_px: &[f64],
+) -> Result<(), ArenaError> {
+    let ratio = |k: usize| rms_px[k] / cameras[k].rms_px.max(1e-6);
+    let bad = |k: usize| rms_px[k] > SHARED_RESIDUAL_MIN_PX && ratio(k) > SHARED_RESIDUAL_RATIO;
+    let Some(worst) = (0..rms_px.len().min(cameras.len()))
+        .filter(|&k| bad(k))
+        .max_by(|&a, &b| ratio(a).total_cmp(&ratio(b)))
+    else {
+        return Ok(());
+    };
+    let others: Vec<String> = (0..rms_px.len().min(cameras.len()))
+        .filter(|&k| k != worst && bad(k))
+        .map(|k| format!("camera {k} {:.2} px", rms_px[k]))
+        .collect();
+    Err(ArenaError::Refused(format!(
+        "camera {worst} ({}): its shared views' corners fit {:.2} px RMS against {:.3} px in its own calibration (refused above {SHARED_RESIDUAL_RATIO} times and {SHARED_RESIDUAL_MIN_PX} px{}): check that the camera files are given in the order of the _cK image names, and that the board did not move between the cameras' shots",
+        camera_paths
+            .get(worst)
+            .map_or(String::new(), |p| p.display().to_string()),
+        rms_px[worst],
+        cameras[worst].rms_px,
+        if others.is_empty() {
+            String::new()
+        } else {
+            format!("; also {}", others.join(", "))
+        }
+    )))
 }
 
 fn summarise(d: &[f64]) -> Consistency {

@@ -87,6 +87,20 @@ fn arena_meets_the_bounds() {
         "consistency {:?}",
         arena.consistency
     );
+    // Camera files given in another order than the _cK names: their shared views fit far
+    // worse than the cameras' own calibrations, and the arena is refused naming the camera.
+    let mut swapped = files.clone();
+    swapped.swap(0, 1);
+    let mut swapped_paths = path_refs.clone();
+    swapped_paths.swap(0, 1);
+    let e = build_arena(&swapped, &swapped_paths, &shared, &scene.board)
+        .unwrap_err()
+        .to_string();
+    eprintln!("swapped camera files 0 and 1: {e}");
+    assert!(
+        e.contains("camera 0") && e.contains("in the order of the _cK image names"),
+        "{e}"
+    );
     // Every pair of neighbouring cameras shares a board.
     for pair in [(0, 1), (0, 2), (1, 3), (2, 3)] {
         assert!(
