@@ -399,7 +399,37 @@ fn bad_inputs_fail_clearly_without_output() {
         ]),
         "tag99h1",
     );
+    // A frame rate no camera has, and one that overrides the video's own.
+    fails_with(
+        &odocal(&[
+            "track",
+            p(&video),
+            "--camera",
+            p(&cam),
+            "--fps",
+            "100000",
+            "--out",
+            p(&out),
+        ]),
+        "--fps 100000: a camera's frame rate is above 0 and at most 10000 frames/s",
+    );
     assert!(!out.exists(), "no partial output after fatal errors");
+    let res = odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&cam),
+        "--fps",
+        "60",
+        "--out",
+        p(&out),
+    ]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("--fps 60 overrides the video's own 30 fps: every time is 0.500 times"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -41,6 +41,9 @@ pub struct TimingReport {
     pub extrapolated_times: usize,
     /// Frames the container announces beyond those read and those dropped: the file ends early.
     pub missing_at_end: usize,
+    /// The video's own frame rate when `--fps` overrode it with another, frames/s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub overridden_fps: Option<f64>,
 }
 
 /// A step longer than this many usual steps means frames were dropped.
@@ -107,6 +110,7 @@ impl TimingReport {
             repeated_images: count(GapReason::RepeatedImage),
             extrapolated_times: r.source.extrapolated_times,
             missing_at_end,
+            overridden_fps: r.source.overridden_fps,
         }
     }
 
@@ -115,6 +119,15 @@ impl TimingReport {
     /// few frames drained from the decoder without a timestamp.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
+        if let (Some(own), Some(step)) = (self.overridden_fps, self.frame_step_s) {
+            let given = (1e3 / step).round() / 1e3;
+            w.push(format!(
+                "--fps {given} overrides the video's own {} fps: every time is {:.3} times what the video says, and every speed {:.3} times; leave --fps out for a video that states its rate",
+                (own * 1e3).round() / 1e3,
+                own * step,
+                1.0 / (own * step)
+            ));
+        }
         if self.dropped_frames > 0 {
             let runs: Vec<String> = self
                 .dropped

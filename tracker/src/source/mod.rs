@@ -113,6 +113,8 @@ pub struct SourceInfo {
     /// Frames read so far whose container timestamp was missing, timed one frame step after
     /// the previous frame.
     pub extrapolated_times: usize,
+    /// The video's own frame rate when `--fps` overrode it with another, frames/s.
+    pub overridden_fps: Option<f64>,
 }
 
 /// A stream of frames, read in batches.
@@ -122,6 +124,10 @@ pub trait FrameSource: Send {
     /// The next up to `n` frames in order; an empty batch means the end.
     fn next_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError>;
 }
+
+/// The fastest frame rate `--fps` may give, frames/s (high-speed cameras reach a few
+/// thousand).
+pub const MAX_FPS: f64 = 10_000.0;
 
 /// How frames get their timestamps when the source does not say.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -167,6 +173,7 @@ impl MemorySource {
                 kind: "memory".into(),
                 timing: "given with the frames".into(),
                 extrapolated_times: 0,
+                overridden_fps: None,
             },
             frames: frames.into(),
         }

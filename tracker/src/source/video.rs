@@ -84,10 +84,11 @@ impl VideoSource {
         let fourcc = fourcc_string(cap.0.get(videoio::CAP_PROP_FOURCC)? as i32);
         let own_fps = cap.0.get(videoio::CAP_PROP_FPS)?;
         let fps = match opts.fps {
-            Some(f) if f > 0.0 && f.is_finite() => f,
+            Some(f) if f > 0.0 && f <= super::MAX_FPS => f,
             Some(f) => {
                 return Err(TrackError::Options(format!(
-                    "--fps must be positive, got {f}"
+                    "--fps {f}: a camera's frame rate is above 0 and at most {} frames/s",
+                    super::MAX_FPS
                 )))
             }
             None if own_fps > 0.0 && own_fps.is_finite() => own_fps,
@@ -110,6 +111,12 @@ impl VideoSource {
                 frame_count: (count > 0.0).then_some(count as usize),
                 kind: format!("video {fourcc}"),
                 extrapolated_times: 0,
+                overridden_fps: opts
+                    .fps
+                    .filter(|f| {
+                        own_fps > 0.0 && own_fps.is_finite() && (f / own_fps - 1.0).abs() > 0.01
+                    })
+                    .map(|_| own_fps),
                 timing: if counted {
                     format!("frame count at {fps} fps (--fps)")
                 } else {
