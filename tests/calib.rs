@@ -144,6 +144,11 @@ fn same_seed_same_bytes() {
 }
 
 fn small_set(dir: &Path) -> CalibTruth {
+    six_views_640(dir, "0")
+}
+
+/// Six hand-held views and `floor_views` floor views, 640x360, seed 5.
+fn six_views_640(dir: &Path, floor_views: &str) -> CalibTruth {
     synth(
         dir,
         5,
@@ -155,7 +160,7 @@ fn small_set(dir: &Path) -> CalibTruth {
             "--views",
             "6",
             "--floor-views",
-            "0",
+            floor_views,
         ],
     )
 }
@@ -233,20 +238,7 @@ fn view_without_board_is_skipped_and_too_few_views_fail() {
 
 /// Six hand-held views and two floor views, 640x360.
 fn floor_set(dir: &Path) {
-    synth(
-        dir,
-        5,
-        &[
-            "--width",
-            "640",
-            "--height",
-            "360",
-            "--views",
-            "6",
-            "--floor-views",
-            "2",
-        ],
-    );
+    six_views_640(dir, "2");
 }
 
 /// `odocal calibrate` on the hand-held views of `dir` with `floor` as the floor views.
