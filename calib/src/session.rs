@@ -142,31 +142,13 @@ fn held_out_tolerance(n: usize) -> f64 {
 /// much worse than the views fit (views from two cameras, a zoom or focus changed between
 /// views, a board that is not flat).
 fn consistency_notes(rms_px: f64, views: &[crate::ViewResidual]) -> Vec<String> {
-    let held: Vec<f64> = views.iter().filter_map(|v| v.held_out_rms_px).collect();
-    let held_rms = (!held.is_empty())
-        .then(|| (held.iter().map(|e| e * e).sum::<f64>() / held.len() as f64).sqrt());
+    let held_rms = held_out_rms_px(views);
     let ratio = held_rms.map(|h| h / rms_px.max(1e-9));
     let disagree = ratio.is_some_and(|r| r > held_out_tolerance(views.len()));
     if rms_px <= LARGE_RMS_PX && !disagree {
         return vec![];
     }
-    let mut worst: Vec<&crate::ViewResidual> = views.iter().collect();
-    worst.sort_by(|a, b| {
-        b.held_out_rms_px
-            .unwrap_or(b.rms_px)
-            .total_cmp(&a.held_out_rms_px.unwrap_or(a.rms_px))
-    });
-    let worst: Vec<String> = worst
-        .iter()
-        .take(3)
-        .map(|v| {
-            format!(
-                "{} {:.2} px",
-                short(&v.image),
-                v.held_out_rms_px.unwrap_or(v.rms_px)
-            )
-        })
-        .collect();
+    let worst = worst_views(views, 3);
     let what = match (held_rms, ratio) {
         (Some(h), Some(r)) if disagree => format!(
             "a view left out of the calibration is predicted {:.0} % worse than the views fit (held-out RMS {h:.3} px against {rms_px:.3} px; views of one camera agree within {:.0} % with {} views)",
@@ -182,6 +164,25 @@ fn consistency_notes(rms_px: f64, views: &[crate::ViewResidual]) -> Vec<String> 
         "warning: the views do not fit one camera: {what}. Were all views taken by this camera at the same zoom and focus, with the board flat and sharp? Worst views: {}",
         worst.join(", ")
     )]
+}
+
+/// The RMS over the views of their held-out errors, pixels (None when none was measured).
+fn held_out_rms_px(views: &[crate::ViewResidual]) -> Option<f64> {
+    let held: Vec<f64> = views.iter().filter_map(|v| v.held_out_rms_px).collect();
+    (!held.is_empty()).then(|| (held.iter().map(|e| e * e).sum::<f64>() / held.len() as f64).sqrt())
+}
+
+/// The `n` views worst predicted when left out (by their fit error when no held-out error
+/// was measured), each as "image error px".
+fn worst_views(views: &[crate::ViewResidual], n: usize) -> Vec<String> {
+    let error = |v: &crate::ViewResidual| v.held_out_rms_px.unwrap_or(v.rms_px);
+    let mut worst: Vec<&crate::ViewResidual> = views.iter().collect();
+    worst.sort_by(|a, b| error(b).total_cmp(&error(a)));
+    worst
+        .iter()
+        .take(n)
+        .map(|v| format!("{} {:.3} px", short(&v.image), error(v)))
+        .collect()
 }
 
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
@@ -594,23 +595,10 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
         "  worst views (RMS reprojection): {}",
         list.join(", ")
     ));
-    let held: Vec<f64> = f.views.iter().filter_map(|v| v.held_out_rms_px).collect();
-    if !held.is_empty() {
-        let rms = (held.iter().map(|e| e * e).sum::<f64>() / held.len() as f64).sqrt();
-        let mut worst = f.views.clone();
-        worst.sort_by(|a, b| {
-            b.held_out_rms_px
-                .unwrap_or(0.0)
-                .total_cmp(&a.held_out_rms_px.unwrap_or(0.0))
-        });
-        let list: Vec<String> = worst
-            .iter()
-            .take(3)
-            .filter_map(|v| Some(format!("{} {:.3} px", short(&v.image), v.held_out_rms_px?)))
-            .collect();
+    if let Some(rms) = held_out_rms_px(&f.views) {
         out.push(format!(
             "  held-out views (each left out of the calibration): RMS {rms:.3} px; worst {}",
-            list.join(", ")
+            worst_views(&f.views, 3).join(", ")
         ));
     }
     if let Some(cov) = f.covariance_matrix() {
