@@ -86,6 +86,47 @@ fn several_tags_give_a_file_each_and_one_tag_the_same_file_as_before() {
     assert!(t.rows.len() >= 20, "{} rows", t.rows.len());
 }
 
+/// `--rolling-shutter-s` times each fix at the rows where its tag was read, with one tag or
+/// several alike.
+#[test]
+fn several_tags_keep_the_rolling_shutter_timing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    succeeded(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(d),
+        "--frames",
+        "24",
+        "--seed",
+        "5",
+        "--video",
+        "png",
+        "--tag-id",
+        "5",
+        "--rolling-shutter-ms",
+        "30",
+    ]));
+    let (video, cam) = (d.join("frames"), d.join("camera.json"));
+    let track = |tag: &[&str], readout: &str, out: &str| {
+        let out = d.join(out);
+        let mut args = vec!["track", p(&video), "--camera", p(&cam)];
+        args.extend_from_slice(tag);
+        args.extend(["--rolling-shutter-s", readout, "--out", p(&out)]);
+        ok(&args);
+        std::fs::read_to_string(out).unwrap()
+    };
+    let plain = track(&["--tag-id", "5"], "0.03", "plain.csv");
+    let global = track(&["--tag-id", "5"], "0", "global.csv");
+    assert_ne!(plain, global, "the readout moves the fix times");
+    assert_eq!(
+        track(&["--tags", "5"], "0.03", "tags.csv"),
+        plain,
+        "--tags times the fixes as --tag-id does"
+    );
+}
+
 #[test]
 fn bad_arena_inputs_give_one_line() {
     let dir = tempfile::tempdir().unwrap();

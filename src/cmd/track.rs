@@ -88,8 +88,8 @@ pub struct Args {
     pub multi: super::track_arena::MultiArgs,
 }
 
-/// The tracker's options from the command line.
-fn options(args: &Args) -> TrackOptions {
+/// The tracker's options from the command line (one tag, several, or an arena alike).
+pub(super) fn options(args: &Args) -> TrackOptions {
     TrackOptions {
         family: args.family.clone(),
         tag_id: args.tag_id,

@@ -48,20 +48,6 @@ impl MultiArgs {
     }
 }
 
-fn options(args: &super::track::Args) -> TrackOptions {
-    TrackOptions {
-        family: args.family.clone(),
-        tag_id: args.tag_id,
-        tag_size_m: args.tag_size,
-        marker_height_m: args.marker_height,
-        use_roi: !args.no_roi,
-        max_speed_mps: args.max_speed,
-        max_reprojection_px: args.max_reprojection,
-        pnp_cross_check: args.pnp_check,
-        ..TrackOptions::default()
-    }
-}
-
 /// The trajectory file of tag `id`: `--out` itself for a single id, else `STEM_tagID.EXT`.
 fn out_path(out: &Path, id: u32, single: bool) -> PathBuf {
     if single {
@@ -99,7 +85,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         }
     }
     quiet_video_logs();
-    let opts = options(&args);
+    let opts = super::track::options(&args);
     let trajectories: Vec<(u32, Trajectory)> = match &m.arena {
         Some(arena_path) => track_arena(&args, arena_path, &opts, &selection)?,
         None => track_one_video(&args, &opts, &selection)?,
