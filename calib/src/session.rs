@@ -603,14 +603,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
     }
     if let Some(cov) = f.covariance_matrix() {
         let map = UncertaintyMap::new(&f.camera, &cov, (f.camera.width / 32).max(8));
-        let mut v: Vec<f64> = map
-            .sigma_px
-            .iter()
-            .copied()
-            .filter(|x| x.is_finite())
-            .collect();
-        v.sort_by(f64::total_cmp);
-        if let Some(median) = v.get(v.len() / 2) {
+        if let Some(median) = map.median_px() {
             out.push(format!(
                 "  projection uncertainty of a camera-frame direction (1σ, worst direction, from the covariance): median {median:.3} px, largest {:.3} px over the image (an upper bound on the floor, whose plane the same intrinsics fix)",
                 map.max_px()

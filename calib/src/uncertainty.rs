@@ -256,4 +256,16 @@ impl UncertaintyMap {
             .filter(|v| v.is_finite())
             .fold(0.0, f64::max)
     }
+
+    /// The median σ on the map, pixels (`None` when no cell has a finite σ).
+    pub fn median_px(&self) -> Option<f64> {
+        let mut v: Vec<f64> = self
+            .sigma_px
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied()
+    }
 }

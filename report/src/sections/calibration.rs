@@ -143,14 +143,7 @@ pub fn calibration_section(c: &CalibInput) -> Result<Section, ReportError> {
             missing_label: String::new(),
             unit: "px".into(),
         };
-        let mut v: Vec<f64> = m
-            .sigma_px
-            .iter()
-            .copied()
-            .filter(|x| x.is_finite())
-            .collect();
-        v.sort_by(f64::total_cmp);
-        let median = v.get(v.len() / 2).copied().unwrap_or(f64::NAN);
+        let median = m.median_px().unwrap_or(f64::NAN);
         s.blocks.push(figure(
             "calib-projection-uncertainty",
             &format!(
