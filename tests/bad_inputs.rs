@@ -379,6 +379,30 @@ fn a_log_paired_with_another_runs_trajectory_is_rejected_with_its_figures() {
         text.contains("rejected run002: odometry and camera disagree") && text.contains("m/s RMS"),
         "{text}"
     );
+    // A robot file of another logger (0.5 s rows for logs written every 0.2 s) would make
+    // every speed and feature wrong by the same factor: refused before any work, naming the log.
+    let robot = d.path().join("robot.json");
+    std::fs::write(
+        &robot,
+        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":12,"wheel_base_m":0.1,"period_s":0.5}"#,
+    )
+    .expect("write");
+    let out2 = d.path().join("dataset2.json");
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--robot",
+        p(&robot),
+        "--out",
+        p(&out2),
+    ]);
+    assert!(
+        e.contains("run001.odometry.csv: rows are 0.200 s apart")
+            && e.contains("logs every 0.500 s"),
+        "{e}"
+    );
+    assert!(!out2.exists());
 }
 
 #[test]

@@ -26,7 +26,15 @@ fn one_row(
     track: Option<&VideoTracker>,
     opts: &BuildOptions,
 ) -> Result<Vec<RunOutcome>, DatasetError> {
-    let log = OdometryLog::read_csv(&m.resolve(&row.odometry))?;
+    let log_path = m.resolve(&row.odometry);
+    let log = OdometryLog::read_csv(&log_path)?;
+    if let Some(p) = log.period_mismatch_s(opts.robot.period_s) {
+        return Err(DatasetError::Mismatch(format!(
+            "{}: rows are {p:.3} s apart, but the robot logs every {:.3} s (period_s); give the robot's own file with --robot, or a log of this robot",
+            log_path.display(),
+            opts.robot.period_s
+        )));
+    }
     let traj = match (&row.trajectory, &row.video, track) {
         (Some(t), _, _) => Trajectory::read_csv(&m.resolve(t))?,
         (None, Some(v), Some(track)) => {

@@ -90,6 +90,25 @@ impl OdometryLog {
         self.t_s.is_empty()
     }
 
+    /// The median interval between rows, seconds: the logger's period, which a dropped row
+    /// does not move. `None` for fewer than two rows.
+    pub fn median_period_s(&self) -> Option<f64> {
+        let mut d: Vec<f64> = self.t_s.windows(2).map(|w| w[1] - w[0]).collect();
+        if d.is_empty() {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        Some(d[d.len() / 2])
+    }
+
+    /// The log's own period when it is more than 5 % off `period_s`: rows logged by another
+    /// robot or logger, or a robot file that describes another robot. Every feature and
+    /// speed odocal derives assumes the rows are `period_s` apart.
+    pub fn period_mismatch_s(&self, period_s: f64) -> Option<f64> {
+        self.median_period_s()
+            .filter(|p| (p - period_s).abs() > 0.05 * period_s)
+    }
+
     /// Reads a log CSV; the header decides the kind.
     pub fn read_csv(path: &Path) -> Result<Self, DatasetError> {
         let text = read_text(path)?;

@@ -25,16 +25,6 @@ pub struct CorrectedRun {
     pub outside_domain: Vec<String>,
 }
 
-/// Median interval between log rows, seconds.
-fn median_period_s(t: &[f64]) -> Option<f64> {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return None;
-    }
-    d.sort_by(f64::total_cmp);
-    Some(d[d.len() / 2])
-}
-
 impl ModelFile {
     /// Corrects a raw log of `robot` (`name` is the log file, for messages): checks that the
     /// model fits the robot and that the log's period is the robot's, builds the features with
@@ -49,13 +39,11 @@ impl ModelFile {
         allow_extrapolation: bool,
     ) -> Result<CorrectedRun, TrainError> {
         self.check_compatible(FEATURE_RULE, robot)?;
-        if let Some(p) = median_period_s(&log.t_s) {
-            if (p - robot.period_s).abs() > 0.05 * robot.period_s {
-                return Err(TrainError::Model(format!(
-                    "{name}: rows are {p:.3} s apart, but the model's robot logs every {:.3} s; this log is of another robot or logger",
-                    robot.period_s
-                )));
-            }
+        if let Some(p) = log.period_mismatch_s(robot.period_s) {
+            return Err(TrainError::Model(format!(
+                "{name}: rows are {p:.3} s apart, but the model's robot logs every {:.3} s; this log is of another robot or logger",
+                robot.period_s
+            )));
         }
         let f = features_from_log(log, robot)
             .map_err(|e| TrainError::Dataset(format!("{name}: {e}")))?;
