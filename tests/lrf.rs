@@ -605,19 +605,9 @@ fn cli_bad_input_exits_with_code_2() {
         &["lrf", "check-map", s(&d.join("missing.json"))],
         "cannot read",
     );
-    // The good inputs run (nothing to see in three flat beams: lost).
-    let ok = odocal(
-        &loc(&good, &scan)
-            .iter()
-            .map(|x| x.as_str())
-            .collect::<Vec<_>>(),
-    );
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
-    assert!(String::from_utf8_lossy(&ok.stdout).contains("1 lost"));
+    // The good inputs are read, but three flat beams show no reflector: a file of nothing but
+    // lost scans is refused, not written.
+    run(loc(&good, &scan), "none of the 1 scans found a pose");
 }
 
 /// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
@@ -756,6 +746,14 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     expect_error(
         &a.iter().map(String::as_str).collect::<Vec<_>>(),
         "ranges are in metres (if these are millimetres",
+    );
+    // A threshold above every return: no scan can find a pose, and a file of lost rows is
+    // no result.
+    let mut a = args(&d.join("scans.csv"));
+    a.extend(["--intensity-min".into(), "2".into()]);
+    expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "none of the",
     );
     assert!(!poses.exists(), "nothing written on refusal");
     let out = run(&mirrored);

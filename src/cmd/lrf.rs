@@ -116,8 +116,28 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     let log = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    write_atomic(&a.out, log.to_csv().as_bytes())?;
     let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
+    let why_lost = || {
+        format!(
+            "is {} the map of this room, in metres, and are the scanner's angles counter-clockwise (a scanner mounted upside down mirrors them)? Check --intensity-min {} against the reflectors' returns and --max-range-m {} m",
+            a.map.display(),
+            a.intensity_min,
+            a.max_range_m
+        )
+    };
+    // A file of nothing but lost rows is no result: refused, as `track` refuses a video
+    // where the tag was never accepted.
+    if !log.rows.is_empty() && count(Status::Lost) == log.rows.len() {
+        let detections: usize = log.rows.iter().map(|r| r.n_detections).sum();
+        anyhow::bail!(
+            "none of the {} scans found a pose ({:.1} reflector detections per scan), so {} was not written: {}",
+            log.rows.len(),
+            detections as f64 / log.rows.len() as f64,
+            a.out.display(),
+            why_lost()
+        );
+    }
+    write_atomic(&a.out, log.to_csv().as_bytes())?;
     let n = log.rows.len().max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
     println!(
@@ -133,12 +153,10 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     );
     if count(Status::Lost) * 2 > log.rows.len() {
         eprintln!(
-            "warning: {} of {} scans found no pose: is {} the map of this room, in metres, and are the scanner's angles counter-clockwise (a scanner mounted upside down mirrors them)? Check --intensity-min {} against the reflectors' returns and --max-range-m {} m",
+            "warning: {} of {} scans found no pose: {}",
             count(Status::Lost),
             log.rows.len(),
-            a.map.display(),
-            a.intensity_min,
-            a.max_range_m
+            why_lost()
         );
     }
     if let Some(tp) = &a.truth {
