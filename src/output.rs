@@ -2,12 +2,68 @@
 //! appear together when it succeeds and not at all when it fails
 //! (`odocal_core::staging`).
 
-use std::path::Path;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
-pub use odocal_core::staging::{
-    check_output_dir, check_output_file, commit, discard, staged_dir, write_atomic,
-};
+pub use odocal_core::staging::{check_output_dir, commit, discard, staged_dir, write_atomic};
+use odocal_core::FileError;
+
+/// Refuses an output path that is not a plain file to be replaced
+/// ([`odocal_core::staging::check_output_file`]), or that names the same file as another
+/// argument of the command: an input the output would destroy (`track a.avi --out a.avi`),
+/// or a second output that would overwrite the first (`--out x.csv --tum x.csv`). The value
+/// given to `option` itself is not counted.
+pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
+    odocal_core::staging::check_output_file(path, option)?;
+    let Some(target) = file_identity(path) else {
+        return Ok(());
+    };
+    let args: Vec<_> = std::env::args_os().skip(1).collect();
+    let own = format!("{option}=");
+    let mut i = 0;
+    while i < args.len() {
+        let a = &args[i];
+        i += 1;
+        let text = a.to_string_lossy();
+        if text == option {
+            i += 1; // the option's own value
+            continue;
+        }
+        if text.starts_with(&own) {
+            continue;
+        }
+        // `--opt=value`: the value is the path.
+        let value = match text.split_once('=') {
+            Some((opt, v)) if opt.starts_with("--") => OsStr::new(v).to_os_string(),
+            _ => a.clone(),
+        };
+        if file_identity(Path::new(&value)).as_ref() == Some(&target) {
+            return Err(FileError::content(
+                &format!("{option} {}", path.display()),
+                format!(
+                    "is the same file as the argument {}, which writing it would replace; give {option} another path",
+                    text
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The file a path names, whether or not it exists yet: the canonical path, or the
+/// canonical parent joined with the name. `None` when even the parent does not exist.
+fn file_identity(path: &Path) -> Option<PathBuf> {
+    if let Ok(c) = std::fs::canonicalize(path) {
+        return Some(c);
+    }
+    let name = path.file_name()?;
+    let parent = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    std::fs::canonicalize(parent).ok().map(|d| d.join(name))
+}
 
 /// A progress bar for `len` items of work, hidden when stderr is not a terminal.
 pub fn progress(len: u64, what: &str) -> ProgressBar {

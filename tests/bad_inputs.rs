@@ -257,6 +257,35 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
             &["--out", "give a file path"],
         );
     }
+    // An output that is one of the inputs, or another output (however spelt): refused,
+    // the input untouched.
+    let scans_copy = dir.join("scans.csv");
+    std::fs::copy(&scans, &scans_copy).expect("copy");
+    let before = std::fs::read(&scans_copy).expect("read");
+    let dotted = format!("--out={}/./scans.csv", p(dir));
+    refused(
+        dir,
+        &["lrf", "localize", "--map", p(&map), p(&scans_copy), &dotted],
+        &["is the same file as the argument", "scans.csv"],
+    );
+    assert_eq!(std::fs::read(&scans_copy).expect("read"), before);
+    let exp_dir = dir.join("exp");
+    let poses = dir.join("poses.csv");
+    refused(
+        dir,
+        &[
+            "track",
+            p(&exp_dir.join("video.avi")),
+            "--camera",
+            p(&data("camera.json")),
+            "--out",
+            p(&poses),
+            "--tum",
+            p(&poses),
+        ],
+        &["--out", "is the same file as the argument"],
+    );
+    std::fs::remove_file(&scans_copy).expect("remove");
     // A name of 254 characters works (the temporary name does not grow it).
     let long = dir.join(format!("{}.csv", "p".repeat(250)));
     ok(&[
