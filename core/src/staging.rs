@@ -178,6 +178,10 @@ pub fn commit() -> Result<(), FileError> {
 /// Moves every entry of the staged directory `tmp` into the existing directory `target`,
 /// replacing entries of the same name (other entries of `target` stay); files last, so an
 /// index such as manifest.json appears after what it lists.
+///
+/// A numbered series the new output writes (`view_00.png` … `view_02.png`) replaces the
+/// target's whole series of that name: a `view_07.png` left from an earlier, larger set would
+/// otherwise be picked up by `view_*.png` beside views of another camera.
 fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
     let mut entries: Vec<(bool, PathBuf)> = std::fs::read_dir(tmp)
         .map_err(|e| io(tmp, e))?
@@ -185,6 +189,25 @@ fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
         .map(|e| (e.path().is_file(), e.path()))
         .collect();
     entries.sort();
+    let names: Vec<String> = entries
+        .iter()
+        .filter(|(is_file, _)| *is_file)
+        .filter_map(|(_, p)| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    let series: Vec<String> = names.iter().filter_map(|n| series_of(n)).collect();
+    let stale: Vec<PathBuf> = std::fs::read_dir(target)
+        .map_err(|e| io(target, e))?
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().is_file())
+        .filter(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            !names.contains(&name) && series_of(&name).is_some_and(|k| series.contains(&k))
+        })
+        .map(|e| e.path())
+        .collect();
+    for old in stale {
+        std::fs::remove_file(&old).map_err(|e| io(&old, e))?;
+    }
     for (_, from) in entries {
         let Some(name) = from.file_name() else {
             continue;
@@ -208,6 +231,24 @@ fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
         }
     }
     std::fs::remove_dir(tmp).map_err(|e| io(tmp, e))
+}
+
+/// The series a numbered file name belongs to: the name with each run of digits as `#`
+/// (`view_07.png` → `view_#.png`); `None` for a name without digits.
+fn series_of(name: &str) -> Option<String> {
+    let mut key = String::with_capacity(name.len());
+    let (mut numbered, mut in_digits) = (false, false);
+    for c in name.chars() {
+        let digit = c.is_ascii_digit();
+        if !digit {
+            key.push(c);
+        } else if !in_digits {
+            key.push('#');
+        }
+        numbered |= digit;
+        in_digits = digit;
+    }
+    numbered.then_some(key)
 }
 
 /// Deletes every staged output: the command failed, so nothing it wrote appears.
@@ -248,6 +289,35 @@ mod tests {
         assert!(dir.join("sub/f").exists());
         assert!(check_output_file(&dir, "--out").is_err());
         assert!(check_output_file(Path::new("/dev/null"), "--out").is_err());
+        // A smaller set over a larger one: the new series replaces the old one whole, and
+        // files of no series written now stay.
+        let set = dir.join("set");
+        std::fs::create_dir_all(&set).unwrap();
+        for k in 0..5 {
+            std::fs::write(set.join(format!("view_{k:02}.png")), b"old").unwrap();
+        }
+        std::fs::write(set.join("notes.txt"), b"mine").unwrap();
+        std::fs::write(set.join("scan_1.csv"), b"mine").unwrap();
+        let staged = staged_dir(&set, "--out").unwrap();
+        for k in 0..2 {
+            std::fs::write(staged.join(format!("view_{k:02}.png")), b"new").unwrap();
+        }
+        commit().unwrap();
+        let mut left: Vec<String> = std::fs::read_dir(&set)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(
+            left,
+            ["notes.txt", "scan_1.csv", "view_00.png", "view_01.png"]
+        );
+        assert_eq!(std::fs::read(set.join("view_01.png")).unwrap(), b"new");
+        assert_eq!(
+            series_of("run012.odometry.csv").as_deref(),
+            Some("run#.odometry.csv")
+        );
+        assert_eq!(series_of("truth.json"), None);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
