@@ -228,6 +228,8 @@ fn bad_input_is_a_clear_error() {
         fails(&["train", p(&ds), "--sweep", "6..12", "--folds", "10"]).contains("too few samples")
     );
     assert!(fails(&["train", p(&ds), "--sweep", "12..6"]).contains("empty"));
+    assert!(fails(&["train", p(&ds), "--out", "m.json", "--folds", "1"])
+        .contains("--folds 1: cross-validation needs at least 2 folds"));
     assert!(
         fails(&["train", p(&ds), "--out", "m.json", "--method", "sgd"]).contains("unknown method")
     );

@@ -156,6 +156,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         check_output_file(out, "--out")?;
     }
+    if !args.no_cv && args.folds < 2 {
+        bail!(
+            "--folds {}: cross-validation needs at least 2 folds; give --folds 2 or more, or --no-cv",
+            args.folds
+        );
+    }
     let bytes = std::fs::read(&args.dataset)
         .with_context(|| format!("cannot read {}", args.dataset.display()))?;
     let (ds, sha) = odocal_trainer::parse_dataset(&bytes, &args.dataset.display().to_string())?;
