@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{odocal, succeeded};
+use common::{fails, odocal, ok, p, succeeded};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardTarget, BoardToCamera, CameraFile};
@@ -115,7 +115,55 @@ fn calibration_matches_truth_for_several_seeds() {
         assert!(cam.rms_px <= 0.2, "seed {seed}: RMS {}", cam.rms_px);
         assert!(floor_err <= 0.002, "seed {seed}: floor error {floor_err} m");
         assert_eq!(cam.views.len(), 20);
+        if seed == 1 {
+            check_calib_gives_a_verdict(dir.path(), &out);
+        }
     }
+}
+
+/// `synth check-calib` passes a calibration within the bounds, and refuses one outside them
+/// (a truth whose focal length is 10 % longer) or a truth of other images.
+fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
+    let truth = dir.join("truth.json");
+    let text = ok(&[
+        "synth",
+        "check-calib",
+        "--camera",
+        p(camera),
+        "--truth",
+        p(&truth),
+    ]);
+    assert!(text.contains("check passed"), "{text}");
+    let mut t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    let fx = t["camera"]["intrinsics"]["fx"].as_f64().unwrap();
+    t["camera"]["intrinsics"]["fx"] = (fx * 1.1).into();
+    let longer = dir.join("truth-longer.json");
+    std::fs::write(&longer, t.to_string()).unwrap();
+    let e = fails(&[
+        "synth",
+        "check-calib",
+        "--camera",
+        p(camera),
+        "--truth",
+        p(&longer),
+    ]);
+    assert!(
+        e.contains("fails the check") && e.contains("fx error 9."),
+        "{e}"
+    );
+    t["camera"]["width"] = 640.into();
+    let other = dir.join("truth-other.json");
+    std::fs::write(&other, t.to_string()).unwrap();
+    let e = fails(&[
+        "synth",
+        "check-calib",
+        "--camera",
+        p(camera),
+        "--truth",
+        p(&other),
+    ]);
+    assert!(e.contains("is the truth of 640x720 images"), "{e}");
 }
 
 #[test]

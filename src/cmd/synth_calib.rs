@@ -166,7 +166,7 @@ pub struct CheckArgs {
 /// Runs `odocal synth check-calib`: the calibration's error against the truth.
 pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
     let cam = CameraFile::load(&a.camera)?;
-    let truth = CalibTruth::read(&a.truth)?;
+    let truth = CalibTruth::read_for(&a.truth, &cam.camera)?;
     let e = calibration_errors(
         &cam.camera,
         cam.floor.as_ref().map(|f| &f.floor_to_camera),
@@ -198,7 +198,8 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
         }
         lo = *r;
     }
-    if let Some((reach, max)) = vouched_floor_error(&cam, &truth) {
+    let vouched = vouched_floor_error(&cam, &truth);
+    if let Some((reach, max)) = vouched {
         println!(
             "  floor `calibrate` vouches for ({} mm at {}σ: out to {:.2} m from the point under the camera, {:.0}° off the nadir): largest mapping error {:.2} mm",
             odocal_calib::FLOOR_BOUND_MM,
@@ -208,5 +209,43 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             max * 1e3
         );
     }
+    // The verdict: the intrinsics' bounds, and calibrate's own promise on the floor it
+    // vouches for (the whole floor of a wide lens reaches where one pixel spans metres).
+    let mut failed = Vec::new();
+    for (name, rel) in [("fx", e.fx_rel), ("fy", e.fy_rel)] {
+        if rel > 0.002 {
+            failed.push(format!("{name} error {:.3} % > 0.2 %", rel * 100.0));
+        }
+    }
+    for (name, px) in [("cx", e.cx_px), ("cy", e.cy_px)] {
+        if px > 1.0 {
+            failed.push(format!("{name} error {px:.2} px > 1 px"));
+        }
+    }
+    if let Some((_, max)) = vouched {
+        if max * 1e3 > odocal_calib::FLOOR_BOUND_MM {
+            failed.push(format!(
+                "floor error {:.2} mm > {} mm where calibrate vouches for the floor",
+                max * 1e3,
+                odocal_calib::FLOOR_BOUND_MM
+            ));
+        }
+    }
+    if !failed.is_empty() {
+        anyhow::bail!(
+            "{} fails the check against {}: {}",
+            a.camera.display(),
+            a.truth.display(),
+            failed.join("; ")
+        );
+    }
+    println!(
+        "check passed: fx, fy within 0.2 %, cx, cy within 1 px{}",
+        if vouched.is_some() {
+            ", floor within 2 mm where calibrate vouches for it"
+        } else {
+            ""
+        }
+    );
     Ok(())
 }
