@@ -79,6 +79,31 @@ fn correct_refuses_logs_outside_the_training_domain() {
             "m from its start",
         ],
     );
+    // Times in milliseconds: every row 1000 periods apart, and said so.
+    let ms: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match l.split_once(',') {
+            Some((t, rest)) if i > 0 => {
+                format!("{},{rest}\n", t.parse::<f64>().expect("time") * 1000.0)
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let ms_log = dir.join("ms.csv");
+    std::fs::write(&ms_log, ms).expect("write");
+    refused(
+        dir,
+        &[
+            "correct",
+            "--model",
+            p(&model),
+            p(&ms_log),
+            "--out",
+            p(&out),
+        ],
+        &["ms.csv: rows are 200.000 s apart", "in milliseconds?"],
+    );
     let back = dir.join("back.csv");
     std::fs::write(&back, scaled(-1)).expect("write");
     refused(

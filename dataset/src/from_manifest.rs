@@ -28,11 +28,10 @@ fn one_row(
 ) -> Result<Vec<RunOutcome>, DatasetError> {
     let log_path = m.resolve(&row.odometry);
     let log = OdometryLog::read_csv(&log_path)?;
-    if let Some(p) = log.period_mismatch_s(opts.robot.period_s) {
+    if let Some(why) = log.period_mismatch(opts.robot.period_s) {
         return Err(DatasetError::Mismatch(format!(
-            "{}: rows are {p:.3} s apart, but the robot logs every {:.3} s (period_s); give the robot's own file with --robot, or a log of this robot",
-            log_path.display(),
-            opts.robot.period_s
+            "{}: {why} (period_s); give the robot's own file with --robot, or a log of this robot",
+            log_path.display()
         )));
     }
     let traj = match (&row.trajectory, &row.video, track) {

@@ -101,12 +101,22 @@ impl OdometryLog {
         Some(d[d.len() / 2])
     }
 
-    /// The log's own period when it is more than 5 % off `period_s`: rows logged by another
-    /// robot or logger, or a robot file that describes another robot. Every feature and
-    /// speed odocal derives assumes the rows are `period_s` apart.
-    pub fn period_mismatch_s(&self, period_s: f64) -> Option<f64> {
-        self.median_period_s()
-            .filter(|p| (p - period_s).abs() > 0.05 * period_s)
+    /// What is wrong when the log's own period is more than 5 % off the robot's `period_s`
+    /// (rows logged by another robot or logger, times in another unit, or a robot file that
+    /// describes another robot); `None` when it fits. Every feature and speed odocal derives
+    /// assumes the rows are `period_s` apart.
+    pub fn period_mismatch(&self, period_s: f64) -> Option<String> {
+        let p = self
+            .median_period_s()
+            .filter(|p| (p - period_s).abs() > 0.05 * period_s)?;
+        let unit = if (p / period_s / 1000.0 - 1.0).abs() < 0.05 {
+            " (1000 times that: are the times in milliseconds? they must be in seconds)"
+        } else {
+            ""
+        };
+        Some(format!(
+            "rows are {p:.3} s apart, but the robot logs every {period_s:.3} s{unit}"
+        ))
     }
 
     /// Reads a log CSV; the header decides the kind.

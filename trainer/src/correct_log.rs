@@ -39,10 +39,9 @@ impl ModelFile {
         allow_extrapolation: bool,
     ) -> Result<CorrectedRun, TrainError> {
         self.check_compatible(FEATURE_RULE, robot)?;
-        if let Some(p) = log.period_mismatch_s(robot.period_s) {
+        if let Some(why) = log.period_mismatch(robot.period_s) {
             return Err(TrainError::Model(format!(
-                "{name}: rows are {p:.3} s apart, but the model's robot logs every {:.3} s; this log is of another robot or logger",
-                robot.period_s
+                "{name}: {why}; is this log of the model's robot and logger?"
             )));
         }
         let f = features_from_log(log, robot)

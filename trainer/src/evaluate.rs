@@ -155,10 +155,10 @@ pub fn evaluate_paths(
         let start = rest_pose(cam.rows_between(t0, t0 + REST_SPAN_S), &r.id, "start")?;
         let end = rest_pose(cam.rows_between(t1 - REST_SPAN_S, t1), &r.id, "end")?;
         let truth = end.relative_to(&start);
-        if let Some(p) = r.log.period_mismatch_s(robot.period_s) {
+        if let Some(why) = r.log.period_mismatch(robot.period_s) {
             return Err(TrainError::Dataset(format!(
-                "{}: the odometry rows are {p:.3} s apart, but the robot logs every {:.3} s; this log is of another robot or logger",
-                r.id, robot.period_s
+                "{}: odometry {why}; is this log of another robot or logger?",
+                r.id
             )));
         }
         let revs = r.log.wheel_revs(robot);
