@@ -175,7 +175,7 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     }
     let e = run(&manifest);
     assert!(
-        e.contains("no run gave a sample") && e.contains("are the ticks cumulative counts"),
+        e.contains("the odometry's 0.101 m") && e.contains("are the ticks cumulative counts"),
         "{e}"
     );
     std::fs::write(&log, &good).unwrap();
@@ -187,6 +187,27 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let short: Vec<&str> = full.lines().take(20).collect();
     std::fs::write(&traj, short.join("\n")).unwrap();
     assert!(run(&manifest).contains("cannot overlap"));
+    // A trajectory in millimetres (motion capture often exports them): named as such.
+    let mm: Vec<String> = full
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                return l.to_string();
+            }
+            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+            for c in [1, 2] {
+                f[c] = (f[c].parse::<f64>().unwrap() * 1000.0).to_string();
+            }
+            f.join(",")
+        })
+        .collect();
+    std::fs::write(&traj, mm.join("\n")).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("run \"run002\"") && e.contains("is the trajectory in millimetres?"),
+        "{e}"
+    );
     std::fs::write(&traj, &full).unwrap();
 
     // Missing file, video rows, wrong format.

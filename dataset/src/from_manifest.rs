@@ -52,6 +52,13 @@ fn one_row(
             )))
         }
     };
+    if let Some(why) = crate::units::unit_mismatch(&log, &traj, &opts.robot) {
+        return Err(DatasetError::Mismatch(format!(
+            "run \"{}\" ({}): {why}",
+            row.id,
+            log_path.display()
+        )));
+    }
     let rec = Recording {
         id: &row.id,
         speed_mps: row.speed_mps,

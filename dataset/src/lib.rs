@@ -11,6 +11,7 @@ pub mod odometry;
 pub mod oracle;
 pub mod sample;
 pub mod segment;
+pub mod units;
 pub mod windows;
 
 pub use build::{

@@ -161,6 +161,9 @@ pub fn evaluate_paths(
                 r.id
             )));
         }
+        if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot) {
+            return Err(TrainError::Dataset(format!("{}: {why}", r.id)));
+        }
         let revs = r.log.wheel_revs(robot);
         let nominal = WheelGeometry::nominal(robot);
         let raw = odocal_dataset::dead_reckon(&revs.rev, &nominal);

@@ -1,0 +1,107 @@
+//! Catching a trajectory or a robot file in another unit before alignment: motion capture
+//! often exports millimetres, and a wheel diameter in millimetres makes every odometry
+//! distance a thousand times too long. Alignment would only reject every run with a speed
+//! mismatch; comparing the extents of the two paths names the likely cause.
+
+use odocal_core::Trajectory;
+
+use crate::kinematics::{dead_reckon, WheelGeometry};
+use crate::odometry::{LogKind, OdometryLog};
+use crate::RobotParams;
+
+/// The largest ratio between the camera path's extent and the odometry's that can still be
+/// the same motion (odometry drifts by percent, not by factors).
+const MAX_EXTENT_RATIO: f64 = 5.0;
+
+/// Extents below this (metres) are too small to compare (a robot at rest, tracking noise).
+const MIN_EXTENT_M: f64 = 0.05;
+
+/// The diagonal of the box holding the points between the 2nd and 98th percentile in x and
+/// y (a few false detections do not stretch it), metres.
+fn extent_m(points: impl Iterator<Item = [f64; 2]>) -> f64 {
+    let (mut xs, mut ys): (Vec<f64>, Vec<f64>) = points.map(|p| (p[0], p[1])).unzip();
+    if xs.len() < 2 {
+        return 0.0;
+    }
+    let span = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        at(0.98) - at(0.02)
+    };
+    span(&mut xs).hypot(span(&mut ys))
+}
+
+/// Why the camera trajectory and the odometry log cannot be in the same unit, when the
+/// extent of one is more than [`MAX_EXTENT_RATIO`] times the other's; `None` when they fit
+/// or either barely moves.
+pub fn unit_mismatch(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &RobotParams,
+) -> Option<String> {
+    let revs = log.wheel_revs(robot);
+    let odometry = dead_reckon(&revs.rev, &WheelGeometry::nominal(robot));
+    let odo_m = extent_m(odometry.iter().map(|p| [p.x_m, p.y_m]));
+    let cam_m = extent_m(camera.rows.iter().map(|r| [r.pose.x_m, r.pose.y_m]));
+    if odo_m < MIN_EXTENT_M || cam_m < MIN_EXTENT_M {
+        return None;
+    }
+    let ratio = cam_m / odo_m;
+    if (1.0 / MAX_EXTENT_RATIO..=MAX_EXTENT_RATIO).contains(&ratio) {
+        return None;
+    }
+    let near = |r: f64, k: f64| (r / k - 1.0).abs() < 0.2;
+    let hint = if near(ratio, 1000.0) {
+        "1000 times: is the trajectory in millimetres? it must be in metres"
+    } else if near(ratio, 100.0) {
+        "100 times: is the trajectory in centimetres? it must be in metres"
+    } else if near(ratio, 0.001) {
+        "1/1000: is the robot's wheel_diameter_m in millimetres? it must be in metres"
+    } else if log.kind == LogKind::Ticks && ratio > 1.0 {
+        "are the ticks cumulative counts (not counts per period), the log paired with the right trajectory, and the robot's parameters its own?"
+    } else {
+        "is the log paired with the right trajectory, and are the robot's parameters its own?"
+    };
+    Some(format!(
+        "the camera's path spans {cam_m:.3} m and the odometry's {odo_m:.3} m, a ratio of {ratio:.3}; {hint}"
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_core::{Pose2, TrajectoryRow};
+
+    #[test]
+    fn millimetres_and_a_millimetre_wheel_are_named() {
+        let robot = RobotParams::default();
+        // 30 rows of a straight drive: 2 ticks per row on both wheels.
+        let ticks: Vec<i64> = (0..30).map(|i| 2 * i).collect();
+        let t: Vec<f64> = (0..30).map(|i| 0.2 * i as f64).collect();
+        let log = OdometryLog::from_ticks(t.clone(), ticks.clone(), ticks).expect("log");
+        let per_tick_m = std::f64::consts::PI * robot.wheel_diameter_m / robot.ticks_per_rev;
+        let camera = |scale: f64| {
+            let rows = t
+                .iter()
+                .enumerate()
+                .map(|(i, &t_s)| TrajectoryRow {
+                    t_s,
+                    pose: Pose2::new(scale * 2.0 * i as f64 * per_tick_m, 0.0, 0.0),
+                    quality: 1.0,
+                    sigma: None,
+                })
+                .collect();
+            Trajectory::new(rows).expect("trajectory")
+        };
+        assert_eq!(unit_mismatch(&log, &camera(1.0), &robot), None);
+        assert_eq!(unit_mismatch(&log, &camera(1.3), &robot), None);
+        let mm = unit_mismatch(&log, &camera(1000.0), &robot).expect("mm");
+        assert!(mm.contains("in millimetres?"), "{mm}");
+        let wheel_mm = RobotParams {
+            wheel_diameter_m: robot.wheel_diameter_m * 1000.0,
+            ..robot
+        };
+        let w = unit_mismatch(&log, &camera(1.0), &wheel_mm).expect("wheel");
+        assert!(w.contains("wheel_diameter_m in millimetres"), "{w}");
+    }
+}
