@@ -192,3 +192,62 @@ fn bad_arena_inputs_give_one_line() {
     assert!(e.contains("odocal.arena/1"), "{e}");
     assert!(!d.join("arena.json").exists() && !d.join("t.csv").exists());
 }
+
+/// An arena run where no robot is accepted (a tag size half the real one) is refused with the
+/// reason and its figures, not ended with exit 0 and no file; a selected tag no camera saw is
+/// named. The true camera files stand in for calibrations (the accuracy is tested elsewhere).
+#[test]
+fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&[
+        "synth",
+        "arena",
+        "--out",
+        p(d),
+        "--frames",
+        "20",
+        "--calib-views",
+        "6",
+        "--width",
+        "960",
+        "--height",
+        "540",
+    ]);
+    let cameras: Vec<String> = (0..4)
+        .map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string())
+        .collect();
+    let arena = d.join("arena.json");
+    let mut args = vec!["arena", "--camera"];
+    args.extend(cameras.iter().map(String::as_str));
+    let shared = d.join("shared");
+    args.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    ok(&args);
+    let videos: Vec<String> = (0..4)
+        .map(|k| p(&d.join(format!("video_c{k}"))).to_string())
+        .collect();
+    let out = d.join("robot.csv");
+    let track = |tags: &str, size: &str| {
+        let mut a = vec!["track", "--arena", p(&arena)];
+        a.extend(videos.iter().map(String::as_str));
+        a.extend(["--tags", tags, "--tag-size", size, "--out", p(&out)]);
+        odocal(&a)
+    };
+    let o = track("0,3", "0.08");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("no robot gave a confident fix in any camera")
+            && e.contains("bad geometry")
+            && e.contains("check --tag-size 0.08 m"),
+        "{e}"
+    );
+    let o = track("0,9", "0.16");
+    succeeded(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("warning: tag 9 never gave a confident fix in any camera"),
+        "{e}"
+    );
+    assert!(d.join("robot_tag0.csv").exists() && !d.join("robot_tag9.csv").exists());
+}

@@ -139,14 +139,61 @@ fn track_one_video(
         &mut |_| bar.inc(1),
     );
     bar.finish_and_clear();
-    let out = fixes_to_trajectories(results?)?;
+    let results = results?;
+    let why = why_no_fix(
+        std::slice::from_ref(&results),
+        std::slice::from_ref(&args.video),
+        opts,
+    );
+    let out = fixes_to_trajectories(results)?;
     if out.is_empty() {
         bail!(
-            "no selected tag gave a confident fix in {}: check --tags, --tag-size and the camera file",
+            "no selected tag gave a confident fix in {}: {why}",
             args.video.display()
         );
     }
     Ok(out)
+}
+
+/// Why no selected tag gave a fix, as the camera that saw a selected tag most explains it
+/// (its rejection reasons and their figures), or that no camera saw one.
+fn why_no_fix(
+    results: &[odocal_arena::CameraResult],
+    videos: &[PathBuf],
+    opts: &TrackOptions,
+) -> String {
+    let seen = results
+        .iter()
+        .zip(videos)
+        .flat_map(|(per_id, video)| {
+            per_id
+                .iter()
+                .map(move |(id, r)| (r.seen_ids.get(id).copied().unwrap_or(0), *id, r, video))
+        })
+        .max_by_key(|(n, id, _, _)| (*n, std::cmp::Reverse(*id)));
+    match seen {
+        Some((n, id, r, video)) if n > 0 => {
+            let opts = TrackOptions {
+                tag_id: id,
+                ..opts.clone()
+            };
+            r.no_fix_message(&opts, video)
+        }
+        _ => {
+            let mut ids: Vec<u32> = results
+                .iter()
+                .flat_map(|per_id| per_id.values().flat_map(|r| r.seen_ids.keys().copied()))
+                .collect();
+            ids.sort_unstable();
+            ids.dedup();
+            let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
+            format!(
+                "no selected tag was seen in any frame of the {} video(s) (ids seen: {}); check --tags and --family",
+                videos.len(),
+                if ids.is_empty() { "none".into() } else { ids.join(", ") }
+            )
+        }
+    }
 }
 
 fn track_arena(
@@ -177,6 +224,19 @@ fn track_arena(
     let fps = frame_rate(&results, &videos)?;
     let fuse = FuseOptions::for_fps(fps);
     let tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
+    if tracking.robots.is_empty() {
+        bail!(
+            "no robot gave a confident fix in any camera, so nothing was written: {}",
+            why_no_fix(&results, &videos, opts)
+        );
+    }
+    if let TagSelection::Ids(ids) = selection {
+        for id in ids {
+            if !tracking.robots.iter().any(|r| r.tag_id == *id) {
+                eprintln!("warning: tag {id} never gave a confident fix in any camera; no file written for it");
+            }
+        }
+    }
     println!(
         "frame rate {fps:.3} frames/s, taken to be every camera's (clocks without drift, one constant offset each)"
     );
@@ -192,11 +252,15 @@ fn track_arena(
             );
         }
     }
-    println!(
-        "simultaneous fixes of two cameras after the offsets: {:.2} mm RMS apart ({} pairs of cameras)",
-        tracking.offsets.rms_m * 1e3,
-        tracking.offsets.pairs.len()
-    );
+    if tracking.offsets.pairs.is_empty() {
+        println!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
+    } else {
+        println!(
+            "simultaneous fixes of two cameras after the offsets: {:.2} mm RMS apart ({} pairs of cameras)",
+            tracking.offsets.rms_m * 1e3,
+            tracking.offsets.pairs.len()
+        );
+    }
     for r in &tracking.robots {
         let jump = r.handoffs.iter().map(|h| h.jump_m).fold(0.0, f64::max);
         let dis = r
