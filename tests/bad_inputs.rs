@@ -379,6 +379,22 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
         ],
         &["--width 100000", "megapixels"],
     );
+    // Too few views to calibrate, and noise no sensor has: refused, nothing written.
+    refused(
+        dir,
+        &["synth", "calib", "--out", p(&calib), "--views", "2"],
+        &["--views 2", "at least 3"],
+    );
+    refused(
+        dir,
+        &["synth", "calib", "--out", p(&calib), "--noise=-1"],
+        &["--noise -1", "0 to 50 grey levels"],
+    );
+    refused(
+        dir,
+        &["synth", "track", "--out", p(&calib), "--noise", "500"],
+        &["--noise 500", "0 to 50 grey levels"],
+    );
 }
 
 #[test]

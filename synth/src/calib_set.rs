@@ -59,6 +59,18 @@ pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
             MAX_PIXELS / 1_000_000
         )));
     }
+    if scene.views < 3 {
+        return Err(CalibSetError::Settings(format!(
+            "--views {}: Zhang calibration needs at least 3 hand-held views (10-20 recommended)",
+            scene.views
+        )));
+    }
+    if !(scene.noise_sigma >= 0.0 && scene.noise_sigma <= 50.0) {
+        return Err(CalibSetError::Settings(format!(
+            "--noise {}: 0 to 50 grey levels",
+            scene.noise_sigma
+        )));
+    }
     let model = scene.distortion.model;
     let max = crate::board::max_hfov_deg(model);
     if !(scene.hfov_deg >= 10.0 && scene.hfov_deg <= max) {

@@ -135,6 +135,9 @@ impl TrackScene {
                 self.speed_min_mps, self.speed_max_mps
             ));
         }
+        if !(self.noise_sigma >= 0.0 && self.noise_sigma <= 50.0) {
+            return bad(format!("--noise {}: 0 to 50 grey levels", self.noise_sigma));
+        }
         if !(self.exposure_s >= 0.0 && self.exposure_s < 1.0 / self.fps) {
             return bad(format!(
                 "--exposure-ms {}: must be between 0 and the frame period",
