@@ -215,6 +215,19 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let m2 = d.join("m2.json");
     std::fs::write(&m2, text.replace("run002.trajectory.csv", "missing.csv")).unwrap();
     assert!(run(&m2).contains("missing.csv listed in the manifest does not exist"));
+    // One recording listed twice (its copies would sit on both sides of every split).
+    let m5 = d.join("m5.json");
+    std::fs::write(
+        &m5,
+        text.replace("run002.odometry.csv", "run001.odometry.csv")
+            .replace("run002.trajectory.csv", "run001.trajectory.csv"),
+    )
+    .unwrap();
+    let e = run(&m5);
+    assert!(
+        e.contains("runs \"run001\" and \"run002\" list the same odometry log"),
+        "{e}"
+    );
     let m3 = d.join("m3.csv");
     std::fs::write(
         &m3,

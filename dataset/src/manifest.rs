@@ -125,6 +125,9 @@ impl Manifest {
 
     /// Checks that every referenced file exists; the error names the run and the file.
     pub fn check_files(&self) -> Result<(), DatasetError> {
+        // A log listed twice is one recording counted twice: its copies would sit on both
+        // sides of every cross-validation split.
+        let mut logs: Vec<(PathBuf, &str)> = Vec::with_capacity(self.runs.len());
         for r in &self.runs {
             for p in [Some(&r.odometry), r.video.as_ref(), r.trajectory.as_ref()]
                 .into_iter()
@@ -139,6 +142,15 @@ impl Manifest {
                     )));
                 }
             }
+            let log = self.resolve(&r.odometry);
+            let log = std::fs::canonicalize(&log).unwrap_or(log);
+            if let Some((_, first)) = logs.iter().find(|(l, _)| *l == log) {
+                return Err(DatasetError::Mismatch(format!(
+                    "runs \"{first}\" and \"{}\" list the same odometry log {}: one recording counted twice; give each run its own log",
+                    r.id, r.odometry
+                )));
+            }
+            logs.push((log, &r.id));
         }
         Ok(())
     }

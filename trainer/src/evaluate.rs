@@ -35,6 +35,8 @@ impl PathRecording {
     /// Every row of a manifest with a camera trajectory file (rows with only a video must be
     /// tracked first: `odocal track`).
     pub fn read_manifest(m: &odocal_dataset::Manifest) -> Result<Vec<Self>, TrainError> {
+        m.check_files()
+            .map_err(|e| TrainError::Dataset(e.to_string()))?;
         m.runs
             .iter()
             .map(|row| {
