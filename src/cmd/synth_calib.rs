@@ -209,28 +209,7 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             max * 1e3
         );
     }
-    // The verdict: the intrinsics' bounds, and calibrate's own promise on the floor it
-    // vouches for (the whole floor of a wide lens reaches where one pixel spans metres).
-    let mut failed = Vec::new();
-    for (name, rel) in [("fx", e.fx_rel), ("fy", e.fy_rel)] {
-        if rel > 0.002 {
-            failed.push(format!("{name} error {:.3} % > 0.2 %", rel * 100.0));
-        }
-    }
-    for (name, px) in [("cx", e.cx_px), ("cy", e.cy_px)] {
-        if px > 1.0 {
-            failed.push(format!("{name} error {px:.2} px > 1 px"));
-        }
-    }
-    if let Some((_, max)) = vouched {
-        if max * 1e3 > odocal_calib::FLOOR_BOUND_MM {
-            failed.push(format!(
-                "floor error {:.2} mm > {} mm where calibrate vouches for the floor",
-                max * 1e3,
-                odocal_calib::FLOOR_BOUND_MM
-            ));
-        }
-    }
+    let failed = e.failures(vouched.map(|(_, max)| max));
     if !failed.is_empty() {
         anyhow::bail!(
             "{} fails the check against {}: {}",
