@@ -259,6 +259,21 @@ fn absurd_maps_are_refused_without_a_hang_or_a_huge_allocation() {
             &[&format!("{name}.json"), "are the coordinates in metres?"],
         );
     }
+    // Reflector orientations in degrees: named, with the value in radians.
+    for (field, deg, needle) in [
+        ("facing_rad", 90.0, "facing_rad 90 is beyond a full turn"),
+        ("half_fov_rad", 75.0, "75° is 1.3090 rad"),
+    ] {
+        let mut m = map.clone();
+        m["landmarks"][0][field] = serde_json::json!(deg);
+        let path = dir.join(format!("{field}.json"));
+        std::fs::write(&path, m.to_string()).expect("write");
+        refused(
+            dir,
+            &["lrf", "check-map", p(&path)],
+            &[&format!("{field}.json"), needle, "angles are in radians"],
+        );
+    }
 }
 
 #[test]

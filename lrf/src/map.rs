@@ -288,10 +288,20 @@ impl Map {
                     "{at}: a number is not finite; fix the coordinates"
                 )));
             }
+            if let Some(a) = s
+                .facing_rad
+                .filter(|a| a.abs() > std::f64::consts::TAU + 1e-9)
+            {
+                return Err(err(format!(
+                    "{at}: facing_rad {a} is beyond a full turn; angles are in radians (if it is in degrees, {a}° is {:.4} rad)",
+                    a.to_radians()
+                )));
+            }
             let half_fov_rad = s.half_fov_rad.unwrap_or(DEFAULT_HALF_FOV_RAD);
             if !(half_fov_rad > 0.0 && half_fov_rad <= std::f64::consts::PI) {
                 return Err(err(format!(
-                    "{at}: half_fov_rad {half_fov_rad} is outside (0, pi]"
+                    "{at}: half_fov_rad {half_fov_rad} is outside (0, pi]; angles are in radians (if it is in degrees, {half_fov_rad}° is {:.4} rad)",
+                    half_fov_rad.to_radians()
                 )));
             }
             let half_plane = match s.visibility_line {
