@@ -97,6 +97,22 @@ pub(super) fn read_timestamps(csv_path: &Path, files: &[PathBuf]) -> Result<Vec<
             ),
         ));
     }
+    // Frames further apart than this are no video of a driving robot: most likely times in
+    // milliseconds (a 30 frames/s camera's would be 33 s apart).
+    const MAX_MEDIAN_INTERVAL_S: f64 = 2.0;
+    let mut dt: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    dt.sort_by(f64::total_cmp);
+    if let Some(&median) = dt.get(dt.len() / 2) {
+        if median > MAX_MEDIAN_INTERVAL_S {
+            return Err(TrackError::bad_input(
+                csv_path,
+                format!(
+                    "images are a median {median:.3} s apart ({:.3} frames/s): are the timestamps in milliseconds? they must be in seconds",
+                    1.0 / median
+                ),
+            ));
+        }
+    }
     Ok(times)
 }
 
@@ -139,5 +155,10 @@ mod tests {
         assert!(e.contains("must increase"), "{e}");
         let e = ts("t\n1\n", 2).unwrap_err().to_string();
         assert!(e.contains("1 timestamps for 2 images"), "{e}");
+        let e = ts("t\n0\n33.3\n66.7\n", 3).unwrap_err().to_string();
+        assert!(
+            e.contains("a median 33.400 s apart") && e.contains("in milliseconds?"),
+            "{e}"
+        );
     }
 }
