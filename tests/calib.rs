@@ -124,15 +124,24 @@ fn calibration_matches_truth_for_several_seeds() {
 /// `synth check-calib` passes a calibration within the bounds, and refuses one outside them
 /// (a truth whose focal length is 10 % longer) or a truth of other images.
 fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
+    let args = |truth: &Path| {
+        ["synth", "check-calib", "--camera", p(camera), "--truth"]
+            .into_iter()
+            .map(str::to_string)
+            .chain([p(truth).to_string()])
+            .collect::<Vec<String>>()
+    };
+    let check = |truth: &Path, passes: bool| {
+        let a = args(truth);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        if passes {
+            ok(&a)
+        } else {
+            fails(&a)
+        }
+    };
     let truth = dir.join("truth.json");
-    let text = ok(&[
-        "synth",
-        "check-calib",
-        "--camera",
-        p(camera),
-        "--truth",
-        p(&truth),
-    ]);
+    let text = check(&truth, true);
     assert!(text.contains("check passed"), "{text}");
     let mut t: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
@@ -140,14 +149,7 @@ fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
     t["camera"]["intrinsics"]["fx"] = (fx * 1.1).into();
     let longer = dir.join("truth-longer.json");
     std::fs::write(&longer, t.to_string()).unwrap();
-    let e = fails(&[
-        "synth",
-        "check-calib",
-        "--camera",
-        p(camera),
-        "--truth",
-        p(&longer),
-    ]);
+    let e = check(&longer, false);
     assert!(
         e.contains("fails the check") && e.contains("fx error 9."),
         "{e}"
@@ -155,14 +157,7 @@ fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
     t["camera"]["width"] = 640.into();
     let other = dir.join("truth-other.json");
     std::fs::write(&other, t.to_string()).unwrap();
-    let e = fails(&[
-        "synth",
-        "check-calib",
-        "--camera",
-        p(camera),
-        "--truth",
-        p(&other),
-    ]);
+    let e = check(&other, false);
     assert!(e.contains("is the truth of 640x720 images"), "{e}");
 }
 
