@@ -393,6 +393,41 @@ fn cli_synth_then_localize_with_truth() {
     }
     assert!(n_ok >= 100, "{n_ok} ok scans of 120");
 
+    // The truth of other scans (every pose shifted 3 m): the poses it contradicts are refused.
+    let shifted: String = truth
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+            if i > 0 {
+                f[1] = (f[1].parse::<f64>().expect("x") + 3.0).to_string();
+            }
+            f.join(",") + "\n"
+        })
+        .collect();
+    let other = d.join("other_truth.csv");
+    std::fs::write(&other, shifted).expect("write");
+    let poses2 = d.join("poses2.csv");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&d.join("scans.csv")),
+        "--out",
+        s(&poses2),
+        "--truth",
+        s(&other),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("confident poses are wrong against") && err.contains("other_truth.csv"),
+        "{err}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("nothing written"));
+    assert!(!poses2.exists());
+
     // One scan per file (no scan/t columns) works too, in global-only mode.
     let one = d.join("one.csv");
     let mut single = String::from("angle,range,intensity\n");

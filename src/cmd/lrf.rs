@@ -137,19 +137,54 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             why_lost()
         );
     }
-    write_atomic(&a.out, log.to_csv().as_bytes())?;
+    // The truth is read and compared first: poses it shows to be wrong are not written.
+    let against = match &a.truth {
+        Some(tp) => {
+            let truth = read_truth_csv(tp).with_context(|| "reading the truth file".to_string())?;
+            let e = evaluate(&log.for_evaluation(), &truth);
+            if e.n_scans == 0 {
+                anyhow::bail!(
+                    "{}: no truth pose has the time of a scan; pass the truth of these scans",
+                    tp.display()
+                );
+            }
+            Some((tp, e))
+        }
+        None => None,
+    };
+    // Most confident poses far from the truth: the truth of other scans, or a map of another
+    // room; either way these poses are no ground truth.
+    let n_ok = count(Status::Ok);
+    let refused = against.as_ref().and_then(|(tp, e)| {
+        (n_ok > 0 && e.n_wrong_ok * 2 > n_ok).then(|| {
+            format!(
+                "{} of {} confident poses are wrong against {} (position RMS {:.1} mm), so nothing was written: is it the truth of these scans, and {} the map of this room?",
+                e.n_wrong_ok,
+                n_ok,
+                tp.display(),
+                e.position_rms_m * 1e3,
+                a.map.display()
+            )
+        })
+    });
+    if refused.is_none() {
+        write_atomic(&a.out, log.to_csv().as_bytes())?;
+    }
     let n = log.rows.len().max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
     println!(
-        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; wrote {}",
+        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; {}",
         log.rows.len(),
         if a.global_only { "global" } else { "tracking" },
-        count(Status::Ok),
+        n_ok,
         count(Status::Ambiguous),
         count(Status::Lost),
         n_det_total as f64 / n as f64,
         elapsed.as_secs_f64() * 1e6 / n as f64,
-        a.out.display()
+        match refused {
+            Some(_) => "nothing written".to_string(),
+            None => format!("wrote {}", a.out.display()),
+        }
     );
     if count(Status::Lost) * 2 > log.rows.len() {
         eprintln!(
@@ -159,15 +194,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             why_lost()
         );
     }
-    if let Some(tp) = &a.truth {
-        let truth = read_truth_csv(tp).with_context(|| "reading the truth file".to_string())?;
-        let e = evaluate(&log.for_evaluation(), &truth);
-        if e.n_scans == 0 {
-            anyhow::bail!(
-                "{}: no truth pose has the time of a scan; pass the truth of these scans",
-                tp.display()
-            );
-        }
+    if let Some((_, e)) = &against {
         // The bound beside each RMS: the mean over the same scans of each pose's Cramér–Rao
         // bound, from the matched detections' covariances and the map's.
         let bound = |rms: f64, crb: f64, unit: &str, scale: f64, digits: usize| {
@@ -194,6 +221,9 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             e.n_eligible,
             100.0 * e.n_correct_eligible as f64 / e.n_eligible.max(1) as f64
         );
+    }
+    if let Some(why) = refused {
+        anyhow::bail!(why);
     }
     Ok(())
 }
