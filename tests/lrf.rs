@@ -343,18 +343,22 @@ fn cli_synth_then_localize_with_truth() {
         std::fs::read(d2.join("map.json")).expect("map")
     );
 
+    let (map, scans) = (d.join("map.json"), d.join("scans.csv"));
+    let localize = |out: &Path, truth: &Path| {
+        odocal(&[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(&scans),
+            "--out",
+            s(out),
+            "--truth",
+            s(truth),
+        ])
+    };
     let poses = d.join("poses.csv");
-    let out = odocal(&[
-        "lrf",
-        "localize",
-        "--map",
-        s(&d.join("map.json")),
-        s(&d.join("scans.csv")),
-        "--out",
-        s(&poses),
-        "--truth",
-        s(&d.join("truth.csv")),
-    ]);
+    let out = localize(&poses, &d.join("truth.csv"));
     let stdout = String::from_utf8_lossy(&out.stdout);
     println!("{stdout}");
     assert!(
@@ -408,17 +412,7 @@ fn cli_synth_then_localize_with_truth() {
     let other = d.join("other_truth.csv");
     std::fs::write(&other, shifted).expect("write");
     let poses2 = d.join("poses2.csv");
-    let out = odocal(&[
-        "lrf",
-        "localize",
-        "--map",
-        s(&d.join("map.json")),
-        s(&d.join("scans.csv")),
-        "--out",
-        s(&poses2),
-        "--truth",
-        s(&other),
-    ]);
+    let out = localize(&poses2, &other);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
