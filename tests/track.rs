@@ -432,13 +432,11 @@ fn bad_inputs_fail_clearly_without_output() {
     );
 }
 
-#[test]
-fn calibrated_camera_meets_accuracy() {
-    // The whole chain: calibrate the synthetic camera from checkerboard views, then
-    // track a video of the same camera with that calibration (not the truth).
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let calib = d.join("calib");
+/// `odocal synth calib` with `views` hand-held and `floor_views` floor views (seed 1), then
+/// `odocal calibrate` on them: the camera file's path.
+fn calibrate_synth(d: &std::path::Path, views: usize, floor_views: usize) -> std::path::PathBuf {
+    let calib = d.join(format!("calib_{views}_{floor_views}"));
+    let (v, f) = (views.to_string(), floor_views.to_string());
     succeeded(&odocal(&[
         "synth",
         "calib",
@@ -447,26 +445,25 @@ fn calibrated_camera_meets_accuracy() {
         "--seed",
         "1",
         "--views",
-        "12",
+        &v,
         "--floor-views",
-        "2",
+        &f,
     ]));
-    let mut views = Vec::new();
-    let mut floors = Vec::new();
-    for e in std::fs::read_dir(&calib).unwrap() {
-        let path = e.unwrap().path();
-        let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        if name.ends_with(".png") {
-            if name.starts_with("view_") {
-                views.push(path.to_string_lossy().into_owned());
-            } else if name.starts_with("floor_") {
-                floors.push(path.to_string_lossy().into_owned());
-            }
-        }
-    }
-    views.sort();
-    floors.sort();
-    let cam = d.join("camera.json");
+    let pngs = |prefix: &str| {
+        let mut v: Vec<String> = std::fs::read_dir(&calib)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| {
+                let name = p.file_name().unwrap().to_string_lossy();
+                name.starts_with(prefix) && name.ends_with(".png")
+            })
+            .map(|p| p.to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    let (views, floors) = (pngs("view_"), pngs("floor_"));
+    let cam = calib.join("camera.json");
     let mut args: Vec<&str> = vec!["calibrate"];
     args.extend(views.iter().map(|s| s.as_str()));
     args.extend([
@@ -480,6 +477,18 @@ fn calibrated_camera_meets_accuracy() {
     ]);
     args.extend(floors.iter().map(|s| s.as_str()));
     succeeded(&odocal(&args));
+    cam
+}
+
+/// The whole chain: calibrate the synthetic camera from checkerboard views, then track a
+/// video of the same camera with that calibration (not the truth). Twelve views and two floor
+/// views vouch for the floor the robot drives on, so nothing is flagged; five views and one
+/// floor view vouch for half a metre around the point under the camera, and the fixes beyond
+/// it are flagged with the σ the calibration gives them.
+#[test]
+fn calibrated_camera_meets_accuracy() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
     let trk = d.join("track");
     succeeded(&odocal(&[
         "synth",
@@ -491,15 +500,21 @@ fn calibrated_camera_meets_accuracy() {
         "--seed",
         "6",
     ]));
+    let track = |cam: &std::path::Path, out: &std::path::Path| {
+        let res = odocal(&[
+            "track",
+            p(&trk.join("video.avi")),
+            "--camera",
+            p(cam),
+            "--out",
+            p(out),
+        ]);
+        succeeded(&res);
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
     let out = d.join("traj.csv");
-    succeeded(&odocal(&[
-        "track",
-        p(&trk.join("video.avi")),
-        "--camera",
-        p(&cam),
-        "--out",
-        p(&out),
-    ]));
+    let err = track(&calibrate_synth(d, 12, 2), &out);
+    assert!(!err.contains("outside the floor"), "{err}");
     let est = Trajectory::read_csv(&out).unwrap();
     let truth = Trajectory::read_csv(&trk.join("truth.csv")).unwrap();
     let (pos, head, n) = errors(&est, &truth);
@@ -510,6 +525,20 @@ fn calibrated_camera_meets_accuracy() {
     );
     assert!(n >= 30 * 995 / 1000, "tracked only {n} of 30 frames");
     assert!(pos <= 2.5e-3, "position RMS {:.3} mm > 2.5 mm", pos * 1e3);
+
+    let weak = track(&calibrate_synth(d, 5, 1), &d.join("weak.csv"));
+    eprintln!("{weak}");
+    let line = weak
+        .lines()
+        .find(|l| l.contains("lie outside the floor the calibration maps within 2 mm at 3σ"))
+        .unwrap_or_else(|| panic!("no warning: {weak}"));
+    let (outside, all): (usize, usize) = {
+        let w: Vec<&str> = line.split(": ").nth(2).unwrap().split(' ').collect();
+        (w[0].parse().unwrap(), w[2].parse().unwrap())
+    };
+    assert_eq!(all, 30, "{line}");
+    assert!(outside >= 15, "{line}");
+    assert!(line.contains("it vouches for 0."), "{line}");
 }
 
 /// The marker's height is the user's word; the tag's apparent size checks it. A height 80 mm

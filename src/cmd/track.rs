@@ -9,7 +9,7 @@ use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
     AgainstTruth, MarkerHeight, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions,
-    TrackResult,
+    TrackResult, UnvouchedFixes,
 };
 
 use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
@@ -285,6 +285,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|h| h.warning(opts.marker_height_m, opts.tag_size_m))
     {
         eprintln!("warning: {}: {w}", args.video.display());
+    }
+    if let Some(u) = camera_file
+        .floor_uncertainty
+        .as_ref()
+        .and_then(|m| UnvouchedFixes::of(&result, m, &camera_file.camera, &floor))
+    {
+        eprintln!("warning: {}: {}", args.video.display(), u.warning());
     }
     let compared = match (&truth, &args.truth) {
         (Some(truth), Some(path)) => {

@@ -11,7 +11,9 @@ use odocal_calib::CameraFile;
 use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
-use odocal_tracker::{open_source, quiet_video_logs, SourceOptions, TrackOptions, TrackResult};
+use odocal_tracker::{
+    open_source, quiet_video_logs, SourceOptions, TrackOptions, TrackResult, UnvouchedFixes,
+};
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
 
@@ -140,6 +142,17 @@ fn track_one_video(
     );
     bar.finish_and_clear();
     let results = results?;
+    if let Some(map) = &camera_file.floor_uncertainty {
+        for (id, r) in &results {
+            if let Some(u) = UnvouchedFixes::of(r, map, &camera_file.camera, &floor) {
+                eprintln!(
+                    "warning: {}: tag {id}: {}",
+                    args.video.display(),
+                    u.warning()
+                );
+            }
+        }
+    }
     let why = why_no_fix(
         std::slice::from_ref(&results),
         std::slice::from_ref(&args.video),

@@ -18,6 +18,7 @@ pub mod source;
 pub mod timing;
 pub mod track;
 pub mod uncertainty;
+pub mod vouched;
 
 pub use detect::{Roi, TagDetection, TagDetector};
 pub use error::TrackError;
@@ -35,3 +36,4 @@ pub use timing::{DroppedFrames, TimingReport};
 pub use track::{
     track_source, Fix, FrameRecord, Gap, GapReason, Outcome, TrackOptions, TrackResult, Tracker,
 };
+pub use vouched::UnvouchedFixes;
