@@ -100,6 +100,51 @@ fn long_recordings_are_split_into_runs() {
     assert!(rms(&err) <= 0.0025, "target RMS {}", rms(&err));
 }
 
+/// A robot's 16-bit encoder counters wrap (unsigned from 65 535 to 0, signed from 32 767 to
+/// −32 768) within its logs: the dataset is the same as from the unwrapped logs, and says
+/// where it unwrapped them.
+#[test]
+fn wrapped_encoder_counters_give_the_same_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), 6, 5, 3);
+    let plain = build(dir.path());
+    assert!(plain.notes.is_empty(), "{:?}", plain.notes);
+    let wrap = |name: &str, start: i64, signed: bool| {
+        let path = dir.path().join("runs").join(name);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut out = String::new();
+        for (i, line) in text.lines().enumerate() {
+            if i == 0 {
+                out.push_str(line);
+            } else {
+                let f: Vec<&str> = line.split(',').collect();
+                let w = |v: &str| {
+                    let c = (v.parse::<i64>().unwrap() + start).rem_euclid(65536);
+                    if signed && c > 32767 {
+                        c - 65536
+                    } else {
+                        c
+                    }
+                };
+                out.push_str(&format!("{},{},{}", f[0], w(f[1]), w(f[2])));
+            }
+            out.push('\n');
+        }
+        std::fs::write(&path, out).unwrap();
+    };
+    wrap("rec001.odometry.csv", 65_400, false);
+    wrap("rec002.odometry.csv", 32_700, true);
+    let unwrapped = build(dir.path());
+    assert_eq!(unwrapped.samples, plain.samples);
+    assert_eq!(unwrapped.notes.len(), 2, "{:?}", unwrapped.notes);
+    for (n, rec) in unwrapped.notes.iter().zip(["rec001", "rec002"]) {
+        assert!(
+            n.contains(&format!("{rec}.odometry.csv: encoder counts unwrapped: left_ticks wraps as a 16-bit counter at line")),
+            "{n}"
+        );
+    }
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();

@@ -20,14 +20,20 @@ use crate::DatasetError;
 /// row and the video's resolved path in, the trajectory or a message out.
 pub type VideoTracker<'a> = dyn Fn(&ManifestRow, &Path) -> Result<Trajectory, String> + Sync + 'a;
 
+/// A row's runs, and the note on what reading its log took out of it.
+type RowOutcome = (Vec<RunOutcome>, Option<String>);
+
 fn one_row(
     m: &Manifest,
     row: &ManifestRow,
     track: Option<&VideoTracker>,
     opts: &BuildOptions,
-) -> Result<Vec<RunOutcome>, DatasetError> {
+) -> Result<RowOutcome, DatasetError> {
     let log_path = m.resolve(&row.odometry);
     let log = OdometryLog::read_csv(&log_path)?;
+    let note = log
+        .wrap_note()
+        .map(|n| format!("{}: {n}", log_path.display()));
     if let Some(why) = log.period_mismatch(opts.robot.period_s) {
         return Err(DatasetError::Mismatch(format!(
             "{}: {why} (period_s); give the robot's own file with --robot, or a log of this robot",
@@ -65,10 +71,11 @@ fn one_row(
         log: &log,
         camera: &traj,
     };
-    match opts.layout {
+    let runs = match opts.layout {
         Layout::StraightRuns => process_recording(&rec, opts),
         Layout::Windows(w) => window_samples(&rec, opts, &w),
-    }
+    }?;
+    Ok((runs, note))
 }
 
 /// Builds the dataset of every row of `m`. Rows with a video are tracked by `track` on
@@ -88,9 +95,9 @@ pub fn build_from_manifest(
         on_row();
         r
     };
-    let results: Vec<Result<Vec<RunOutcome>, DatasetError>> = if track.is_some() {
+    let results: Vec<Result<RowOutcome, DatasetError>> = if track.is_some() {
         let next = AtomicUsize::new(0);
-        let mut slots: Vec<Option<Result<Vec<RunOutcome>, DatasetError>>> =
+        let mut slots: Vec<Option<Result<RowOutcome, DatasetError>>> =
             (0..m.runs.len()).map(|_| None).collect();
         let done = Mutex::new(&mut slots);
         std::thread::scope(|scope| {
@@ -121,10 +128,14 @@ pub fn build_from_manifest(
         m.runs.par_iter().map(work).collect()
     };
     let mut outcomes = Vec::with_capacity(results.len());
+    let mut notes = Vec::new();
     for r in results {
-        outcomes.push(r?);
+        let (runs, note) = r?;
+        outcomes.push(runs);
+        notes.extend(note);
     }
     let mut ds = assemble(opts.robot, outcomes);
+    ds.notes = notes;
     if let Layout::Windows(_) = opts.layout {
         ds.feature_rule = WINDOW_RULE.to_string();
     }

@@ -3,6 +3,7 @@
 
 pub mod align;
 pub mod build;
+pub mod counter_wrap;
 pub mod error;
 mod from_manifest;
 pub mod kinematics;

@@ -5,6 +5,7 @@ use std::path::Path;
 
 use odocal_core::{csv_table, numeric_row};
 
+use crate::counter_wrap::{unwrap_counts, CounterWrap};
 use crate::error::{read_text, DatasetError};
 use crate::RobotParams;
 
@@ -36,6 +37,9 @@ pub struct OdometryLog {
     pub left: Vec<f64>,
     /// Right wheel: cumulative ticks or speed (m/s), per [`LogKind`].
     pub right: Vec<f64>,
+    /// The encoder-counter wraps taken out of the counts as read (`left`, `right` hold the
+    /// unwrapped counts).
+    pub counter_wraps: Vec<CounterWrap>,
 }
 
 /// Cumulative wheel revolutions at the log's times, relative to the first row.
@@ -59,6 +63,7 @@ impl OdometryLog {
             t_s,
             left: left.into_iter().map(|v| v as f64).collect(),
             right: right.into_iter().map(|v| v as f64).collect(),
+            counter_wraps: Vec::new(),
         };
         log.validate("<ticks>", |i| i as u64 + 2)?;
         Ok(log)
@@ -75,6 +80,7 @@ impl OdometryLog {
             t_s,
             left: v_left,
             right: v_right,
+            counter_wraps: Vec::new(),
         };
         log.validate("<speeds>", |i| i as u64 + 2)?;
         Ok(log)
@@ -116,6 +122,20 @@ impl OdometryLog {
         };
         Some(format!(
             "rows are {p:.3} s apart, but the robot logs every {period_s:.3} s{unit}"
+        ))
+    }
+
+    /// What reading the log took out of its counts, for the user: the encoder-counter wraps
+    /// unwrapped (None when there were none).
+    pub fn wrap_note(&self) -> Option<String> {
+        let first = self.counter_wraps.first()?;
+        let more = match self.counter_wraps.len() {
+            1 => String::new(),
+            n => format!(" and {} more wrap{}", n - 1, if n == 2 { "" } else { "s" }),
+        };
+        Some(format!(
+            "encoder counts unwrapped: {first}{more}; check that the robot's counter is {} bits wide",
+            first.bits
         ))
     }
 
@@ -171,11 +191,17 @@ impl OdometryLog {
             right.push(vals[2]);
             lines.push(line);
         }
+        let mut counter_wraps = Vec::new();
+        if kind == LogKind::Ticks {
+            counter_wraps.extend(unwrap_counts(&mut left, TICKS_HEADER[1], &lines));
+            counter_wraps.extend(unwrap_counts(&mut right, TICKS_HEADER[2], &lines));
+        }
         let log = Self {
             kind,
             t_s,
             left,
             right,
+            counter_wraps,
         };
         log.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
         Ok(log)
@@ -321,6 +347,22 @@ mod tests {
         assert!((r.rev[1][0] - 0.1 / (std::f64::consts::PI * 0.043)).abs() < 1e-12);
         let back = OdometryLog::parse_csv(&log.to_csv(), "c").unwrap();
         assert_eq!(back, log);
+        assert_eq!(log.wrap_note(), None);
+    }
+
+    #[test]
+    fn wrapped_counts_are_read_unwrapped_with_a_note() {
+        let log = OdometryLog::parse_csv(
+            "t,left_ticks,right_ticks\n0,65530,65531\n0.2,65535,0\n0.4,4,6\n",
+            "w.csv",
+        )
+        .unwrap();
+        assert_eq!(log.left, vec![65530.0, 65535.0, 65540.0]);
+        assert_eq!(log.right, vec![65531.0, 65536.0, 65542.0]);
+        assert_eq!(
+            log.wrap_note().unwrap(),
+            "encoder counts unwrapped: left_ticks wraps as a 16-bit counter at line 4 (65535 → 4) and 1 more wrap; check that the robot's counter is 16 bits wide"
+        );
     }
 
     fn err(text: &str) -> String {

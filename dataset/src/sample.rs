@@ -121,6 +121,10 @@ pub struct Dataset {
     /// Summary figures of the build.
     #[serde(default)]
     pub summary: DatasetSummary,
+    /// What was done to the inputs that their owner should know (encoder-counter wraps
+    /// unwrapped), one line each naming the file.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// Summary figures of a dataset build.
@@ -176,6 +180,7 @@ impl Dataset {
             samples,
             rejected,
             summary,
+            notes: Vec::new(),
         }
     }
 

@@ -38,7 +38,11 @@ fn robot_and_log(
         Some(p) => RobotParams::read(p)?,
         None => model_robot,
     };
-    Ok((robot, OdometryLog::read_csv(&args.log)?))
+    let log = OdometryLog::read_csv(&args.log)?;
+    if let Some(n) = log.wrap_note() {
+        eprintln!("note: {}: {n}", args.log.display());
+    }
+    Ok((robot, log))
 }
 
 /// Warns of each way the log lies outside the training domain (a flagged guess, not an error

@@ -221,6 +221,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             manifest.runs.len()
         );
     }
+    for n in &ds.notes {
+        eprintln!("note: {n}");
+    }
     write_json(&args.out, &ds)?;
     if let Some(csv) = &args.csv {
         write_atomic(csv, samples_csv(&ds).as_bytes())?;

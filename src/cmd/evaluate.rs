@@ -40,6 +40,17 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
+/// The recordings of a manifest, with a note on each log whose encoder counts were unwrapped.
+fn read_recordings(manifest: &std::path::Path) -> anyhow::Result<Vec<PathRecording>> {
+    let recs = PathRecording::read_manifest(&Manifest::read(manifest)?)?;
+    for r in &recs {
+        if let Some(n) = r.log.wrap_note() {
+            eprintln!("note: run \"{}\": {n}", r.id);
+        }
+    }
+    Ok(recs)
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
@@ -68,7 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut methods: Vec<(String, Reckoner)> =
         vec![("raw odometry".into(), Reckoner::Geometry(nominal))];
     if let (Some(cal), Some(side)) = (&args.umbmark_calibration, args.umbmark_m) {
-        let recs = PathRecording::read_manifest(&Manifest::read(cal)?)?;
+        let recs = read_recordings(cal)?;
         let ev = evaluate_paths(
             &recs,
             &robot,
@@ -107,7 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(k) = truth {
         methods.push(("oracle (true kinematics)".into(), Reckoner::Truth(k)));
     }
-    let recs = PathRecording::read_manifest(&Manifest::read(&args.manifest)?)?;
+    let recs = read_recordings(&args.manifest)?;
     let ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
         .with_context(|| format!("{}", args.manifest.display()))?;
     let path_m: f64 = ev.runs.iter().map(|r| r.path_length_m).sum();

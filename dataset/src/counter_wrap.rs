@@ -1,0 +1,133 @@
+//! Encoder counters that wrap. A robot's wheel counts are usually a 16- or 32-bit register
+//! (signed or not) that the firmware logs as it is: after 65 536 ticks a 16-bit counter goes
+//! from 65 535 to 0 (or from 32 767 to −32 768), and read as a count that is a step of one
+//! wheel's worth of hundreds of metres in 0.2 s. Such a step is unwrapped where the rest of
+//! the step is what the wheel does between the other rows; any other jump is left for the
+//! dataset's checks to refuse.
+
+/// Widths of the counters unwrapped, bits, widest first: a 32-bit step is also a whole
+/// number of 16-bit turns, and is named by its own width.
+const COUNTER_BITS: [u32; 2] = [32, 16];
+
+/// Slack on what a wheel does between two rows at a wrap, ticks: the step left after
+/// taking out the counter's turns may be this much beyond twice the log's largest ordinary
+/// step (a robot speeding up as its counter wraps).
+const STEP_SLACK_TICKS: f64 = 100.0;
+
+/// One wrap of a wheel's counter that was unwrapped.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CounterWrap {
+    /// The wheel's column, `left_ticks` or `right_ticks`.
+    pub column: &'static str,
+    /// The file's line of the row after the wrap.
+    pub line: u64,
+    /// The counter's width, bits.
+    pub bits: u32,
+    /// The counts on the rows before and after the wrap, as logged.
+    pub from: f64,
+    /// See `from`.
+    pub to: f64,
+}
+
+impl std::fmt::Display for CounterWrap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} wraps as a {}-bit counter at line {} ({} → {})",
+            self.column, self.bits, self.line, self.from, self.to
+        )
+    }
+}
+
+/// Unwraps the counts `v` of the wheel `column` in place (`lines[i]` is row i's line in the
+/// file) and returns the wraps taken out.
+pub fn unwrap_counts(v: &mut [f64], column: &'static str, lines: &[u64]) -> Vec<CounterWrap> {
+    let logged = v.to_vec();
+    let steps: Vec<f64> = logged.windows(2).map(|w| w[1] - w[0]).collect();
+    let half_turn_16 = 2f64.powi(15);
+    // What the wheel does between rows: the largest step that is no counter turn.
+    let ordinary = steps
+        .iter()
+        .map(|s| s.abs())
+        .filter(|s| *s < half_turn_16)
+        .fold(0.0, f64::max);
+    let mut wraps = Vec::new();
+    let mut offset = 0.0;
+    for (i, step) in steps.iter().enumerate() {
+        for bits in COUNTER_BITS {
+            let turn = 2f64.powi(bits as i32);
+            if step.abs() < turn / 2.0 {
+                continue;
+            }
+            let turns = (step / turn).round();
+            if (step - turns * turn).abs() <= 2.0 * ordinary + STEP_SLACK_TICKS {
+                offset -= turns * turn;
+                wraps.push(CounterWrap {
+                    column,
+                    line: lines.get(i + 1).copied().unwrap_or(0),
+                    bits,
+                    from: logged[i],
+                    to: logged[i + 1],
+                });
+                break;
+            }
+        }
+        if offset != 0.0 {
+            v[i + 1] += offset;
+        }
+    }
+    wraps
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unwrap(v: &[f64]) -> (Vec<f64>, Vec<CounterWrap>) {
+        let mut v = v.to_vec();
+        let lines: Vec<u64> = (2..2 + v.len() as u64).collect();
+        let w = unwrap_counts(&mut v, "left_ticks", &lines);
+        (v, w)
+    }
+
+    #[test]
+    fn sixteen_and_thirty_two_bit_wraps_are_taken_out() {
+        // Unsigned 16-bit, forwards.
+        let (v, w) = unwrap(&[65500.0, 65520.0, 4.0, 25.0]);
+        assert_eq!(v, vec![65500.0, 65520.0, 65540.0, 65561.0]);
+        assert_eq!(w.len(), 1);
+        assert_eq!(
+            w[0].to_string(),
+            "left_ticks wraps as a 16-bit counter at line 4 (65520 → 4)"
+        );
+        // Signed 16-bit, backwards (the wheel turning back through −32768).
+        let (v, w) = unwrap(&[-32750.0, -32765.0, 32757.0, 32740.0]);
+        assert_eq!(v, vec![-32750.0, -32765.0, -32779.0, -32796.0]);
+        assert_eq!((w.len(), w[0].bits), (1, 16));
+        // Signed 32-bit.
+        let max = 2f64.powi(31) - 1.0;
+        let (v, w) = unwrap(&[max - 10.0, max, -max - 1.0 + 9.0]);
+        assert_eq!(v[2], max + 10.0);
+        assert_eq!((w.len(), w[0].bits), (1, 32));
+        // Twice in one log: both taken out, the counts keep climbing.
+        let mut up: Vec<f64> = (0..20).map(|k| ((k * 9000) % 65536) as f64).collect();
+        let lines: Vec<u64> = (0..20).collect();
+        let w = unwrap_counts(&mut up, "right_ticks", &lines);
+        assert_eq!(w.len(), 2);
+        assert!(up.windows(2).all(|s| s[1] - s[0] == 9000.0), "{up:?}");
+    }
+
+    #[test]
+    fn jumps_that_are_no_wrap_are_left() {
+        // A counter reset to zero, and a jump half a turn off: not a wrap.
+        for v in [[40000.0, 40010.0, 0.0, 10.0], [0.0, 10.0, 32768.0, 32778.0]] {
+            let (u, w) = unwrap(&v);
+            assert!(w.is_empty(), "{w:?}");
+            assert_eq!(u, v.to_vec());
+        }
+        // Ordinary logs are untouched.
+        let (u, w) = unwrap(&[0.0, 3.0, 7.0, 7.0]);
+        assert!(w.is_empty());
+        assert_eq!(u, vec![0.0, 3.0, 7.0, 7.0]);
+    }
+}
