@@ -627,10 +627,21 @@ fn every_lens_model_is_recovered_and_chosen() {
             held_rms <= 1.2 * cam.rms_px + 0.01,
             "{lens}: held out {held_rms} px"
         );
+        // The fisheye calibrated as OpenCV's examples do (pinhole5) is refused, naming the
+        // model that fits, rather than written with a warning or blamed on the floor boards.
+        if lens == "fisheye" {
+            let forced = dir.path().join("pinhole5.json");
+            let res = calibrate_with(dir.path(), &forced, "9x6", square, &["--model", "pinhole5"]);
+            assert_fails(&res, "--model pinhole5 does not fit these views", &forced);
+            let err = String::from_utf8_lossy(&res.stderr);
+            assert!(
+                err.contains("but the fisheye model fits them to 0.0"),
+                "{err}"
+            );
+        }
     }
 }
 
-/// `odocal calibrate` of the ChArUco views `synth calib --target charuco` renders by default:
 /// `odocal calibrate` of the ChArUco views `synth calib --target charuco` renders by default:
 /// an 11x8 board of 4X4_50 markers 0.75 of the square.
 fn calibrate_charuco(dir: &Path, out: &Path, square: &str, marker: &str) -> Output {

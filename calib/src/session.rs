@@ -166,6 +166,38 @@ fn consistency_notes(rms_px: f64, views: &[crate::ViewResidual]) -> Vec<String> 
     )]
 }
 
+/// Refuses the lens model the user chose when it does not fit the views (RMS over
+/// [`LARGE_RMS_PX`]) and another model fits them within it and three times better: a
+/// fisheye or wide lens calibrated as `pinhole5` (the model OpenCV's examples use) would
+/// otherwise be blamed on the views, or on the floor boards, which then disagree by degrees.
+fn refuse_a_model_another_fits(
+    views: &[BoardView],
+    board: &BoardSpec,
+    chosen: LensModel,
+    rms_px: f64,
+) -> Result<(), CalibError> {
+    if rms_px <= LARGE_RMS_PX {
+        return Ok(());
+    }
+    let best = LensModel::ALL
+        .into_iter()
+        .filter(|m| *m != chosen)
+        .filter_map(|m| calibrate(views, board, m).ok().map(|c| (m, c.rms_px)))
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    match best {
+        Some((other, other_px)) if other_px <= LARGE_RMS_PX && other_px * 3.0 < rms_px => {
+            Err(CalibError::Input(format!(
+                "--model {} does not fit these views (RMS reprojection error {rms_px:.3} px, where sharp views of a flat board fit within {LARGE_RMS_PX} px), but the {} model fits them to {other_px:.3} px: the lens is wider or more distorted than {} describes; calibrate with --model {}, or leave --model out (auto picks the model by held-out error)",
+                chosen.name(),
+                other.name(),
+                chosen.name(),
+                other.name()
+            )))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The RMS over the views of their held-out errors, pixels (None when none was measured).
 fn held_out_rms_px(views: &[crate::ViewResidual]) -> Option<f64> {
     let held: Vec<f64> = views.iter().filter_map(|v| v.held_out_rms_px).collect();
@@ -262,6 +294,9 @@ pub fn calibrate_session(
         }
     };
     let mut cal = calibrate(&views, board, model)?;
+    if let ModelChoice::Fixed(m) = choice {
+        refuse_a_model_another_fits(&views, board, m, cal.rms_px)?;
+    }
     for (v, h) in cal.views.iter_mut().zip(&held_out) {
         v.held_out_rms_px = Some(*h);
     }
