@@ -740,6 +740,15 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
         },
         false,
     );
+    let byte_scale = write(
+        "i255.csv",
+        &|r| {
+            let mut r = r.to_vec();
+            r[4] = format!("{}", (num(&r[4]) * 255.0).round());
+            r
+        },
+        false,
+    );
     let mirrored = write(
         "mirrored.csv",
         &|r| {
@@ -776,6 +785,47 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
         &a.iter().map(String::as_str).collect::<Vec<_>>(),
         "ranges are in metres (if these are millimetres",
     );
+    // Intensities on a 0-255 scale against the default 0.5: every wall passes for a
+    // reflector. Refused with a threshold on their scale, which then localises as the 0-1
+    // intensities do.
+    let a = args(&byte_scale);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    expect_error(
+        &a,
+        "100 % of the scans' returns are at or above --intensity-min 0.5",
+    );
+    let err = String::from_utf8_lossy(&odocal(&a).stderr).into_owned();
+    let suggested = err
+        .trim_end()
+        .rsplit("halfway between those two: ")
+        .next()
+        .and_then(|v| v.strip_suffix(')'))
+        .expect("a suggested threshold")
+        .to_string();
+    let mut a = args(&byte_scale);
+    a.extend(["--intensity-min".into(), suggested.clone()]);
+    let out = odocal(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let plain = run(&d.join("scans.csv"));
+    assert!(
+        out.status.success(),
+        "{suggested}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // "lrf localize: 40 scans (tracking mode): N ok, N ambiguous, N lost": the same counts.
+    let summary = |o: &std::process::Output| {
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        let line = text.lines().find(|l| l.starts_with("lrf localize:"));
+        line.and_then(|l| l.split(';').next())
+            .map(str::to_string)
+            .expect("a summary")
+    };
+    assert_eq!(
+        summary(&out),
+        summary(&plain),
+        "--intensity-min {suggested}"
+    );
+    assert!(summary(&plain).contains(" ok,"), "{}", summary(&plain));
+    std::fs::remove_file(&poses).expect("poses written");
     // A threshold above every return: no scan can find a pose, and a file of lost rows is
     // no result.
     let mut a = args(&d.join("scans.csv"));

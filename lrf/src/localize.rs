@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use crate::pose_log::{PoseLog, PoseLogRow};
-use crate::scan::{read_scans_csv, Scan};
+use crate::scan::{read_scans_csv, Scan, SensorConfig};
 use crate::scan_track::ScanTracker;
 use crate::search::Localizer;
 use crate::LrfError;
@@ -53,6 +53,43 @@ pub fn check_range_unit(scans: &[Scan], max_range_m: f64) -> Result<(), LrfError
         )));
     }
     Ok(())
+}
+
+/// Reflectors are narrow: even a room full of them gives a few percent of a scan's returns
+/// (about 4 % in odocal's synthetic room). A threshold passed by more than this share of
+/// the returns does not tell reflectors from walls.
+const MAX_REFLECTOR_SHARE: f64 = 0.5;
+
+/// Refuses scans whose returns mostly reach `sensor.intensity_min`: their intensities are on
+/// another scale (0–255, or a scanner's raw counts, against the default 0.5 of a 0–1 scale),
+/// and every wall would be taken for a reflector, leaving almost every scan lost.
+pub fn check_intensity_scale(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> {
+    let mut returns: Vec<f64> = scans
+        .iter()
+        .flat_map(|s| s.ranges_m.iter().zip(&s.intensities))
+        .filter(|(r, i)| **r >= sensor.min_range_m && **r <= sensor.max_range_m && i.is_finite())
+        .map(|(_, i)| *i)
+        .collect();
+    if returns.is_empty() {
+        return Ok(());
+    }
+    let bright = returns
+        .iter()
+        .filter(|i| **i >= sensor.intensity_min)
+        .count();
+    let share = bright as f64 / returns.len() as f64;
+    if share <= MAX_REFLECTOR_SHARE {
+        return Ok(());
+    }
+    returns.sort_by(f64::total_cmp);
+    let median = returns[returns.len() / 2];
+    let top = returns[(returns.len() * 99 / 100).min(returns.len() - 1)];
+    Err(LrfError::Config(format!(
+        "{:.0} % of the scans' returns are at or above --intensity-min {} (median return {median}, the brightest 1 % from {top}), but reflectors give a few percent of a scan: the threshold does not tell them from walls; give --intensity-min on the scanner's intensity scale, between the walls' returns and the reflectors' (halfway between those two: {})",
+        share * 100.0,
+        sensor.intensity_min,
+        (median + top) / 2.0
+    )))
 }
 
 /// Localises every scan: with the tracker (prediction from the previous poses, global search

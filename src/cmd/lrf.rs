@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    check_map_report, check_range_unit, evaluate, localize_scans, read_scan_files, read_truth_csv,
-    Localizer, LocalizerConfig, Map, SensorConfig, Status,
+    check_intensity_scale, check_map_report, check_range_unit, evaluate, localize_scans,
+    read_scan_files, read_truth_csv, Localizer, LocalizerConfig, Map, SensorConfig, Status,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -110,6 +110,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         cfg.sensor.step_rad = step;
     }
     cfg.sensor.check()?;
+    check_intensity_scale(&scans, &cfg.sensor)?;
     let loc = Localizer::new(map, cfg);
     let bar = progress(scans.len() as u64, "localize");
     let start = Instant::now();
