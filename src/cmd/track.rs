@@ -8,8 +8,8 @@ use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
-    AgainstTruth, MarkerHeight, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions,
-    TrackResult, UnvouchedFixes,
+    AgainstTruth, MarkerHeight, ShutterEstimate, SourceOptions, TagDetector, TimingReport,
+    TrackError, TrackOptions, TrackResult, UnvouchedFixes,
 };
 
 use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
@@ -285,6 +285,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|h| h.warning(opts.marker_height_m, opts.tag_size_m))
     {
         eprintln!("warning: {}: {w}", args.video.display());
+    }
+    // A readout the user gave is taken as given; without one, the tags' shear says whether
+    // the camera has a rolling shutter.
+    if opts.rolling_shutter_s == 0.0 {
+        if let Some(w) = ShutterEstimate::of(&result, &camera_file.camera, &floor, &opts)
+            .and_then(|e| e.warning())
+        {
+            eprintln!("warning: {}: {w}", args.video.display());
+        }
     }
     if let Some(u) = camera_file
         .floor_uncertainty

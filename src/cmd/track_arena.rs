@@ -12,7 +12,8 @@ use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
-    open_source, quiet_video_logs, SourceOptions, TrackOptions, TrackResult, UnvouchedFixes,
+    open_source, quiet_video_logs, ShutterEstimate, SourceOptions, TrackOptions, TrackResult,
+    UnvouchedFixes,
 };
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
@@ -150,6 +151,15 @@ fn track_one_video(
                     args.video.display(),
                     u.warning()
                 );
+            }
+        }
+    }
+    if opts.rolling_shutter_s == 0.0 {
+        for (id, r) in &results {
+            if let Some(w) =
+                ShutterEstimate::of(r, &camera_file.camera, &floor, opts).and_then(|e| e.warning())
+            {
+                eprintln!("warning: {}: tag {id}: {w}", args.video.display());
             }
         }
     }

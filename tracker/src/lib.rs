@@ -14,6 +14,7 @@ pub mod multi;
 pub mod overlay;
 pub mod pose;
 mod report;
+pub mod rolling_shutter;
 pub mod source;
 pub mod timing;
 pub mod track;
@@ -29,6 +30,7 @@ pub use report::{
     errors_against, quiet_video_logs, track_report, track_video, AgainstTruth, TrackReport,
     TrackReportTruth, TruthErrors, TRACK_REPORT_FORMAT,
 };
+pub use rolling_shutter::ShutterEstimate;
 pub use source::{
     open_source, Frame, FrameSource, GrayFrame, MemorySource, SourceInfo, SourceOptions,
 };

@@ -638,11 +638,8 @@ impl Tracker {
         })
     }
 
-    /// Under a rolling shutter each corner was read at its own row's time: moves each corner
-    /// back along the tag's image motion (its centre's velocity and its turn, from the last two
-    /// fixes) to where it was when the tag centre's row was read. That undoes the shear that
-    /// would otherwise tilt the fitted heading, and the sideways shift a turning tag shows (its
-    /// upper and lower corners swing the same way across the image).
+    /// Under a rolling shutter each corner was read at its own row's time: see [`unshear`],
+    /// with the tag's motion from the last two fixes.
     fn unshear(&self, d: &mut TagDetection) {
         let readout = self.opts.rolling_shutter_s;
         if readout <= 0.0 || self.history.len() < 2 {
@@ -650,36 +647,14 @@ impl Tracker {
         }
         let (t0, p0, _) = self.history[self.history.len() - 2];
         let (t1, p1, _) = self.history[self.history.len() - 1];
-        let h = self.opts.marker_height_m;
-        if !(t1 - t0 > 1e-6 && t1 - t0 < 0.5) {
-            return;
-        }
-        // The tag's image motion between the last two fixes as a rigid motion: its centre's
-        // velocity and its turn in the image (a point half a tag ahead along the heading).
-        let ahead = |p: &Pose2| {
-            let r = 0.5 * self.opts.tag_size_m;
-            nalgebra::Point2::new(p.x_m + r * p.theta_rad.cos(), p.y_m + r * p.theta_rad.sin())
-        };
-        let px = |q: &nalgebra::Point2<f64>| self.camera.floor_to_pixel(&self.floor, q, h);
-        let (Some(a), Some(b), Some(a2), Some(b2)) = (
-            px(&p0.position()),
-            px(&p1.position()),
-            px(&ahead(&p0)),
-            px(&ahead(&p1)),
-        ) else {
-            return;
-        };
-        let dt = t1 - t0;
-        let v = (b - a) / dt;
-        let (da, db) = (a2 - a, b2 - b);
-        let omega = wrap_angle(db.y.atan2(db.x) - da.y.atan2(da.x)) / dt;
-        let rows = self.camera.height.max(1) as f64;
-        let centre = d.centre_px();
-        for c in &mut d.corners_px {
-            let r = *c - centre;
-            let vc = v + nalgebra::Vector2::new(-r.y, r.x) * omega;
-            *c -= vc * ((c.y - centre.y) / rows * readout);
-        }
+        unshear(
+            &self.camera,
+            &self.floor,
+            &self.opts,
+            [(t0, p0), (t1, p1)],
+            readout,
+            &mut d.corners_px,
+        );
     }
 
     fn grade(
@@ -837,6 +812,56 @@ impl Tracker {
             pnp,
         });
         (fix, None)
+    }
+}
+
+/// Moves each corner of a tag read under a rolling shutter (`readout_s` from the first row
+/// to the last) back along the tag's image motion to where it was when the tag centre's row
+/// was read. The motion is that between two earlier fixes (time, pose) as a rigid image
+/// motion: the centre's velocity and the turn of a point half a tag ahead along the heading.
+/// That undoes the shear that would otherwise tilt the fitted heading, and the sideways shift
+/// a turning tag shows (its upper and lower corners swing the same way across the image).
+pub(crate) fn unshear(
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    opts: &TrackOptions,
+    fixes: [(f64, Pose2); 2],
+    readout_s: f64,
+    corners_px: &mut [Point2<f64>; 4],
+) {
+    let [(t0, p0), (t1, p1)] = fixes;
+    let h = opts.marker_height_m;
+    if !(t1 - t0 > 1e-6 && t1 - t0 < 0.5) {
+        return;
+    }
+    let ahead = |p: &Pose2| {
+        let r = 0.5 * opts.tag_size_m;
+        Point2::new(p.x_m + r * p.theta_rad.cos(), p.y_m + r * p.theta_rad.sin())
+    };
+    let px = |q: &Point2<f64>| camera.floor_to_pixel(floor, q, h);
+    let (Some(a), Some(b), Some(a2), Some(b2)) = (
+        px(&p0.position()),
+        px(&p1.position()),
+        px(&ahead(&p0)),
+        px(&ahead(&p1)),
+    ) else {
+        return;
+    };
+    let dt = t1 - t0;
+    let v = (b - a) / dt;
+    let (da, db) = (a2 - a, b2 - b);
+    let omega = wrap_angle(db.y.atan2(db.x) - da.y.atan2(da.x)) / dt;
+    let rows = camera.height.max(1) as f64;
+    let centre = Point2::from(
+        corners_px
+            .iter()
+            .fold(nalgebra::Vector2::zeros(), |s, c| s + c.coords)
+            / 4.0,
+    );
+    for c in corners_px.iter_mut() {
+        let r = *c - centre;
+        let vc = v + nalgebra::Vector2::new(-r.y, r.x) * omega;
+        *c -= vc * ((c.y - centre.y) / rows * readout_s);
     }
 }
 

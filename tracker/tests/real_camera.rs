@@ -15,7 +15,13 @@ mod common;
 use common::*;
 use odocal_core::Pose2;
 use odocal_synth::scene::{pose_at, CameraEffects, SceneConfig};
-use odocal_tracker::{GapReason, Outcome, TrackOptions};
+use odocal_tracker::{GapReason, Outcome, ShutterEstimate, TrackOptions, TrackResult};
+
+/// The rolling-shutter readout the fixes of `res` show (tracked without one).
+fn shutter(cfg: &SceneConfig, res: &TrackResult) -> ShutterEstimate {
+    ShutterEstimate::of(res, &cfg.camera, &cfg.floor, &TrackOptions::default())
+        .expect("enough moving fixes")
+}
 
 /// The RMS of error/σ must show that σ is neither much too small nor much too large.
 fn assert_sigma_honest(name: &str, s: &Score) {
@@ -77,6 +83,11 @@ fn rolling_shutter_and_10ms_exposure() {
             at3,
         );
         let plain = track(&cfg, frames, &TrackOptions::default());
+        // Tracked without the readout, the tags' shear gives it away, within 10 %.
+        let est = shutter(&cfg, &plain);
+        eprintln!("drive {seed}: readout read off the tags' shear: {est:?}");
+        assert!(est.shows_rolling_shutter(), "{est:?}");
+        assert!((est.readout_s - 0.030).abs() <= 0.003, "{est:?}");
         let u = score_with(&plain, &truth_at);
         print(
             &format!("drive {seed}: 10 ms exposure, 30 ms rolling shutter, not corrected"),
@@ -138,6 +149,9 @@ fn nine_pixel_motion_blur() {
     let res = track(&cfg, frames, &TrackOptions::default());
     let s = score_with(&res, &|i, _| truths[i].pose);
     print("9 px motion blur", &s, at3);
+    // A global shutter's blur is no shear.
+    let est = shutter(&cfg, &res);
+    assert!(!est.shows_rolling_shutter(), "{est:?}");
     assert!(s.tracked() >= 0.95, "tracked {:.3}", s.tracked());
     assert!(s.pos_rms_mm <= 1.5, "position RMS {:.3} mm", s.pos_rms_mm);
     assert!(
@@ -165,6 +179,8 @@ fn everything_combined() {
     let res = track(&cfg, frames, &TrackOptions::default());
     let s = score_with(&res, &|i, _| truths[i].pose);
     print("combined", &s, at3);
+    let est = shutter(&cfg, &res);
+    assert!(!est.shows_rolling_shutter(), "{est:?}");
     assert!(
         s.tracked() >= MIN_COMBINED_TRACKED,
         "tracked {:.3}",
