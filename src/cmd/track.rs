@@ -7,9 +7,9 @@ use odocal_core::TextFormat;
 use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
-    errors_against, open_source, overlay, quiet_video_logs, track_report, track_source,
-    AgainstTruth, MarkerHeight, ShutterEstimate, SourceOptions, TagDetector, TimingReport,
-    TrackError, TrackOptions, TrackResult, UnvouchedFixes,
+    errors_against, fix_warnings, open_source, overlay, quiet_video_logs, track_report,
+    track_source, AgainstTruth, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions,
+    TrackResult,
 };
 
 use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
@@ -281,26 +281,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         r => r?,
     };
     let trajectory = result.trajectory()?;
-    if let Some(w) = MarkerHeight::of(&result, &camera_file.camera, &floor, opts.tag_size_m)
-        .and_then(|h| h.warning(opts.marker_height_m, opts.tag_size_m))
-    {
+    for w in fix_warnings(&result, &camera_file, &floor, &opts) {
         eprintln!("warning: {}: {w}", args.video.display());
-    }
-    // A readout the user gave is taken as given; without one, the tags' shear says whether
-    // the camera has a rolling shutter.
-    if opts.rolling_shutter_s == 0.0 {
-        if let Some(w) = ShutterEstimate::of(&result, &camera_file.camera, &floor, &opts)
-            .and_then(|e| e.warning())
-        {
-            eprintln!("warning: {}: {w}", args.video.display());
-        }
-    }
-    if let Some(u) = camera_file
-        .floor_uncertainty
-        .as_ref()
-        .and_then(|m| UnvouchedFixes::of(&result, m, &camera_file.camera, &floor))
-    {
-        eprintln!("warning: {}: {}", args.video.display(), u.warning());
     }
     let compared = match (&truth, &args.truth) {
         (Some(truth), Some(path)) => {

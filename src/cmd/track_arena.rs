@@ -12,8 +12,7 @@ use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
-    open_source, quiet_video_logs, ShutterEstimate, SourceOptions, TrackOptions, TrackResult,
-    UnvouchedFixes,
+    fix_warnings, open_source, quiet_video_logs, SourceOptions, TrackOptions, TrackResult,
 };
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
@@ -143,24 +142,9 @@ fn track_one_video(
     );
     bar.finish_and_clear();
     let results = results?;
-    if let Some(map) = &camera_file.floor_uncertainty {
-        for (id, r) in &results {
-            if let Some(u) = UnvouchedFixes::of(r, map, &camera_file.camera, &floor) {
-                eprintln!(
-                    "warning: {}: tag {id}: {}",
-                    args.video.display(),
-                    u.warning()
-                );
-            }
-        }
-    }
-    if opts.rolling_shutter_s == 0.0 {
-        for (id, r) in &results {
-            if let Some(w) =
-                ShutterEstimate::of(r, &camera_file.camera, &floor, opts).and_then(|e| e.warning())
-            {
-                eprintln!("warning: {}: tag {id}: {w}", args.video.display());
-            }
+    for (id, r) in &results {
+        for w in fix_warnings(r, &camera_file, &floor, opts) {
+            eprintln!("warning: {}: tag {id}: {w}", args.video.display());
         }
     }
     let why = why_no_fix(

@@ -297,11 +297,38 @@ pub fn track_video(
     let options = TrackOptions::default().with_calibration(camera);
     let result = crate::track_source(source, &camera.camera, &floor, &options, &mut |_, _| Ok(()))?;
     let mut warnings = crate::TimingReport::of(&result).warnings();
+    warnings.extend(fix_warnings(&result, camera, &floor, &options));
+    Ok((result.trajectory()?, warnings))
+}
+
+/// What the fixes of a run say about the inputs, one line each: a marker height the tag's
+/// apparent size contradicts, fixes outside the floor the calibration vouches for, and a
+/// rolling shutter `options` do not name.
+pub fn fix_warnings(
+    result: &TrackResult,
+    camera: &odocal_calib::CameraFile,
+    floor: &odocal_calib::FloorToCamera,
+    options: &TrackOptions,
+) -> Vec<String> {
+    let mut warnings = Vec::new();
     warnings.extend(
-        crate::MarkerHeight::of(&result, &camera.camera, &floor, options.tag_size_m)
+        crate::MarkerHeight::of(result, &camera.camera, floor, options.tag_size_m)
             .and_then(|h| h.warning(options.marker_height_m, options.tag_size_m)),
     );
-    Ok((result.trajectory()?, warnings))
+    if let Some(map) = &camera.floor_uncertainty {
+        warnings.extend(
+            crate::UnvouchedFixes::of(result, map, &camera.camera, floor).map(|u| u.warning()),
+        );
+    }
+    // A readout the user gave is taken as given; without one, the tags' shear says whether
+    // the camera has a rolling shutter.
+    if options.rolling_shutter_s == 0.0 {
+        warnings.extend(
+            crate::ShutterEstimate::of(result, &camera.camera, floor, options)
+                .and_then(|e| e.warning()),
+        );
+    }
+    warnings
 }
 
 /// Silences FFmpeg's and OpenCV's own complaints about bad files (unless the user set their
