@@ -569,7 +569,18 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
         "30",
     ]));
     std::fs::rename(d.join("video.avi"), d.join("rolling.avi")).unwrap();
-    let err = run(&d.join("rolling.avi"), &[]);
+    let report = d.join("report.json");
+    let err = run(&d.join("rolling.avi"), &["--report", p(&report)]);
+    // The warning is kept in the report too, for `odocal report` to show.
+    let kept: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(
+        kept["warnings"][0]
+            .as_str()
+            .unwrap_or("")
+            .contains("sheared"),
+        "{kept:?}"
+    );
     let line = err
         .lines()
         .find(|l| l.contains("the tags are sheared along their motion"))

@@ -245,6 +245,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 normalised_xy: a.errors.error_over_sigma_xy.unwrap_or(f64::NAN),
                 normalised_theta: a.errors.error_over_sigma_theta.unwrap_or(f64::NAN),
                 apriltag3_rate: a.apriltag3_rate,
+                warnings: r.warnings,
             });
         }
         report.sections.push(crate::conditions_section(&rows)?);

@@ -183,6 +183,7 @@ fn write_report(
     opts: &TrackOptions,
     result: &TrackResult,
     against_truth: Option<AgainstTruth>,
+    warnings: &[String],
     path: &Path,
 ) -> anyhow::Result<()> {
     let mut report = track_report(
@@ -192,6 +193,7 @@ fn write_report(
         result,
     );
     report.against_truth = against_truth;
+    report.warnings = warnings.to_vec();
     write_json(path, &report)
 }
 
@@ -262,17 +264,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Err(TrackError::NoFix { result, .. }) => Some(result.as_ref()),
         Err(_) => None,
     };
-    for w in timeline
+    // Every warning is printed as it is found and kept in --report.
+    let mut warnings = timeline
         .map(|r| TimingReport::of(r).warnings())
-        .unwrap_or_default()
-    {
+        .unwrap_or_default();
+    for w in &warnings {
         eprintln!("warning: {}: {w}", args.video.display());
     }
     let result = match result {
         Err(TrackError::NoFix { message, result }) => {
             // The report is what tells the user why: it is written even though nothing else is.
             if let Some(path) = &args.report {
-                write_report(&args, &opts, &result, None, path)?;
+                write_report(&args, &opts, &result, None, &warnings, path)?;
                 commit()?;
                 anyhow::bail!("{message}; per-frame figures in {}", path.display());
             }
@@ -283,6 +286,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let trajectory = result.trajectory()?;
     for w in fix_warnings(&result, &camera_file, &floor, &opts) {
         eprintln!("warning: {}: {w}", args.video.display());
+        warnings.push(w);
     }
     let compared = match (&truth, &args.truth) {
         (Some(truth), Some(path)) => {
@@ -300,7 +304,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_atomic(tum, trajectory.to_tum().as_bytes())?;
     }
     if let Some(path) = &args.report {
-        write_report(&args, &opts, &result, compared.clone(), path)?;
+        write_report(&args, &opts, &result, compared.clone(), &warnings, path)?;
     }
     eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {

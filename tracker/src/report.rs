@@ -83,6 +83,9 @@ pub struct TrackReportTruth {
     pub video: String,
     /// The comparison with the truth, when `odocal track` had `--truth`.
     pub against_truth: Option<AgainstTruth>,
+    /// The warnings of the run.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 impl TrackReportTruth {
@@ -165,6 +168,10 @@ pub struct TrackReport {
     /// The trajectory against the truth (`odocal track --truth`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub against_truth: Option<AgainstTruth>,
+    /// What the run warned of (the frames' timing, the marker height, the floor the
+    /// calibration vouches for, a rolling shutter), one line each.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     per_frame: Vec<FrameReport>,
 }
 
@@ -211,6 +218,7 @@ pub fn track_report(
             })
             .collect(),
         against_truth: None,
+        warnings: Vec::new(),
         per_frame: r
             .records
             .iter()

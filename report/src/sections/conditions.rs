@@ -28,6 +28,8 @@ pub struct ConditionRow {
     pub normalised_theta: f64,
     /// Fraction of frames where AprilTag 3 alone (decimation 2, defaults) finds the tag.
     pub apriltag3_rate: Option<f64>,
+    /// What `odocal track` warned of in this condition.
+    pub warnings: Vec<String>,
 }
 
 /// error/σ with two decimals; "–" when the fixes had no σ.
@@ -88,6 +90,12 @@ pub fn conditions_section(rows: &[ConditionRow]) -> Result<Section, ReportError>
             })
             .collect(),
     }));
+    for r in rows {
+        for w in &r.warnings {
+            s.blocks
+                .push(Block::Text(format!("{}: warning: {w}", r.condition)));
+        }
+    }
     Ok(s)
 }
 
@@ -173,8 +181,9 @@ mod tests {
             normalised_xy: 1.11,
             normalised_theta: 1.10,
             apriltag3_rate: Some(0.056),
+            warnings: vec![],
         };
-        let s = conditions_section(&[row]).unwrap();
+        let s = conditions_section(std::slice::from_ref(&row)).unwrap();
         let Some(Block::Table(t)) = s.blocks.last() else {
             panic!("no table")
         };
@@ -182,5 +191,15 @@ mod tests {
         assert_eq!(t.rows[0][1], "100.0 (90/90)");
         assert_eq!(t.rows[0][7], "5.6");
         assert!(conditions_section(&[]).is_err());
+        // A condition's warnings follow the table, named by the condition.
+        let warned = ConditionRow {
+            warnings: vec!["the tags are sheared".into()],
+            ..row
+        };
+        let s = conditions_section(&[warned]).unwrap();
+        let Some(Block::Text(w)) = s.blocks.last() else {
+            panic!("no warning")
+        };
+        assert_eq!(w, "9 px motion blur: warning: the tags are sheared");
     }
 }
