@@ -10,16 +10,24 @@ use odocal_synth::scene::{nadir, render_video, straight_trajectory, SceneConfig,
 
 /// `odocal synth track` into `dir`: `frames` frames with `seed`.
 fn synth_track(dir: &std::path::Path, frames: usize, seed: u64) {
-    succeeded(&odocal(&[
+    synth_track_with(dir, frames, seed, &[]);
+}
+
+/// As [`synth_track`], with `extra` options.
+fn synth_track_with(dir: &std::path::Path, frames: usize, seed: u64, extra: &[&str]) {
+    let (frames, seed) = (frames.to_string(), seed.to_string());
+    let mut args = vec![
         "synth",
         "track",
         "--out",
         p(dir),
         "--frames",
-        &frames.to_string(),
+        &frames,
         "--seed",
-        &seed.to_string(),
-    ]));
+        &seed,
+    ];
+    args.extend(extra);
+    succeeded(&odocal(&args));
 }
 
 /// Position and heading RMS of `est` against `truth` at the same timestamps.
@@ -42,18 +50,7 @@ fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
 fn synth_then_track_avi_meets_accuracy_and_writes_all_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    succeeded(&odocal(&[
-        "synth",
-        "track",
-        "--out",
-        p(d),
-        "--frames",
-        "45",
-        "--seed",
-        "3",
-        "--video",
-        "avi",
-    ]));
+    synth_track_with(d, 45, 3, &["--video", "avi"]);
     for f in ["video.avi", "camera.json", "truth.csv", "scene.json"] {
         assert!(d.join(f).is_file(), "{f} missing");
     }
@@ -556,18 +553,7 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
         succeeded(&res);
         String::from_utf8_lossy(&res.stderr).into_owned()
     };
-    succeeded(&odocal(&[
-        "synth",
-        "track",
-        "--out",
-        p(d),
-        "--frames",
-        "40",
-        "--seed",
-        "4",
-        "--rolling-shutter-ms",
-        "30",
-    ]));
+    synth_track_with(d, 40, 4, &["--rolling-shutter-ms", "30"]);
     std::fs::rename(d.join("video.avi"), d.join("rolling.avi")).unwrap();
     let report = d.join("report.json");
     let err = run(&d.join("rolling.avi"), &["--report", p(&report)]);
