@@ -391,26 +391,46 @@ fn report_renders_in_headless_chromium() {
     let _ = browser;
 }
 
+/// Sections without their inputs are left out with a note; a report of nothing (no inputs,
+/// or a demo folder holding none of the demo's outputs) is refused and nothing is written.
 #[test]
 fn missing_inputs_are_left_out_with_a_note() {
     let dir = tempfile::tempdir().expect("temp dir");
     let d = dir.path();
     let html = d.join("r.html");
-    let out = ok(&["report", "--out", p(&html)]);
-    assert!(out.contains("0 plots"), "{out}");
+    let e = fails(&["report", "--out", p(&html)]);
+    assert!(
+        e.contains("nothing to report") && e.contains("no inputs were given"),
+        "{e}"
+    );
+    let e = fails(&["report", "--demo-dir", p(d), "--out", p(&html)]);
+    assert!(e.contains("holds none of the demo's outputs"), "{e}");
+    assert!(!html.exists(), "nothing written");
+    // One input: its section, and a note for each of the others.
+    let lrf = d.join("lrf");
+    ok(&["synth", "lrf", "--out", p(&lrf), "--scans", "20"]);
+    let poses = lrf.join("poses.csv");
+    ok(&[
+        "lrf",
+        "localize",
+        "--map",
+        p(&lrf.join("map.json")),
+        p(&lrf.join("scans.csv")),
+        "--out",
+        p(&poses),
+    ]);
+    let out = ok(&["report", "--lrf-poses", p(&poses), "--out", p(&html)]);
+    assert!(out.contains("report: 1 sections"), "{out}");
     for t in [
-        "Camera calibration",
-        "Figures 4–7",
+        "left out: Camera calibration",
+        "(Figures 4–7)",
         "Tables 1 and 2",
-        "Laser positioning",
+        "left out: Laser error against the truth",
     ] {
         assert!(out.contains(t), "no note for {t}: {out}");
     }
     let text = std::fs::read_to_string(&html).expect("html");
     assert!(text.contains("Sections left out"));
-    // A demo folder with nothing in it is the same, not an error.
-    let out = ok(&["report", "--demo-dir", p(d), "--out", p(&html)]);
-    assert!(out.contains("left out: Camera calibration"), "{out}");
 }
 
 #[test]

@@ -142,6 +142,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         runs: a.runs,
         title: a.title.clone(),
     })?;
+    // A report of nothing is the wrong folder or no inputs at all: said, not written.
+    if report.sections.is_empty() {
+        let what = match demo {
+            Some(d) => format!(
+                "--demo-dir {} holds none of the demo's outputs (camera.json, dataset.json, model.json, train/report.json, lrf/poses.csv, track/report.json, …)",
+                d.display()
+            ),
+            None => "no inputs were given".to_string(),
+        };
+        bail!(
+            "nothing to report, so {} was not written: {what}; give the folder `make demo` wrote (--demo-dir demo-out), or the stages' outputs one by one (odocal report --help lists them)",
+            a.out.display()
+        );
+    }
     write_atomic(&a.out, report.to_html().as_bytes())?;
     if let Some(dir) = &a.svg_dir {
         for (name, svg) in report.figures() {
