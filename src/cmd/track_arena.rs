@@ -228,6 +228,13 @@ fn track_arena(
     opts.check(Some(lowest))?;
     eprintln!("tracking {} videos in parallel", videos.len());
     let results = track_cameras(&arena, &videos, opts, selection, true)?;
+    for ((cam, per_tag), video) in arena.cameras.iter().zip(&results).zip(&videos) {
+        for (id, r) in per_tag {
+            for w in fix_warnings(r, &cam.calibration, &cam.arena_to_camera, opts) {
+                eprintln!("warning: {}: tag {id}: {w}", video.display());
+            }
+        }
+    }
     let fps = frame_rate(&results, &videos)?;
     let fuse = FuseOptions::for_fps(fps);
     let tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
