@@ -124,8 +124,18 @@ fn against_truth(
 ) -> anyhow::Result<AgainstTruth> {
     let e = errors_against(trajectory, truth);
     if e.matched == 0 {
+        // Under a rolling shutter each fix is timed at its tag's row: only a truth timed
+        // with the same readout has rows at those times.
+        let r = args.rolling_shutter_s;
+        let readout = if r > 0.0 {
+            format!(
+                "; with --rolling-shutter-s {r} the fixes are timed at the tag's row, which only frames.csv of a video rendered with that readout has"
+            )
+        } else {
+            String::new()
+        };
         anyhow::bail!(
-            "{}: no row has the timestamp of a tracked frame: give the truth of this video (synth track's truth.csv or frames.csv)",
+            "{}: no row has the timestamp of a tracked frame: give the truth of this video (synth track's truth.csv or frames.csv){readout}",
             path.display()
         );
     }

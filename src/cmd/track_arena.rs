@@ -12,7 +12,8 @@ use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
-    fix_warnings, open_source, quiet_video_logs, SourceOptions, TrackOptions, TrackResult,
+    fix_warnings, open_source, quiet_video_logs, tag_shape_warnings, SourceOptions, TrackOptions,
+    TrackResult,
 };
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
@@ -230,7 +231,7 @@ fn track_arena(
     let results = track_cameras(&arena, &videos, opts, selection, true)?;
     for ((cam, per_tag), video) in arena.cameras.iter().zip(&results).zip(&videos) {
         for (id, r) in per_tag {
-            for w in fix_warnings(r, &cam.calibration, &cam.arena_to_camera, opts) {
+            for w in tag_shape_warnings(r, &cam.calibration, &cam.arena_to_camera, opts) {
                 eprintln!("warning: {}: tag {id}: {w}", video.display());
             }
         }

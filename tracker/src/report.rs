@@ -309,10 +309,28 @@ pub fn track_video(
     Ok((result.trajectory()?, warnings))
 }
 
-/// What the fixes of a run say about the inputs, one line each: a marker height the tag's
-/// apparent size contradicts, fixes outside the floor the calibration vouches for, and a
-/// rolling shutter `options` do not name.
+/// What the fixes of a run say about the inputs, one line each: [`tag_shape_warnings`], and
+/// fixes outside the floor the calibration vouches for.
 pub fn fix_warnings(
+    result: &TrackResult,
+    camera: &odocal_calib::CameraFile,
+    floor: &odocal_calib::FloorToCamera,
+    options: &TrackOptions,
+) -> Vec<String> {
+    let mut warnings = tag_shape_warnings(result, camera, floor, options);
+    if let Some(map) = &camera.floor_uncertainty {
+        warnings.extend(
+            crate::UnvouchedFixes::of(result, map, &camera.camera, floor).map(|u| u.warning()),
+        );
+    }
+    warnings
+}
+
+/// What the tags' shapes in a run's fixes say, one line each: a marker height their apparent
+/// size contradicts, and a rolling shutter `options` do not name (their shear). An arena's
+/// cameras take only these: the fixes near one camera's edge are fused with its neighbours'
+/// by their σ, so that camera's floor alone does not bound them.
+pub fn tag_shape_warnings(
     result: &TrackResult,
     camera: &odocal_calib::CameraFile,
     floor: &odocal_calib::FloorToCamera,
@@ -323,11 +341,6 @@ pub fn fix_warnings(
         crate::MarkerHeight::of(result, &camera.camera, floor, options.tag_size_m)
             .and_then(|h| h.warning(options.marker_height_m, options.tag_size_m)),
     );
-    if let Some(map) = &camera.floor_uncertainty {
-        warnings.extend(
-            crate::UnvouchedFixes::of(result, map, &camera.camera, floor).map(|u| u.warning()),
-        );
-    }
     // A readout the user gave is taken as given; without one, the tags' shear says whether
     // the camera has a rolling shutter.
     if options.rolling_shutter_s == 0.0 {
