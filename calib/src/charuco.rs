@@ -688,13 +688,9 @@ fn layout_agreement(
     Ok((pairs > 0).then(|| agree as f64 / pairs as f64))
 }
 
-/// The predefined dictionary whose markers are most numerous in the image at `path`, with
-/// their count, when it finds more than `given` does: a hint when no board of the given
-/// dictionary is found.
-pub fn guess_dictionary(
-    path: &std::path::Path,
-    given: ArucoDictionary,
-) -> Option<(ArucoDictionary, usize)> {
+/// How many markers of each predefined dictionary the image at `path` shows, in the
+/// dictionaries' order (None when the image cannot be read).
+fn marker_counts(path: &std::path::Path) -> Option<Vec<(ArucoDictionary, usize)>> {
     let gray = crate::detect::read_gray(path).ok()?;
     let params = aruco::DetectorParameters::create().ok()?;
     let count = |d: ArucoDictionary| -> Option<usize> {
@@ -705,14 +701,43 @@ pub fn guess_dictionary(
         aruco::detect_markers(&gray, &dict, &mut corners, &mut ids, &params, &mut rejected).ok()?;
         Some(ids.len())
     };
-    let floor = count(given).unwrap_or(0).max(3);
+    Some(
+        (0..DICTIONARIES.len())
+            .map(ArucoDictionary)
+            .filter_map(|d| count(d).map(|n| (d, n)))
+            .collect(),
+    )
+}
+
+/// The predefined dictionary whose markers are most numerous in the image at `path`, with
+/// their count, when it finds more than `given` does (and more than three): a hint when no
+/// board of the given dictionary is found.
+pub fn guess_dictionary(
+    path: &std::path::Path,
+    given: ArucoDictionary,
+) -> Option<(ArucoDictionary, usize)> {
+    let counts = marker_counts(path)?;
+    let floor = counts
+        .iter()
+        .find(|(d, _)| *d == given)
+        .map_or(0, |(_, n)| *n)
+        .max(3);
+    most_numerous(&counts).filter(|(_, n)| *n > floor)
+}
+
+/// The predefined dictionary whose markers are most numerous in the image at `path`, with
+/// their count, when there are more than three: a checkerboard's image that shows a ChArUco
+/// board's markers.
+pub fn markers_seen(path: &std::path::Path) -> Option<(ArucoDictionary, usize)> {
+    most_numerous(&marker_counts(path)?).filter(|(_, n)| *n > 3)
+}
+
+/// Smaller dictionaries come first and are prefixes of the larger ones of their family: the
+/// first that finds the most markers.
+fn most_numerous(counts: &[(ArucoDictionary, usize)]) -> Option<(ArucoDictionary, usize)> {
     let mut best: Option<(ArucoDictionary, usize)> = None;
-    for k in 0..DICTIONARIES.len() {
-        let d = ArucoDictionary(k);
-        let Some(n) = count(d) else { continue };
-        // Smaller dictionaries come first and are prefixes of the larger ones of their family:
-        // keep the first that finds the most markers.
-        if n > floor && best.is_none_or(|(_, b)| n > b) {
+    for &(d, n) in counts {
+        if best.is_none_or(|(_, b)| n > b) {
             best = Some((d, n));
         }
     }

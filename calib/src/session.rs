@@ -488,6 +488,13 @@ fn no_board_error(paths: &[PathBuf], board: &BoardSpec, what: &str) -> CalibErro
         .take(3)
         .find_map(|p| guess_board_size(p, board))
         .map(|(c, r)| format!(" A {c}x{r} board was found instead: pass --board {c}x{r}."))
+        .or_else(|| {
+            paths.iter().take(3).find_map(|p| crate::charuco::markers_seen(p)).map(|(d, n)| {
+                format!(
+                    " The images show a ChArUco board ({n} markers of dictionary {d} in one): pass --target charuco --dictionary {d}, with --board counting its squares and --marker the side of a marker."
+                )
+            })
+        })
         .unwrap_or_default();
     CalibError::Input(format!(
         "no {}x{} checkerboard found in any of the {} {what} image(s): --board counts INNER corners \

@@ -217,3 +217,58 @@ fn a_sliver_of_the_board_is_too_little() {
         assert!(reason.contains(needle), "{reason}");
     }
 }
+
+/// OpenCV's own ChArUco board given as a checkerboard, or with another dictionary: the error
+/// names the target and the dictionary the image shows.
+#[test]
+fn a_charuco_board_given_as_another_target_is_named() {
+    let (img, _) = opencv_board();
+    // A third of the board outside the image, as wide-lens sessions take it: no whole
+    // checkerboard is in view (a whole ChArUco board is one, and is found as one).
+    let h = homography(
+        &img,
+        [
+            (-420.0, 110.0),
+            (900.0, 60.0),
+            (990.0, 660.0),
+            (-480.0, 620.0),
+        ],
+    );
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("view.png");
+    opencv::imgcodecs::imwrite(
+        path.to_str().expect("utf-8 path"),
+        &warp(&img, &h),
+        &Vector::new(),
+    )
+    .expect("png written");
+    let images = [path];
+    let calibrate = |board: &BoardSpec| {
+        odocal_calib::calibrate_session(
+            &images,
+            &[],
+            board,
+            odocal_calib::ModelChoice::Auto,
+            &|| {},
+        )
+        .err()
+        .expect("no board of this kind")
+        .to_string()
+    };
+    let e = calibrate(&BoardSpec::checkerboard(10, 7, 0.04));
+    assert!(
+        e.contains("The images show a ChArUco board")
+            && e.contains("--target charuco --dictionary 4X4_50"),
+        "{e}"
+    );
+    let mut other = spec();
+    other.target = BoardTarget::Charuco {
+        marker_m: MARKER_M as f64,
+        dictionary: ArucoDictionary::from_name("5X5_100").expect("known dictionary"),
+    };
+    let e = calibrate(&other);
+    assert!(
+        e.contains("of dictionary 4X4_50 were found: pass --dictionary 4X4_50"),
+        "{e}"
+    );
+}
