@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{ok, p, rms};
+use common::{fails, ok, p, rms};
 use odocal_dataset::{Dataset, OracleFile};
 
 #[test]
@@ -76,4 +76,41 @@ fn dataset_from_rendered_videos_meets_the_acceptance_bounds() {
     assert!(rms(&offset) <= 0.005, "clock offset RMS {} s", rms(&offset));
     let rel = ds.summary.raw_relative_error;
     assert!((0.05..=0.13).contains(&rel), "raw relative error {rel}");
+
+    // The tag's options reach the tracker: checked before any video is opened, and a marker
+    // height the tags' apparent size contradicts is named for every run.
+    let manifest = d.join("manifest.json");
+    let with = |extra: &[&str]| {
+        let mut a = vec![
+            "dataset",
+            "--manifest",
+            p(&manifest),
+            "--camera",
+            p(&camera),
+            "--out",
+            p(&out),
+        ];
+        a.extend(extra);
+        fails(&a)
+    };
+    let e = with(&["--tag-size", "0"]);
+    assert!(e.contains("--tag-size 0"), "{e}");
+    let res = common::odocal(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--marker-height",
+        "0.15",
+    ]);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{err}");
+    assert_eq!(
+        err.matches("but --marker-height is 0.150 m").count(),
+        3,
+        "{err}"
+    );
 }

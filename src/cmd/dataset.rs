@@ -11,7 +11,7 @@ use odocal_dataset::{
     build_from_manifest, errors_against_truth, Layout, Manifest, ManifestRow, RobotParams,
     Trajectory, VideoTracker, WindowOptions,
 };
-use odocal_tracker::track_video;
+use odocal_tracker::{track_video, TrackOptions};
 
 use crate::output::{check_output_file, count, progress, write_atomic, write_json};
 
@@ -50,6 +50,9 @@ pub struct Args {
     /// also print the targets' and clock offsets' errors against it.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// The tag on the robot in the manifest's videos, as `odocal track` takes it.
+    #[command(flatten)]
+    pub tag: super::tag::TagArgs,
 }
 
 /// What one sample of the dataset is.
@@ -136,6 +139,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => Some(CameraFile::load(p)?),
         None => None,
     };
+    // The tag's options are checked before any video is opened.
+    let track_options = args.tag.apply(TrackOptions::default());
+    if let Some(c) = &camera {
+        track_options.check(c.floor.as_ref().map(|f| f.camera_height_m))?;
+    }
     let robot = match &args.robot {
         Some(p) => RobotParams::read(p)?,
         None => RobotParams::default(),
@@ -169,7 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bar = progress(manifest.runs.len() as u64, "dataset");
     let track = |row: &ManifestRow, video: &Path| -> Result<Trajectory, String> {
         let camera = camera.as_ref().ok_or("no camera")?;
-        let (trajectory, warnings) = track_video(video, camera)
+        let (trajectory, warnings) = track_video(video, camera, &track_options)
             .map_err(|e| format!("run \"{}\": tracking {}: {e}", row.id, video.display()))?;
         for w in warnings {
             bar.suspend(|| eprintln!("warning: run \"{}\": {}: {w}", row.id, video.display()));

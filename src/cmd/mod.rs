@@ -13,6 +13,7 @@ pub mod synth_calib;
 pub mod synth_experiment;
 pub mod synth_lrf;
 pub mod synth_track;
+pub mod tag;
 pub mod track;
 pub mod track_arena;
 pub mod train;

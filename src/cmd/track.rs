@@ -22,18 +22,8 @@ pub struct Args {
     /// camera.json with the floor plane (from `odocal calibrate`).
     #[arg(long, required_unless_present = "arena", default_value = "none")]
     pub camera: PathBuf,
-    /// Id of the robot's tag.
-    #[arg(long, default_value_t = 0)]
-    pub tag_id: u32,
-    /// Tag family.
-    #[arg(long, default_value = "tag36h11")]
-    pub family: String,
-    /// Side of the tag's black square, metres.
-    #[arg(long, default_value_t = 0.08)]
-    pub tag_size: f64,
-    /// Height of the marker above the floor, metres.
-    #[arg(long, default_value_t = 0.08)]
-    pub marker_height: f64,
+    #[command(flatten)]
+    pub tag: super::tag::TagArgs,
     /// Output trajectory CSV (`t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta`: σ in metres and
     /// radians per fix; frames without a confident fix are absent).
     #[arg(long)]
@@ -62,11 +52,6 @@ pub struct Args {
     /// Largest accepted corner reprojection RMS, pixels.
     #[arg(long, default_value_t = 1.5)]
     pub max_reprojection: f64,
-    /// Rolling-shutter readout time, seconds: from reading the first row of a frame to reading
-    /// its last (0 for a global shutter; typically 0.01–0.04 s). Each fix is then timed at the
-    /// rows where the tag was read: t = frame time + tag centre row / rows × readout.
-    #[arg(long, default_value_t = 0.0)]
-    pub rolling_shutter_s: f64,
     /// Run the solvePnP (IPPE_SQUARE) cross-check on every fix and report it.
     #[arg(long)]
     pub pnp_check: bool,
@@ -90,18 +75,13 @@ pub struct Args {
 
 /// The tracker's options from the command line (one tag, several, or an arena alike).
 pub(super) fn options(args: &Args) -> TrackOptions {
-    TrackOptions {
-        family: args.family.clone(),
-        tag_id: args.tag_id,
-        tag_size_m: args.tag_size,
-        marker_height_m: args.marker_height,
+    args.tag.apply(TrackOptions {
         use_roi: !args.no_roi,
         max_speed_mps: args.max_speed,
         max_reprojection_px: args.max_reprojection,
         pnp_cross_check: args.pnp_check,
-        rolling_shutter_s: args.rolling_shutter_s,
         ..TrackOptions::default()
-    }
+    })
 }
 
 /// The truth to compare with and the frames it says are in the file (when it knows).
@@ -126,7 +106,7 @@ fn against_truth(
     if e.matched == 0 {
         // Under a rolling shutter each fix is timed at its tag's row: only a truth timed
         // with the same readout has rows at those times.
-        let r = args.rolling_shutter_s;
+        let r = args.tag.rolling_shutter_s;
         let readout = if r > 0.0 {
             format!(
                 "; with --rolling-shutter-s {r} the fixes are timed at the tag's row, which only frames.csv of a video rendered with that readout has"
@@ -241,7 +221,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let bar = progress(source.info().frame_count.unwrap_or(0) as u64, "tracking");
     let mut reference = match args.apriltag3 {
-        true => Some(TagDetector::reference(&args.family)?),
+        true => Some(TagDetector::reference(&args.tag.family)?),
         false => None,
     };
     let (mut at3_frames, mut at3_hits) = (0usize, 0usize);
@@ -257,7 +237,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 if det
                     .detect_raw(&frame.image)?
                     .iter()
-                    .any(|d| d.id == args.tag_id)
+                    .any(|d| d.id == args.tag.tag_id)
                 {
                     at3_hits += 1;
                 }
@@ -318,7 +298,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {
-        print_against_truth(a, args.tag_id);
+        print_against_truth(a, args.tag.tag_id);
     }
     Ok(())
 }

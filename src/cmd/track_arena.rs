@@ -69,7 +69,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
     let m = &args.multi;
     let selection = match &m.tags {
         Some(s) => TagSelection::parse(s)?,
-        None => TagSelection::Ids(vec![args.tag_id]),
+        None => TagSelection::Ids(vec![args.tag.tag_id]),
     };
     let single = matches!(&selection, TagSelection::Ids(ids) if ids.len() == 1);
     if let TagSelection::Ids(ids) = &selection {

@@ -284,13 +284,13 @@ fn rejections(r: &TrackResult) -> std::collections::BTreeMap<&'static str, Rejec
 }
 
 /// Tracks the robot's tag through the video (or image folder) at `video` with the camera of
-/// `camera` and the tracker's defaults (tag36h11 id 0, 8 cm, 8 cm above the floor), as
-/// `odocal dataset` does for a manifest row with a video. Also returns the warnings about
-/// the video's timeline (dropped or repeated frames, a file cut short) and about a marker
-/// whose apparent height is not the default's.
+/// `camera` and `options` (their calibration uncertainty taken from `camera`), as `odocal
+/// dataset` does for a manifest row with a video. Also returns the warnings about the
+/// video's timeline (dropped or repeated frames, a file cut short) and [`fix_warnings`].
 pub fn track_video(
     video: &std::path::Path,
     camera: &odocal_calib::CameraFile,
+    options: &TrackOptions,
 ) -> Result<(Trajectory, Vec<String>), crate::TrackError> {
     let floor = camera
         .floor
@@ -302,7 +302,7 @@ pub fn track_video(
             )
         })?;
     let source = crate::open_source(video, &crate::SourceOptions::default())?;
-    let options = TrackOptions::default().with_calibration(camera);
+    let options = options.clone().with_calibration(camera);
     let result = crate::track_source(source, &camera.camera, &floor, &options, &mut |_, _| Ok(()))?;
     let mut warnings = crate::TimingReport::of(&result).warnings();
     warnings.extend(fix_warnings(&result, camera, &floor, &options));
