@@ -847,3 +847,66 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     assert!(out.status.success());
     assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
 }
+
+/// The laser's `ok` poses as a trajectory (`--trajectory`): one row per `ok` scan, in the
+/// format `dataset` and `evaluate` read, with σ that the errors against the truth bear out.
+#[test]
+fn cli_laser_poses_as_a_trajectory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 4, 120);
+    let (poses, traj) = (d.join("poses.csv"), d.join("traj.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&d.join("scans.csv")),
+        "--out",
+        s(&poses),
+        "--trajectory",
+        s(&traj),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains(&format!("and {}", s(&traj))), "{stdout}");
+    let n_ok: usize = stdout
+        .split(" ok,")
+        .next()
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no ok count: {stdout}"));
+    let t = odocal_core::Trajectory::read_csv(&traj).expect("a trajectory");
+    assert_eq!(t.rows.len(), n_ok);
+    assert!(n_ok >= 100, "{stdout}");
+    let truth = std::fs::read_to_string(d.join("truth.csv")).expect("truth");
+    let truth: Vec<(f64, f64, f64)> = truth
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split(',')
+                .take(3)
+                .map(|x| x.parse().expect("number"))
+                .collect();
+            (v[0], v[1], v[2])
+        })
+        .collect();
+    let (mut z2, mut n) = (0.0, 0usize);
+    for r in &t.rows {
+        let (_, x, y) = truth
+            .iter()
+            .find(|(tt, _, _)| (tt - r.t_s).abs() < 1e-3)
+            .expect("a truth row at the scan's time");
+        let sigma = r.sigma.expect("σ on every row");
+        z2 += ((r.pose.x_m - x) / sigma.x_m).powi(2) + ((r.pose.y_m - y) / sigma.y_m).powi(2);
+        n += 2;
+    }
+    let z = (z2 / n as f64).sqrt();
+    println!("laser trajectory: {n_ok} poses, error/σ RMS {z:.2} (x, y)");
+    assert!((0.6..=1.6).contains(&z), "error/σ RMS {z:.2}");
+}

@@ -85,12 +85,18 @@ impl Trajectory {
         let fields: Vec<&str> = header.iter().collect();
         let with_sigma = fields == TRAJECTORY_SIGMA_HEADER;
         if fields != TRAJECTORY_HEADER && !with_sigma {
+            // The laser's pose log is ground truth too, in its own format.
+            let hint = if fields.get(4) == Some(&"status") {
+                "; this is the pose log of `odocal lrf localize`: its --trajectory FILE writes the poses as a trajectory"
+            } else {
+                ""
+            };
             return Err(FileError::parse(
                 name,
                 *line,
                 1,
                 format!(
-                    "header is \"{}\", expected \"t,x,y,theta,quality\" or \"t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\"",
+                    "header is \"{}\", expected \"t,x,y,theta,quality\" or \"t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\"{hint}",
                     fields.join(",")
                 ),
             ));
@@ -358,6 +364,16 @@ mod tests {
             .starts_with("tr.csv:3:1: duplicated timestamp"));
         let e = Trajectory::parse_csv("t,x,y\n", "tr.csv").unwrap_err();
         assert!(e.to_string().contains("expected \"t,x,y,theta,quality\""));
+        assert!(!e.to_string().contains("lrf localize"));
+        // The laser's pose log is named, with the option that writes it as a trajectory.
+        let e = Trajectory::parse_csv("t,x,y,theta,status,n_landmarks\n0,1,2,0,ok,4\n", "p.csv")
+            .unwrap_err();
+        assert!(
+            e.to_string().ends_with(
+                "this is the pose log of `odocal lrf localize`: its --trajectory FILE writes the poses as a trajectory"
+            ),
+            "{e}"
+        );
     }
 
     #[test]

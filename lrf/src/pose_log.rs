@@ -5,7 +5,9 @@
 use std::fmt::Write as _;
 
 use nalgebra::Matrix3;
-use odocal_core::{csv_table_with_header, FileError, Pose2, TextFormat};
+use odocal_core::{
+    csv_table_with_header, FileError, Pose2, PoseSigma, TextFormat, Trajectory, TrajectoryRow,
+};
 
 use crate::eval::EstimatedPose;
 use crate::search::Status;
@@ -74,6 +76,37 @@ impl PoseLog {
             );
         }
         csv
+    }
+
+    /// The `ok` poses as a trajectory (quality 1, σ from each pose's Cramér–Rao covariance):
+    /// laser ground truth in the format `odocal dataset` and `odocal evaluate` read. Ambiguous
+    /// and lost scans have no pose to give and leave gaps, as a hidden tag does in `track`.
+    pub fn to_trajectory(&self) -> Result<Trajectory, FileError> {
+        let ok: Vec<&PoseLogRow> = self
+            .rows
+            .iter()
+            .filter(|r| r.status == Status::Ok)
+            .collect();
+        // σ on every row or on none: the trajectory format takes no mixture.
+        let all_cov = ok.iter().all(|r| r.pose_cov.is_some());
+        let rows = ok
+            .iter()
+            .filter_map(|r| {
+                let pose = r.pose?;
+                let sigma = r.pose_cov.filter(|_| all_cov).map(|c| PoseSigma {
+                    x_m: c[(0, 0)].max(0.0).sqrt(),
+                    y_m: c[(1, 1)].max(0.0).sqrt(),
+                    theta_rad: c[(2, 2)].max(0.0).sqrt(),
+                });
+                Some(TrajectoryRow {
+                    t_s: r.t_s,
+                    pose,
+                    quality: 1.0,
+                    sigma,
+                })
+            })
+            .collect();
+        Trajectory::new(rows)
     }
 
     /// The rows as [`crate::evaluate`] takes them.

@@ -48,6 +48,11 @@ pub struct LocalizeArgs {
     /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan (x,y,theta empty when lost).
     #[arg(long)]
     pub out: PathBuf,
+    /// Also write the `ok` poses as a trajectory CSV (`t,x,y,theta,quality,sigma_x,sigma_y,
+    /// sigma_theta`, σ from each pose's Cramér–Rao bound): the laser's ground truth in the
+    /// format `odocal dataset` and `odocal evaluate` read from a manifest.
+    #[arg(long)]
+    pub trajectory: Option<PathBuf>,
     /// True poses (CSV t,x,y,theta[,n_detected]) to report the error against.
     #[arg(long)]
     pub truth: Option<PathBuf>,
@@ -90,6 +95,9 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
 
 fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     check_output_file(&a.out, "--out")?;
+    if let Some(p) = &a.trajectory {
+        check_output_file(p, "--trajectory")?;
+    }
     let mut cfg = LocalizerConfig {
         sensor: SensorConfig {
             fov_rad: a.fov_deg.to_radians(),
@@ -169,7 +177,15 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         })
     });
     if refused.is_none() {
+        // Both files are built before either is written.
+        let trajectory = match &a.trajectory {
+            Some(p) => Some((p, log.to_trajectory()?.to_csv())),
+            None => None,
+        };
         write_atomic(&a.out, log.to_csv().as_bytes())?;
+        if let Some((p, csv)) = trajectory {
+            write_atomic(p, csv.as_bytes())?;
+        }
     }
     let n = log.rows.len().max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
@@ -182,9 +198,10 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         count(Status::Lost),
         n_det_total as f64 / n as f64,
         elapsed.as_secs_f64() * 1e6 / n as f64,
-        match refused {
-            Some(_) => "nothing written".to_string(),
-            None => format!("wrote {}", a.out.display()),
+        match (&refused, &a.trajectory) {
+            (Some(_), _) => "nothing written".to_string(),
+            (None, None) => format!("wrote {}", a.out.display()),
+            (None, Some(t)) => format!("wrote {} and {}", a.out.display(), t.display()),
         }
     );
     if count(Status::Lost) * 2 > log.rows.len() {
