@@ -151,6 +151,7 @@ fn nine_pixel_motion_blur() {
     print("9 px motion blur", &s, at3);
     // A global shutter's blur is no shear.
     let est = shutter(&cfg, &res);
+    eprintln!("9 px blur, global shutter: readout read off the tags' shear: {est:?}");
     assert!(!est.shows_rolling_shutter(), "{est:?}");
     assert!(s.tracked() >= 0.95, "tracked {:.3}", s.tracked());
     assert!(s.pos_rms_mm <= 1.5, "position RMS {:.3} mm", s.pos_rms_mm);
@@ -180,6 +181,7 @@ fn everything_combined() {
     let s = score_with(&res, &|i, _| truths[i].pose);
     print("combined", &s, at3);
     let est = shutter(&cfg, &res);
+    eprintln!("combined, global shutter: readout read off the tags' shear: {est:?}");
     assert!(!est.shows_rolling_shutter(), "{est:?}");
     assert!(
         s.tracked() >= MIN_COMBINED_TRACKED,
