@@ -314,6 +314,23 @@ fn synth_lrf(dir: &Path, seed: u64, scans: usize) {
     );
 }
 
+/// `odocal lrf localize` of `synth lrf`'s scans in `d` with its map, into `d/poses.csv`, with
+/// `extra` options.
+fn localize(d: &Path, extra: &[&str]) -> std::process::Output {
+    let (map, scans, poses) = (d.join("map.json"), d.join("scans.csv"), d.join("poses.csv"));
+    let mut args = vec![
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&scans),
+        "--out",
+        s(&poses),
+    ];
+    args.extend(extra);
+    odocal(&args)
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
@@ -457,17 +474,7 @@ fn cli_prints_the_cramer_rao_bound_beside_the_rms() {
     let d = dir.path();
     let out = odocal(&["synth", "lrf", "--out", s(d), "--landmarks", "100"]);
     assert!(out.status.success());
-    let out = odocal(&[
-        "lrf",
-        "localize",
-        "--map",
-        s(&d.join("map.json")),
-        s(&d.join("scans.csv")),
-        "--out",
-        s(&d.join("poses.csv")),
-        "--truth",
-        s(&d.join("truth.csv")),
-    ]);
+    let out = localize(d, &["--truth", s(&d.join("truth.csv"))]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     println!("{stdout}");
     assert!(out.status.success());
@@ -855,18 +862,8 @@ fn cli_laser_poses_as_a_trajectory() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     synth_lrf(d, 4, 120);
-    let (poses, traj) = (d.join("poses.csv"), d.join("traj.csv"));
-    let out = odocal(&[
-        "lrf",
-        "localize",
-        "--map",
-        s(&d.join("map.json")),
-        s(&d.join("scans.csv")),
-        "--out",
-        s(&poses),
-        "--trajectory",
-        s(&traj),
-    ]);
+    let traj = d.join("traj.csv");
+    let out = localize(d, &["--trajectory", s(&traj)]);
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),

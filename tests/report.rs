@@ -92,14 +92,18 @@ fn demo_outputs(d: &Path) {
         p(&track.join("report.json")),
     ]);
 
-    let lrf = d.join("lrf");
+    laser_poses(&d.join("lrf"), "40");
+}
+
+/// `odocal synth lrf` (seed 4, `scans` scans) into `lrf`, localised into `lrf/poses.csv`.
+fn laser_poses(lrf: &Path, scans: &str) {
     ok(&[
         "synth",
         "lrf",
         "--out",
-        p(&lrf),
+        p(lrf),
         "--scans",
-        "40",
+        scans,
         "--seed",
         "4",
     ]);
@@ -408,17 +412,8 @@ fn missing_inputs_are_left_out_with_a_note() {
     assert!(!html.exists(), "nothing written");
     // One input: its section, and a note for each of the others.
     let lrf = d.join("lrf");
-    ok(&["synth", "lrf", "--out", p(&lrf), "--scans", "20"]);
+    laser_poses(&lrf, "20");
     let poses = lrf.join("poses.csv");
-    ok(&[
-        "lrf",
-        "localize",
-        "--map",
-        p(&lrf.join("map.json")),
-        p(&lrf.join("scans.csv")),
-        "--out",
-        p(&poses),
-    ]);
     let out = ok(&["report", "--lrf-poses", p(&poses), "--out", p(&html)]);
     assert!(out.contains("report: 1 sections"), "{out}");
     for t in [
