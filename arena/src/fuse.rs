@@ -107,13 +107,7 @@ pub fn fix_weight(
     marker_height_m: f64,
     sigma_m: Option<f64>,
 ) -> f64 {
-    let c = Point2::from(
-        corners_px
-            .iter()
-            .map(|p| p.coords)
-            .sum::<nalgebra::Vector2<f64>>()
-            / 4.0,
-    );
+    let c = odocal_tracker::detect::quad_centre(corners_px);
     let sigma = sigma_m
         .filter(|s| s.is_finite() && *s > 0.0)
         .unwrap_or_else(|| {

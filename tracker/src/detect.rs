@@ -58,11 +58,7 @@ pub struct TagDetection {
 impl TagDetection {
     /// Centre of the four corners, pixels.
     pub fn centre_px(&self) -> Point2<f64> {
-        let s = self
-            .corners_px
-            .iter()
-            .fold(nalgebra::Vector2::zeros(), |a, p| a + p.coords);
-        Point2::from(s / 4.0)
+        quad_centre(&self.corners_px)
     }
 
     /// Mean side length of the quad, pixels.
@@ -72,6 +68,14 @@ impl TagDetection {
             .sum::<f64>()
             / 4.0
     }
+}
+
+/// The mean of a tag's four corners, pixels.
+pub fn quad_centre(corners_px: &[Point2<f64>; 4]) -> Point2<f64> {
+    let s = corners_px
+        .iter()
+        .fold(nalgebra::Vector2::zeros(), |a, p| a + p.coords);
+    Point2::from(s / 4.0)
 }
 
 /// An AprilTag detector for one family. Not shared between threads: make one

@@ -232,7 +232,7 @@ pub(crate) fn refine_corners(
     frame: &GrayFrame,
     corners: &[Point2<f64>; 4],
 ) -> Option<[Point2<f64>; 4]> {
-    let inside = Point2::from(corners.iter().fold(Vector2::zeros(), |s, p| s + p.coords) / 4.0);
+    let inside = crate::detect::quad_centre(corners);
     let mut fit = EdgeFit {
         side: Vec::new(),
         q: Vec::new(),

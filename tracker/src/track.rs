@@ -852,12 +852,7 @@ pub(crate) fn unshear(
     let (da, db) = (a2 - a, b2 - b);
     let omega = wrap_angle(db.y.atan2(db.x) - da.y.atan2(da.x)) / dt;
     let rows = camera.height.max(1) as f64;
-    let centre = Point2::from(
-        corners_px
-            .iter()
-            .fold(nalgebra::Vector2::zeros(), |s, c| s + c.coords)
-            / 4.0,
-    );
+    let centre = crate::detect::quad_centre(corners_px);
     for c in corners_px.iter_mut() {
         let r = *c - centre;
         let vc = v + nalgebra::Vector2::new(-r.y, r.x) * omega;

@@ -10,6 +10,7 @@ use odocal_calib::{
     CameraModel, FloorReach, FloorToCamera, FloorUncertaintyMap, FLOOR_BOUND_MM, FLOOR_BOUND_SIGMAS,
 };
 
+use crate::detect::quad_centre;
 use crate::TrackResult;
 
 /// The fixes of a run that lie outside the floor the calibration vouches for.
@@ -66,13 +67,7 @@ impl UnvouchedFixes {
         camera: &CameraModel,
         floor: &FloorToCamera,
     ) -> Option<Self> {
-        let centres = result.fixes().map(|(_, f)| {
-            let s = f
-                .corners_px
-                .iter()
-                .fold(nalgebra::Vector2::zeros(), |a, p| a + p.coords);
-            Point2::from(s / 4.0)
-        });
+        let centres = result.fixes().map(|(_, f)| quad_centre(&f.corners_px));
         Self::count(centres, map, camera, floor)
     }
 
