@@ -253,6 +253,40 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         e.contains("run \"run002\"") && e.contains("is the trajectory in millimetres?"),
         "{e}"
     );
+    // A tag mounted turned 180° (or a motion-capture body facing backwards): every run used
+    // to be accepted, with raw odometry "200 % off". A heading in degrees used to be blamed
+    // on the pairing of the files. Both are named, and the trajectory file with them.
+    let heading = |f: &dyn Fn(f64) -> f64| -> String {
+        let rows: Vec<String> = full
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == 0 {
+                    return l.to_string();
+                }
+                let mut c: Vec<String> = l.split(',').map(str::to_string).collect();
+                c[3] = f(c[3].parse::<f64>().unwrap()).to_string();
+                c.join(",")
+            })
+            .collect();
+        std::fs::write(&traj, rows.join("\n")).unwrap();
+        run(&manifest)
+    };
+    let e = heading(&|t| t + std::f64::consts::PI);
+    assert!(
+        e.contains("run002.trajectory.csv)")
+            && e.contains("the wheels drive the robot forwards (100 % of their travel) but the camera sees it move backwards")
+            && e.contains("is the tag mounted turned 180°"),
+        "{e}"
+    );
+    let e = heading(&|t| t + std::f64::consts::FRAC_PI_2);
+    assert!(
+        e.contains("° off the direction the robot moves in")
+            && e.contains("the robot moves at -90° to its heading"),
+        "{e}"
+    );
+    let e = heading(&|t| t.to_degrees() + 360.0);
+    assert!(e.contains("theta is in degrees"), "{e}");
     std::fs::write(&traj, &full).unwrap();
 
     // Missing file, video rows, wrong format.

@@ -65,6 +65,14 @@ fn one_row(
             log_path.display()
         )));
     }
+    if let Some(why) = crate::heading::heading_mismatch(&log, &traj, &opts.robot) {
+        let camera = row.trajectory.as_ref().or(row.video.as_ref());
+        return Err(DatasetError::Mismatch(format!(
+            "run \"{}\" ({}): {why}",
+            row.id,
+            camera.map_or(log_path.clone(), |c| m.resolve(c)).display()
+        )));
+    }
     let rec = Recording {
         id: &row.id,
         speed_mps: row.speed_mps,

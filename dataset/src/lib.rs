@@ -6,6 +6,7 @@ pub mod build;
 pub mod counter_wrap;
 pub mod error;
 mod from_manifest;
+pub mod heading;
 pub mod kinematics;
 pub mod manifest;
 pub mod odometry;

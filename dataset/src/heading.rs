@@ -1,0 +1,264 @@
+//! Catching a heading that does not point where the robot drives. A differential-drive robot
+//! moves along its heading whenever it drives straight, so on straight stretches the camera's
+//! direction of motion and its heading agree, forwards or backwards. They do not when the tag
+//! is mounted turned (its x axis must point to the robot's front), when a motion-capture body
+//! was defined with another forward axis, or when a trajectory's theta is in degrees. Left
+//! alone, every target is then turned by that angle: a tag turned 180° gives a dataset whose
+//! raw odometry is "200 % off", with every run accepted; turned 90°, alignment finds "no
+//! motion" and blames the pairing of files.
+
+use std::f64::consts::{FRAC_PI_2, PI};
+
+use odocal_core::{wrap_angle, Trajectory};
+
+use crate::odometry::OdometryLog;
+use crate::RobotParams;
+
+/// A step: the camera's position moved at least this far, metres (tracking noise is
+/// fractions of a millimetre, so its direction is good to a degree).
+const STEP_M: f64 = 0.01;
+
+/// Steps whose heading turns by more than this, radians (2°), are left out: while turning,
+/// a tag off the axle moves sideways.
+const STRAIGHT_RAD: f64 = 0.035;
+
+/// Straight steps needed to judge.
+const MIN_STEPS: usize = 10;
+
+/// Median angle between the line of motion and the heading's line above which the heading is
+/// not the robot's, radians (30°; a tag 10 cm ahead of the axle on a gentle arc is a few °).
+const MAX_LINE_MISFIT_RAD: f64 = 0.52;
+
+/// Median misfit under which another reading of the heading (degrees) is taken as the one
+/// meant, radians (10°).
+const FITS_RAD: f64 = 0.17;
+
+/// Share of the travel that must go one way, on the wheels and on the camera, before
+/// opposite directions are called a mismatch.
+const ONE_WAY: f64 = 0.9;
+
+/// The direction of motion relative to the heading (radians, in (-π, π]) of each straight
+/// step, with the heading read as `theta * scale` radians.
+fn step_angles(camera: &Trajectory, scale: f64) -> Vec<f64> {
+    let rows = &camera.rows;
+    let mut out = Vec::new();
+    let mut anchor = 0;
+    for i in 1..rows.len() {
+        let (a, b) = (&rows[anchor].pose, &rows[i].pose);
+        let (dx, dy) = (b.x_m - a.x_m, b.y_m - a.y_m);
+        if dx.hypot(dy) < STEP_M {
+            continue;
+        }
+        let turn = wrap_angle(scale * (b.theta_rad - a.theta_rad));
+        if turn.abs() <= STRAIGHT_RAD {
+            let heading = scale * a.theta_rad + 0.5 * turn;
+            out.push(wrap_angle(dy.atan2(dx) - heading));
+        }
+        anchor = i;
+    }
+    out
+}
+
+/// Median angle between the line of motion and the heading's line (forwards and backwards
+/// alike), radians in [0, π/2]; `None` with too few steps.
+fn line_misfit(angles: &[f64]) -> Option<f64> {
+    if angles.len() < MIN_STEPS {
+        return None;
+    }
+    let mut folded: Vec<f64> = angles
+        .iter()
+        .map(|a| {
+            let a = a.abs();
+            if a > FRAC_PI_2 {
+                PI - a
+            } else {
+                a
+            }
+        })
+        .collect();
+    folded.sort_by(f64::total_cmp);
+    Some(folded[folded.len() / 2])
+}
+
+/// The mean direction of `angles`, radians: how far the motion is turned from the heading.
+fn mean_offset(angles: &[f64]) -> f64 {
+    let (s, c) = angles
+        .iter()
+        .fold((0.0, 0.0), |(s, c), a| (s + a.sin(), c + a.cos()));
+    s.atan2(c)
+}
+
+/// Share of the wheels' travel that is forwards (both wheels' mean turning positive), or
+/// `None` when they barely turn.
+fn wheels_forward_share(log: &OdometryLog, robot: &RobotParams) -> Option<f64> {
+    let revs = log.wheel_revs(robot);
+    let (mut fwd, mut all) = (0.0, 0.0);
+    for w in revs.rev.windows(2) {
+        let step = 0.5 * ((w[1][0] - w[0][0]) + (w[1][1] - w[0][1]));
+        fwd += step.max(0.0);
+        all += step.abs();
+    }
+    let travel_m = all * PI * robot.wheel_diameter_m;
+    (travel_m >= 10.0 * STEP_M).then(|| fwd / all)
+}
+
+/// Why the camera trajectory's heading cannot be the robot's, or `None` when it follows the
+/// direction of motion (or there is too little straight driving to tell).
+pub fn heading_mismatch(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &RobotParams,
+) -> Option<String> {
+    let radians = step_angles(camera, 1.0);
+    let misfit = line_misfit(&radians);
+    // Read as degrees, a heading near 0 fits any motion near 0 whatever the unit, so only
+    // values beyond a turn (which radians reach only unwrapped) make degrees certain, and
+    // only when radians fit worse than degrees would.
+    let degrees = step_angles(camera, PI / 180.0);
+    let fits_in_degrees = line_misfit(&degrees).is_some_and(|m| m <= FITS_RAD);
+    let beyond_a_turn = camera
+        .rows
+        .iter()
+        .any(|r| r.pose.theta_rad.abs() > 2.0 * PI);
+    let fits_in_radians = misfit.is_some_and(|m| m <= FITS_RAD);
+    if fits_in_degrees && !fits_in_radians && (beyond_a_turn || misfit.is_none()) {
+        return Some(format!(
+            "theta is in degrees: read as degrees the heading follows the direction of motion over {} straight steps, read as radians it does not; write theta in radians",
+            degrees.len()
+        ));
+    }
+    let misfit = misfit?;
+    if misfit > MAX_LINE_MISFIT_RAD {
+        return Some(format!(
+            "the heading is {:.0}° off the direction the robot moves in (median over {} straight steps; the robot moves at {:.0}° to its heading on average), where a wheeled robot moves along its heading: is the tag mounted turned (its x axis must point to the robot's front), or the trajectory's forward axis another one{}?",
+            misfit.to_degrees(),
+            radians.len(),
+            mean_offset(&radians).to_degrees(),
+            if fits_in_degrees {
+                ", or theta in degrees (read as degrees it follows the motion)"
+            } else {
+                ""
+            }
+        ));
+    }
+    // Along the line of motion; but which way?
+    let wheels = wheels_forward_share(log, robot)?;
+    let camera_fwd =
+        radians.iter().filter(|a| a.abs() < FRAC_PI_2).count() as f64 / radians.len() as f64;
+    let opposite = (wheels >= ONE_WAY && camera_fwd <= 1.0 - ONE_WAY)
+        || (wheels <= 1.0 - ONE_WAY && camera_fwd >= ONE_WAY);
+    opposite.then(|| {
+        format!(
+            "the wheels drive the robot {} ({:.0} % of their travel) but the camera sees it move {} ({:.0} % of {} straight steps), so its heading points to the robot's back: is the tag mounted turned 180° (its x axis must point to the robot's front), or do the wheel counts fall when the robot drives forwards?",
+            if wheels >= 0.5 { "forwards" } else { "backwards" },
+            100.0 * wheels.max(1.0 - wheels),
+            if camera_fwd >= 0.5 { "forwards" } else { "backwards" },
+            100.0 * camera_fwd.max(1.0 - camera_fwd),
+            radians.len()
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_core::{Pose2, TrajectoryRow};
+
+    /// 60 rows of a drive at 0.2 m/s along `dir_deg` (backwards when `speed` < 0) with 0.2
+    /// mrad of heading noise, and its tick log.
+    fn drive_along(
+        dir_deg: f64,
+        speed: f64,
+        theta_of: impl Fn(f64) -> f64,
+    ) -> (OdometryLog, Trajectory) {
+        let robot = RobotParams::default();
+        let dir = dir_deg.to_radians();
+        let per_tick_m = PI * robot.wheel_diameter_m / robot.ticks_per_rev;
+        let t: Vec<f64> = (0..60).map(|i| 0.1 * i as f64).collect();
+        let rows = t
+            .iter()
+            .enumerate()
+            .map(|(i, &t_s)| TrajectoryRow {
+                t_s,
+                pose: Pose2::new(
+                    speed * t_s * dir.cos(),
+                    speed * t_s * dir.sin(),
+                    theta_of(dir + 2e-4 * ((i * 7919) % 11) as f64 / 11.0),
+                ),
+                quality: 1.0,
+                sigma: None,
+            })
+            .collect();
+        let ticks: Vec<i64> = t
+            .iter()
+            .map(|&t_s| (speed * t_s / per_tick_m).round() as i64)
+            .collect();
+        let log = OdometryLog::from_ticks(t, ticks.clone(), ticks).expect("log");
+        (log, Trajectory::new(rows).expect("trajectory"))
+    }
+
+    fn verdict(speed: f64, theta_of: impl Fn(f64) -> f64) -> Option<String> {
+        verdict_along(30.0, speed, theta_of)
+    }
+
+    fn verdict_along(dir_deg: f64, speed: f64, theta_of: impl Fn(f64) -> f64) -> Option<String> {
+        let (log, traj) = drive_along(dir_deg, speed, theta_of);
+        heading_mismatch(&log, &traj, &RobotParams::default())
+    }
+
+    #[test]
+    fn a_heading_along_the_motion_passes_forwards_and_backwards() {
+        assert_eq!(verdict(0.2, |t| t), None);
+        assert_eq!(verdict(-0.2, |t| t), None);
+        // A tag a little off the axle on an arc: 15° off is still the robot's heading.
+        assert_eq!(verdict(0.2, |t| t + 0.26), None);
+    }
+
+    #[test]
+    fn a_turned_tag_and_degrees_are_named() {
+        let back = verdict(0.2, |t| t + PI).expect("turned 180°");
+        assert!(back.contains("mounted turned 180°"), "{back}");
+        assert!(back.contains("forwards (100 % of their travel)"), "{back}");
+        let back = verdict(-0.2, |t| t + PI).expect("driving backwards, turned 180°");
+        assert!(back.contains("drive the robot backwards"), "{back}");
+        let side = verdict(0.2, |t| t + FRAC_PI_2).expect("turned 90°");
+        assert!(side.contains("heading is 90° off"), "{side}");
+        assert!(side.contains("at -90° to its heading"), "{side}");
+        let deg = verdict(0.2, f64::to_degrees).expect("degrees");
+        assert!(deg.contains("theta is in degrees"), "{deg}");
+        // Driving along 2°: a tag turned 90° reads as a heading near 0 in degrees, and so
+        // does a heading of 2 degrees; both are named, neither is called certain.
+        for theta_of in [|t: f64| t + FRAC_PI_2, f64::to_degrees] {
+            let near_zero = verdict_along(2.0, 0.2, theta_of).expect("near 0");
+            assert!(
+                near_zero.contains("off the direction the robot moves in")
+                    && near_zero.contains("or theta in degrees"),
+                "{near_zero}"
+            );
+        }
+    }
+
+    #[test]
+    fn too_little_driving_is_not_judged() {
+        // Turning in place: the tag, off the axle or not, gives no straight steps.
+        let robot = RobotParams::default();
+        let rows = (0..60)
+            .map(|i| TrajectoryRow {
+                t_s: 0.1 * i as f64,
+                pose: Pose2::new(
+                    0.1 * (0.1 * i as f64).cos(),
+                    0.1 * (0.1 * i as f64).sin(),
+                    0.1 * i as f64,
+                ),
+                quality: 1.0,
+                sigma: None,
+            })
+            .collect();
+        let t: Vec<f64> = (0..60).map(|i| 0.1 * i as f64).collect();
+        let left: Vec<i64> = (0..60).map(|i| -3 * i).collect();
+        let right: Vec<i64> = (0..60).map(|i| 3 * i).collect();
+        let log = OdometryLog::from_ticks(t, left, right).expect("log");
+        let traj = Trajectory::new(rows).expect("trajectory");
+        assert_eq!(heading_mismatch(&log, &traj, &robot), None);
+    }
+}
