@@ -9,6 +9,7 @@
 mod file_error;
 mod fit;
 pub mod lsq;
+mod motion_heading;
 mod pose;
 mod ray;
 pub mod staging;
@@ -18,6 +19,7 @@ mod trajectory;
 
 pub use file_error::{read_text, FileError};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};
+pub use motion_heading::MotionAgainstHeading;
 pub use pose::{wrap_angle, Pose2};
 pub use ray::ray_segment;
 pub use table::{csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, TextFormat};

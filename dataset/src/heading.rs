@@ -7,86 +7,19 @@
 //! raw odometry is "200 % off", with every run accepted; turned 90°, alignment finds "no
 //! motion" and blames the pairing of files.
 
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::PI;
 
-use odocal_core::{wrap_angle, Trajectory};
+use odocal_core::{MotionAgainstHeading, Trajectory};
 
 use crate::odometry::OdometryLog;
 use crate::RobotParams;
 
-/// A step: the camera's position moved at least this far, metres (tracking noise is
-/// fractions of a millimetre, so its direction is good to a degree).
-const STEP_M: f64 = 0.01;
-
-/// Steps whose heading turns by more than this, radians (2°), are left out: while turning,
-/// a tag off the axle moves sideways.
-const STRAIGHT_RAD: f64 = 0.035;
-
-/// Straight steps needed to judge.
-const MIN_STEPS: usize = 10;
-
-/// Median angle between the line of motion and the heading's line above which the heading is
-/// not the robot's, radians (30°; a tag 10 cm ahead of the axle on a gentle arc is a few °).
-const MAX_LINE_MISFIT_RAD: f64 = 0.52;
-
-/// Median misfit under which another reading of the heading (degrees) is taken as the one
-/// meant, radians (10°).
+/// Median misfit under which a reading of the heading is taken as the one meant, radians
+/// (10°).
 const FITS_RAD: f64 = 0.17;
 
-/// Share of the travel that must go one way, on the wheels and on the camera, before
-/// opposite directions are called a mismatch.
-const ONE_WAY: f64 = 0.9;
-
-/// The direction of motion relative to the heading (radians, in (-π, π]) of each straight
-/// step, with the heading read as `theta * scale` radians.
-fn step_angles(camera: &Trajectory, scale: f64) -> Vec<f64> {
-    let rows = &camera.rows;
-    let mut out = Vec::new();
-    let mut anchor = 0;
-    for i in 1..rows.len() {
-        let (a, b) = (&rows[anchor].pose, &rows[i].pose);
-        let (dx, dy) = (b.x_m - a.x_m, b.y_m - a.y_m);
-        if dx.hypot(dy) < STEP_M {
-            continue;
-        }
-        let turn = wrap_angle(scale * (b.theta_rad - a.theta_rad));
-        if turn.abs() <= STRAIGHT_RAD {
-            let heading = scale * a.theta_rad + 0.5 * turn;
-            out.push(wrap_angle(dy.atan2(dx) - heading));
-        }
-        anchor = i;
-    }
-    out
-}
-
-/// Median angle between the line of motion and the heading's line (forwards and backwards
-/// alike), radians in [0, π/2]; `None` with too few steps.
-fn line_misfit(angles: &[f64]) -> Option<f64> {
-    if angles.len() < MIN_STEPS {
-        return None;
-    }
-    let mut folded: Vec<f64> = angles
-        .iter()
-        .map(|a| {
-            let a = a.abs();
-            if a > FRAC_PI_2 {
-                PI - a
-            } else {
-                a
-            }
-        })
-        .collect();
-    folded.sort_by(f64::total_cmp);
-    Some(folded[folded.len() / 2])
-}
-
-/// The mean direction of `angles`, radians: how far the motion is turned from the heading.
-fn mean_offset(angles: &[f64]) -> f64 {
-    let (s, c) = angles
-        .iter()
-        .fold((0.0, 0.0), |(s, c), a| (s + a.sin(), c + a.cos()));
-    s.atan2(c)
-}
+/// The wheels must travel this far before their direction is judged, metres.
+const MIN_TRAVEL_M: f64 = 0.1;
 
 /// Share of the wheels' travel that is forwards (both wheels' mean turning positive), or
 /// `None` when they barely turn.
@@ -99,7 +32,7 @@ fn wheels_forward_share(log: &OdometryLog, robot: &RobotParams) -> Option<f64> {
         all += step.abs();
     }
     let travel_m = all * PI * robot.wheel_diameter_m;
-    (travel_m >= 10.0 * STEP_M).then(|| fwd / all)
+    (travel_m >= MIN_TRAVEL_M).then(|| fwd / all)
 }
 
 /// Why the camera trajectory's heading cannot be the robot's, or `None` when it follows the
@@ -109,13 +42,13 @@ pub fn heading_mismatch(
     camera: &Trajectory,
     robot: &RobotParams,
 ) -> Option<String> {
-    let radians = step_angles(camera, 1.0);
-    let misfit = line_misfit(&radians);
+    let radians = MotionAgainstHeading::of(camera, 1.0);
+    let misfit = radians.line_misfit_rad();
     // Read as degrees, a heading near 0 fits any motion near 0 whatever the unit, so only
     // values beyond a turn (which radians reach only unwrapped) make degrees certain, and
     // only when radians fit worse than degrees would.
-    let degrees = step_angles(camera, PI / 180.0);
-    let fits_in_degrees = line_misfit(&degrees).is_some_and(|m| m <= FITS_RAD);
+    let degrees = MotionAgainstHeading::of(camera, PI / 180.0);
+    let fits_in_degrees = degrees.line_misfit_rad().is_some_and(|m| m <= FITS_RAD);
     let beyond_a_turn = camera
         .rows
         .iter()
@@ -124,16 +57,16 @@ pub fn heading_mismatch(
     if fits_in_degrees && !fits_in_radians && (beyond_a_turn || misfit.is_none()) {
         return Some(format!(
             "theta is in degrees: read as degrees the heading follows the direction of motion over {} straight steps, read as radians it does not; write theta in radians",
-            degrees.len()
+            degrees.steps()
         ));
     }
     let misfit = misfit?;
-    if misfit > MAX_LINE_MISFIT_RAD {
+    if misfit > MotionAgainstHeading::MAX_LINE_MISFIT_RAD {
         return Some(format!(
             "the heading is {:.0}° off the direction the robot moves in (median over {} straight steps; the robot moves at {:.0}° to its heading on average), where a wheeled robot moves along its heading: is the tag mounted turned (its x axis must point to the robot's front), or the trajectory's forward axis another one{}?",
             misfit.to_degrees(),
-            radians.len(),
-            mean_offset(&radians).to_degrees(),
+            radians.steps(),
+            radians.mean_offset_rad().to_degrees(),
             if fits_in_degrees {
                 ", or theta in degrees (read as degrees it follows the motion)"
             } else {
@@ -143,10 +76,10 @@ pub fn heading_mismatch(
     }
     // Along the line of motion; but which way?
     let wheels = wheels_forward_share(log, robot)?;
-    let camera_fwd =
-        radians.iter().filter(|a| a.abs() < FRAC_PI_2).count() as f64 / radians.len() as f64;
-    let opposite = (wheels >= ONE_WAY && camera_fwd <= 1.0 - ONE_WAY)
-        || (wheels <= 1.0 - ONE_WAY && camera_fwd >= ONE_WAY);
+    let camera_fwd = radians.forward_share();
+    let one_way = MotionAgainstHeading::ONE_WAY;
+    let opposite = (wheels >= one_way && camera_fwd <= 1.0 - one_way)
+        || (wheels <= 1.0 - one_way && camera_fwd >= one_way);
     opposite.then(|| {
         format!(
             "the wheels drive the robot {} ({:.0} % of their travel) but the camera sees it move {} ({:.0} % of {} straight steps), so its heading points to the robot's back: is the tag mounted turned 180° (its x axis must point to the robot's front), or do the wheel counts fall when the robot drives forwards?",
@@ -154,7 +87,7 @@ pub fn heading_mismatch(
             100.0 * wheels.max(1.0 - wheels),
             if camera_fwd >= 0.5 { "forwards" } else { "backwards" },
             100.0 * camera_fwd.max(1.0 - camera_fwd),
-            radians.len()
+            radians.steps()
         )
     })
 }
@@ -163,6 +96,7 @@ pub fn heading_mismatch(
 mod tests {
     use super::*;
     use odocal_core::{Pose2, TrajectoryRow};
+    use std::f64::consts::FRAC_PI_2;
 
     /// 60 rows of a drive at 0.2 m/s along `dir_deg` (backwards when `speed` < 0) with 0.2
     /// mrad of heading noise, and its tick log.

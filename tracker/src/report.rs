@@ -323,7 +323,35 @@ pub fn fix_warnings(
             crate::UnvouchedFixes::of(result, map, &camera.camera, floor).map(|u| u.warning()),
         );
     }
+    if let Ok(trajectory) = result.trajectory() {
+        warnings.extend(heading_warning(&trajectory));
+    }
     warnings
+}
+
+/// A tag whose x axis does not point where the robot drives: on straight stretches a
+/// wheeled robot moves along its heading, so motion well off that line, or backwards
+/// nearly all the time, says the tag is mounted turned, and every heading (and every
+/// dataset target made from it) is turned with it.
+pub fn heading_warning(trajectory: &odocal_core::Trajectory) -> Option<String> {
+    let motion = odocal_core::MotionAgainstHeading::of(trajectory, 1.0);
+    let misfit = motion.line_misfit_rad()?;
+    let remount = "mount the tag with its x axis pointing to the robot's front, or every heading (and every dataset target) is turned by as much";
+    if misfit > odocal_core::MotionAgainstHeading::MAX_LINE_MISFIT_RAD {
+        return Some(format!(
+            "the tag moves {:.0}° off its x axis (median over {} straight stretches of 1 cm; {:.0}° on average), where a wheeled robot moves along its heading: {remount}",
+            misfit.to_degrees(),
+            motion.steps(),
+            motion.mean_offset_rad().to_degrees()
+        ));
+    }
+    (motion.forward_share() <= 1.0 - odocal_core::MotionAgainstHeading::ONE_WAY).then(|| {
+        format!(
+            "the tag moves backwards along its x axis on {:.0} % of {} straight stretches: unless the robot reversed the whole time, the tag is mounted turned 180°; {remount}",
+            100.0 * (1.0 - motion.forward_share()),
+            motion.steps()
+        )
+    })
 }
 
 /// What the tags' shapes in a run's fixes say, one line each: a marker height their apparent
@@ -381,5 +409,52 @@ impl TrackResult {
             gaps.len(),
             self.seen_ids_text()
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::heading_warning;
+    use odocal_core::{Pose2, Trajectory, TrajectoryRow};
+
+    /// 3 s at 30 frames/s of a robot driving at 0.3 m/s along 40°, backwards when `speed` <
+    /// 0, its tag turned by `tag_turn_rad` from the robot's front.
+    fn drive(speed: f64, tag_turn_rad: f64) -> Trajectory {
+        let dir = 40f64.to_radians();
+        let rows = (0..90)
+            .map(|i| {
+                let t_s = i as f64 / 30.0;
+                TrajectoryRow {
+                    t_s,
+                    pose: Pose2::new(
+                        speed * t_s * dir.cos(),
+                        speed * t_s * dir.sin(),
+                        dir + tag_turn_rad + 1e-3 * ((i * 37) % 5) as f64,
+                    ),
+                    quality: 1.0,
+                    sigma: None,
+                }
+            })
+            .collect();
+        Trajectory::new(rows).expect("trajectory")
+    }
+
+    #[test]
+    fn a_tag_mounted_turned_is_named() {
+        assert_eq!(heading_warning(&drive(0.3, 0.0)), None);
+        // Without the wheels to say which way it drove, a run spent reversing is named too,
+        // with that caveat.
+        let back = heading_warning(&drive(-0.3, 0.0)).expect("reversing");
+        assert!(back.contains("unless the robot reversed the whole time"), "{back}");
+        let turned = heading_warning(&drive(0.3, std::f64::consts::PI)).expect("180°");
+        assert!(
+            turned.contains("backwards along its x axis on 100 % of"),
+            "{turned}"
+        );
+        let side = heading_warning(&drive(0.3, -std::f64::consts::FRAC_PI_2)).expect("90°");
+        assert!(side.contains("the tag moves 90° off its x axis"), "{side}");
+        assert!(side.contains("(median over 57 straight stretches"), "{side}");
+        // Turned 20°: within what a tag off the axle gives on an arc.
+        assert_eq!(heading_warning(&drive(0.3, 0.35)), None);
     }
 }
