@@ -339,7 +339,24 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     assert!(e.contains("odocal.oracle/1"), "{e}");
     assert!(!out.exists(), "nothing half-written");
 
-    // And the intact experiment still builds.
-    ok(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    // And the intact experiment still builds; tag options given for a manifest without
+    // videos are said to be unused rather than silently ignored.
+    let res = common::odocal(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&out),
+        "--tag-size",
+        "0.12",
+        "--rolling-shutter-s",
+        "0.02",
+    ]);
+    common::succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("note: --tag-size 0.12, --rolling-shutter-s 0.02 not used"),
+        "{err}"
+    );
     assert_eq!(Dataset::read(&out).unwrap().samples.len(), 2);
 }

@@ -126,7 +126,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // A wrong truth file is found before the work, not after the dataset is written.
     let oracle = args.truth.as_deref().map(OracleFile::read).transpose()?;
     manifest.check_files()?;
-    if manifest.runs.iter().any(|r| r.video.is_some()) {
+    let has_videos = manifest.runs.iter().any(|r| r.video.is_some());
+    if !has_videos {
+        let unused = args.tag.given();
+        if !unused.is_empty() || args.camera.is_some() {
+            let mut what = unused;
+            if args.camera.is_some() {
+                what.insert(0, "--camera".into());
+            }
+            eprintln!(
+                "note: {} not used: they track the manifest's videos, and it lists trajectories only",
+                what.join(", ")
+            );
+        }
+    }
+    if has_videos {
         match &args.camera {
             None => {
                 bail!("the manifest lists videos: give the calibration with --camera camera.json")
@@ -175,12 +189,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..BuildOptions::default()
     };
     let bar = progress(manifest.runs.len() as u64, "dataset");
+    let repeated = RepeatedWarnings::default();
     let track = |row: &ManifestRow, video: &Path| -> Result<Trajectory, String> {
         let camera = camera.as_ref().ok_or("no camera")?;
         let (trajectory, warnings) = track_video(video, camera, &track_options)
             .map_err(|e| format!("run \"{}\": tracking {}: {e}", row.id, video.display()))?;
         for w in warnings {
-            bar.suspend(|| eprintln!("warning: run \"{}\": {}: {w}", row.id, video.display()));
+            if repeated.first(&w, &row.id) {
+                bar.suspend(|| eprintln!("warning: run \"{}\": {}: {w}", row.id, video.display()));
+            }
         }
         Ok(trajectory)
     };
@@ -193,6 +210,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &|| bar.inc(1),
     )?;
     bar.finish_and_clear();
+    repeated.report();
     let unmatched = ds
         .rejected
         .iter()
@@ -259,4 +277,48 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Tracking warnings of the same kind (the same words, other numbers) from many runs: a
+/// camera's rolling shutter or a wrong marker height shows in every run, and 131 copies would
+/// bury everything else. The first of each kind is printed in full, the rest counted.
+#[derive(Default)]
+struct RepeatedWarnings {
+    /// Per kind of warning, the first run's text and the runs after it that gave it.
+    more: std::sync::Mutex<std::collections::BTreeMap<String, (String, Vec<String>)>>,
+}
+
+impl RepeatedWarnings {
+    /// Whether `warning` of run `run_id` is the first of its kind (then print it).
+    fn first(&self, warning: &str, run_id: &str) -> bool {
+        let kind: String = warning.chars().filter(|c| !c.is_ascii_digit()).collect();
+        let mut more = self.more.lock().unwrap_or_else(|e| e.into_inner());
+        match more.get_mut(&kind) {
+            Some((_, runs)) => {
+                runs.push(run_id.to_string());
+                false
+            }
+            None => {
+                more.insert(kind, (warning.to_string(), Vec::new()));
+                true
+            }
+        }
+    }
+
+    /// One line per kind of warning that more runs gave.
+    fn report(&self) {
+        let more = self.more.lock().unwrap_or_else(|e| e.into_inner());
+        for (first, runs) in more.values().filter(|(_, r)| !r.is_empty()) {
+            let head: String = first.chars().take(60).collect();
+            let mut runs = runs.clone();
+            runs.sort();
+            let shown: Vec<&str> = runs.iter().take(5).map(String::as_str).collect();
+            eprintln!(
+                "warning: {} more run(s) gave the warning \"{head}…\" (each with its own figures): {}{}",
+                runs.len(),
+                shown.join(", "),
+                if runs.len() > shown.len() { ", …" } else { "" }
+            );
+        }
+    }
 }

@@ -25,7 +25,41 @@ pub struct TagArgs {
     pub rolling_shutter_s: f64,
 }
 
+/// The tag's options alone, for their defaults.
+#[derive(clap::Parser)]
+struct TagOnly {
+    #[command(flatten)]
+    tag: TagArgs,
+}
+
 impl TagArgs {
+    /// The options given other than at their defaults, as `--name value`.
+    pub fn given(&self) -> Vec<String> {
+        use clap::Parser;
+        let d = TagOnly::parse_from(["odocal"]).tag;
+        let mut out = Vec::new();
+        if self.tag_id != d.tag_id {
+            out.push(format!("--tag-id {}", self.tag_id));
+        }
+        if self.family != d.family {
+            out.push(format!("--family {}", self.family));
+        }
+        for (name, v, dv) in [
+            ("--tag-size", self.tag_size, d.tag_size),
+            ("--marker-height", self.marker_height, d.marker_height),
+            (
+                "--rolling-shutter-s",
+                self.rolling_shutter_s,
+                d.rolling_shutter_s,
+            ),
+        ] {
+            if v != dv {
+                out.push(format!("{name} {v}"));
+            }
+        }
+        out
+    }
+
     /// `opts` with this tag and readout.
     pub fn apply(&self, opts: TrackOptions) -> TrackOptions {
         TrackOptions {
