@@ -445,7 +445,10 @@ mod tests {
         // Without the wheels to say which way it drove, a run spent reversing is named too,
         // with that caveat.
         let back = heading_warning(&drive(-0.3, 0.0)).expect("reversing");
-        assert!(back.contains("unless the robot reversed the whole time"), "{back}");
+        assert!(
+            back.contains("unless the robot reversed the whole time"),
+            "{back}"
+        );
         let turned = heading_warning(&drive(0.3, std::f64::consts::PI)).expect("180°");
         assert!(
             turned.contains("backwards along its x axis on 100 % of"),
@@ -453,7 +456,10 @@ mod tests {
         );
         let side = heading_warning(&drive(0.3, -std::f64::consts::FRAC_PI_2)).expect("90°");
         assert!(side.contains("the tag moves 90° off its x axis"), "{side}");
-        assert!(side.contains("(median over 57 straight stretches"), "{side}");
+        assert!(
+            side.contains("(median over 57 straight stretches"),
+            "{side}"
+        );
         // Turned 20°: within what a tag off the axle gives on an arc.
         assert_eq!(heading_warning(&drive(0.3, 0.35)), None);
     }
