@@ -2,13 +2,13 @@
 //! small wheeled robots. This binary only parses arguments, shows progress and
 //! reports; the work is done by the library crates.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Subcommand};
 
 mod cmd;
 mod output;
 
 /// Ceiling-camera ground truth, odometry correction and laser positioning for small robots.
-#[derive(Parser)]
+#[derive(clap::Parser)]
 #[command(name = "odocal", version, about, long_about = None)]
 struct Cli {
     #[command(subcommand)]
@@ -57,6 +57,19 @@ enum SynthCommand {
     Lrf(cmd::synth_lrf::Args),
 }
 
+/// A negative number after an option is its value: `--tag-size -1` reaches odocal's own
+/// check of the value instead of clap's "unexpected argument '-1'".
+fn negative_numbers_are_values(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_numbers_are_values)
+}
+
 fn main() {
     // Printing into a closed pipe (`odocal synth lrf | head -1`) ends the process quietly, as
     // for any Unix filter, instead of panicking on the failed write.
@@ -64,7 +77,8 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    let matches = negative_numbers_are_values(Cli::command()).get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Synth(SynthCommand::Calib(a)) => cmd::synth_calib::run(a),
         Command::Synth(SynthCommand::CheckCalib(a)) => cmd::synth_calib::run_check(a),

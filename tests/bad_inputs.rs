@@ -207,6 +207,11 @@ fn laser_options_and_scan_times_are_checked() {
         &["lrf", "check-map", p(&map), "--max-range-m=-1"],
         &["--max-range-m"],
     );
+    // A negative value after a space is the option's value, checked by odocal, not an
+    // unknown argument ("tip: to pass '-1' as a value, use '-- -1'").
+    let mut args = base.to_vec();
+    args.extend(["--sigma-range-m", "-1"]);
+    refused(dir, &args, &["--sigma-range-m -1"]);
     let text = std::fs::read_to_string(&scans).expect("scans");
     let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
     // A second scan (id 1) whose time is NaN, the same as the first, earlier, or absurd.
