@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, Point2};
 use odocal_calib::{CameraModel, FloorToCamera};
-use odocal_core::{wrap_angle, Pose2, Trajectory, TrajectoryRow};
+use odocal_core::{wrap_angle, Pose2, PoseSigma, Trajectory, TrajectoryRow};
 
 use crate::ArenaError;
 
@@ -39,6 +39,8 @@ pub struct CameraFix {
     pub weight: f64,
     /// The tracker's quality in (0, 1].
     pub quality: f64,
+    /// The fix's standard deviations (the tracker's), when known.
+    pub sigma: Option<PoseSigma>,
 }
 
 /// One camera's fixes of one robot, in increasing time.
@@ -68,15 +70,22 @@ impl CameraTrack {
         (span <= max_gap_s).then(|| (i, (t - f[i].t_s) / span))
     }
 
-    /// Pose and weight at time `t` (own clock), interpolated; none outside or across a gap.
-    fn at(&self, t: f64, max_gap_s: f64) -> Option<(Pose2, f64, f64)> {
+    /// The fix at time `t` (own clock), interpolated; none outside or across a gap.
+    fn at(&self, t: f64, max_gap_s: f64) -> Option<CameraFix> {
         let (i, w) = self.bracket(t, max_gap_s)?;
         let (a, b) = (&self.fixes[i], &self.fixes[i + 1]);
-        Some((
-            a.pose.lerp(&b.pose, w),
-            a.weight + w * (b.weight - a.weight),
-            a.quality + w * (b.quality - a.quality),
-        ))
+        let mix = |u: f64, v: f64| u + w * (v - u);
+        Some(CameraFix {
+            t_s: t,
+            pose: a.pose.lerp(&b.pose, w),
+            weight: mix(a.weight, b.weight),
+            quality: mix(a.quality, b.quality),
+            sigma: a.sigma.zip(b.sigma).map(|(p, q)| PoseSigma {
+                x_m: mix(p.x_m, q.x_m),
+                y_m: mix(p.y_m, q.y_m),
+                theta_rad: mix(p.theta_rad, q.theta_rad),
+            }),
+        })
     }
 
     /// Position at `t`, extrapolated from the nearest segment outside the track (for the
@@ -199,7 +208,7 @@ fn matches(
         .enumerate()
         .filter_map(|(f, fix)| {
             ti.at(fix.t_s + d, max_gap_s)
-                .map(|(p, _, _)| (f, p.position()))
+                .map(|at| (f, at.pose.position()))
         })
         .collect()
 }
@@ -378,20 +387,45 @@ pub struct FusedTrack {
     pub handoffs: Vec<Handoff>,
 }
 
-fn weighted_pose(parts: &[(usize, Pose2, f64, f64)], skip: Option<usize>) -> Option<(Pose2, f64)> {
+/// One camera's part in a fused row: its index and its fix at that instant.
+type Part = (usize, CameraFix);
+
+/// The weighted mean of the parts' poses (all but camera `skip`), their weighted quality, and
+/// the mean's σ when every part has one: the cameras' errors taken as independent, each
+/// axis's σ is √(Σ w² σ²) / Σ w.
+fn weighted_pose(parts: &[Part], skip: Option<usize>) -> Option<(Pose2, f64, Option<PoseSigma>)> {
     let (mut sw, mut x, mut y, mut s, mut c, mut q) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for (k, p, w, qual) in parts {
+    let mut var = Some([0.0; 3]);
+    for (k, f) in parts {
         if Some(*k) == skip {
             continue;
         }
+        let (p, w) = (&f.pose, f.weight);
         sw += w;
         x += w * p.x_m;
         y += w * p.y_m;
         s += w * p.theta_rad.sin();
         c += w * p.theta_rad.cos();
-        q += w * qual;
+        q += w * f.quality;
+        var = var.zip(f.sigma).map(|(v, e)| {
+            [
+                v[0] + (w * e.x_m).powi(2),
+                v[1] + (w * e.y_m).powi(2),
+                v[2] + (w * e.theta_rad).powi(2),
+            ]
+        });
     }
-    (sw > 0.0).then(|| (Pose2::new(x / sw, y / sw, wrap_angle(s.atan2(c))), q / sw))
+    (sw > 0.0).then(|| {
+        (
+            Pose2::new(x / sw, y / sw, wrap_angle(s.atan2(c))),
+            q / sw,
+            var.map(|v| PoseSigma {
+                x_m: v[0].sqrt() / sw,
+                y_m: v[1].sqrt() / sw,
+                theta_rad: v[2].sqrt() / sw,
+            }),
+        )
+    })
 }
 
 /// Fuses one robot's tracks from every camera (times shifted by the offsets) into one
@@ -425,36 +459,33 @@ pub fn fuse_robot(
     let mut rows = Vec::new();
     let mut contributions = Vec::new();
     let mut handoffs = Vec::new();
-    let mut prev: Option<Vec<(usize, Pose2, f64, f64)>> = None;
+    let mut prev: Option<Vec<Part>> = None;
     for k in k0..=k1 {
         let t = k as f64 * opts.period_s;
-        let parts: Vec<(usize, Pose2, f64, f64)> = mine
+        let parts: Vec<Part> = mine
             .iter()
             .filter_map(|tr| {
-                let (p, w, q) = tr.at(t - offsets.offset_s[tr.camera], opts.max_gap_s)?;
-                Some((tr.camera, p, w, q))
+                let fix = tr.at(t - offsets.offset_s[tr.camera], opts.max_gap_s)?;
+                Some((tr.camera, fix))
             })
             .collect();
-        let Some((pose, quality)) = weighted_pose(&parts, None) else {
+        let Some((pose, quality, sigma)) = weighted_pose(&parts, None) else {
             prev = None;
             continue;
         };
         if let Some(before) = &prev {
-            let changed = |now: &[(usize, Pose2, f64, f64)],
-                           then: &[(usize, Pose2, f64, f64)],
-                           joins: bool,
-                           at: f64| {
+            let changed = |now: &[Part], then: &[Part], joins: bool, at: f64| {
                 now.iter()
                     .filter(|(c, ..)| !then.iter().any(|(d, ..)| d == c))
-                    .filter_map(|(c, p, ..)| {
-                        let (with, _) = weighted_pose(now, None)?;
-                        let (without, _) = weighted_pose(now, Some(*c))?;
+                    .filter_map(|(c, fix)| {
+                        let (with, ..) = weighted_pose(now, None)?;
+                        let (without, ..) = weighted_pose(now, Some(*c))?;
                         Some(Handoff {
                             t_s: at,
                             camera: *c,
                             joins,
                             jump_m: (with.position() - without.position()).norm(),
-                            disagreement_m: (p.position() - without.position()).norm(),
+                            disagreement_m: (fix.pose.position() - without.position()).norm(),
                         })
                     })
                     .collect::<Vec<_>>()
@@ -462,16 +493,21 @@ pub fn fuse_robot(
             handoffs.extend(changed(&parts, before, true, t));
             handoffs.extend(changed(before, &parts, false, t - opts.period_s));
         }
-        let sw: f64 = parts.iter().map(|p| p.2).sum();
-        contributions.push(parts.iter().map(|(c, _, w, _)| (*c, w / sw)).collect());
+        let sw: f64 = parts.iter().map(|(_, f)| f.weight).sum();
+        contributions.push(parts.iter().map(|(c, f)| (*c, f.weight / sw)).collect());
         rows.push(TrajectoryRow {
             t_s: t,
             pose,
             quality: quality.clamp(0.0, 1.0),
-            // Fixes interpolated between frames and blended across cameras: no per-row σ yet.
-            sigma: None,
+            // The blend of the cameras' σ; the clock offsets' own σ (reported with them) is
+            // not in it.
+            sigma,
         });
         prev = Some(parts);
+    }
+    // A file has σ on every row or on none.
+    if rows.iter().any(|r| r.sigma.is_none()) {
+        rows.iter_mut().for_each(|r| r.sigma = None);
     }
     let trajectory = Trajectory::new(rows)?;
     Ok(FusedTrack {
@@ -515,6 +551,7 @@ mod tests {
                             pose: p,
                             weight: (edge / 0.2).clamp(MIN_TAPER, 1.0),
                             quality: 0.9,
+                            sigma: None,
                         })
                     })
                     .collect();

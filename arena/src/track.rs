@@ -101,6 +101,7 @@ pub fn camera_tracks(
                             Some((0.5 * (f.sigma.x_m.powi(2) + f.sigma.y_m.powi(2))).sqrt()),
                         ),
                         quality: f.quality,
+                        sigma: Some(f.sigma),
                     }),
                     Outcome::Gap(_) => None,
                 })

@@ -187,6 +187,32 @@ fn arena_meets_the_bounds() {
             jump = jump.max((err(&rows[b]) - err(&rows[a])).norm());
         }
         let fused_jump = robot.handoffs.iter().map(|h| h.jump_m).fold(0.0, f64::max);
+        // Every fused row carries the σ its cameras' fixes give it, and the errors follow it.
+        let z: Vec<f64> = rows
+            .iter()
+            .flat_map(|r| {
+                let (e, s) = (err(r), r.sigma.expect("fused rows carry σ"));
+                [e.x / s.x_m, e.y / s.y_m]
+            })
+            .collect();
+        let z_rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+        let sigma_median_mm = {
+            let mut s: Vec<f64> = rows
+                .iter()
+                .filter_map(|r| r.sigma.map(|s| s.x_m.hypot(s.y_m) * 1e3))
+                .collect();
+            s.sort_by(f64::total_cmp);
+            s[s.len() / 2]
+        };
+        eprintln!(
+            "robot {}: fused σ (√(σx² + σy²)) median {sigma_median_mm:.3} mm; error/σ RMS per axis {z_rms:.2}",
+            robot.tag_id
+        );
+        assert!(
+            (0.4..=2.5).contains(&z_rms),
+            "robot {}: error/σ RMS {z_rms:.2}: the fused σ does not describe the errors",
+            robot.tag_id
+        );
         eprintln!(
             "robot {}: {} rows over {:.2} s, position RMS {:.3} mm, {} handoffs, largest error step at a handoff {:.3} mm (the fusion's own measure {:.3} mm)",
             robot.tag_id,

@@ -376,6 +376,14 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
                 .map(|p| row.pose.position() - p)
         };
         let errs: Vec<_> = r.trajectory.rows.iter().filter_map(err).collect();
+        // Each axis's error over its σ, where the rows have σ.
+        let z: Vec<f64> = r
+            .trajectory
+            .rows
+            .iter()
+            .filter_map(|row| Some((err(row)?, row.sigma?)))
+            .flat_map(|(e, s)| [e.x / s.x_m, e.y / s.y_m])
+            .collect();
         let rms =
             (errs.iter().map(|e| e.norm_squared()).sum::<f64>() / errs.len().max(1) as f64).sqrt();
         let max = errs.iter().map(|e| e.norm()).fold(0.0, f64::max);
@@ -393,8 +401,16 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
                 }
             }
         }
+        let z_rms = if z.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; error/σ RMS per axis {:.2} (1 when σ is honest)",
+                (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt()
+            )
+        };
         println!(
-            "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses; largest error step at a handoff {:.3} mm",
+            "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses; largest error step at a handoff {:.3} mm{z_rms}",
             r.tag_id,
             rms * 1e3,
             max * 1e3,
