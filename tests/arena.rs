@@ -250,4 +250,17 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(d.join("robot_tag0.csv").exists() && !d.join("robot_tag9.csv").exists());
+    // Two cameras' videos given in each other's place: each is mapped through the other's
+    // calibration, no robot lines up, and the order is named.
+    let mut swapped = videos.clone();
+    swapped.swap(0, 1);
+    let mut a = vec!["track", "--arena", p(&arena)];
+    a.extend(swapped.iter().map(String::as_str));
+    let out2 = d.join("swapped.csv");
+    a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out2)]);
+    let o = odocal(&a);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("in the order of the arena's cameras"), "{e}");
+    assert!(!d.join("swapped_tag0.csv").exists());
 }

@@ -296,7 +296,7 @@ pub fn estimate_clock_offsets(
         .collect();
     if !missing.is_empty() {
         return Err(ArenaError::Refused(format!(
-            "camera {} never saw a robot at the same time as a camera tied to the first (at least {} simultaneous fixes needed): its clock offset is unknown; drive a robot through its overlap with another camera",
+            "camera {} never saw a robot at the same time as a camera tied to the first (at least {} simultaneous fixes needed): its clock offset is unknown; drive a robot through its overlap with another camera, and give the videos in the order of the arena's cameras (a video given in another camera's place is mapped through that camera's calibration, so no robot lines up)",
             missing.join(", "),
             opts.min_matches
         )));
