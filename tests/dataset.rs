@@ -287,6 +287,28 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     );
     let e = heading(&|t| t.to_degrees() + 360.0);
     assert!(e.contains("theta is in degrees"), "{e}");
+    // Times in milliseconds used to read as "the trajectory never covers the log's motion
+    // (too many missed frames?)".
+    let ms: Vec<String> = full
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                return l.to_string();
+            }
+            let mut c: Vec<String> = l.split(',').map(str::to_string).collect();
+            c[0] = (c[0].parse::<f64>().unwrap() * 1000.0).to_string();
+            c.join(",")
+        })
+        .collect();
+    std::fs::write(&traj, ms.join("\n")).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("run002.trajectory.csv)")
+            && e.contains("the trajectory's rows are 33.3 apart")
+            && e.contains("are its times in milliseconds?"),
+        "{e}"
+    );
     std::fs::write(&traj, &full).unwrap();
 
     // Missing file, video rows, wrong format.

@@ -65,7 +65,9 @@ fn one_row(
             log_path.display()
         )));
     }
-    if let Some(why) = crate::heading::heading_mismatch(&log, &traj, &opts.robot) {
+    let camera_side = crate::units::time_unit_mismatch(&log, &traj)
+        .or_else(|| crate::heading::heading_mismatch(&log, &traj, &opts.robot));
+    if let Some(why) = camera_side {
         let camera = row.trajectory.as_ref().or(row.video.as_ref());
         return Err(DatasetError::Mismatch(format!(
             "run \"{}\" ({}): {why}",

@@ -1,5 +1,5 @@
 //! Catching a trajectory or a robot file in another unit before alignment: motion capture
-//! often exports millimetres, and a wheel diameter in millimetres makes every odometry
+//! often exports millimetres (and times in milliseconds), and a wheel diameter in millimetres makes every odometry
 //! distance a thousand times too long. Alignment would only reject every run with a speed
 //! mismatch; comparing the extents of the two paths names the likely cause.
 
@@ -67,6 +67,43 @@ pub fn unit_mismatch(
     ))
 }
 
+/// The longest median interval between a camera trajectory's rows that can be in seconds,
+/// seconds: cameras and motion capture give several rows a second.
+const MAX_ROW_INTERVAL_S: f64 = 2.0;
+
+/// Why the camera trajectory's times cannot be seconds: rows a median of more than
+/// [`MAX_ROW_INTERVAL_S`] apart (milliseconds give 33 for a 30 frames/s camera), with the
+/// likely unit from how its span compares with the log's.
+pub fn time_unit_mismatch(log: &OdometryLog, camera: &Trajectory) -> Option<String> {
+    let mut dt: Vec<f64> = camera
+        .rows
+        .windows(2)
+        .map(|w| w[1].t_s - w[0].t_s)
+        .collect();
+    if dt.is_empty() {
+        return None;
+    }
+    dt.sort_by(f64::total_cmp);
+    let median = dt[dt.len() / 2];
+    if median <= MAX_ROW_INTERVAL_S {
+        return None;
+    }
+    let span = camera.end_s() - camera.start_s();
+    let log_span = match (log.t_s.first(), log.t_s.last()) {
+        (Some(a), Some(b)) if b > a => b - a,
+        _ => f64::NAN,
+    };
+    let ratio = span / log_span;
+    let unit = if (ratio / 1000.0 - 1.0).abs() < 0.5 {
+        format!("; it spans {span:.0} against the log's {log_span:.1} s: are its times in milliseconds?")
+    } else {
+        "; are its times in another unit?".to_string()
+    };
+    Some(format!(
+        "the trajectory's rows are {median:.1} apart (median), where a camera gives several a second{unit} Times must be in seconds"
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -103,5 +140,31 @@ mod tests {
         };
         let w = unit_mismatch(&log, &camera(1.0), &wheel_mm).expect("wheel");
         assert!(w.contains("wheel_diameter_m in millimetres"), "{w}");
+    }
+
+    #[test]
+    fn trajectory_times_in_milliseconds_are_named() {
+        let t: Vec<f64> = (0..50).map(|i| 0.2 * i as f64).collect();
+        let ticks: Vec<i64> = (0..50).map(|i| 2 * i).collect();
+        let log = OdometryLog::from_ticks(t, ticks.clone(), ticks).expect("log");
+        let camera = |scale: f64| {
+            let rows = (0..300)
+                .map(|i| TrajectoryRow {
+                    t_s: scale * i as f64 / 30.0,
+                    pose: Pose2::new(0.001 * i as f64, 0.0, 0.0),
+                    quality: 1.0,
+                    sigma: None,
+                })
+                .collect();
+            Trajectory::new(rows).expect("trajectory")
+        };
+        assert_eq!(time_unit_mismatch(&log, &camera(1.0)), None);
+        let ms = time_unit_mismatch(&log, &camera(1000.0)).expect("ms");
+        assert!(
+            ms.contains("rows are 33.3 apart") && ms.contains("in milliseconds?"),
+            "{ms}"
+        );
+        // A slow camera in seconds (one frame in 1.5 s) is still seconds.
+        assert_eq!(time_unit_mismatch(&log, &camera(45.0)), None);
     }
 }
