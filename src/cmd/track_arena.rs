@@ -12,8 +12,8 @@ use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
-    fix_warnings, open_source, quiet_video_logs, tag_shape_warnings, SourceOptions, TrackOptions,
-    TrackResult,
+    fix_warnings, heading_warning, open_source, quiet_video_logs, tag_shape_warnings,
+    SourceOptions, TrackOptions, TrackResult,
 };
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
@@ -250,6 +250,12 @@ fn track_arena(
             if !tracking.robots.iter().any(|r| r.tag_id == *id) {
                 eprintln!("warning: tag {id} never gave a confident fix in any camera; no file written for it");
             }
+        }
+    }
+    // A tag mounted turned shows in the fused trajectory as in one camera's.
+    for r in &tracking.robots {
+        if let Some(w) = heading_warning(&r.trajectory) {
+            eprintln!("warning: tag {}: {w}", r.tag_id);
         }
     }
     println!(
