@@ -579,6 +579,31 @@ fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
         let name = bad.file_name().and_then(|n| n.to_str()).unwrap_or("");
         refused(dir, &args, &[name, needle]);
     }
+    // A video given to calibrate, and a trajectory given to track, are named for what they
+    // are (an AVI's header stands in for a whole video).
+    let avi = dir.join("session.avi");
+    std::fs::write(&avi, b"RIFF\x10\0\0\0AVI LIST\0\0\0\0hdrlavih").expect("write");
+    let mut args = calibrate_args(&out);
+    args.push(p(&avi));
+    refused(
+        dir,
+        &args,
+        &["session.avi: is an AVI video, not a photograph", "ffmpeg"],
+    );
+    let csv = dir.join("robot.csv");
+    std::fs::write(&csv, "t,x,y,theta,quality\n0,1,2,0,1\n").expect("write");
+    refused(
+        dir,
+        &[
+            "track",
+            p(&csv),
+            "--camera",
+            p(&data("camera.json")),
+            "--out",
+            p(&dir.join("t.csv")),
+        ],
+        &["robot.csv", "this is a CSV text file, not a video"],
+    );
     // A marker below the floor names the option, before any frame is read.
     let video = dir.join("none.avi");
     refused(

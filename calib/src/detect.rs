@@ -78,9 +78,13 @@ pub fn check_image_file(path: &Path) -> Result<(), CalibError> {
         .map_err(|e| bad(format!("cannot be read ({e})")))?;
     let format = reader.format();
     let (w, h) = reader.into_dimensions().map_err(|e| {
-        bad(format!(
-            "is not a readable image ({e}); is it a PNG or JPEG?"
-        ))
+        bad(match odocal_core::file_kind(path) {
+            Some(kind) if odocal_core::is_video(kind) => format!(
+                "is {kind}, not a photograph: calibrate takes PNG or JPEG images of the board (`ffmpeg -i VIDEO -vf fps=1 view_%03d.png` extracts one a second; keep the sharp ones with the board still)"
+            ),
+            Some(kind) => format!("is {kind}, not a PNG or JPEG image of the board"),
+            None => format!("is not a readable image ({e}); is it a PNG or JPEG?"),
+        })
     })?;
     if u64::from(w) * u64::from(h) > MAX_IMAGE_PIXELS || w == 0 || h == 0 {
         return Err(bad(format!(

@@ -7,6 +7,7 @@
 //! y to the left of x, z up; angles counter-clockwise positive, in radians.
 
 mod file_error;
+mod file_kind;
 mod fit;
 pub mod lsq;
 mod motion_heading;
@@ -18,6 +19,7 @@ mod tagged_json;
 mod trajectory;
 
 pub use file_error::{read_text, FileError};
+pub use file_kind::{file_kind, is_video};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};
 pub use motion_heading::MotionAgainstHeading;
 pub use pose::{wrap_angle, Pose2};

@@ -72,9 +72,17 @@ impl VideoSource {
     fn open_capture(path: &Path, opts: &SourceOptions, try_raw: bool) -> Result<Self, TrackError> {
         let cap = videoio::VideoCapture::from_file(path, videoio::CAP_FFMPEG)?;
         if !cap.is_opened()? {
+            let what = match odocal_core::file_kind(path) {
+                Some(kind) if !odocal_core::is_video(kind) => {
+                    format!("this is {kind}, not a video")
+                }
+                _ => "FFmpeg cannot decode this file".to_string(),
+            };
             return Err(TrackError::bad_input(
                 path,
-                "FFmpeg cannot decode this file: give an MP4 (H.264) or MJPG AVI video, or a folder of PNG/JPEG frames",
+                format!(
+                    "{what}: give an MP4 (H.264) or MJPG AVI video, or a folder of PNG/JPEG frames"
+                ),
             ));
         }
         let mut cap = SendCapture(cap);
