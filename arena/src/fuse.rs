@@ -335,7 +335,12 @@ pub fn estimate_clock_offsets(
             jac[(row, c)] = (ra[row] - rb[row]) / (2.0 * h);
         }
     }
-    let s2 = ssr / (m.saturating_sub(np)).max(1) as f64;
+    // The residuals of nearby frames are alike (each camera's calibration places the robot a
+    // little off in the same way all through an overlap), so they are fewer independent
+    // measurements than there are fixes: the variance grows by their integrated
+    // autocorrelation time τ = 1 + 2 Σ ρ(L) over frame lags L up to half a second, summed
+    // while ρ stays positive.
+    let s2 = ssr / (m.saturating_sub(np)).max(1) as f64 * autocorrelation_time(&all, &r, 15);
     let cov = (jac.transpose() * &jac).try_inverse();
     // Cameras that saw no robot keep offset 0 with an unknown (NaN) standard deviation.
     let mut offset_s = vec![0.0; cameras];
@@ -356,6 +361,35 @@ pub fn estimate_clock_offsets(
             .collect(),
         rms_m: (ssr / (m / 2).max(1) as f64).sqrt(),
     })
+}
+
+/// The integrated autocorrelation time of the matched fixes' residuals `r` (x and y of each
+/// match of `all`, in order), over lags of 1 to `max_lag` frames between matches of the same
+/// pair of tracks; 1 for independent residuals, at most 100.
+fn autocorrelation_time(all: &[(usize, usize, usize)], r: &[f64], max_lag: usize) -> f64 {
+    let norm: f64 = r.iter().map(|v| v * v).sum();
+    if norm <= 0.0 {
+        return 1.0;
+    }
+    let mut tau = 1.0;
+    for lag in 1..=max_lag {
+        let mut sum = 0.0;
+        for (k, a) in all.iter().enumerate() {
+            // Matches of one pair are in frame order, so the one `lag` frames on is at most
+            // `lag` places on.
+            for (l, b) in all.iter().enumerate().skip(k + 1).take(lag) {
+                if a.0 == b.0 && a.2 == b.2 && b.1 == a.1 + lag {
+                    sum += r[2 * k] * r[2 * l] + r[2 * k + 1] * r[2 * l + 1];
+                }
+            }
+        }
+        let rho = sum / norm;
+        if rho <= 0.0 {
+            break;
+        }
+        tau += 2.0 * rho;
+    }
+    tau.min(100.0)
 }
 
 /// A camera joining or leaving a robot's fused set.

@@ -141,6 +141,21 @@ fn arena_meets_the_bounds() {
             err * 1e3
         );
     }
+    // The offsets' σ describes their errors: it counts the residuals of nearby frames, which
+    // share the cameras' calibration errors, as fewer measurements (as independent ones it
+    // was 3-8 times too small).
+    let z: Vec<f64> = (1..truth.cameras.len())
+        .map(|k| {
+            (tracking.offsets.offset_s[k] - truth.cameras[k].clock_offset_s)
+                / tracking.offsets.sigma_s[k]
+        })
+        .collect();
+    let z_rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    eprintln!("clock offsets: error/σ RMS {z_rms:.2} over cameras 1-3");
+    assert!(
+        (0.2..=3.0).contains(&z_rms),
+        "clock offsets: error/σ RMS {z_rms:.2}"
+    );
     let truths: Vec<(u32, Trajectory)> = truth
         .robots
         .iter()
