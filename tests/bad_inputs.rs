@@ -592,31 +592,29 @@ fn calibration_refuses_repeated_views_swallowed_views_and_broken_images() {
     );
     let csv = dir.join("robot.csv");
     std::fs::write(&csv, "t,x,y,theta,quality\n0,1,2,0,1\n").expect("write");
-    refused(
-        dir,
-        &[
+    let camera = data("camera.json");
+    let t_csv = dir.join("t.csv");
+    let track = |video: &Path, extra: &[&str], needles: &[&str]| {
+        let mut args = vec![
             "track",
-            p(&csv),
+            p(video),
             "--camera",
-            p(&data("camera.json")),
+            p(&camera),
             "--out",
-            p(&dir.join("t.csv")),
-        ],
+            p(&t_csv),
+        ];
+        args.extend(extra);
+        refused(dir, &args, needles);
+    };
+    track(
+        &csv,
+        &[],
         &["robot.csv", "this is a CSV text file, not a video"],
     );
     // A marker below the floor names the option, before any frame is read.
-    let video = dir.join("none.avi");
-    refused(
-        dir,
-        &[
-            "track",
-            p(&video),
-            "--camera",
-            p(&data("camera.json")),
-            "--out",
-            p(&dir.join("t.csv")),
-            "--marker-height=-1",
-        ],
+    track(
+        &dir.join("none.avi"),
+        &["--marker-height=-1"],
         &["--marker-height -1"],
     );
 }

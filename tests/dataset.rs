@@ -232,31 +232,8 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let short: Vec<&str> = full.lines().take(20).collect();
     std::fs::write(&traj, short.join("\n")).unwrap();
     assert!(run(&manifest).contains("cannot overlap"));
-    // A trajectory in millimetres (motion capture often exports them): named as such.
-    let mm: Vec<String> = full
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i == 0 {
-                return l.to_string();
-            }
-            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
-            for c in [1, 2] {
-                f[c] = (f[c].parse::<f64>().unwrap() * 1000.0).to_string();
-            }
-            f.join(",")
-        })
-        .collect();
-    std::fs::write(&traj, mm.join("\n")).unwrap();
-    let e = run(&manifest);
-    assert!(
-        e.contains("run \"run002\"") && e.contains("is the trajectory in millimetres?"),
-        "{e}"
-    );
-    // A tag mounted turned 180° (or a motion-capture body facing backwards): every run used
-    // to be accepted, with raw odometry "200 % off". A heading in degrees used to be blamed
-    // on the pairing of the files. Both are named, and the trajectory file with them.
-    let heading = |f: &dyn Fn(f64) -> f64| -> String {
+    // The trajectory with `columns` rewritten by `f`, run through `dataset`.
+    let rewritten = |columns: &[usize], f: &dyn Fn(f64) -> f64| -> String {
         let rows: Vec<String> = full
             .lines()
             .enumerate()
@@ -265,13 +242,25 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
                     return l.to_string();
                 }
                 let mut c: Vec<String> = l.split(',').map(str::to_string).collect();
-                c[3] = f(c[3].parse::<f64>().unwrap()).to_string();
+                for &k in columns {
+                    c[k] = f(c[k].parse::<f64>().unwrap()).to_string();
+                }
                 c.join(",")
             })
             .collect();
         std::fs::write(&traj, rows.join("\n")).unwrap();
         run(&manifest)
     };
+    // A trajectory in millimetres (motion capture often exports them): named as such.
+    let e = rewritten(&[1, 2], &|v| v * 1000.0);
+    assert!(
+        e.contains("run \"run002\"") && e.contains("is the trajectory in millimetres?"),
+        "{e}"
+    );
+    // A tag mounted turned 180° (or a motion-capture body facing backwards): every run used
+    // to be accepted, with raw odometry "200 % off". A heading in degrees used to be blamed
+    // on the pairing of the files. Both are named, and the trajectory file with them.
+    let heading = |f: &dyn Fn(f64) -> f64| rewritten(&[3], f);
     let e = heading(&|t| t + std::f64::consts::PI);
     assert!(
         e.contains("run002.trajectory.csv)")
@@ -289,20 +278,7 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     assert!(e.contains("theta is in degrees"), "{e}");
     // Times in milliseconds used to read as "the trajectory never covers the log's motion
     // (too many missed frames?)".
-    let ms: Vec<String> = full
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i == 0 {
-                return l.to_string();
-            }
-            let mut c: Vec<String> = l.split(',').map(str::to_string).collect();
-            c[0] = (c[0].parse::<f64>().unwrap() * 1000.0).to_string();
-            c.join(",")
-        })
-        .collect();
-    std::fs::write(&traj, ms.join("\n")).unwrap();
-    let e = run(&manifest);
+    let e = rewritten(&[0], &|t| t * 1000.0);
     assert!(
         e.contains("run002.trajectory.csv)")
             && e.contains("the trajectory's rows are 33.3 apart")
