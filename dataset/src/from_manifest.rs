@@ -66,7 +66,8 @@ fn one_row(
         )));
     }
     let camera_side = crate::units::time_unit_mismatch(&log, &traj)
-        .or_else(|| crate::heading::heading_mismatch(&log, &traj, &opts.robot));
+        .or_else(|| crate::heading::heading_mismatch(&log, &traj, &opts.robot))
+        .or_else(|| crate::turn_sides::turn_mismatch(&log, &traj, &opts.robot, &opts.align));
     if let Some(why) = camera_side {
         let camera = row.trajectory.as_ref().or(row.video.as_ref());
         return Err(DatasetError::Mismatch(format!(

@@ -13,6 +13,7 @@ pub mod odometry;
 pub mod oracle;
 pub mod sample;
 pub mod segment;
+pub mod turn_sides;
 pub mod units;
 pub mod windows;
 
