@@ -264,8 +264,8 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let e = heading(&|t| t + std::f64::consts::PI);
     assert!(
         e.contains("run002.trajectory.csv)")
-            && e.contains("the wheels drive the robot forwards (100 % of their travel) but the camera sees it move backwards")
-            && e.contains("is the tag mounted turned 180°"),
+            && e.contains("the wheels drive the robot forwards (100 % of their travel) but the trajectory has it move backwards")
+            && e.contains("is the tag (or laser scanner) mounted turned 180°"),
         "{e}"
     );
     let e = heading(&|t| t + std::f64::consts::FRAC_PI_2);
@@ -415,7 +415,7 @@ fn wheels_that_turn_the_other_way_are_named() {
     let good = rewrite(&log, &|c| vec![c[0].clone(), c[2].clone(), c[1].clone()]);
     let e = fails(&args);
     assert!(
-        e.contains("the wheels turn the robot the other way from the camera")
+        e.contains("the wheels turn the robot the other way from the trajectory")
             && e.contains("are the log's left and right columns swapped"),
         "{e}"
     );

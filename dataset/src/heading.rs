@@ -63,7 +63,7 @@ pub fn heading_mismatch(
     let misfit = misfit?;
     if misfit > MotionAgainstHeading::MAX_LINE_MISFIT_RAD {
         return Some(format!(
-            "the heading is {:.0}° off the direction the robot moves in (median over {} straight steps; the robot moves at {:.0}° to its heading on average), where a wheeled robot moves along its heading: is the tag mounted turned (its x axis must point to the robot's front), or the trajectory's forward axis another one{}?",
+            "the heading is {:.0}° off the direction the robot moves in (median over {} straight steps; the robot moves at {:.0}° to its heading on average), where a wheeled robot moves along its heading: is the tag (or laser scanner) mounted turned (its x axis must point to the robot's front), or the trajectory's forward axis another one{}?",
             misfit.to_degrees(),
             radians.steps(),
             radians.mean_offset_rad().to_degrees(),
@@ -82,7 +82,7 @@ pub fn heading_mismatch(
         || (wheels <= 1.0 - one_way && camera_fwd >= one_way);
     opposite.then(|| {
         format!(
-            "the wheels drive the robot {} ({:.0} % of their travel) but the camera sees it move {} ({:.0} % of {} straight steps), so its heading points to the robot's back: is the tag mounted turned 180° (its x axis must point to the robot's front), or do the wheel counts fall when the robot drives forwards?",
+            "the wheels drive the robot {} ({:.0} % of their travel) but the trajectory has it move {} ({:.0} % of {} straight steps), so its heading points to the robot's back: is the tag (or laser scanner) mounted turned 180° (its x axis must point to the robot's front), or do the wheel counts fall when the robot drives forwards?",
             if wheels >= 0.5 { "forwards" } else { "backwards" },
             100.0 * wheels.max(1.0 - wheels),
             if camera_fwd >= 0.5 { "forwards" } else { "backwards" },
