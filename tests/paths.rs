@@ -183,4 +183,30 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
         "4",
     ]);
     assert!(e.contains("no UMBMark square"), "{e}");
+    // A held-out log with its left and right columns swapped is judged against the same
+    // checks as a dataset's, not scored as a bad method.
+    let log = std::path::PathBuf::from(d("tours/runs/run001.odometry.csv"));
+    let text = std::fs::read_to_string(&log).unwrap();
+    let swapped: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let c: Vec<&str> = l.split(',').collect();
+            if i == 0 {
+                return l.to_string();
+            }
+            format!("{},{},{}", c[0], c[2], c[1])
+        })
+        .collect();
+    std::fs::write(&log, swapped.join("\n")).unwrap();
+    let e = fails(&[
+        "evaluate",
+        &d("tours/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+    ]);
+    assert!(
+        e.contains("are the log's left and right columns swapped"),
+        "{e}"
+    );
 }

@@ -65,10 +65,7 @@ fn one_row(
             log_path.display()
         )));
     }
-    let camera_side = crate::units::time_unit_mismatch(&log, &traj)
-        .or_else(|| crate::heading::heading_mismatch(&log, &traj, &opts.robot))
-        .or_else(|| crate::turn_sides::turn_mismatch(&log, &traj, &opts.robot, &opts.align));
-    if let Some(why) = camera_side {
+    if let Some(why) = trajectory_mismatch(&log, &traj, &opts.robot, &opts.align) {
         let camera = row.trajectory.as_ref().or(row.video.as_ref());
         return Err(DatasetError::Mismatch(format!(
             "run \"{}\" ({}): {why}",
@@ -87,6 +84,20 @@ fn one_row(
         Layout::Windows(w) => window_samples(&rec, opts, &w),
     }?;
     Ok((runs, note))
+}
+
+/// Why `camera` cannot be the trajectory of the robot that wrote `log`, judged on the
+/// trajectory alone or against the log: times that are not seconds, a heading that does not
+/// point where the robot drives, turns the other way from the wheels' (`None` when it can be).
+pub fn trajectory_mismatch(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &crate::RobotParams,
+    align: &crate::align::AlignOptions,
+) -> Option<String> {
+    crate::units::time_unit_mismatch(log, camera)
+        .or_else(|| crate::heading::heading_mismatch(log, camera, robot))
+        .or_else(|| crate::turn_sides::turn_mismatch(log, camera, robot, align))
 }
 
 /// Builds the dataset of every row of `m`. Rows with a video are tracked by `track` on

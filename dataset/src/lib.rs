@@ -22,7 +22,9 @@ pub use build::{
     RunOutcome,
 };
 pub use error::DatasetError;
-pub use from_manifest::{build_from_manifest, errors_against_truth, TruthErrors, VideoTracker};
+pub use from_manifest::{
+    build_from_manifest, errors_against_truth, trajectory_mismatch, TruthErrors, VideoTracker,
+};
 pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
 pub use manifest::{Manifest, ManifestRow};
 pub use odocal_core::{Trajectory, TrajectoryRow};

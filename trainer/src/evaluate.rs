@@ -163,7 +163,10 @@ pub fn evaluate_paths(
                 r.id
             )));
         }
-        if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot) {
+        let align = odocal_dataset::align::AlignOptions::default();
+        if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot)
+            .or_else(|| odocal_dataset::trajectory_mismatch(&r.log, &r.camera, robot, &align))
+        {
             return Err(TrainError::Dataset(format!("{}: {why}", r.id)));
         }
         let revs = r.log.wheel_revs(robot);
