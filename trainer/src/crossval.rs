@@ -217,14 +217,38 @@ pub fn assign_folds(samples: &[Sample], folds: usize, seed: u64) -> Result<Vec<u
 
 /// Warning text when 21k+2 parameters approach the number of training residuals.
 pub fn capacity_warning(hidden: usize, n_fit: usize) -> Option<String> {
-    let p = Perceptron::n_params_for(odocal_dataset::N_INPUTS, hidden, 2);
+    capacity_warning_sizes(&[hidden], n_fit)
+}
+
+/// [`capacity_warning`] for several hidden sizes trained on `n_fit` samples, as one line for
+/// those it concerns (a sweep's larger sizes all do, and seven copies bury the report).
+pub fn capacity_warning_sizes(hidden: &[usize], n_fit: usize) -> Option<String> {
     let r = 2 * n_fit;
-    (p * 2 > r).then(|| {
-        format!(
-            "k = {hidden}: {p} parameters (21k+2) against {r} training residuals (2 x {n_fit} samples): \
-             the net can nearly interpolate the data; rely on early stopping / weight decay and the held-out figures"
+    let params = |k: usize| Perceptron::n_params_for(odocal_dataset::N_INPUTS, k, 2);
+    let over: Vec<usize> = hidden
+        .iter()
+        .copied()
+        .filter(|&k| params(k) * 2 > r)
+        .collect();
+    let (&first, &last) = (over.first()?, over.last()?);
+    let (sizes, count) = if first == last {
+        (format!("k = {first}"), format!("{}", params(first)))
+    } else {
+        (
+            format!(
+                "k = {}",
+                over.iter()
+                    .map(|k| k.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            format!("{}-{}", params(first), params(last)),
         )
-    })
+    };
+    Some(format!(
+        "{sizes}: {count} parameters (21k+2) against {r} training residuals (2 x {n_fit} samples): \
+         the net can nearly interpolate the data; rely on early stopping / weight decay and the held-out figures"
+    ))
 }
 
 /// One training of a sweep.
@@ -504,6 +528,8 @@ pub fn sweep(
     let mut table1 = Vec::new();
     let mut net_preds: HashMap<usize, Vec<Vec<[f64; 2]>>> = HashMap::new();
     let mut warnings = Vec::new();
+    // Hidden sizes by the number of samples they were fitted on, for one capacity warning each.
+    let mut fitted: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
     for &k in &settings.hidden_sizes {
         let mine: Vec<&TaskOut> = outs.iter().filter(|o| o.hidden == k).collect();
         let mut per_restart = vec![vec![[f64::NAN; 2]; n]; settings.restarts];
@@ -514,9 +540,7 @@ pub fn sweep(
         }
         let ms: Vec<Metrics> = per_restart.iter().map(|p| Metrics::of(&all, p)).collect();
         let n_fit = mine.iter().map(|o| o.n_fit).min().unwrap_or(0);
-        if let Some(w) = capacity_warning(k, n_fit) {
-            warnings.push(w);
-        }
+        fitted.entry(n_fit).or_insert_with(Vec::new).push(k);
         table1.push(Table1Row {
             hidden: k,
             n_params: Perceptron::n_params_for(odocal_dataset::N_INPUTS, k, 2),
@@ -528,6 +552,11 @@ pub fn sweep(
         });
         net_preds.insert(k, per_restart);
     }
+    warnings.extend(
+        fitted
+            .iter()
+            .filter_map(|(&n_fit, ks)| capacity_warning_sizes(ks, n_fit)),
+    );
     // The size Table 1 marks: lowest MSE on the outer folds themselves (not used by Table 2).
     let best = table1
         .iter()
@@ -797,4 +826,25 @@ fn verdict(t: &[MethodRow], name: &str) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sweep_gets_one_capacity_warning() {
+        // 88 samples fit: 176 residuals; k = 4 has 86 parameters (under half), k ≥ 5 more.
+        let w = capacity_warning_sizes(&[4, 5, 6, 7], 88).expect("warned");
+        assert!(
+            w.starts_with("k = 5, 6, 7: 107-149 parameters (21k+2) against 176"),
+            "{w}"
+        );
+        assert_eq!(capacity_warning_sizes(&[2, 3, 4], 88), None);
+        let one = capacity_warning(8, 111).expect("warned");
+        assert!(
+            one.starts_with("k = 8: 170 parameters (21k+2) against 222"),
+            "{one}"
+        );
+    }
 }
