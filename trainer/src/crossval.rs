@@ -540,7 +540,7 @@ pub fn sweep(
         }
         let ms: Vec<Metrics> = per_restart.iter().map(|p| Metrics::of(&all, p)).collect();
         let n_fit = mine.iter().map(|o| o.n_fit).min().unwrap_or(0);
-        fitted.entry(n_fit).or_insert_with(Vec::new).push(k);
+        fitted.entry(n_fit).or_default().push(k);
         table1.push(Table1Row {
             hidden: k,
             n_params: Perceptron::n_params_for(odocal_dataset::N_INPUTS, k, 2),
