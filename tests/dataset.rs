@@ -8,20 +8,26 @@ use common::{fails, ok, p, rms};
 use odocal_dataset::{Dataset, OracleFile};
 
 fn synth(dir: &Path, runs: usize, seed: u64, per: usize) {
-    ok(&[
+    synth_with(dir, runs, seed, &["--runs-per-recording", &per.to_string()]);
+}
+
+/// `odocal synth experiment` without video, with `extra` options.
+fn synth_with(dir: &Path, runs: usize, seed: u64, extra: &[&str]) {
+    let (runs, seed) = (runs.to_string(), seed.to_string());
+    let mut args = vec![
         "synth",
         "experiment",
         "--out",
         p(dir),
         "--runs",
-        &runs.to_string(),
+        &runs,
         "--seed",
-        &seed.to_string(),
+        &seed,
         "--frames",
         "none",
-        "--runs-per-recording",
-        &per.to_string(),
-    ]);
+    ];
+    args.extend(extra);
+    ok(&args);
 }
 
 fn build(dir: &Path) -> Dataset {
@@ -368,20 +374,7 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
 fn wheels_that_turn_the_other_way_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&[
-        "synth",
-        "experiment",
-        "--out",
-        p(d),
-        "--runs",
-        "2",
-        "--seed",
-        "3",
-        "--frames",
-        "none",
-        "--paths",
-        "tours",
-    ]);
+    synth_with(d, 2, 3, &["--paths", "tours"]);
     let manifest = d.join("manifest.json");
     let out = d.join("ds.json");
     let args = [
