@@ -317,7 +317,12 @@ fn synth_lrf(dir: &Path, seed: u64, scans: usize) {
 /// `odocal lrf localize` of `synth lrf`'s scans in `d` with its map, into `d/poses.csv`, with
 /// `extra` options.
 fn localize(d: &Path, extra: &[&str]) -> std::process::Output {
-    let (map, scans, poses) = (d.join("map.json"), d.join("scans.csv"), d.join("poses.csv"));
+    localize_into(d, &d.join("poses.csv"), extra)
+}
+
+/// [`localize`] into `out`.
+fn localize_into(d: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let (map, scans) = (d.join("map.json"), d.join("scans.csv"));
     let mut args = vec![
         "lrf",
         "localize",
@@ -325,7 +330,7 @@ fn localize(d: &Path, extra: &[&str]) -> std::process::Output {
         s(&map),
         s(&scans),
         "--out",
-        s(&poses),
+        s(out),
     ];
     args.extend(extra);
     odocal(&args)
@@ -360,20 +365,7 @@ fn cli_synth_then_localize_with_truth() {
         std::fs::read(d2.join("map.json")).expect("map")
     );
 
-    let (map, scans) = (d.join("map.json"), d.join("scans.csv"));
-    let localize = |out: &Path, truth: &Path| {
-        odocal(&[
-            "lrf",
-            "localize",
-            "--map",
-            s(&map),
-            s(&scans),
-            "--out",
-            s(out),
-            "--truth",
-            s(truth),
-        ])
-    };
+    let localize = |out: &Path, truth: &Path| localize_into(d, out, &["--truth", s(truth)]);
     let poses = d.join("poses.csv");
     let out = localize(&poses, &d.join("truth.csv"));
     let stdout = String::from_utf8_lossy(&out.stdout);
