@@ -15,6 +15,7 @@ mod pose;
 mod ray;
 pub mod staging;
 mod table;
+mod tag_mount;
 mod tagged_json;
 mod trajectory;
 
@@ -25,6 +26,7 @@ pub use motion_heading::MotionAgainstHeading;
 pub use pose::{wrap_angle, Pose2};
 pub use ray::ray_segment;
 pub use table::{csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, TextFormat};
+pub use tag_mount::{MountFit, TagToRobot};
 pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};
 pub use trajectory::{
     mean_pose, PoseSigma, Trajectory, TrajectoryRow, TRAJECTORY_HEADER, TRAJECTORY_SIGMA_HEADER,

@@ -42,6 +42,18 @@ pub struct Args {
     /// Id of the robot's tag36h11 marker.
     #[arg(long, default_value_t = 0)]
     pub tag_id: u32,
+    /// Where the tag's centre sits on the robot: AHEAD,LEFT in metres from the midpoint of the
+    /// wheel axle. The truth is the axle midpoint's pose, as the wheel odometry's is.
+    #[arg(
+        long,
+        default_value = "0,0",
+        allow_hyphen_values = true,
+        value_name = "AHEAD,LEFT"
+    )]
+    pub tag_offset: super::tag::TagOffset,
+    /// Angle from the robot's front to the tag's x axis, degrees counter-clockwise.
+    #[arg(long, default_value_t = 0.0, value_name = "DEG")]
+    pub tag_yaw: f64,
     /// A realistic camera.
     #[command(flatten)]
     pub camera: CameraArgs,
@@ -204,6 +216,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         noise_sigma: args.noise,
         exposure_s,
         tag_id: args.tag_id,
+        tag_to_robot: odocal_core::TagToRobot::new(
+            args.tag_offset.ahead_m,
+            args.tag_offset.left_m,
+            args.tag_yaw.to_radians(),
+        ),
         effects,
     };
     scene.check()?;

@@ -1,7 +1,40 @@
 //! The robot's tag and how the camera reads it: the options `track` and `dataset` (whose
 //! manifest rows with a video are tracked) share, with the same names and defaults.
 
+use odocal_core::TagToRobot;
 use odocal_tracker::TrackOptions;
+
+/// Where the tag's centre sits on the robot, metres ahead of and to the left of the midpoint
+/// of its wheel axle.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct TagOffset {
+    /// Ahead of the axle midpoint, metres (negative: behind).
+    pub ahead_m: f64,
+    /// To the left of it, metres (negative: to the right).
+    pub left_m: f64,
+}
+
+impl std::str::FromStr for TagOffset {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        let nums: Option<Vec<f64>> = parts.iter().map(|p| p.parse().ok()).collect();
+        match nums.as_deref() {
+            Some(&[ahead_m, left_m]) => Ok(Self { ahead_m, left_m }),
+            _ => Err(
+                "give the tag's centre as AHEAD,LEFT in metres from the midpoint of the wheel axle (0.12,0 for 12 cm ahead; -0.05,0.02 for 5 cm behind and 2 cm to the left)"
+                    .into(),
+            ),
+        }
+    }
+}
+
+impl std::fmt::Display for TagOffset {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{},{}", self.ahead_m, self.left_m)
+    }
+}
 
 /// The tag's options on the command line.
 #[derive(clap::Args, Clone, Debug)]
@@ -23,6 +56,20 @@ pub struct TagArgs {
     /// rows where the tag was read: t = frame time + tag centre row / rows × readout.
     #[arg(long, default_value_t = 0.0)]
     pub rolling_shutter_s: f64,
+    /// Where the tag's centre sits on the robot: AHEAD,LEFT in metres from the midpoint of the
+    /// wheel axle (the point the wheel odometry follows). The trajectory is then the axle
+    /// midpoint's; `track` warns when a tag off the axle is not given.
+    #[arg(
+        long,
+        default_value = "0,0",
+        allow_hyphen_values = true,
+        value_name = "AHEAD,LEFT"
+    )]
+    pub tag_offset: TagOffset,
+    /// Angle from the robot's front to the tag's x axis, degrees counter-clockwise (90: the
+    /// tag's x axis points to the robot's left). The trajectory's heading is then the robot's.
+    #[arg(long, default_value_t = 0.0, value_name = "DEG")]
+    pub tag_yaw: f64,
 }
 
 /// The tag's options alone, for their defaults.
@@ -44,7 +91,11 @@ impl TagArgs {
         if self.family != d.family {
             out.push(format!("--family {}", self.family));
         }
+        if self.tag_offset != d.tag_offset {
+            out.push(format!("--tag-offset {}", self.tag_offset));
+        }
         for (name, v, dv) in [
+            ("--tag-yaw", self.tag_yaw, d.tag_yaw),
             ("--tag-size", self.tag_size, d.tag_size),
             ("--marker-height", self.marker_height, d.marker_height),
             (
@@ -68,6 +119,11 @@ impl TagArgs {
             tag_size_m: self.tag_size,
             marker_height_m: self.marker_height,
             rolling_shutter_s: self.rolling_shutter_s,
+            tag_to_robot: TagToRobot::new(
+                self.tag_offset.ahead_m,
+                self.tag_offset.left_m,
+                self.tag_yaw.to_radians(),
+            ),
             ..opts
         }
     }

@@ -12,8 +12,8 @@ use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
-    fix_warnings, heading_warning, open_source, quiet_video_logs, tag_shape_warnings,
-    SourceOptions, TrackOptions, TrackResult,
+    fix_warnings, mount_warnings, open_source, quiet_video_logs, tag_shape_warnings, SourceOptions,
+    TrackOptions, TrackResult,
 };
 
 use crate::output::{check_output_file, progress, write_atomic, write_json};
@@ -238,7 +238,11 @@ fn track_arena(
     }
     let fps = frame_rate(&results, &videos)?;
     let fuse = FuseOptions::for_fps(fps);
-    let tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
+    let mut tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
+    // The cameras fuse the tags' positions; the robots' are taken off the mount after.
+    for r in &mut tracking.robots {
+        r.trajectory = opts.tag_to_robot.robot_trajectory(&r.trajectory);
+    }
     if tracking.robots.is_empty() {
         bail!(
             "no robot gave a confident fix in any camera, so nothing was written: {}",
@@ -254,7 +258,8 @@ fn track_arena(
     }
     // A tag mounted turned shows in the fused trajectory as in one camera's.
     for r in &tracking.robots {
-        if let Some(w) = heading_warning(&r.trajectory) {
+        let mount = &opts.tag_to_robot;
+        for w in mount_warnings(&r.trajectory, mount) {
             eprintln!("warning: tag {}: {w}", r.tag_id);
         }
     }

@@ -8,11 +8,12 @@
 use std::path::{Path, PathBuf};
 
 use odocal_calib::{CameraFile, FloorPlane};
+use odocal_core::TagToRobot;
 use serde::Serialize;
 
 use crate::scene::{
     demo_trajectory, frames_csv, nadir, render_video_with_progress, truth_csv, CameraEffects,
-    SceneConfig, SceneError, VideoFormat, ROW_TIME_CONVENTION,
+    FrameTruth, SceneConfig, SceneError, VideoFormat, ROW_TIME_CONVENTION,
 };
 
 /// The `format` tag of scene.json.
@@ -39,6 +40,8 @@ pub struct TrackScene {
     pub exposure_s: f64,
     /// Id of the robot's tag36h11 marker.
     pub tag_id: u32,
+    /// Where the tag sits on the robot; the truth is the robot's (its axle midpoint).
+    pub tag_to_robot: TagToRobot,
     /// What a real camera adds (all off by default).
     pub effects: CameraEffects,
 }
@@ -79,6 +82,10 @@ struct SceneInfo {
     tag_id: u32,
     tag_size_m: f64,
     marker_height_m: f64,
+    /// Where the tag's centre sits on the robot, metres ahead of and left of the axle midpoint.
+    tag_offset_m: [f64; 2],
+    /// The tag's x axis from the robot's front, degrees counter-clockwise.
+    tag_yaw_deg: f64,
     exposure_s: f64,
     noise_sigma: f32,
     speed_min_mps: f64,
@@ -119,6 +126,16 @@ impl TrackScene {
         let bad = |m: String| Err(SceneError::Input(m));
         if self.frames == 0 {
             return bad("--frames must be at least 1".into());
+        }
+        let m = &self.tag_to_robot.0;
+        // The tag plate stays on the robot's 12 cm body (or close to it) and in view.
+        if !(m.x_m.hypot(m.y_m) <= 0.3 && m.theta_rad.is_finite()) {
+            return bad(format!(
+                "--tag-offset {},{} --tag-yaw {}: the simulated tag sits within 0.3 m of the axle midpoint (metres ahead, left) at a finite angle",
+                m.x_m,
+                m.y_m,
+                m.theta_rad.to_degrees()
+            ));
         }
         if !(self.fps > 0.0 && self.fps.is_finite()) {
             return bad(format!(
@@ -180,6 +197,9 @@ pub fn write_track_scene(
         s.speed_max_mps,
         s.seed,
     );
+    // The path is the robot's; the camera sees its tag.
+    let mount = s.tag_to_robot;
+    let tag_path: Vec<_> = traj.iter().map(|(t, p)| (*t, mount.tag_pose(p))).collect();
     let name = match s.format {
         VideoFormat::Avi => "video.avi",
         VideoFormat::Mp4 => "video.mp4",
@@ -189,12 +209,20 @@ pub fn write_track_scene(
         &out.join(name),
         s.format,
         &cfg,
-        &traj,
+        &tag_path,
         s.fps,
         s.seed,
         on_frame,
     )?;
-    let truths: Vec<_> = truths.into_iter().take(s.frames).collect();
+    let truths: Vec<_> = truths
+        .into_iter()
+        .take(s.frames)
+        .map(|t| FrameTruth {
+            pose: mount.robot_pose(&t.pose),
+            pose_tag_row: mount.robot_pose(&t.pose_tag_row),
+            ..t
+        })
+        .collect();
     let floor = FloorPlane {
         floor_to_camera: cfg.floor,
         plane_rms_m: 0.0,
@@ -252,6 +280,8 @@ pub fn write_track_scene(
             tag_id: s.tag_id,
             tag_size_m: cfg.robot.tag_size_m,
             marker_height_m: cfg.robot.marker_height_m,
+            tag_offset_m: [mount.0.x_m, mount.0.y_m],
+            tag_yaw_deg: mount.0.theta_rad.to_degrees(),
             exposure_s: cfg.exposure_s,
             noise_sigma: s.noise_sigma,
             speed_min_mps: s.speed_min_mps,

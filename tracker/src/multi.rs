@@ -214,6 +214,7 @@ pub fn track_source_multi(
             (
                 id,
                 TrackResult {
+                    tag_to_robot: opts.tag_to_robot,
                     records: s.records,
                     seen_ids: seen.clone(),
                     frame_size: (info.width, info.height),

@@ -324,34 +324,79 @@ pub fn fix_warnings(
         );
     }
     if let Ok(trajectory) = result.trajectory() {
-        warnings.extend(heading_warning(&trajectory));
+        warnings.extend(mount_warnings(&trajectory, &result.tag_to_robot));
     }
     warnings
 }
 
-/// A tag whose x axis does not point where the robot drives: on straight stretches a
-/// wheeled robot moves along its heading, so motion well off that line, or backwards
-/// nearly all the time, says the tag is mounted turned, and every heading (and every
-/// dataset target made from it) is turned with it.
-pub fn heading_warning(trajectory: &odocal_core::Trajectory) -> Option<String> {
-    let motion = odocal_core::MotionAgainstHeading::of(trajectory, 1.0);
-    let misfit = motion.line_misfit_rad()?;
-    let remount = "mount the tag with its x axis pointing to the robot's front, or every heading (and every dataset target) is turned by as much";
-    if misfit > odocal_core::MotionAgainstHeading::MAX_LINE_MISFIT_RAD {
-        return Some(format!(
-            "the tag moves {:.0}° off its x axis (median over {} straight stretches of 1 cm; {:.0}° on average), where a wheeled robot moves along its heading: {remount}",
-            misfit.to_degrees(),
+/// What a trajectory's motion says about where its tag sits on the robot, one line each. A
+/// differential drive's axle midpoint moves along the robot's heading and never sideways, so
+/// a heading turned from the line of motion says the tag is mounted turned (and every
+/// heading, and every dataset target made from it, is turned with it), and a sideways swing
+/// on turns says the tag sits ahead of or behind the axle (see [`odocal_core::MountFit`]).
+/// `trajectory` is the robot's, taken off the `mount` given; each warning names the
+/// `--tag-yaw` or `--tag-offset` that would take the rest off.
+pub fn mount_warnings(
+    trajectory: &odocal_core::Trajectory,
+    mount: &odocal_core::TagToRobot,
+) -> Vec<String> {
+    use odocal_core::{wrap_angle, MotionAgainstHeading, MountFit};
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let subject = if mount.is_identity() {
+        "the tag"
+    } else {
+        "the tag, taken off the --tag-offset/--tag-yaw given,"
+    };
+    let yaw_fix = |yaw_rad: f64| {
+        format!(
+            "give --tag-yaw {:.1} (degrees from the robot's front to the tag's x axis, counter-clockwise) or remount the tag; until then every heading (and every dataset target) is turned by as much",
+            wrap_angle(yaw_rad).to_degrees()
+        )
+    };
+    let motion = MotionAgainstHeading::of(trajectory, 1.0);
+    let backwards = motion.line_misfit_rad().is_some()
+        && motion.forward_share() <= 1.0 - MotionAgainstHeading::ONE_WAY;
+    if backwards {
+        return vec![format!(
+            "{subject} moves backwards along its x axis on {:.0} % of {} straight stretches: unless the robot reversed the whole time, the tag is mounted turned 180°; {}",
+            100.0 * (1.0 - motion.forward_share()),
             motion.steps(),
-            motion.mean_offset_rad().to_degrees()
+            yaw_fix(mount.0.theta_rad + PI)
+        )];
+    }
+    let Some(fit) = MountFit::of(trajectory) else {
+        return Vec::new();
+    };
+    let mut warnings = Vec::new();
+    if let Some(mut yaw) = fit.named_yaw_rad() {
+        // The line of motion says nothing of which way along it is forwards: a robot that
+        // also reversed is taken to have a tag turned less than 90°.
+        if yaw.abs() > FRAC_PI_2 {
+            yaw = wrap_angle(yaw + PI);
+        }
+        if yaw.abs() > MountFit::NAMED_YAW_RAD {
+            warnings.push(format!(
+                "{subject} is turned {:+.1}° (± {:.1}°, 1σ, over {} steps) from the direction the robot drives, where a wheeled robot drives along its heading: {}",
+                yaw.to_degrees(),
+                fit.yaw_sigma_rad.to_degrees(),
+                fit.steps,
+                yaw_fix(mount.0.theta_rad + yaw)
+            ));
+        }
+    }
+    if let Some(ahead) = fit.named_ahead_m() {
+        warnings.push(format!(
+            "{subject} slips sideways on turns as a point {:.1} cm {} the wheel axle does (± {:.1} cm, 1σ, from {:.0}° of turning), where the midpoint of a differential drive's axle never slips: if that is where the tag sits, give --tag-offset {:.3},{:.3} (metres ahead of and to the left of the axle midpoint; the path shows only the distance ahead, so measure the sideways one) so the trajectory is the axle's, as the odometry is; until then positions on turns are off by up to {:.1} cm. Skid-steered robots slip on every turn and may show this too",
+            100.0 * ahead.abs(),
+            if ahead > 0.0 { "ahead of" } else { "behind" },
+            100.0 * fit.ahead_sigma_m,
+            fit.turned_rad.to_degrees(),
+            mount.0.x_m + ahead,
+            mount.0.y_m,
+            100.0 * ahead.abs(),
         ));
     }
-    (motion.forward_share() <= 1.0 - odocal_core::MotionAgainstHeading::ONE_WAY).then(|| {
-        format!(
-            "the tag moves backwards along its x axis on {:.0} % of {} straight stretches: unless the robot reversed the whole time, the tag is mounted turned 180°; {remount}",
-            100.0 * (1.0 - motion.forward_share()),
-            motion.steps()
-        )
-    })
+    warnings
 }
 
 /// What the tags' shapes in a run's fixes say, one line each: a marker height their apparent
@@ -414,8 +459,8 @@ impl TrackResult {
 
 #[cfg(test)]
 mod tests {
-    use super::heading_warning;
-    use odocal_core::{Pose2, Trajectory, TrajectoryRow};
+    use super::mount_warnings;
+    use odocal_core::{Pose2, TagToRobot, Trajectory, TrajectoryRow};
 
     /// 3 s at 30 frames/s of a robot driving at 0.3 m/s along 40°, backwards when `speed` <
     /// 0, its tag turned by `tag_turn_rad` from the robot's front.
@@ -439,28 +484,39 @@ mod tests {
         Trajectory::new(rows).expect("trajectory")
     }
 
+    fn said(t: &Trajectory) -> String {
+        mount_warnings(t, &TagToRobot::IDENTITY).join("\n")
+    }
+
     #[test]
     fn a_tag_mounted_turned_is_named() {
-        assert_eq!(heading_warning(&drive(0.3, 0.0)), None);
+        assert_eq!(said(&drive(0.3, 0.0)), "");
         // Without the wheels to say which way it drove, a run spent reversing is named too,
         // with that caveat.
-        let back = heading_warning(&drive(-0.3, 0.0)).expect("reversing");
+        let back = said(&drive(-0.3, 0.0));
         assert!(
             back.contains("unless the robot reversed the whole time"),
             "{back}"
         );
-        let turned = heading_warning(&drive(0.3, std::f64::consts::PI)).expect("180°");
+        let turned = said(&drive(0.3, std::f64::consts::PI));
         assert!(
             turned.contains("backwards along its x axis on 100 % of"),
             "{turned}"
         );
-        let side = heading_warning(&drive(0.3, -std::f64::consts::FRAC_PI_2)).expect("90°");
-        assert!(side.contains("the tag moves 90° off its x axis"), "{side}");
-        assert!(
-            side.contains("(median over 57 straight stretches"),
-            "{side}"
-        );
-        // Turned 20°: within what a tag off the axle gives on an arc.
-        assert_eq!(heading_warning(&drive(0.3, 0.35)), None);
+        assert!(turned.contains("give --tag-yaw 180.0 (degrees"), "{turned}");
+        let side = said(&drive(0.3, -std::f64::consts::FRAC_PI_2));
+        // The headings' jitter averages 0.1°.
+        assert!(side.contains("the tag is turned -89.9° (± 0.0°"), "{side}");
+        assert!(side.contains("give --tag-yaw -89.9 (degrees"), "{side}");
+        // 20° is named, 1° (a tag laid by eye) is not.
+        let slight = said(&drive(0.3, 0.35));
+        assert!(slight.contains("give --tag-yaw 20.2 (degrees"), "{slight}");
+        assert_eq!(said(&drive(0.3, 0.017)), "");
+        // Given that yaw, the trajectory is the robot's and nothing is said.
+        for yaw in [-std::f64::consts::FRAC_PI_2, std::f64::consts::PI, 0.35] {
+            let mount = TagToRobot::new(0.0, 0.0, yaw);
+            let robot = mount.robot_trajectory(&drive(0.3, yaw));
+            assert_eq!(mount_warnings(&robot, &mount), Vec::<String>::new());
+        }
     }
 }

@@ -26,7 +26,7 @@ use std::sync::mpsc;
 use nalgebra::Point2;
 use odocal_calib::{CameraModel, FloorToCamera};
 use odocal_core::{wrap_angle, Pose2, PoseSigma};
-use odocal_core::{Trajectory, TrajectoryRow};
+use odocal_core::{TagToRobot, Trajectory, TrajectoryRow};
 
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
@@ -79,6 +79,9 @@ pub struct TrackOptions {
     pub max_turn_rate_rad_s: f64,
     /// Run the solvePnP (IPPE_SQUARE) cross-check on every fix.
     pub pnp_cross_check: bool,
+    /// Where the tag sits on the robot. Fixes are the tag's poses; the trajectory is the
+    /// robot's (its axle midpoint, heading forwards), as the wheel odometry is.
+    pub tag_to_robot: TagToRobot,
 }
 
 impl TrackOptions {
@@ -120,6 +123,14 @@ impl TrackOptions {
                 self.rolling_shutter_s
             ));
         }
+        let m = &self.tag_to_robot.0;
+        let lever_m = m.x_m.hypot(m.y_m);
+        if !(lever_m <= MAX_TAG_OFFSET_M && m.theta_rad.is_finite()) {
+            return bad(format!(
+                "--tag-offset {},{}: the tag's centre {lever_m:.2} m from the robot's axle midpoint is not on a small wheeled robot; the offset is in metres, ahead and to the left of the axle (0.12,0 for 12 cm ahead)",
+                m.x_m, m.y_m
+            ));
+        }
         if !(self.max_size_error > 0.0 && self.max_size_error < 1.0) {
             return bad(format!(
                 "max size error {}: a relative difference between 0 and 1",
@@ -157,6 +168,7 @@ impl Default for TrackOptions {
             max_speed_mps: 2.0,
             max_turn_rate_rad_s: 8.0,
             pnp_cross_check: false,
+            tag_to_robot: TagToRobot::IDENTITY,
         }
     }
 }
@@ -297,6 +309,10 @@ pub struct Tracker {
     /// Which of the search directions the whole-frame blurred search tries next.
     blurred_search_turn: usize,
 }
+
+/// Farthest a tag may sit from the robot's axle midpoint, metres: beyond it the offset is
+/// not a small robot's (or was given in centimetres).
+const MAX_TAG_OFFSET_M: f64 = 1.0;
 
 /// Blur lengths (pixels), Wiener noise-to-signal ratios and quad blurs (σ, pixels) tried along
 /// the track's motion when the tag is not found in the ROI: the likeliest first, smoother ones
@@ -863,6 +879,9 @@ pub(crate) fn unshear(
 /// Everything a tracking run produced.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackResult {
+    /// Where the tag sits on the robot ([`TrackOptions::tag_to_robot`]): the fixes are the
+    /// tag's poses, [`Self::trajectory`] the robot's.
+    pub tag_to_robot: TagToRobot,
     /// One record per frame, in order.
     pub records: Vec<FrameRecord>,
     /// Ids seen (any id of the family) and in how many frames.
@@ -882,7 +901,8 @@ impl TrackResult {
         })
     }
 
-    /// The trajectory file contents: one row per fix, gaps absent.
+    /// The trajectory file contents: the robot's pose at every fix (the tag's taken off its
+    /// mount), gaps absent.
     pub fn trajectory(&self) -> Result<Trajectory, TrackError> {
         let rows = self
             .fixes()
@@ -893,7 +913,9 @@ impl TrackResult {
                 sigma: Some(f.sigma),
             })
             .collect();
-        Trajectory::new(rows).map_err(|e| TrackError::Mismatch(format!("frame timestamps: {e}")))
+        let tag = Trajectory::new(rows)
+            .map_err(|e| TrackError::Mismatch(format!("frame timestamps: {e}")))?;
+        Ok(self.tag_to_robot.robot_trajectory(&tag))
     }
 
     /// Runs of frames without a pose.
@@ -1092,6 +1114,7 @@ pub fn track_source(
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
     let result = TrackResult {
+        tag_to_robot: opts.tag_to_robot,
         records,
         seen_ids,
         frame_size: (info.width, info.height),

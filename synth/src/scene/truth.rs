@@ -10,8 +10,9 @@ pub struct FrameTruth {
     /// Frame time (centre of the exposure), seconds.
     pub t_s: f64,
     /// The marker's floor pose at `t_s`: the tag frame (x to the right of the
-    /// tag image, y up the tag image) mapped into the floor frame. The robot's
-    /// pose, since the tag is mounted centred and aligned with the robot.
+    /// tag image, y up the tag image) mapped into the floor frame. It is the robot's
+    /// pose where the tag is mounted centred and aligned with the robot (`synth track`
+    /// with `--tag-offset`/`--tag-yaw` writes the robot's axle pose here instead).
     pub pose: Pose2,
     /// Whether the whole tag, including its white border, is inside the image
     /// (with a 2-pixel margin) during the exposure.
