@@ -220,18 +220,7 @@ impl ModelFile {
                 self.feature_rule, feature_rule
             )));
         }
-        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
-        let m = &self.robot;
-        if !(close(m.wheel_diameter_m, robot.wheel_diameter_m)
-            && close(m.ticks_per_rev, robot.ticks_per_rev)
-            && close(m.wheel_base_m, robot.wheel_base_m)
-            && close(m.period_s, robot.period_s))
-        {
-            return Err(TrainError::Model(format!(
-                "model was trained for robot {:?}, but the log is of robot {:?}",
-                m, robot
-            )));
-        }
+        crate::domain::check_same_robot(&self.robot, robot, "the log")?;
         Ok(())
     }
 

@@ -9,6 +9,7 @@ use odocal_core::Pose2;
 use odocal_dataset::{Dataset, OdometryLog, RobotParams, WheelGeometry, WINDOW_RULE};
 use serde::{Deserialize, Serialize};
 
+use crate::domain::{check_same_robot, StepDirections};
 use crate::error::TrainError;
 use crate::model::Weights;
 use crate::net::Perceptron;
@@ -46,6 +47,11 @@ pub struct PathModelFile {
     pub window_fit: [WindowFit; 3],
     /// Fastest wheel speed of a training step, m/s; faster logs are outside the domain.
     pub max_wheel_speed_mps: f64,
+    /// Which ways the wheels turned in the training steps; a log going mostly another way
+    /// (driving backwards after forward tours) is outside the domain. Absent from models
+    /// written before it was recorded, which are then not checked for it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub step_directions: Option<StepDirections>,
 }
 
 /// A log corrected by a path model.
@@ -88,6 +94,12 @@ impl PathModelFile {
             .flat_map(|s| s.inputs.iter())
             .fold(0.0f64, |m, d| m.max(d.abs()))
             / ds.robot.period_s;
+        let step_directions = StepDirections::of_steps(
+            samples
+                .iter()
+                .flat_map(|s| s.inputs.chunks_exact(2))
+                .map(|d| [d[0], d[1]]),
+        );
         let p = net.net();
         Ok(Self {
             format: PATH_MODEL_FORMAT.to_string(),
@@ -110,6 +122,7 @@ impl PathModelFile {
                 WindowFit::of(&net, &samples),
             ],
             max_wheel_speed_mps,
+            step_directions: Some(step_directions),
         })
     }
 
@@ -137,9 +150,18 @@ impl PathModelFile {
                 "{name}: max_wheel_speed_mps must be a positive number"
             )));
         }
+        if let Some(d) = &m.step_directions {
+            d.check()
+                .map_err(|e| TrainError::Model(format!("{name}: step_directions.{e}")))?;
+        }
         m.corrector()
             .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
         Ok(m)
+    }
+
+    /// Refuses data of a robot other than the model's (`whose` names the data).
+    pub fn check_robot(&self, robot: &RobotParams, whose: &str) -> Result<(), TrainError> {
+        check_same_robot(&self.robot, robot, whose)
     }
 
     /// The step corrector (checks sizes and finiteness).
@@ -174,7 +196,8 @@ impl PathModelFile {
 
     /// Corrects a whole log of `robot` (`name` names the log in messages): the raw and the
     /// corrected trajectory from the log's first row. A log whose steps are faster than the
-    /// training's is refused unless `allow_extrapolation`, when the reason is returned.
+    /// training's, or go mostly in a direction the training did not (driving backwards), is
+    /// refused unless `allow_extrapolation`, when the reasons are returned.
     pub fn correct_log(
         &self,
         log: &OdometryLog,
@@ -182,17 +205,7 @@ impl PathModelFile {
         name: &str,
         allow_extrapolation: bool,
     ) -> Result<CorrectedPath, TrainError> {
-        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
-        let m = &self.robot;
-        if !(close(m.wheel_diameter_m, robot.wheel_diameter_m)
-            && close(m.ticks_per_rev, robot.ticks_per_rev)
-            && close(m.wheel_base_m, robot.wheel_base_m)
-            && close(m.period_s, robot.period_s))
-        {
-            return Err(TrainError::Model(format!(
-                "the model was trained for robot {m:?}, but {name} is of robot {robot:?}"
-            )));
-        }
+        self.check_robot(robot, name)?;
         let revs = log.wheel_revs(robot);
         let steps = nominal_travels(&revs.rev, robot);
         for (k, w) in revs.t_s.windows(2).enumerate() {
@@ -216,6 +229,10 @@ impl PathModelFile {
                 "a wheel reaches {fastest:.2} m/s, the training only {:.2} m/s",
                 self.max_wheel_speed_mps
             ));
+        }
+        if let Some(trained) = &self.step_directions {
+            outside_domain
+                .extend(trained.outside(&StepDirections::of_steps(steps.iter().copied())));
         }
         if !outside_domain.is_empty() && !allow_extrapolation {
             return Err(TrainError::Model(format!(
