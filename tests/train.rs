@@ -251,3 +251,56 @@ fn bad_input_is_a_clear_error() {
     std::fs::write(&short, v.to_string()).expect("write");
     assert!(fails(&["train", p(&short), "--out", "m.json"]).contains("2 inputs"));
 }
+
+/// `ds` with every sample's target replaced by `f(target)`, written to `dir`/`name`.
+fn with_targets(ds: &Path, dir: &Path, name: &str, f: impl Fn(f64) -> f64) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(ds).expect("dataset");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
+    for s in v["samples"].as_array_mut().expect("samples") {
+        for c in s["target_m"].as_array_mut().expect("target") {
+            *c = serde_json::json!(f(c.as_f64().expect("number")));
+        }
+    }
+    let out = dir.join(name);
+    std::fs::write(&out, v.to_string()).expect("write");
+    out
+}
+
+#[test]
+fn targets_that_do_not_follow_the_odometry_are_refused_with_their_likely_cause() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let m = dir.path().join("m.json");
+    // A frozen camera track: every target (0, 0).
+    let frozen = with_targets(&ds, dir.path(), "frozen.json", |_| 0.0);
+    let e = fails(&["train", p(&frozen), "--out", p(&m)]);
+    assert!(
+        e.contains("frozen.json: the targets carry no motion: the camera's end points lie 0.0 mm from their starts on average, raw odometry's 1.")
+            && e.contains("a frozen or lost camera track?"),
+        "{e}"
+    );
+    assert!(!m.exists());
+    // Targets in millimetres: a units hint, not a fit that "did not converge".
+    let mm = with_targets(&ds, dir.path(), "mm.json", |v| 1e3 * v);
+    let e = fails(&["train", p(&mm), "--out", p(&m)]);
+    assert!(
+        e.contains("are the trajectories in millimetres? odocal expects trajectories in metres")
+            && !e.contains("did not converge"),
+        "{e}"
+    );
+    // Targets mirrored through the start: as far as the odometry, but a calibration with a
+    // negative wheel, in the single model and in the sweep.
+    let mirrored = with_targets(&ds, dir.path(), "mirrored.json", |v| -v);
+    for args in [
+        vec!["train", p(&mirrored), "--out", p(&m)],
+        vec!["train", p(&mirrored), "--sweep", "2..2", "--restarts", "1"],
+    ] {
+        let e = fails(&args);
+        assert!(
+            e.contains("the kinematic calibration gives a left wheel radius multiplier of -0.9")
+                && e.contains("which no real robot has"),
+            "{e}"
+        );
+    }
+    assert!(!m.exists());
+}

@@ -9,6 +9,7 @@ use odocal_core::Pose2;
 use odocal_dataset::{Dataset, OdometryLog, RobotParams, WheelGeometry, WINDOW_RULE};
 use serde::{Deserialize, Serialize};
 
+use crate::baseline::PLAUSIBLE_MULTIPLIER;
 use crate::domain::{check_same_robot, StepDirections};
 use crate::error::TrainError;
 use crate::model::Weights;
@@ -71,6 +72,33 @@ fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Refuses an effective geometry no real robot has (a multiplier of the nominal outside
+/// [`PLAUSIBLE_MULTIPLIER`]): the windows' targets do not follow their odometry.
+fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainError> {
+    for (name, fitted, nominal) in [
+        (
+            "left wheel diameter",
+            g.left_wheel_diameter_m,
+            robot.wheel_diameter_m,
+        ),
+        (
+            "right wheel diameter",
+            g.right_wheel_diameter_m,
+            robot.wheel_diameter_m,
+        ),
+        ("wheel base", g.wheel_base_m, robot.wheel_base_m),
+    ] {
+        if !PLAUSIBLE_MULTIPLIER.contains(&(fitted / nominal)) {
+            return Err(TrainError::Dataset(format!(
+                "the kinematic fit on the windows gives a {name} of {:.3} mm against the nominal {:.3} mm, which no real robot has: the targets do not follow the odometry (a frozen camera track, trajectories in another unit, or logs and trajectories of different runs?); check the dataset's trajectories and rebuild it",
+                1e3 * fitted,
+                1e3 * nominal
+            )));
+        }
+    }
+    Ok(())
+}
+
 impl PathModelFile {
     /// Fits a path model with `hidden` neurons to a window dataset.
     pub fn fit(
@@ -87,6 +115,7 @@ impl PathModelFile {
         }
         let samples: Vec<&odocal_dataset::Sample> = ds.samples.iter().collect();
         let kin = fit_step_corrector(&samples, &ds.robot, 0, 1, 0.0, seed)?;
+        check_physical(&kin.geometry(), &ds.robot)?;
         let net = fit_step_corrector(&samples, &ds.robot, hidden, restarts, 1e-4, seed)?;
         let raw = StepCorrector::nominal(ds.robot, 0);
         let max_wheel_speed_mps = samples
