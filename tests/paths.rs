@@ -345,3 +345,48 @@ fn evaluate_refuses_another_robot_as_correct_does_naming_what_differs() {
         what,
     );
 }
+
+#[test]
+fn options_a_path_model_does_not_use_are_refused_not_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, _) = small_path_model(dir.path());
+    let windows = dir.path().join("windows.json");
+    let out = dir.path().join("other.json");
+    for opt in [
+        &["--method", "backprop"][..],
+        &["--weight-decay", "0.3"],
+        &["--max-epochs", "3"],
+        &["--val-fraction", "0.2"],
+        &["--max-fail", "3"],
+        &["--min-improvement", "0.1"],
+        &["--folds", "3"],
+        &["--restarts", "3"],
+        &["--no-cv"],
+        &["--sweep", "1..2"],
+    ] {
+        let mut args = vec!["train", p(&windows), "--out", p(&out)];
+        args.extend_from_slice(opt);
+        fails_with(
+            &odocal(&args),
+            &format!(
+                "a window dataset trains a path model, which takes only --out, --hidden and --seed; {} is not used for a path model (it belongs to straight-run datasets",
+                opt[0]
+            ),
+        );
+        assert!(!out.exists());
+    }
+    let e = fails(&[
+        "train",
+        p(&windows),
+        "--out",
+        p(&out),
+        "--method",
+        "lm",
+        "--folds",
+        "5",
+    ]);
+    assert!(e.contains("--method, --folds are not used"), "{e}");
+    // What it does take still changes the model.
+    ok(&["train", p(&windows), "--out", p(&out), "--seed", "3"]);
+    assert_ne!(std::fs::read(&out).unwrap(), std::fs::read(&model).unwrap());
+}

@@ -304,3 +304,31 @@ fn targets_that_do_not_follow_the_odometry_are_refused_with_their_likely_cause()
     }
     assert!(!m.exists());
 }
+
+#[test]
+fn sweep_ranges_and_folds_are_checked_as_options() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let m = dir.path().join("m.json");
+    for range in ["0..2", "60..70"] {
+        let e = fails(&["train", p(&ds), "--sweep", range]);
+        assert!(
+            e.starts_with(&format!(
+                "odocal: error: --sweep '{range}': hidden sizes must lie in 1..64"
+            )),
+            "{e}"
+        );
+    }
+    let e = fails(&["train", p(&ds), "--out", p(&m), "--folds", "1000"]);
+    assert!(
+        e.contains("--folds 1000: too few samples for 1000 folds: ")
+            && e.contains("dataset.json has 12, enough for at most 6 folds of 2; give --folds 6 or fewer, or --no-cv"),
+        "{e}"
+    );
+    assert!(!m.exists());
+    let e = fails(&["train", p(&ds), "--out", p(&m), "--restarts", "3"]);
+    assert!(e.contains("--restarts is used by --sweep only"), "{e}");
+    // Within the limit the estimate is made; with --no-cv the folds are not used.
+    ok(&["train", p(&ds), "--out", p(&m), "--folds", "6"]);
+    ok(&["train", p(&ds), "--out", p(&m), "--no-cv"]);
+}
