@@ -332,3 +332,61 @@ fn sweep_ranges_and_folds_are_checked_as_options() {
     ok(&["train", p(&ds), "--out", p(&m), "--folds", "6"]);
     ok(&["train", p(&ds), "--out", p(&m), "--no-cv"]);
 }
+
+/// A hand edit of a model's JSON.
+type Edit = fn(&mut serde_json::Value);
+
+#[test]
+fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let model = dir.path().join("model.json");
+    ok(&["train", p(&ds), "--out", p(&model), "--no-cv"]);
+    let log = dir.path().join("exp/runs/run001.odometry.csv");
+    let text = std::fs::read_to_string(&model).expect("model");
+    let edits: [(&str, Edit, &str); 3] = [
+        (
+            "scale.json",
+            |v| v["output_normalisation"]["scale"] = serde_json::json!([0.0, 0.0]),
+            "scale.json: output_normalisation.scale[0] = 0 must be > 0",
+        ),
+        (
+            "range.json",
+            |v| {
+                let hi = v["domain"]["input_max"][3].as_f64().expect("max");
+                v["domain"]["input_min"][3] = serde_json::json!(hi + 1.0);
+            },
+            "range.json: domain.input_min[3] = ",
+        ),
+        (
+            "activation.json",
+            |v| v["activations"][0] = serde_json::json!("tanh"),
+            "activation.json: activations[0] is \"tanh\", but this build computes \"logistic sigmoid\" there; retrain the model",
+        ),
+    ];
+    for (name, edit, needle) in edits {
+        let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
+        edit(&mut v);
+        let path = dir.path().join(name);
+        std::fs::write(&path, v.to_string()).expect("write");
+        let e = fails(&["correct", "--model", p(&path), p(&log)]);
+        assert!(e.contains(needle), "{e}");
+    }
+    ok(&["correct", "--model", p(&model), p(&log)]);
+
+    // t_b and t_e (inputs 16 and 17) swapped in one sample.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&ds).expect("dataset")).expect("json");
+    let inputs = v["samples"][4]["inputs"].as_array_mut().expect("inputs");
+    inputs.swap(16, 17);
+    let swapped = dir.path().join("swapped.json");
+    std::fs::write(&swapped, v.to_string()).expect("write");
+    let m = dir.path().join("m.json");
+    let e = fails(&["train", p(&swapped), "--out", p(&m)]);
+    assert!(
+        e.contains("swapped.json: sample 4 (run 'run005'): its run starts at t_b = ")
+            && e.contains("(inputs 16 and 17); the feature rule needs 0 <= t_b < t_e"),
+        "{e}"
+    );
+    assert!(!m.exists());
+}

@@ -1,6 +1,6 @@
 //! Loading and checking dataset.json for training.
 
-use odocal_dataset::{Dataset, Sample};
+use odocal_dataset::{Dataset, Sample, N_INPUTS};
 use sha2::{Digest, Sha256};
 
 use crate::error::TrainError;
@@ -44,8 +44,27 @@ pub fn check_dataset(ds: &Dataset) -> Result<(), TrainError> {
             ds.samples.len()
         )));
     }
+    if !ds.is_windows() {
+        check_run_times(&ds.samples)?;
+    }
     check_no_copies(&ds.samples)?;
     check_targets_move(&ds.samples)
+}
+
+/// Refuses straight-run samples whose run times (inputs 16 and 17, t_b and t_e in the
+/// feature rule) run backwards or are no clock readings: the intermediate positions are
+/// placed at t_b + i/9 (t_e - t_b), so a swap reverses the run in time.
+fn check_run_times(samples: &[Sample]) -> Result<(), TrainError> {
+    for (i, s) in samples.iter().enumerate() {
+        let (t_b, t_e) = (s.inputs[N_INPUTS - 2], s.inputs[N_INPUTS - 1]);
+        if !(t_b >= 0.0 && t_e > t_b) {
+            return Err(TrainError::Dataset(format!(
+                "sample {i} (run '{}'): its run starts at t_b = {t_b} s and ends at t_e = {t_e} s (inputs 16 and 17); the feature rule needs 0 <= t_b < t_e (robot clock seconds): are they swapped? rebuild the dataset with `odocal dataset`",
+                s.run_id
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The camera's motion against raw odometry's (sums of end distances from the start over the
