@@ -4,7 +4,7 @@
 //! simulator's true kinematics.
 
 mod common;
-use common::{fails, ok};
+use common::{fails, fails_with, odocal, ok, p, succeeded};
 
 use serde_json::Value;
 
@@ -209,4 +209,184 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
         e.contains("are the log's left and right columns swapped"),
         "{e}"
     );
+}
+
+/// A small path model trained on forward tours in `dir`: (the model, the tours' folder).
+fn small_path_model(dir: &std::path::Path) -> (String, std::path::PathBuf) {
+    let d = |p: &str| dir.join(p).display().to_string();
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "tours",
+        "--runs",
+        "4",
+        "--frames",
+        "none",
+        "--out",
+        &d("tours"),
+    ]);
+    ok(&[
+        "dataset",
+        "--manifest",
+        &d("tours/manifest.json"),
+        "--layout",
+        "windows",
+        "--out",
+        &d("windows.json"),
+    ]);
+    ok(&["train", &d("windows.json"), "--out", &d("path-model.json")]);
+    (d("path-model.json"), dir.join("tours"))
+}
+
+#[test]
+fn a_path_model_trained_on_forward_tours_refuses_a_log_driven_backwards() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    // The same tour with both wheels' counts negated: the robot reversing along it.
+    let log = std::fs::read_to_string(tours.join("runs/run001.odometry.csv")).unwrap();
+    assert!(log.starts_with("t,left_ticks,right_ticks\n"), "{log}");
+    let back: Vec<String> = log
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let c: Vec<&str> = l.split(',').collect();
+            if i == 0 {
+                return l.to_string();
+            }
+            let neg = |v: &str| -v.parse::<i64>().unwrap();
+            format!("{},{},{}", c[0], neg(c[1]), neg(c[2]))
+        })
+        .collect();
+    let back_csv = dir.path().join("back.csv");
+    std::fs::write(&back_csv, back.join("\n")).unwrap();
+    let out_csv = dir.path().join("cb.csv");
+    let args = [
+        "correct",
+        "--model",
+        &model,
+        p(&back_csv),
+        "--out",
+        p(&out_csv),
+    ];
+    let e = fails_with(
+        &odocal(&args),
+        "the model was trained on forward driving (driving backwards in ",
+    );
+    let share: f64 = e
+        .split("but the log drives backwards (both wheels backwards) in ")
+        .nth(1)
+        .and_then(|s| s.split(" %").next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no share of backward steps in {e}"));
+    assert!(share > 80.0, "{e}");
+    assert!(e.contains("--allow-extrapolation"), "{e}");
+    assert!(!out_csv.exists(), "nothing is written on refusal");
+    // On request it is corrected, flagged as a guess.
+    let mut flagged = args.to_vec();
+    flagged.push("--allow-extrapolation");
+    let o = odocal(&flagged);
+    succeeded(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("EXTRAPOLATED") && err.contains("drives backwards"),
+        "{err}"
+    );
+    // The forward log itself is inside.
+    ok(&[
+        "correct",
+        "--model",
+        &model,
+        p(&tours.join("runs/run001.odometry.csv")),
+    ]);
+    // A model written before the directions were recorded still loads (and is not checked
+    // for them).
+    let text = std::fs::read_to_string(&model).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v["step_directions"]["both_backward"].as_f64().unwrap() < 0.02);
+    v.as_object_mut().unwrap().remove("step_directions");
+    let old = dir.path().join("old-model.json");
+    std::fs::write(&old, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    ok(&["correct", "--model", p(&old), p(&back_csv)]);
+}
+
+#[test]
+fn evaluate_refuses_another_robot_as_correct_does_naming_what_differs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let robot = dir.path().join("robot.json");
+    std::fs::write(
+        &robot,
+        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.045,"ticks_per_rev":12,"wheel_base_m":0.1,"period_s":0.2}"#,
+    )
+    .unwrap();
+    let what = "wheel diameter 43.000 mm in the model vs 45.000 mm given; pass the robot the model was trained for (or leave out --robot)";
+    let e = fails_with(
+        &odocal(&[
+            "evaluate",
+            p(&tours.join("manifest.json")),
+            "--model",
+            &model,
+            "--robot",
+            p(&robot),
+        ]),
+        what,
+    );
+    assert!(!e.contains("RobotParams"), "{e}");
+    fails_with(
+        &odocal(&[
+            "correct",
+            "--model",
+            &model,
+            p(&tours.join("runs/run001.odometry.csv")),
+            "--robot",
+            p(&robot),
+        ]),
+        what,
+    );
+}
+
+#[test]
+fn options_a_path_model_does_not_use_are_refused_not_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, _) = small_path_model(dir.path());
+    let windows = dir.path().join("windows.json");
+    let out = dir.path().join("other.json");
+    for opt in [
+        &["--method", "backprop"][..],
+        &["--weight-decay", "0.3"],
+        &["--max-epochs", "3"],
+        &["--val-fraction", "0.2"],
+        &["--max-fail", "3"],
+        &["--min-improvement", "0.1"],
+        &["--folds", "3"],
+        &["--restarts", "3"],
+        &["--no-cv"],
+        &["--sweep", "1..2"],
+    ] {
+        let mut args = vec!["train", p(&windows), "--out", p(&out)];
+        args.extend_from_slice(opt);
+        fails_with(
+            &odocal(&args),
+            &format!(
+                "a window dataset trains a path model, which takes only --out, --hidden and --seed; {} is not used for a path model (it belongs to straight-run datasets",
+                opt[0]
+            ),
+        );
+        assert!(!out.exists());
+    }
+    let e = fails(&[
+        "train",
+        p(&windows),
+        "--out",
+        p(&out),
+        "--method",
+        "lm",
+        "--folds",
+        "5",
+    ]);
+    assert!(e.contains("--method, --folds are not used"), "{e}");
+    // What it does take still changes the model.
+    ok(&["train", p(&windows), "--out", p(&out), "--seed", "3"]);
+    assert_ne!(std::fs::read(&out).unwrap(), std::fs::read(&model).unwrap());
 }

@@ -251,3 +251,142 @@ fn bad_input_is_a_clear_error() {
     std::fs::write(&short, v.to_string()).expect("write");
     assert!(fails(&["train", p(&short), "--out", "m.json"]).contains("2 inputs"));
 }
+
+/// `ds` with every sample's target replaced by `f(target)`, written to `dir`/`name`.
+fn with_targets(ds: &Path, dir: &Path, name: &str, f: impl Fn(f64) -> f64) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(ds).expect("dataset");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
+    for s in v["samples"].as_array_mut().expect("samples") {
+        for c in s["target_m"].as_array_mut().expect("target") {
+            *c = serde_json::json!(f(c.as_f64().expect("number")));
+        }
+    }
+    let out = dir.join(name);
+    std::fs::write(&out, v.to_string()).expect("write");
+    out
+}
+
+#[test]
+fn targets_that_do_not_follow_the_odometry_are_refused_with_their_likely_cause() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let m = dir.path().join("m.json");
+    // A frozen camera track: every target (0, 0).
+    let frozen = with_targets(&ds, dir.path(), "frozen.json", |_| 0.0);
+    let e = fails(&["train", p(&frozen), "--out", p(&m)]);
+    assert!(
+        e.contains("frozen.json: the targets carry no motion: the camera's end points lie 0.0 mm from their starts on average, raw odometry's 1.")
+            && e.contains("a frozen or lost camera track?"),
+        "{e}"
+    );
+    assert!(!m.exists());
+    // Targets in millimetres: a units hint, not a fit that "did not converge".
+    let mm = with_targets(&ds, dir.path(), "mm.json", |v| 1e3 * v);
+    let e = fails(&["train", p(&mm), "--out", p(&m)]);
+    assert!(
+        e.contains("are the trajectories in millimetres? odocal expects trajectories in metres")
+            && !e.contains("did not converge"),
+        "{e}"
+    );
+    // Targets mirrored through the start: as far as the odometry, but a calibration with a
+    // negative wheel, in the single model and in the sweep.
+    let mirrored = with_targets(&ds, dir.path(), "mirrored.json", |v| -v);
+    for args in [
+        vec!["train", p(&mirrored), "--out", p(&m)],
+        vec!["train", p(&mirrored), "--sweep", "2..2", "--restarts", "1"],
+    ] {
+        let e = fails(&args);
+        assert!(
+            e.contains("the kinematic calibration gives a left wheel radius multiplier of -0.9")
+                && e.contains("which no real robot has"),
+            "{e}"
+        );
+    }
+    assert!(!m.exists());
+}
+
+#[test]
+fn sweep_ranges_and_folds_are_checked_as_options() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let m = dir.path().join("m.json");
+    for range in ["0..2", "60..70"] {
+        let e = fails(&["train", p(&ds), "--sweep", range]);
+        assert!(
+            e.starts_with(&format!(
+                "odocal: error: --sweep '{range}': hidden sizes must lie in 1..64"
+            )),
+            "{e}"
+        );
+    }
+    let e = fails(&["train", p(&ds), "--out", p(&m), "--folds", "1000"]);
+    assert!(
+        e.contains("--folds 1000: too few samples for 1000 folds: ")
+            && e.contains("dataset.json has 12, enough for at most 6 folds of 2; give --folds 6 or fewer, or --no-cv"),
+        "{e}"
+    );
+    assert!(!m.exists());
+    let e = fails(&["train", p(&ds), "--out", p(&m), "--restarts", "3"]);
+    assert!(e.contains("--restarts is used by --sweep only"), "{e}");
+    // Within the limit the estimate is made; with --no-cv the folds are not used.
+    ok(&["train", p(&ds), "--out", p(&m), "--folds", "6"]);
+    ok(&["train", p(&ds), "--out", p(&m), "--no-cv"]);
+}
+
+/// A hand edit of a model's JSON.
+type Edit = fn(&mut serde_json::Value);
+
+#[test]
+fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let model = dir.path().join("model.json");
+    ok(&["train", p(&ds), "--out", p(&model), "--no-cv"]);
+    let log = dir.path().join("exp/runs/run001.odometry.csv");
+    let text = std::fs::read_to_string(&model).expect("model");
+    let edits: [(&str, Edit, &str); 3] = [
+        (
+            "scale.json",
+            |v| v["output_normalisation"]["scale"] = serde_json::json!([0.0, 0.0]),
+            "scale.json: output_normalisation.scale[0] = 0 must be > 0",
+        ),
+        (
+            "range.json",
+            |v| {
+                let hi = v["domain"]["input_max"][3].as_f64().expect("max");
+                v["domain"]["input_min"][3] = serde_json::json!(hi + 1.0);
+            },
+            "range.json: domain.input_min[3] = ",
+        ),
+        (
+            "activation.json",
+            |v| v["activations"][0] = serde_json::json!("tanh"),
+            "activation.json: activations[0] is \"tanh\", but this build computes \"logistic sigmoid\" there; retrain the model",
+        ),
+    ];
+    for (name, edit, needle) in edits {
+        let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
+        edit(&mut v);
+        let path = dir.path().join(name);
+        std::fs::write(&path, v.to_string()).expect("write");
+        let e = fails(&["correct", "--model", p(&path), p(&log)]);
+        assert!(e.contains(needle), "{e}");
+    }
+    ok(&["correct", "--model", p(&model), p(&log)]);
+
+    // t_b and t_e (inputs 16 and 17) swapped in one sample.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&ds).expect("dataset")).expect("json");
+    let inputs = v["samples"][4]["inputs"].as_array_mut().expect("inputs");
+    inputs.swap(16, 17);
+    let swapped = dir.path().join("swapped.json");
+    std::fs::write(&swapped, v.to_string()).expect("write");
+    let m = dir.path().join("m.json");
+    let e = fails(&["train", p(&swapped), "--out", p(&m)]);
+    assert!(
+        e.contains("swapped.json: sample 4 (run 'run005'): its run starts at t_b = ")
+            && e.contains("(inputs 16 and 17); the feature rule needs 0 <= t_b < t_e"),
+        "{e}"
+    );
+    assert!(!m.exists());
+}

@@ -68,6 +68,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => RobotParams::read(p)?,
         None => model.robot,
     };
+    model
+        .check_robot(&robot, &args.manifest.display().to_string())
+        .with_context(|| format!("{}", args.model.display()))?;
     let corrector = model.corrector()?;
     let truth = match &args.truth {
         Some(p) => Some(OracleFile::read(p)?.kinematics.with_context(|| {

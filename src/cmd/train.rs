@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use odocal_dataset::{Dataset, OracleFile};
+use odocal_trainer::train::HIDDEN_RANGE;
 use odocal_trainer::{
     fit_model, oracle_ends, report, sweep, Method, PathModelFile, SweepSettings, TrainSettings,
 };
@@ -24,21 +25,22 @@ pub struct Args {
     /// model trained on windows).
     #[arg(long)]
     pub hidden: Option<usize>,
-    /// Training method: lm (Levenberg–Marquardt, the levenberg-marquardt crate) or backprop.
-    #[arg(long, default_value = "lm")]
-    pub method: String,
+    /// Training method: lm (Levenberg–Marquardt, the levenberg-marquardt crate; the default)
+    /// or backprop.
+    #[arg(long)]
+    pub method: Option<String>,
     /// Random seed (initial weights, validation split, folds).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Sweep hidden sizes A..B (inclusive) with cross-validation instead of training one model.
     #[arg(long)]
     pub sweep: Option<String>,
-    /// Random restarts per hidden size in a sweep.
-    #[arg(long, default_value_t = 10)]
-    pub restarts: usize,
-    /// Folds of the cross-validation (also used for the single model's estimate).
-    #[arg(long, default_value_t = 5)]
-    pub folds: usize,
+    /// Random restarts per hidden size in a sweep (default 10).
+    #[arg(long)]
+    pub restarts: Option<usize>,
+    /// Folds of the cross-validation (also used for the single model's estimate; default 5).
+    #[arg(long)]
+    pub folds: Option<usize>,
     /// Fit the one model without the cross-validated estimate of its error (faster; model.json
     /// then records no cross-validated figures).
     #[arg(long)]
@@ -70,11 +72,45 @@ pub struct Args {
 
 /// Restarts of a path model's fit (its first starts from the kinematic fit, so few suffice).
 const PATH_RESTARTS: usize = 2;
+/// Random restarts per hidden size in a sweep.
+const DEFAULT_RESTARTS: usize = 10;
+/// Folds of the cross-validation.
+const DEFAULT_FOLDS: usize = 5;
+
+/// The options given that a path model's fit does not use: it is one Levenberg–Marquardt fit
+/// of the chained windows, judged afterwards by `odocal evaluate`, so the perceptron's
+/// training settings and the cross-validation have nothing to act on.
+fn unused_for_paths(args: &Args) -> Vec<&'static str> {
+    [
+        ("--sweep", args.sweep.is_some()),
+        ("--report", args.report.is_some()),
+        ("--oracle", args.oracle.is_some()),
+        ("--method", args.method.is_some()),
+        ("--restarts", args.restarts.is_some()),
+        ("--folds", args.folds.is_some()),
+        ("--no-cv", args.no_cv),
+        ("--weight-decay", args.weight_decay.is_some()),
+        ("--val-fraction", args.val_fraction.is_some()),
+        ("--max-epochs", args.max_epochs.is_some()),
+        ("--max-fail", args.max_fail.is_some()),
+        ("--min-improvement", args.min_improvement.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(name, given)| given.then_some(name))
+    .collect()
+}
 
 /// Trains the path corrector on a window dataset.
 fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
-    if args.sweep.is_some() || args.report.is_some() || args.oracle.is_some() {
-        bail!("{}: a window dataset trains a path model; --sweep, --report and --oracle belong to straight-run datasets (judge a path model with `odocal evaluate`)", args.dataset.display());
+    let unused = unused_for_paths(args);
+    if !unused.is_empty() {
+        bail!(
+            "{}: a window dataset trains a path model, which takes only --out, --hidden and --seed; {} {} not used for a path model ({} to straight-run datasets; judge a path model with `odocal evaluate`)",
+            args.dataset.display(),
+            unused.join(", "),
+            if unused.len() == 1 { "is" } else { "are" },
+            if unused.len() == 1 { "it belongs" } else { "they belong" }
+        );
     }
     let Some(out) = &args.out else {
         bail!("give --out path-model.json to train a path model");
@@ -126,12 +162,24 @@ fn parse_range(s: &str) -> anyhow::Result<Vec<usize>> {
     if a > b {
         bail!("--sweep '{s}': the range is empty (A > B)");
     }
+    let (lo, hi) = (*HIDDEN_RANGE.start(), *HIDDEN_RANGE.end());
+    if a < lo || b > hi {
+        bail!("--sweep '{s}': hidden sizes must lie in {lo}..{hi}; give a range within it, e.g. 6..12");
+    }
     Ok((a..=b).collect())
 }
 
 fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
-    let method: Method = args.method.parse()?;
-    let mut s = TrainSettings::new(args.hidden.unwrap_or(8), method);
+    let method: Method = args.method.as_deref().unwrap_or("lm").parse()?;
+    let hidden = args.hidden.unwrap_or(8);
+    if !HIDDEN_RANGE.contains(&hidden) {
+        bail!(
+            "--hidden {hidden} is outside {}..{}, the hidden sizes of a straight-run model",
+            HIDDEN_RANGE.start(),
+            HIDDEN_RANGE.end()
+        );
+    }
+    let mut s = TrainSettings::new(hidden, method);
     if let Some(v) = args.weight_decay {
         s.weight_decay = v;
     }
@@ -156,10 +204,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         check_output_file(out, "--out")?;
     }
-    if !args.no_cv && args.folds < 2 {
+    let folds = args.folds.unwrap_or(DEFAULT_FOLDS);
+    if !args.no_cv && folds < 2 {
         bail!(
-            "--folds {}: cross-validation needs at least 2 folds; give --folds 2 or more, or --no-cv",
-            args.folds
+            "--folds {folds}: cross-validation needs at least 2 folds; give --folds 2 or more, or --no-cv"
         );
     }
     let bytes = std::fs::read(&args.dataset)
@@ -169,6 +217,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return run_paths(&args, &ds, &sha);
     }
     let ts = settings(&args)?;
+    if args.sweep.is_none() && args.restarts.is_some() {
+        bail!("--restarts is used by --sweep only (the one model of --out is trained once); leave it out, or add --sweep A..B");
+    }
+    // Cross-validation holds out every fold in turn and needs at least 2 samples in each. The
+    // default on a small dataset only costs the one model its estimate (a warning); folds
+    // asked for cannot be had.
+    let n = ds.samples.len();
+    if args.folds.is_some() && (args.sweep.is_some() || !args.no_cv) && folds > n / 2 {
+        bail!(
+            "--folds {folds}: too few samples for {folds} folds: {} has {n}, enough for at most {} folds of 2; give --folds {} or fewer{}",
+            args.dataset.display(),
+            n / 2,
+            n / 2,
+            if args.sweep.is_some() { "" } else { ", or --no-cv" }
+        );
+    }
     let oracle = match &args.oracle {
         Some(p) => Some(oracle_ends(
             &ds,
@@ -183,7 +247,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let Some(out) = &args.out else {
         bail!("give --out model.json to train a model, or --sweep A..B to cross-validate hidden sizes");
     };
-    let folds = (!args.no_cv).then_some(args.folds);
+    let folds = (!args.no_cv).then_some(folds);
     let bar = progress(folds.unwrap_or(0) as u64, "cross-val");
     let fitted = fit_model(&ds, &sha, &ts, args.seed, folds, oracle.as_ref(), &|| {
         bar.inc(1)
@@ -197,7 +261,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{md}");
     }
     write_json(out, &fitted.model)?;
-    for line in fitted.summary(args.folds) {
+    for line in fitted.summary(args.folds.unwrap_or(DEFAULT_FOLDS)) {
         println!("{line}");
     }
     println!("wrote {}", out.display());
@@ -214,20 +278,22 @@ fn run_sweep(
     oracle: Option<&HashMap<String, [f64; 2]>>,
 ) -> anyhow::Result<()> {
     let sizes = parse_range(range)?;
+    let restarts = args.restarts.unwrap_or(DEFAULT_RESTARTS);
+    if restarts == 0 {
+        bail!("--restarts 0: a sweep needs at least 1 restart per hidden size");
+    }
+    let folds = args.folds.unwrap_or(DEFAULT_FOLDS);
     let settings = SweepSettings {
         hidden_sizes: sizes.clone(),
-        restarts: args.restarts,
-        folds: args.folds,
+        restarts,
+        folds,
         train: ts,
         seed: args.seed,
     };
     if let Some(dir) = &args.report {
         check_output_dir(dir, "--report")?;
     }
-    let bar = progress(
-        (sizes.len() * args.restarts * args.folds) as u64,
-        "training",
-    );
+    let bar = progress((sizes.len() * restarts * folds) as u64, "training");
     let rep = sweep(ds, sha, &settings, oracle, &|| bar.inc(1))
         .with_context(|| format!("{}", args.dataset.display()))?;
     bar.finish_and_clear();

@@ -71,6 +71,10 @@ pub struct KinematicCalibration {
 /// runs do measure it; the separation multiplier is left for runs with turns to find.
 const WHEEL_BASE_PRIOR_M: f64 = 10.0;
 
+/// Range of a calibrated multiplier a real robot can have: worn or soft tyres and the wheels'
+/// contact points change diameters and base by percents, not by a factor of 2.
+pub const PLAUSIBLE_MULTIPLIER: std::ops::RangeInclusive<f64> = 0.5..=2.0;
+
 /// Numerical Jacobian (central differences) of a residual function of 3 parameters.
 fn numeric_jacobian(f: &dyn Fn(&[f64; 3]) -> Vec<f64>, p: &[f64; 3]) -> LmMatrix {
     let m = f(p).len();
@@ -127,7 +131,7 @@ fn minimize3(f: &dyn Fn(&[f64; 3]) -> Vec<f64>, p0: [f64; 3]) -> Result<[f64; 3]
     let (problem, report) = LevenbergMarquardt::new().minimize(Fit3 { f, p: p0 });
     if !report.termination.was_successful() || problem.p.iter().any(|v| !v.is_finite()) {
         return Err(TrainError::Numerical(format!(
-            "kinematic calibration did not converge ({:?})",
+            "kinematic calibration did not converge ({:?}); are the dataset's trajectories in metres and its robot parameters right?",
             report.termination
         )));
     }
@@ -192,6 +196,43 @@ impl KinematicCalibration {
         let c_b = if g.abs() > 1e-9 { s / g } else { 1.0 };
         let delta = kappa * c_b * robot.wheel_base_m / 2.0;
         Self::from_multipliers([s - delta, s + delta, c_b], robot, false)
+    }
+
+    /// Refuses multipliers no real wheel has (outside [`PLAUSIBLE_MULTIPLIER`]): the fit
+    /// then followed targets that are not the odometry's motion, and a ROS controller given
+    /// them would drive nowhere near where it believes.
+    pub fn check_physical(&self) -> Result<(), TrainError> {
+        let r = &self.ros;
+        let b = &self.robot;
+        let (d, base) = (1e3 * b.wheel_diameter_m, 1e3 * b.wheel_base_m);
+        for (name, m, what, nominal_mm) in [
+            (
+                "left wheel radius",
+                r.left_wheel_radius_multiplier,
+                "left wheel diameter",
+                d,
+            ),
+            (
+                "right wheel radius",
+                r.right_wheel_radius_multiplier,
+                "right wheel diameter",
+                d,
+            ),
+            (
+                "wheel separation",
+                r.wheel_separation_multiplier,
+                "wheel base",
+                base,
+            ),
+        ] {
+            if !PLAUSIBLE_MULTIPLIER.contains(&m) {
+                return Err(TrainError::Dataset(format!(
+                    "the kinematic calibration gives a {name} multiplier of {m:.4} (an effective {what} of {:.3} mm against the nominal {nominal_mm:.3} mm), which no real robot has: the targets do not follow the odometry (a frozen camera track, trajectories in another unit, or logs and trajectories of different runs?); check the dataset's trajectories and rebuild it",
+                    m * nominal_mm
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// The identity calibration of `robot`.

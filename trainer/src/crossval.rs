@@ -365,6 +365,10 @@ pub fn sweep(
     let samples = &ds.samples;
     let n = samples.len();
     let fold = assign_folds(samples, settings.folds, settings.seed)?;
+    // Before any training: a calibration no real robot has condemns the dataset.
+    let all: Vec<&Sample> = samples.iter().collect();
+    let kinematic_calibration = KinematicCalibration::fit(&all, &ds.robot)?;
+    kinematic_calibration.check_physical()?;
     let fold_sets: Vec<(Vec<usize>, Vec<usize>)> = (0..settings.folds)
         .map(|f| {
             let test: Vec<usize> = (0..n).filter(|&i| fold[i] == f).collect();
@@ -524,7 +528,6 @@ pub fn sweep(
         .into_iter()
         .partition(|o| matches!(o.task, Task::Outer { .. }));
 
-    let all: Vec<&Sample> = samples.iter().collect();
     let mut table1 = Vec::new();
     let mut net_preds: HashMap<usize, Vec<Vec<[f64; 2]>>> = HashMap::new();
     let mut warnings = Vec::new();
@@ -664,7 +667,6 @@ pub fn sweep(
     if let Some(o) = oracle_preds {
         table2.push(method_row(ORACLE, samples, &[o]));
     }
-    let kinematic_calibration = KinematicCalibration::fit(&all, &ds.robot)?;
     let verdict = verdict(&table2, &net_name);
     Ok(SweepReport {
         format: REPORT_FORMAT.to_string(),

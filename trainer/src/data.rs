@@ -1,6 +1,6 @@
 //! Loading and checking dataset.json for training.
 
-use odocal_dataset::{Dataset, Sample};
+use odocal_dataset::{Dataset, Sample, N_INPUTS};
 use sha2::{Digest, Sha256};
 
 use crate::error::TrainError;
@@ -44,7 +44,72 @@ pub fn check_dataset(ds: &Dataset) -> Result<(), TrainError> {
             ds.samples.len()
         )));
     }
-    check_no_copies(&ds.samples)
+    if !ds.is_windows() {
+        check_run_times(&ds.samples)?;
+    }
+    check_no_copies(&ds.samples)?;
+    check_targets_move(&ds.samples)
+}
+
+/// Refuses straight-run samples whose run times (inputs 16 and 17, t_b and t_e in the
+/// feature rule) run backwards or are no clock readings: the intermediate positions are
+/// placed at t_b + i/9 (t_e - t_b), so a swap reverses the run in time.
+fn check_run_times(samples: &[Sample]) -> Result<(), TrainError> {
+    for (i, s) in samples.iter().enumerate() {
+        let (t_b, t_e) = (s.inputs[N_INPUTS - 2], s.inputs[N_INPUTS - 1]);
+        if !(t_b >= 0.0 && t_e > t_b) {
+            return Err(TrainError::Dataset(format!(
+                "sample {i} (run '{}'): its run starts at t_b = {t_b} s and ends at t_e = {t_e} s (inputs 16 and 17); the feature rule needs 0 <= t_b < t_e (robot clock seconds): are they swapped? rebuild the dataset with `odocal dataset`",
+                s.run_id
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The camera's motion against raw odometry's (sums of end distances from the start over the
+/// samples) below which the targets carry no motion: a frozen or lost camera track.
+const NO_MOTION_RATIO: f64 = 0.05;
+/// The range of that ratio for targets and odometry in the same unit: odometry is off by a
+/// few percent to a few tens of percent (11 % on tours, 3 % on straight runs), never by 2x.
+const SAME_UNIT_RATIO: std::ops::RangeInclusive<f64> = 0.5..=2.0;
+
+/// Refuses targets that do not move with the odometry: all (0, 0) from a camera track that
+/// froze trains a "corrector" to 0 % error that stops every robot, and targets in
+/// millimetres against odometry in metres leave no fit that converges.
+fn check_targets_move(samples: &[Sample]) -> Result<(), TrainError> {
+    let dist = |v: &[f64; 2]| v[0].hypot(v[1]);
+    let n = samples.len().max(1) as f64;
+    let camera = samples.iter().map(|s| dist(&s.target_m)).sum::<f64>() / n;
+    let odometry = samples.iter().map(|s| dist(&s.raw_end_m)).sum::<f64>() / n;
+    if odometry <= 0.0 {
+        return Ok(());
+    }
+    let ratio = camera / odometry;
+    if ratio < NO_MOTION_RATIO {
+        return Err(TrainError::Dataset(format!(
+            "the targets carry no motion: the camera's end points lie {:.1} mm from their starts on average, raw odometry's {odometry:.3} m; a frozen or lost camera track? check the trajectories (`odocal track` reports the frames it lost) and rebuild the dataset",
+            1e3 * camera
+        )));
+    }
+    if !SAME_UNIT_RATIO.contains(&ratio) {
+        let unit = if (500.0..=2000.0).contains(&ratio) {
+            "are the trajectories in millimetres? "
+        } else if (50.0..=200.0).contains(&ratio) {
+            "are the trajectories in centimetres? "
+        } else {
+            ""
+        };
+        return Err(TrainError::Dataset(format!(
+            "the camera's end points lie {} times as far from their starts as raw odometry's ({camera:.3} m against {odometry:.3} m on average): {unit}odocal expects trajectories in metres and the robot's true wheel diameter and encoder counts; fix them and rebuild the dataset",
+            if ratio < 10.0 {
+                format!("{ratio:.3}")
+            } else {
+                format!("{ratio:.0}")
+            }
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses samples that repeat another sample (the same run id, or the same inputs to the

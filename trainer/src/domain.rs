@@ -3,7 +3,7 @@
 //! to 1.5 m forward runs has no answer for a 15 m run or a run driven backwards; it would
 //! return a plausible-looking number, so such logs are refused (or, on request, flagged).
 
-use odocal_dataset::Sample;
+use odocal_dataset::{RobotParams, Sample};
 use serde::{Deserialize, Serialize};
 
 /// The share of each input's training range by which it may lie outside it (runs like the
@@ -77,5 +77,316 @@ impl TrainingDomain {
             }
         }
         why
+    }
+}
+
+/// A wheel whose travel over one log step is below this counts as standing still, metres:
+/// tick logs give exact zeros, velocity logs a little noise at rest (0.1 mm per step is
+/// 0.5 mm/s at 200 ms, far below any driving speed).
+const STILL_TRAVEL_M: f64 = 1e-4;
+
+/// A direction of wheel motion is untrained when fewer than this share of the training's
+/// moving steps went that way: tours drive backwards in about 0.4 % of their steps (a wheel
+/// settling after a turn on the spot), a log driven backwards in over 80 %.
+pub const UNTRAINED_DIRECTION_SHARE: f64 = 0.02;
+
+/// A log lies outside the domain when more than this share of its moving steps go in an
+/// untrained direction; a few such steps (settling, a nudge) are within the model's reach.
+pub const LOG_DIRECTION_SHARE: f64 = 0.05;
+
+/// Which ways the wheels turned over the moving steps of a set of logs: the share of steps
+/// per sign pattern of the two wheels' travels. The path corrector maps a step's wheel
+/// speeds to corrections; for a quadrant of (left, right) it never saw, such as both wheels
+/// backwards after training on forward tours, its output is an extrapolation.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct StepDirections {
+    /// Steps in which at least one wheel turned.
+    pub moving_steps: usize,
+    /// Share of them with both wheels forwards.
+    pub both_forward: f64,
+    /// Share with both wheels backwards: driving backwards.
+    pub both_backward: f64,
+    /// Share with the left wheel backwards and the right forwards: turning counter-clockwise
+    /// on the spot.
+    pub spin_counter_clockwise: f64,
+    /// Share with the left wheel forwards and the right backwards: turning clockwise on the
+    /// spot.
+    pub spin_clockwise: f64,
+    /// Share with one wheel still (a pivot, or one encoder's count not yet changed).
+    pub one_wheel_still: f64,
+}
+
+/// The four sign patterns with both wheels turning, in the order of
+/// [`StepDirections::patterns`]: what a model not trained on it lacks, and what a log does.
+const PATTERNS: [(&str, &str); 4] = [
+    ("driving forwards", "drives forwards (both wheels forwards)"),
+    (
+        "driving backwards",
+        "drives backwards (both wheels backwards)",
+    ),
+    (
+        "turning counter-clockwise on the spot",
+        "turns counter-clockwise on the spot (left wheel backwards, right forwards)",
+    ),
+    (
+        "turning clockwise on the spot",
+        "turns clockwise on the spot (left wheel forwards, right backwards)",
+    ),
+];
+
+impl StepDirections {
+    /// The directions of steps given as nominal wheel travels [left, right], metres.
+    pub fn of_steps(steps: impl IntoIterator<Item = [f64; 2]>) -> Self {
+        let mut count = [0usize; 5];
+        for d in steps {
+            let sign = |v: f64| {
+                if v > STILL_TRAVEL_M {
+                    1
+                } else if v < -STILL_TRAVEL_M {
+                    -1
+                } else {
+                    0
+                }
+            };
+            let slot = match (sign(d[0]), sign(d[1])) {
+                (0, 0) => continue,
+                (1, 1) => 0,
+                (-1, -1) => 1,
+                (-1, 1) => 2,
+                (1, -1) => 3,
+                _ => 4,
+            };
+            count[slot] += 1;
+        }
+        let n: usize = count.iter().sum();
+        let share = |c: usize| if n == 0 { 0.0 } else { c as f64 / n as f64 };
+        Self {
+            moving_steps: n,
+            both_forward: share(count[0]),
+            both_backward: share(count[1]),
+            spin_counter_clockwise: share(count[2]),
+            spin_clockwise: share(count[3]),
+            one_wheel_still: share(count[4]),
+        }
+    }
+
+    fn patterns(&self) -> [f64; 4] {
+        [
+            self.both_forward,
+            self.both_backward,
+            self.spin_counter_clockwise,
+            self.spin_clockwise,
+        ]
+    }
+
+    /// Checks that every share is a number in [0, 1] and that they add up to 1 (a file's
+    /// field, so read back from a hand-edited file); the message names the first that is not.
+    pub fn check(&self) -> Result<(), String> {
+        let shares = [
+            ("both_forward", self.both_forward),
+            ("both_backward", self.both_backward),
+            ("spin_counter_clockwise", self.spin_counter_clockwise),
+            ("spin_clockwise", self.spin_clockwise),
+            ("one_wheel_still", self.one_wheel_still),
+        ];
+        for (name, v) in shares {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(format!("{name} = {v} must be a share in [0, 1]"));
+            }
+        }
+        let sum: f64 = shares.iter().map(|(_, v)| v).sum();
+        if self.moving_steps > 0 && (sum - 1.0).abs() > 1e-6 {
+            return Err(format!(
+                "the shares add up to {sum:.4}, not 1 (each is a share of the moving steps)"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Why a log whose steps go in `log`'s directions lies outside a training that went in
+    /// these (one reason per untrained direction the log takes), or an empty list.
+    pub fn outside(&self, log: &StepDirections) -> Vec<String> {
+        let mut why = Vec::new();
+        for (i, (trained, seen)) in self.patterns().into_iter().zip(log.patterns()).enumerate() {
+            if trained >= UNTRAINED_DIRECTION_SHARE || seen <= LOG_DIRECTION_SHARE {
+                continue;
+            }
+            let steps = (seen * log.moving_steps as f64).round() as usize;
+            let (lacks, does) = PATTERNS[i];
+            // Driving backwards is the case users meet (a reversing robot, or a log's sign
+            // convention flipped), so it is named by what the model did learn.
+            let trained_on = if i == 1 {
+                "the model was trained on forward driving".to_string()
+            } else {
+                format!("the model was not trained on {lacks}")
+            };
+            why.push(format!(
+                "{trained_on} ({lacks} in {:.1} % of its moving training steps), but the log {does} in {:.1} % of its moving steps ({steps} of {})",
+                100.0 * trained,
+                100.0 * seen,
+                log.moving_steps
+            ));
+        }
+        why
+    }
+}
+
+/// Refuses to apply a model trained for robot `model` to data of robot `given` (`whose`
+/// names the data: a log, a manifest). The message lists each parameter that differs, with
+/// both values and their units: a model learns one robot's kinematics, and its corrections
+/// are relative to that robot's nominal geometry and logging period.
+pub fn check_same_robot(
+    model: &RobotParams,
+    given: &RobotParams,
+    whose: &str,
+) -> Result<(), crate::TrainError> {
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
+    let params = [
+        (
+            "wheel diameter",
+            model.wheel_diameter_m,
+            given.wheel_diameter_m,
+            1e3,
+            " mm",
+            3,
+        ),
+        (
+            "wheel base",
+            model.wheel_base_m,
+            given.wheel_base_m,
+            1e3,
+            " mm",
+            2,
+        ),
+        (
+            "encoder counts per revolution",
+            model.ticks_per_rev,
+            given.ticks_per_rev,
+            1.0,
+            "",
+            0,
+        ),
+        (
+            "logging period",
+            model.period_s,
+            given.period_s,
+            1.0,
+            " s",
+            3,
+        ),
+    ];
+    let differ: Vec<String> = params
+        .iter()
+        .filter(|(_, m, g, ..)| !close(*m, *g))
+        .map(|(name, m, g, scale, unit, digits)| {
+            format!(
+                "{name} {:.d$}{unit} in the model vs {:.d$}{unit} given",
+                m * scale,
+                g * scale,
+                d = digits
+            )
+        })
+        .collect();
+    if differ.is_empty() {
+        return Ok(());
+    }
+    Err(crate::TrainError::Model(format!(
+        "the model was trained for another robot than the one given for {whose}: {}; pass the robot the model was trained for (or leave out --robot), or train a model on this robot's data",
+        differ.join(", ")
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Steps of a forward tour: mostly both wheels forwards, some turns on the spot both
+    /// ways, a wheel settling backwards now and then, and rests.
+    fn tour() -> Vec<[f64; 2]> {
+        let mut steps = Vec::new();
+        for i in 0..100 {
+            steps.push(match i % 20 {
+                0 => [0.0, 0.0],
+                1 => [-0.01, 0.01],
+                2 => [0.01, -0.01],
+                _ => [0.05, 0.06],
+            });
+        }
+        steps.push([-0.01, -0.01]);
+        steps
+    }
+
+    #[test]
+    fn a_log_driven_backwards_is_outside_a_forward_training_with_its_share() {
+        let trained = StepDirections::of_steps(tour());
+        assert_eq!(trained.moving_steps, 96);
+        assert!((trained.both_backward - 1.0 / 96.0).abs() < 1e-12);
+        assert!(trained.check().is_ok());
+        assert!(trained
+            .outside(&StepDirections::of_steps(tour()))
+            .is_empty());
+        let back: Vec<[f64; 2]> = tour().iter().map(|d| [-d[0], -d[1]]).collect();
+        let why = trained.outside(&StepDirections::of_steps(back));
+        assert_eq!(why.len(), 1, "{why:?}");
+        assert!(
+            why[0].starts_with("the model was trained on forward driving (driving backwards in 1.0 % of its moving training steps), but the log drives backwards (both wheels backwards) in 88.5 % of its moving steps (85 of 96)"),
+            "{}",
+            why[0]
+        );
+    }
+
+    #[test]
+    fn a_few_backward_steps_and_velocity_noise_at_rest_stay_inside() {
+        let trained = StepDirections::of_steps(tour());
+        // 4 % of the steps backwards: a nudge, not reversing.
+        let mut log: Vec<[f64; 2]> = vec![[0.05, 0.05]; 96];
+        log.extend([[-0.02, -0.02]; 4]);
+        // A velocity log's noise at rest is no motion in any direction.
+        log.extend([[-3e-5, -2e-5]; 500]);
+        assert!(trained.outside(&StepDirections::of_steps(log)).is_empty());
+    }
+
+    #[test]
+    fn turning_on_the_spot_one_way_only_is_outside_a_training_without_it() {
+        let trained = StepDirections::of_steps(vec![[0.05, 0.05]; 50]);
+        let why = trained.outside(&StepDirections::of_steps(tour()));
+        assert_eq!(why.len(), 2, "{why:?}");
+        assert!(
+            why[0].starts_with("the model was not trained on turning counter-clockwise on the spot (turning counter-clockwise on the spot in 0.0 % of its moving training steps), but the log turns counter-clockwise on the spot (left wheel backwards, right forwards) in 5.2 %"),
+            "{}",
+            why[0]
+        );
+    }
+
+    #[test]
+    fn shares_that_are_no_shares_are_refused() {
+        let mut d = StepDirections::of_steps(tour());
+        d.both_forward = 1.5;
+        assert_eq!(
+            d.check().unwrap_err(),
+            "both_forward = 1.5 must be a share in [0, 1]"
+        );
+        let mut d = StepDirections::of_steps(tour());
+        d.both_forward -= 0.5;
+        assert!(d.check().unwrap_err().contains("add up to 0.5000"));
+    }
+
+    #[test]
+    fn another_robot_is_named_by_the_parameters_that_differ_with_units() {
+        let robot = RobotParams::default();
+        assert!(check_same_robot(&robot, &robot, "run.csv").is_ok());
+        let other = RobotParams {
+            wheel_diameter_m: 0.045,
+            period_s: 0.1,
+            ..robot
+        };
+        let e = check_same_robot(&robot, &other, "run.csv")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "model: the model was trained for another robot than the one given for run.csv: wheel diameter 43.000 mm in the model vs 45.000 mm given, logging period 0.200 s in the model vs 0.100 s given; pass the robot the model was trained for (or leave out --robot), or train a model on this robot's data"
+        );
+        assert!(!e.contains("RobotParams"));
     }
 }

@@ -111,6 +111,9 @@ pub fn fit_model(
         }
     };
     let kin = KinematicCalibration::fit(&all, &ds.robot).ok();
+    if let Some(k) = &kin {
+        k.check_physical()?;
+    }
     let metrics = ModelMetrics {
         train: train_metrics,
         validation,

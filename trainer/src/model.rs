@@ -151,7 +151,63 @@ impl ModelFile {
             .map_err(|e| TrainError::Model(format!("{name}: robot.{e}")))?;
         m.to_net()
             .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
+        m.check_sense()
+            .map_err(|e| TrainError::Model(format!("{name}: {e}; retrain the model")))?;
         Ok(m)
+    }
+
+    /// What a hand edit can break that the sizes do not show: activations this build does not
+    /// compute, a normalisation that divides by zero, a domain whose ranges run backwards.
+    fn check_sense(&self) -> Result<(), String> {
+        let expected = ["logistic sigmoid", "linear"];
+        for (i, (a, e)) in self.activations.iter().zip(expected).enumerate() {
+            if a != e {
+                return Err(format!(
+                    "activations[{i}] is \"{a}\", but this build computes \"{e}\" there"
+                ));
+            }
+        }
+        // A scale is 1 / the training's spread: 0 only for an input column that never
+        // varied, never for an output, whose 0 would put every corrected end at one point.
+        if let Some(i) = self.input_normalisation.scale.iter().position(|&v| v < 0.0) {
+            return Err(format!(
+                "input_normalisation.scale[{i}] is negative; a scale is 1 / the training's spread"
+            ));
+        }
+        if let Some(i) = self
+            .output_normalisation
+            .scale
+            .iter()
+            .position(|&v| v <= 0.0)
+        {
+            return Err(format!(
+                "output_normalisation.scale[{i}] = {} must be > 0 (1 / the targets' spread; 0 would put every corrected end point at one place)",
+                self.output_normalisation.scale[i]
+            ));
+        }
+        if let Some(d) = &self.domain {
+            if d.input_min.len() != self.layer_sizes[0] || d.input_max.len() != self.layer_sizes[0]
+            {
+                return Err(format!(
+                    "domain.input_min and input_max must hold {} values each",
+                    self.layer_sizes[0]
+                ));
+            }
+            for (i, (a, b)) in d.input_min.iter().zip(&d.input_max).enumerate() {
+                if !(a.is_finite() && b.is_finite() && a <= b) {
+                    return Err(format!(
+                        "domain.input_min[{i}] = {a} is not at most input_max[{i}] = {b}"
+                    ));
+                }
+            }
+            let [p0, p1] = d.end_distance_m;
+            if !(p0.is_finite() && p1.is_finite() && 0.0 <= p0 && p0 <= p1) {
+                return Err(format!(
+                    "domain.end_distance_m = [{p0}, {p1}] must be two distances, metres, shortest first"
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Rebuilds the trained net (checks sizes and finiteness).
@@ -220,18 +276,7 @@ impl ModelFile {
                 self.feature_rule, feature_rule
             )));
         }
-        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
-        let m = &self.robot;
-        if !(close(m.wheel_diameter_m, robot.wheel_diameter_m)
-            && close(m.ticks_per_rev, robot.ticks_per_rev)
-            && close(m.wheel_base_m, robot.wheel_base_m)
-            && close(m.period_s, robot.period_s))
-        {
-            return Err(TrainError::Model(format!(
-                "model was trained for robot {:?}, but the log is of robot {:?}",
-                m, robot
-            )));
-        }
+        crate::domain::check_same_robot(&self.robot, robot, "the log")?;
         Ok(())
     }
 

@@ -9,6 +9,8 @@ use odocal_core::Pose2;
 use odocal_dataset::{Dataset, OdometryLog, RobotParams, WheelGeometry, WINDOW_RULE};
 use serde::{Deserialize, Serialize};
 
+use crate::baseline::PLAUSIBLE_MULTIPLIER;
+use crate::domain::{check_same_robot, StepDirections};
 use crate::error::TrainError;
 use crate::model::Weights;
 use crate::net::Perceptron;
@@ -46,6 +48,11 @@ pub struct PathModelFile {
     pub window_fit: [WindowFit; 3],
     /// Fastest wheel speed of a training step, m/s; faster logs are outside the domain.
     pub max_wheel_speed_mps: f64,
+    /// Which ways the wheels turned in the training steps; a log going mostly another way
+    /// (driving backwards after forward tours) is outside the domain. Absent from models
+    /// written before it was recorded, which are then not checked for it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub step_directions: Option<StepDirections>,
 }
 
 /// A log corrected by a path model.
@@ -65,6 +72,33 @@ fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Refuses an effective geometry no real robot has (a multiplier of the nominal outside
+/// [`PLAUSIBLE_MULTIPLIER`]): the windows' targets do not follow their odometry.
+fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainError> {
+    for (name, fitted, nominal) in [
+        (
+            "left wheel diameter",
+            g.left_wheel_diameter_m,
+            robot.wheel_diameter_m,
+        ),
+        (
+            "right wheel diameter",
+            g.right_wheel_diameter_m,
+            robot.wheel_diameter_m,
+        ),
+        ("wheel base", g.wheel_base_m, robot.wheel_base_m),
+    ] {
+        if !PLAUSIBLE_MULTIPLIER.contains(&(fitted / nominal)) {
+            return Err(TrainError::Dataset(format!(
+                "the kinematic fit on the windows gives a {name} of {:.3} mm against the nominal {:.3} mm, which no real robot has: the targets do not follow the odometry (a frozen camera track, trajectories in another unit, or logs and trajectories of different runs?); check the dataset's trajectories and rebuild it",
+                1e3 * fitted,
+                1e3 * nominal
+            )));
+        }
+    }
+    Ok(())
+}
+
 impl PathModelFile {
     /// Fits a path model with `hidden` neurons to a window dataset.
     pub fn fit(
@@ -81,6 +115,7 @@ impl PathModelFile {
         }
         let samples: Vec<&odocal_dataset::Sample> = ds.samples.iter().collect();
         let kin = fit_step_corrector(&samples, &ds.robot, 0, 1, 0.0, seed)?;
+        check_physical(&kin.geometry(), &ds.robot)?;
         let net = fit_step_corrector(&samples, &ds.robot, hidden, restarts, 1e-4, seed)?;
         let raw = StepCorrector::nominal(ds.robot, 0);
         let max_wheel_speed_mps = samples
@@ -88,6 +123,12 @@ impl PathModelFile {
             .flat_map(|s| s.inputs.iter())
             .fold(0.0f64, |m, d| m.max(d.abs()))
             / ds.robot.period_s;
+        let step_directions = StepDirections::of_steps(
+            samples
+                .iter()
+                .flat_map(|s| s.inputs.chunks_exact(2))
+                .map(|d| [d[0], d[1]]),
+        );
         let p = net.net();
         Ok(Self {
             format: PATH_MODEL_FORMAT.to_string(),
@@ -110,6 +151,7 @@ impl PathModelFile {
                 WindowFit::of(&net, &samples),
             ],
             max_wheel_speed_mps,
+            step_directions: Some(step_directions),
         })
     }
 
@@ -137,9 +179,18 @@ impl PathModelFile {
                 "{name}: max_wheel_speed_mps must be a positive number"
             )));
         }
+        if let Some(d) = &m.step_directions {
+            d.check()
+                .map_err(|e| TrainError::Model(format!("{name}: step_directions.{e}")))?;
+        }
         m.corrector()
             .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
         Ok(m)
+    }
+
+    /// Refuses data of a robot other than the model's (`whose` names the data).
+    pub fn check_robot(&self, robot: &RobotParams, whose: &str) -> Result<(), TrainError> {
+        check_same_robot(&self.robot, robot, whose)
     }
 
     /// The step corrector (checks sizes and finiteness).
@@ -174,7 +225,8 @@ impl PathModelFile {
 
     /// Corrects a whole log of `robot` (`name` names the log in messages): the raw and the
     /// corrected trajectory from the log's first row. A log whose steps are faster than the
-    /// training's is refused unless `allow_extrapolation`, when the reason is returned.
+    /// training's, or go mostly in a direction the training did not (driving backwards), is
+    /// refused unless `allow_extrapolation`, when the reasons are returned.
     pub fn correct_log(
         &self,
         log: &OdometryLog,
@@ -182,17 +234,7 @@ impl PathModelFile {
         name: &str,
         allow_extrapolation: bool,
     ) -> Result<CorrectedPath, TrainError> {
-        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
-        let m = &self.robot;
-        if !(close(m.wheel_diameter_m, robot.wheel_diameter_m)
-            && close(m.ticks_per_rev, robot.ticks_per_rev)
-            && close(m.wheel_base_m, robot.wheel_base_m)
-            && close(m.period_s, robot.period_s))
-        {
-            return Err(TrainError::Model(format!(
-                "the model was trained for robot {m:?}, but {name} is of robot {robot:?}"
-            )));
-        }
+        self.check_robot(robot, name)?;
         let revs = log.wheel_revs(robot);
         let steps = nominal_travels(&revs.rev, robot);
         for (k, w) in revs.t_s.windows(2).enumerate() {
@@ -216,6 +258,10 @@ impl PathModelFile {
                 "a wheel reaches {fastest:.2} m/s, the training only {:.2} m/s",
                 self.max_wheel_speed_mps
             ));
+        }
+        if let Some(trained) = &self.step_directions {
+            outside_domain
+                .extend(trained.outside(&StepDirections::of_steps(steps.iter().copied())));
         }
         if !outside_domain.is_empty() && !allow_extrapolation {
             return Err(TrainError::Model(format!(
