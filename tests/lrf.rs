@@ -899,3 +899,104 @@ fn cli_laser_poses_as_a_trajectory() {
     println!("laser trajectory: {n_ok} poses, error/σ RMS {z:.2} (x, y)");
     assert!((0.6..=1.6).contains(&z), "error/σ RMS {z:.2}");
 }
+
+/// The `ok` count and the position RMS, mm, that `lrf localize --truth` prints.
+fn ok_and_rms(out: &std::process::Output) -> (usize, f64) {
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let ok = text
+        .split(" ok,")
+        .next()
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse().ok());
+    let rms = text
+        .split("position RMS ")
+        .nth(1)
+        .and_then(|l| l.split(" mm").next())
+        .and_then(|v| v.parse().ok());
+    match (ok, rms) {
+        (Some(ok), Some(rms)) => (ok, rms),
+        _ => panic!("no ok count or RMS in {text}"),
+    }
+}
+
+/// Wall beams without a return (range 0, or inf as ROS drivers write it), scattered or over a
+/// whole sector as a glass door or a black cabinet leaves them, do not cost a scan its fix:
+/// the reflectors are all still there. Every scan stays `ok`, as accurate as before, and no
+/// warning blames the map.
+#[test]
+fn cli_beams_without_a_return_keep_the_fix() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header");
+    assert_eq!(header, "scan,t,angle,range,intensity");
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    let num = |v: &str| v.parse::<f64>().expect("number");
+    let write = |name: &str, no_return: &dyn Fn(usize, &[String]) -> Option<&'static str>| {
+        let mut out = vec![header.to_string()];
+        let mut n = 0;
+        for (i, r) in rows.iter().enumerate() {
+            let mut r = r.clone();
+            // Only wall returns lose their echo; reflectors stay bright.
+            if num(&r[4]) < 0.5 {
+                if let Some(v) = no_return(i, &r) {
+                    r[3] = v.to_string();
+                    n += 1;
+                }
+            }
+            out.push(r.join(","));
+        }
+        let p = d.join(name);
+        std::fs::write(&p, out.join("\n") + "\n").expect("write");
+        (p, n)
+    };
+    // Every tenth wall row, a deterministic 10 %.
+    let (zero, n_zero) = write("zero.csv", &|i, _| (i % 10 == 3).then_some("0"));
+    let (inf, _) = write("inf.csv", &|i, _| (i % 10 == 3).then_some("inf"));
+    let sector = (0.3, 0.3 + 17f64.to_radians());
+    let (dark, n_dark) = write("sector.csv", &|_, r| {
+        let a = num(&r[2]);
+        (sector.0..sector.1).contains(&a).then_some("0")
+    });
+    assert!(n_zero > 1500 && n_dark > 1000, "{n_zero} {n_dark}");
+    let truth = d.join("truth.csv");
+    let map = d.join("map.json");
+    let poses = d.join("poses.csv");
+    let run = |scans: &Path| {
+        let out = odocal(&[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(scans),
+            "--out",
+            s(&poses),
+            "--truth",
+            s(&truth),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{}: {err}", s(scans));
+        assert!(!err.contains("warning"), "{}: {err}", s(scans));
+        std::fs::remove_file(&poses).expect("poses written");
+        ok_and_rms(&out)
+    };
+    let (ok0, rms0) = run(&d.join("scans.csv"));
+    assert_eq!(ok0, 30);
+    for scans in [&zero, &inf, &dark] {
+        let (ok, rms) = run(scans);
+        println!(
+            "{}: {ok}/30 ok, position RMS {rms:.1} mm (unmodified: {ok0}/30 ok, {rms0:.1} mm)",
+            s(scans)
+        );
+        assert_eq!(ok, ok0, "{}", s(scans));
+        assert!(
+            rms <= 1.1 * rms0,
+            "{}: {rms} mm against {rms0} mm",
+            s(scans)
+        );
+    }
+}
