@@ -1000,3 +1000,48 @@ fn cli_beams_without_a_return_keep_the_fix() {
         );
     }
 }
+
+/// A symmetric layout where every scan fits two places: not one scan is `ok`, so there is no
+/// result to write and no error to report. Refused like scans that find no pose at all, with
+/// the layout named as the cause and what to do, rather than a header-only trajectory and a
+/// "position RMS 0.0 mm over 0 ok scans".
+#[test]
+fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    assert!(odocal(&[
+        "synth",
+        "lrf",
+        "--out",
+        s(d),
+        "--symmetric",
+        "--scans",
+        "30"
+    ])
+    .status
+    .success());
+    let (poses, traj) = (d.join("poses.csv"), d.join("traj.csv"));
+    let truth = d.join("truth.csv");
+    let args = ["--trajectory", s(&traj), "--truth", s(&truth)];
+    let out = localize(d, &args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!stdout.contains("RMS"), "{stdout}");
+    let map = d.join("map.json");
+    let mut all = vec!["lrf", "localize", "--map", s(&map)];
+    let scans = d.join("scans.csv");
+    all.extend([s(&scans), "--out", s(&poses)]);
+    all.extend(args);
+    expect_error(
+        &all,
+        "none of the 30 scans found a pose it could tell from another (30 ambiguous, 0 lost",
+    );
+    expect_error(&all, "(a symmetric layout)");
+    expect_error(
+        &all,
+        &format!(
+            "run `odocal lrf check-map {}` and add or move a landmark",
+            s(&map)
+        ),
+    );
+    assert!(!poses.exists() && !traj.exists(), "nothing written");
+}

@@ -134,16 +134,28 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.max_range_m
         )
     };
-    // A file of nothing but lost rows is no result: refused, as `track` refuses a video
-    // where the tag was never accepted.
-    if !log.rows.is_empty() && count(Status::Lost) == log.rows.len() {
+    // A file without one `ok` row is no result: refused, as `track` refuses a video where
+    // the tag was never accepted.
+    if !log.rows.is_empty() && count(Status::Ok) == 0 {
         let detections: usize = log.rows.iter().map(|r| r.n_detections).sum();
+        let per_scan = detections as f64 / log.rows.len() as f64;
+        if count(Status::Lost) == log.rows.len() {
+            anyhow::bail!(
+                "none of the {} scans found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
+                log.rows.len(),
+                a.out.display(),
+                why_lost()
+            );
+        }
+        // Ambiguous scans fit the map in several places equally well: the layout repeats
+        // itself where the scanner went, which no setting of the scanner changes.
         anyhow::bail!(
-            "none of the {} scans found a pose ({:.1} reflector detections per scan), so {} was not written: {}",
+            "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan): the landmarks of {} repeat themselves (a symmetric layout), so every scan fits several places and nothing was written; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
             log.rows.len(),
-            detections as f64 / log.rows.len() as f64,
-            a.out.display(),
-            why_lost()
+            count(Status::Ambiguous),
+            count(Status::Lost),
+            a.map.display(),
+            a.map.display()
         );
     }
     // The truth is read and compared first: poses it shows to be wrong are not written.
@@ -226,14 +238,22 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 String::new()
             }
         };
+        // An RMS over no scan would read as a perfect 0.0 mm: say there is none instead.
+        let accuracy = if e.n_accuracy == 0 {
+            "no error to report: no ok scan with >= 3 landmarks has a truth pose".to_string()
+        } else {
+            format!(
+                "position RMS {:.1} mm{}, max {:.1} mm; heading RMS {:.3} deg{}; over {} ok scans with >= 3 landmarks",
+                e.position_rms_m * 1e3,
+                bound(e.position_rms_m, e.position_crb_m, "mm", 1e3, 1),
+                e.position_max_m * 1e3,
+                e.heading_rms_rad.to_degrees(),
+                bound(e.heading_rms_rad, e.heading_crb_rad, "deg", 180.0 / std::f64::consts::PI, 3),
+                e.n_accuracy
+            )
+        };
         println!(
-            "vs truth: position RMS {:.1} mm{}, max {:.1} mm; heading RMS {:.3} deg{}; over {} ok scans with >= 3 landmarks; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
-            e.position_rms_m * 1e3,
-            bound(e.position_rms_m, e.position_crb_m, "mm", 1e3, 1),
-            e.position_max_m * 1e3,
-            e.heading_rms_rad.to_degrees(),
-            bound(e.heading_rms_rad, e.heading_crb_rad, "deg", 180.0 / std::f64::consts::PI, 3),
-            e.n_accuracy,
+            "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
             e.n_wrong_ok,
             e.n_correct_eligible,
             e.n_eligible,
