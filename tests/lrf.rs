@@ -1045,3 +1045,69 @@ fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
     );
     assert!(!poses.exists() && !traj.exists(), "nothing written");
 }
+
+/// Scan files are one recording in the order given: files out of time order, or one file
+/// given twice, are refused as scans out of order within a file are, naming the files.
+#[test]
+fn cli_scan_files_out_of_time_order_or_twice_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header");
+    let (mut first, mut second) = (vec![header], vec![header]);
+    for l in lines {
+        let scan: u32 = l
+            .split(',')
+            .next()
+            .and_then(|v| v.parse().ok())
+            .expect("scan id");
+        if scan < 15 { &mut first } else { &mut second }.push(l);
+    }
+    let (a, b) = (d.join("a.csv"), d.join("b.csv"));
+    std::fs::write(&a, first.join("\n") + "\n").expect("write");
+    std::fs::write(&b, second.join("\n") + "\n").expect("write");
+    let map = d.join("map.json");
+    let poses = d.join("poses.csv");
+    let run = |files: &[&Path]| {
+        let mut args = vec!["lrf", "localize", "--map", s(&map), "--out", s(&poses)];
+        args.extend(files.iter().map(|f| s(f)));
+        args.iter().map(|a| a.to_string()).collect::<Vec<String>>()
+    };
+    let args = run(&[&b, &a]);
+    expect_error(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &format!(
+            "{}: its first scan's time 0 s does not come after 2.9 s, the last scan of {}, given before it; give the scan files in time order",
+            s(&a),
+            s(&b)
+        ),
+    );
+    let args = run(&[&a, &b, &a]);
+    expect_error(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &format!("{} is given twice; give each scan file once", s(&a)),
+    );
+    // The same file by another name, or a copy: its times repeat the first's.
+    let copy = d.join("copy.csv");
+    std::fs::copy(&a, &copy).expect("copy");
+    let args = run(&[&a, &copy]);
+    expect_error(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &format!(
+            "{}: its first scan's time 0 s does not come after 1.4 s",
+            s(&copy)
+        ),
+    );
+    assert!(!poses.exists(), "nothing written");
+    // In time order, the two halves are the whole recording.
+    let args = run(&[&a, &b]);
+    let out = odocal(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("30 scans (tracking mode): 30 ok"),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
