@@ -1111,3 +1111,66 @@ fn cli_scan_files_out_of_time_order_or_twice_are_refused() {
         String::from_utf8_lossy(&out.stdout)
     );
 }
+
+/// Scan times in milliseconds are refused with the unit named (a truth in seconds matched one
+/// scan of 30, and its error passed for the recording's), and a truth that has the time of
+/// few of the `ok` scans is called out beside the figures it gives.
+#[test]
+fn cli_scan_times_in_milliseconds_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    // Rewrites column `col` of every row of `file` with `f` into `name`.
+    let rewrite = |file: &str, name: &str, col: usize, f: &dyn Fn(usize, f64) -> f64| {
+        let text = std::fs::read_to_string(d.join(file)).expect("read");
+        let mut lines = text.lines();
+        let mut out = vec![lines.next().expect("header").to_string()];
+        for (i, l) in lines.enumerate() {
+            let mut r: Vec<String> = l.split(',').map(str::to_string).collect();
+            r[col] = format!("{:.3}", f(i, r[col].parse().expect("number")));
+            out.push(r.join(","));
+        }
+        let p = d.join(name);
+        std::fs::write(&p, out.join("\n") + "\n").expect("write");
+        p
+    };
+    let ms = rewrite("scans.csv", "ms.csv", 1, &|_, t| t * 1000.0);
+    let (map, truth, poses) = (d.join("map.json"), d.join("truth.csv"), d.join("poses.csv"));
+    let args = [
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&ms),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&truth),
+    ];
+    expect_error(
+        &args,
+        "the scans' median time between scans is 100 s, 1000 times the scanner's period of 0.1 s at --rate-hz 10: are the times in milliseconds?",
+    );
+    assert!(!poses.exists(), "nothing written");
+    // A truth whose clock runs 50 ms apart from the scans' after its fifth row.
+    let shifted = rewrite("truth.csv", "shifted.csv", 0, &|i, t| {
+        if i >= 5 {
+            t + 0.05
+        } else {
+            t
+        }
+    });
+    let out = localize(d, &["--truth", s(&shifted)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "warning: {} has the time of only 5 of the 30 ok scans (5 of all 30 scans)",
+            s(&shifted)
+        )),
+        "{err}"
+    );
+    // The truth of every scan: no such warning.
+    let out = localize(d, &["--truth", s(&truth)]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+}

@@ -58,6 +58,32 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
     Ok((scans, step.map(|s| s.0)))
 }
 
+/// A recording's scans may be logged sparser than the scanner sweeps (every few sweeps), but
+/// not this many times sparser: scan times in milliseconds are a thousand times it.
+const MAX_INTERVAL_PERIODS: f64 = 100.0;
+
+/// Refuses scans whose median time between scans is more than [`MAX_INTERVAL_PERIODS`] scan
+/// periods at `rate_hz`: their times are not in seconds (milliseconds give a thousand times
+/// the period), and a truth or a track in seconds would match almost none of them.
+pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
+    let t: Vec<f64> = scans.iter().filter_map(|s| s.t_s).collect();
+    let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if dt.is_empty() {
+        return Ok(());
+    }
+    dt.sort_by(f64::total_cmp);
+    let median = dt[dt.len() / 2];
+    let period = 1.0 / rate_hz;
+    if median > MAX_INTERVAL_PERIODS * period {
+        return Err(LrfError::Config(format!(
+            "the scans' median time between scans is {median} s, {:.0} times the scanner's period of {period} s at --rate-hz {rate_hz}: are the times in milliseconds? Give t in seconds (if these are milliseconds, {median} ms is {:.4} s), or the scanner's --rate-hz",
+            median / period,
+            median / 1000.0
+        )));
+    }
+    Ok(())
+}
+
 /// True if `a` and `b` name one file (the same path, or two paths to it).
 fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {

@@ -5,8 +5,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    check_intensity_scale, check_map_report, check_range_unit, evaluate, localize_scans,
-    read_scan_files, read_truth_csv, Localizer, LocalizerConfig, Map, SensorConfig, Status,
+    check_intensity_scale, check_map_report, check_range_unit, check_scan_times, evaluate,
+    localize_scans, read_scan_files, read_truth_csv, Localizer, LocalizerConfig, Map, SensorConfig,
+    Status,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -71,7 +72,8 @@ pub struct LocalizeArgs {
     /// Returns at or above this intensity are reflector candidates.
     #[arg(long, default_value_t = 0.5)]
     pub intensity_min: f64,
-    /// Scan rate for files without a `t` column, Hz.
+    /// Scan rate of the scanner, Hz: the times of files without a `t` column, and the check
+    /// that the scans' times are in seconds.
     #[arg(long, default_value_t = 10.0)]
     pub rate_hz: f64,
 }
@@ -114,6 +116,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     let map = Map::read(&a.map)?;
     let (scans, step_rad) = read_scan_files(&a.scans)?;
     check_range_unit(&scans, a.max_range_m)?;
+    check_scan_times(&scans, a.rate_hz)?;
     if let Some(step) = step_rad {
         cfg.sensor.step_rad = step;
     }
@@ -224,7 +227,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             why_lost()
         );
     }
-    if let Some((_, e)) = &against {
+    if let Some((tp, e)) = &against {
+        // An error over a few scans reads like the error of them all: say how few they are.
+        if e.n_ok * 2 < n_ok {
+            eprintln!(
+                "warning: {} has the time of only {} of the {n_ok} ok scans ({} of all {} scans), so the figures against the truth are over those alone: are the scans and the truth timed on one clock, in seconds?",
+                tp.display(),
+                e.n_ok,
+                e.n_scans,
+                log.rows.len()
+            );
+        }
         // The bound beside each RMS: the mean over the same scans of each pose's Cramér–Rao
         // bound, from the matched detections' covariances and the map's.
         let bound = |rms: f64, crb: f64, unit: &str, scale: f64, digits: usize| {
