@@ -1174,3 +1174,40 @@ fn cli_scan_times_in_milliseconds_are_refused() {
     let out = localize(d, &["--truth", s(&truth)]);
     assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
 }
+
+/// Map values no room has: a reflector width in millimetres is refused, and a landmark 50 m
+/// from all the others of a 10 m x 8 m room (a mistyped coordinate) is named by its id.
+#[test]
+fn cli_implausible_map_values_are_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 1);
+    let text = std::fs::read_to_string(d.join("map.json")).expect("map");
+    let mut map: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let mut wide = map.clone();
+    wide["reflector_width_m"] = serde_json::json!(80);
+    let wide_path = d.join("wide.json");
+    std::fs::write(&wide_path, wide.to_string()).expect("write");
+    expect_error(
+        &["lrf", "check-map", s(&wide_path)],
+        "reflector_width_m is 80 m, but a reflector strip is 5 mm to well under 1 m wide: is it in millimetres",
+    );
+    let far = serde_json::json!({"id": 99, "x_m": 60.0, "y_m": 4.0});
+    map["landmarks"]
+        .as_array_mut()
+        .expect("landmarks")
+        .push(far);
+    let far_path = d.join("far.json");
+    std::fs::write(&far_path, map.to_string()).expect("write");
+    let out = odocal(&["lrf", "check-map", s(&far_path)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("landmark id 99 at (60.000, 4.000) m is ")
+            && err.contains("so no scan sees it with another"),
+        "{err}"
+    );
+    // The map as written: no warning.
+    let out = odocal(&["lrf", "check-map", s(&d.join("map.json"))]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+}

@@ -92,7 +92,19 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
     for line in check_map_report(&map, &name, a.tolerance_m, a.max_range_m, a.min_size)? {
         println!("{line}");
     }
+    warn_isolated(&map, &name, a.max_range_m);
     Ok(())
+}
+
+/// Warns of every landmark that no scan sees with another: far from all the others, its
+/// coordinates are most likely mistyped.
+fn warn_isolated(map: &Map, name: &str, max_range_m: f64) {
+    for (id, p, nearest) in map.isolated(max_range_m) {
+        eprintln!(
+            "warning: {name}: landmark id {id} at ({:.3}, {:.3}) m is {nearest:.2} m from the nearest other landmark, more than twice --max-range-m {max_range_m} m, so no scan sees it with another and it cannot help a pose: is a coordinate mistyped?",
+            p.x, p.y
+        );
+    }
 }
 
 fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
@@ -114,6 +126,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // The options are checked before any file is read, the scans' step after.
     cfg.sensor.check()?;
     let map = Map::read(&a.map)?;
+    warn_isolated(&map, &a.map.display().to_string(), a.max_range_m);
     let (scans, step_rad) = read_scan_files(&a.scans)?;
     check_range_unit(&scans, a.max_range_m)?;
     check_scan_times(&scans, a.rate_hz)?;
