@@ -899,3 +899,315 @@ fn cli_laser_poses_as_a_trajectory() {
     println!("laser trajectory: {n_ok} poses, error/σ RMS {z:.2} (x, y)");
     assert!((0.6..=1.6).contains(&z), "error/σ RMS {z:.2}");
 }
+
+/// The `ok` count and the position RMS, mm, that `lrf localize --truth` prints.
+fn ok_and_rms(out: &std::process::Output) -> (usize, f64) {
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let ok = text
+        .split(" ok,")
+        .next()
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse().ok());
+    let rms = text
+        .split("position RMS ")
+        .nth(1)
+        .and_then(|l| l.split(" mm").next())
+        .and_then(|v| v.parse().ok());
+    match (ok, rms) {
+        (Some(ok), Some(rms)) => (ok, rms),
+        _ => panic!("no ok count or RMS in {text}"),
+    }
+}
+
+/// Wall beams without a return (range 0, or inf as ROS drivers write it), scattered or over a
+/// whole sector as a glass door or a black cabinet leaves them, do not cost a scan its fix:
+/// the reflectors are all still there. Every scan stays `ok`, as accurate as before, and no
+/// warning blames the map.
+#[test]
+fn cli_beams_without_a_return_keep_the_fix() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header");
+    assert_eq!(header, "scan,t,angle,range,intensity");
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    let num = |v: &str| v.parse::<f64>().expect("number");
+    let write = |name: &str, no_return: &dyn Fn(usize, &[String]) -> Option<&'static str>| {
+        let mut out = vec![header.to_string()];
+        let mut n = 0;
+        for (i, r) in rows.iter().enumerate() {
+            let mut r = r.clone();
+            // Only wall returns lose their echo; reflectors stay bright.
+            if num(&r[4]) < 0.5 {
+                if let Some(v) = no_return(i, &r) {
+                    r[3] = v.to_string();
+                    n += 1;
+                }
+            }
+            out.push(r.join(","));
+        }
+        let p = d.join(name);
+        std::fs::write(&p, out.join("\n") + "\n").expect("write");
+        (p, n)
+    };
+    // Every tenth wall row, a deterministic 10 %.
+    let (zero, n_zero) = write("zero.csv", &|i, _| (i % 10 == 3).then_some("0"));
+    let (inf, _) = write("inf.csv", &|i, _| (i % 10 == 3).then_some("inf"));
+    let sector = (0.3, 0.3 + 17f64.to_radians());
+    let (dark, n_dark) = write("sector.csv", &|_, r| {
+        let a = num(&r[2]);
+        (sector.0..sector.1).contains(&a).then_some("0")
+    });
+    assert!(n_zero > 1500 && n_dark > 1000, "{n_zero} {n_dark}");
+    let truth = d.join("truth.csv");
+    let map = d.join("map.json");
+    let poses = d.join("poses.csv");
+    let run = |scans: &Path| {
+        let out = odocal(&[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(scans),
+            "--out",
+            s(&poses),
+            "--truth",
+            s(&truth),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{}: {err}", s(scans));
+        assert!(!err.contains("warning"), "{}: {err}", s(scans));
+        std::fs::remove_file(&poses).expect("poses written");
+        ok_and_rms(&out)
+    };
+    let (ok0, rms0) = run(&d.join("scans.csv"));
+    assert_eq!(ok0, 30);
+    for scans in [&zero, &inf, &dark] {
+        let (ok, rms) = run(scans);
+        println!(
+            "{}: {ok}/30 ok, position RMS {rms:.1} mm (unmodified: {ok0}/30 ok, {rms0:.1} mm)",
+            s(scans)
+        );
+        assert_eq!(ok, ok0, "{}", s(scans));
+        assert!(
+            rms <= 1.1 * rms0,
+            "{}: {rms} mm against {rms0} mm",
+            s(scans)
+        );
+    }
+}
+
+/// A symmetric layout where every scan fits two places: not one scan is `ok`, so there is no
+/// result to write and no error to report. Refused like scans that find no pose at all, with
+/// the layout named as the cause and what to do, rather than a header-only trajectory and a
+/// "position RMS 0.0 mm over 0 ok scans".
+#[test]
+fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    assert!(odocal(&[
+        "synth",
+        "lrf",
+        "--out",
+        s(d),
+        "--symmetric",
+        "--scans",
+        "30"
+    ])
+    .status
+    .success());
+    let (poses, traj) = (d.join("poses.csv"), d.join("traj.csv"));
+    let truth = d.join("truth.csv");
+    let args = ["--trajectory", s(&traj), "--truth", s(&truth)];
+    let out = localize(d, &args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!stdout.contains("RMS"), "{stdout}");
+    let map = d.join("map.json");
+    let mut all = vec!["lrf", "localize", "--map", s(&map)];
+    let scans = d.join("scans.csv");
+    all.extend([s(&scans), "--out", s(&poses)]);
+    all.extend(args);
+    expect_error(
+        &all,
+        "none of the 30 scans found a pose it could tell from another (30 ambiguous, 0 lost",
+    );
+    expect_error(&all, "(a symmetric layout)");
+    expect_error(
+        &all,
+        &format!(
+            "run `odocal lrf check-map {}` and add or move a landmark",
+            s(&map)
+        ),
+    );
+    assert!(!poses.exists() && !traj.exists(), "nothing written");
+}
+
+/// Scan files are one recording in the order given: files out of time order, or one file
+/// given twice, are refused as scans out of order within a file are, naming the files.
+#[test]
+fn cli_scan_files_out_of_time_order_or_twice_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header");
+    let (mut first, mut second) = (vec![header], vec![header]);
+    for l in lines {
+        let scan: u32 = l
+            .split(',')
+            .next()
+            .and_then(|v| v.parse().ok())
+            .expect("scan id");
+        if scan < 15 { &mut first } else { &mut second }.push(l);
+    }
+    let (a, b) = (d.join("a.csv"), d.join("b.csv"));
+    std::fs::write(&a, first.join("\n") + "\n").expect("write");
+    std::fs::write(&b, second.join("\n") + "\n").expect("write");
+    let map = d.join("map.json");
+    let poses = d.join("poses.csv");
+    let run = |files: &[&Path]| {
+        let mut args = vec!["lrf", "localize", "--map", s(&map), "--out", s(&poses)];
+        args.extend(files.iter().map(|f| s(f)));
+        args.iter().map(|a| a.to_string()).collect::<Vec<String>>()
+    };
+    let args = run(&[&b, &a]);
+    expect_error(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &format!(
+            "{}: its first scan's time 0 s does not come after 2.9 s, the last scan of {}, given before it; give the scan files in time order",
+            s(&a),
+            s(&b)
+        ),
+    );
+    let args = run(&[&a, &b, &a]);
+    expect_error(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &format!("{} is given twice; give each scan file once", s(&a)),
+    );
+    // The same file by another name, or a copy: its times repeat the first's.
+    let copy = d.join("copy.csv");
+    std::fs::copy(&a, &copy).expect("copy");
+    let args = run(&[&a, &copy]);
+    expect_error(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &format!(
+            "{}: its first scan's time 0 s does not come after 1.4 s",
+            s(&copy)
+        ),
+    );
+    assert!(!poses.exists(), "nothing written");
+    // In time order, the two halves are the whole recording.
+    let args = run(&[&a, &b]);
+    let out = odocal(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("30 scans (tracking mode): 30 ok"),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
+
+/// Scan times in milliseconds are refused with the unit named (a truth in seconds matched one
+/// scan of 30, and its error passed for the recording's), and a truth that has the time of
+/// few of the `ok` scans is called out beside the figures it gives.
+#[test]
+fn cli_scan_times_in_milliseconds_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    // Rewrites column `col` of every row of `file` with `f` into `name`.
+    let rewrite = |file: &str, name: &str, col: usize, f: &dyn Fn(usize, f64) -> f64| {
+        let text = std::fs::read_to_string(d.join(file)).expect("read");
+        let mut lines = text.lines();
+        let mut out = vec![lines.next().expect("header").to_string()];
+        for (i, l) in lines.enumerate() {
+            let mut r: Vec<String> = l.split(',').map(str::to_string).collect();
+            r[col] = format!("{:.3}", f(i, r[col].parse().expect("number")));
+            out.push(r.join(","));
+        }
+        let p = d.join(name);
+        std::fs::write(&p, out.join("\n") + "\n").expect("write");
+        p
+    };
+    let ms = rewrite("scans.csv", "ms.csv", 1, &|_, t| t * 1000.0);
+    let (map, truth, poses) = (d.join("map.json"), d.join("truth.csv"), d.join("poses.csv"));
+    let args = [
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&ms),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&truth),
+    ];
+    expect_error(
+        &args,
+        "the scans' median time between scans is 100 s, 1000 times the scanner's period of 0.1 s at --rate-hz 10: are the times in milliseconds?",
+    );
+    assert!(!poses.exists(), "nothing written");
+    // A truth whose clock runs 50 ms apart from the scans' after its fifth row.
+    let shifted = rewrite("truth.csv", "shifted.csv", 0, &|i, t| {
+        if i >= 5 {
+            t + 0.05
+        } else {
+            t
+        }
+    });
+    let out = localize(d, &["--truth", s(&shifted)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "warning: {} has the time of only 5 of the 30 ok scans (5 of all 30 scans)",
+            s(&shifted)
+        )),
+        "{err}"
+    );
+    // The truth of every scan: no such warning.
+    let out = localize(d, &["--truth", s(&truth)]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+}
+
+/// Map values no room has: a reflector width in millimetres is refused, and a landmark 50 m
+/// from all the others of a 10 m x 8 m room (a mistyped coordinate) is named by its id.
+#[test]
+fn cli_implausible_map_values_are_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 1);
+    let text = std::fs::read_to_string(d.join("map.json")).expect("map");
+    let mut map: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let mut wide = map.clone();
+    wide["reflector_width_m"] = serde_json::json!(80);
+    let wide_path = d.join("wide.json");
+    std::fs::write(&wide_path, wide.to_string()).expect("write");
+    expect_error(
+        &["lrf", "check-map", s(&wide_path)],
+        "reflector_width_m is 80 m, but a reflector strip is 5 mm to well under 1 m wide: is it in millimetres",
+    );
+    let far = serde_json::json!({"id": 99, "x_m": 60.0, "y_m": 4.0});
+    map["landmarks"]
+        .as_array_mut()
+        .expect("landmarks")
+        .push(far);
+    let far_path = d.join("far.json");
+    std::fs::write(&far_path, map.to_string()).expect("write");
+    let out = odocal(&["lrf", "check-map", s(&far_path)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("landmark id 99 at (60.000, 4.000) m is ")
+            && err.contains("so no scan sees it with another"),
+        "{err}"
+    );
+    // The map as written: no warning.
+    let out = odocal(&["lrf", "check-map", s(&d.join("map.json"))]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+}

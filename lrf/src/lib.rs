@@ -28,7 +28,9 @@ mod search;
 pub use check::{check_map_report, find_ambiguities, Ambiguity, AmbiguityKind};
 pub use error::LrfError;
 pub use eval::{evaluate, read_truth_csv, EstimatedPose, Evaluation, TruthPose};
-pub use localize::{check_intensity_scale, check_range_unit, localize_scans, read_scan_files};
+pub use localize::{
+    check_intensity_scale, check_range_unit, check_scan_times, localize_scans, read_scan_files,
+};
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{

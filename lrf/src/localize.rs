@@ -9,13 +9,39 @@ use crate::scan_track::ScanTracker;
 use crate::search::Localizer;
 use crate::LrfError;
 
-/// Reads scan files in order; all must share one angular step (one sensor setting). Returns
-/// the scans and that step, radians.
+/// Reads scan files in order; all must share one angular step (one sensor setting), and each
+/// file's times must follow the previous file's, as they do within a file. Returns the scans
+/// and that step, radians.
 pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), LrfError> {
     let mut scans: Vec<Scan> = Vec::new();
     let mut step: Option<(f64, String)> = None;
-    for p in paths {
+    // The last timed scan so far and its file.
+    let mut last: Option<(f64, &PathBuf)> = None;
+    for (k, p) in paths.iter().enumerate() {
+        if let Some(q) = paths[..k].iter().find(|q| same_file(q, p)) {
+            let also = if q == p {
+                String::new()
+            } else {
+                format!(" (also as {})", q.display())
+            };
+            return Err(LrfError::Config(format!(
+                "{} is given twice{also}; give each scan file once",
+                p.display()
+            )));
+        }
         let s = read_scans_csv(p)?;
+        if let (Some((prev, prev_file)), Some(t)) = (last, s.first().and_then(|s| s.t_s)) {
+            if t <= prev {
+                return Err(LrfError::Config(format!(
+                    "{}: its first scan's time {t} s does not come after {prev} s, the last scan of {}, given before it; give the scan files in time order, each once",
+                    p.display(),
+                    prev_file.display()
+                )));
+            }
+        }
+        if let Some(t) = s.iter().rev().find_map(|s| s.t_s) {
+            last = Some((t, p));
+        }
         let this = s.first().map_or(0.0, |s| s.step_rad());
         match &step {
             Some((st, first)) if (this - st).abs() > 0.01 * st.abs() => {
@@ -30,6 +56,40 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
         scans.extend(s);
     }
     Ok((scans, step.map(|s| s.0)))
+}
+
+/// A recording's scans may be logged sparser than the scanner sweeps (every few sweeps), but
+/// not this many times sparser: scan times in milliseconds are a thousand times it.
+const MAX_INTERVAL_PERIODS: f64 = 100.0;
+
+/// Refuses scans whose median time between scans is more than [`MAX_INTERVAL_PERIODS`] scan
+/// periods at `rate_hz`: their times are not in seconds (milliseconds give a thousand times
+/// the period), and a truth or a track in seconds would match almost none of them.
+pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
+    let t: Vec<f64> = scans.iter().filter_map(|s| s.t_s).collect();
+    let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if dt.is_empty() {
+        return Ok(());
+    }
+    dt.sort_by(f64::total_cmp);
+    let median = dt[dt.len() / 2];
+    let period = 1.0 / rate_hz;
+    if median > MAX_INTERVAL_PERIODS * period {
+        return Err(LrfError::Config(format!(
+            "the scans' median time between scans is {median} s, {:.0} times the scanner's period of {period} s at --rate-hz {rate_hz}: are the times in milliseconds? Give t in seconds (if these are milliseconds, {median} ms is {:.4} s), or the scanner's --rate-hz",
+            median / period,
+            median / 1000.0
+        )));
+    }
+    Ok(())
+}
+
+/// True if `a` and `b` name one file (the same path, or two paths to it).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
 }
 
 /// Refuses scans whose returns mostly lie beyond twice the scanner's `max_range_m`: their

@@ -224,6 +224,13 @@ pub struct Map {
     grid: Grid,
 }
 
+/// The narrowest reflector strip a map may give, metres: a scanner's beams, a few millimetres
+/// apart at a metre, could not tell a narrower one from a glint.
+const MIN_REFLECTOR_WIDTH_M: f64 = 0.005;
+/// The widest, metres: a strip a metre wide is a wall, and clusters that wide would pass for
+/// reflectors.
+const MAX_REFLECTOR_WIDTH_M: f64 = 1.0;
+
 /// Grid cell size, metres (radius queries up to this size cost 3×3 cells).
 const GRID_CELL_M: f64 = 0.5;
 
@@ -267,6 +274,14 @@ impl Map {
             return Err(err(format!(
                 "reflector_width_m is {}; give the strip width in metres (> 0)",
                 file.reflector_width_m
+            )));
+        }
+        let w = file.reflector_width_m;
+        if !(MIN_REFLECTOR_WIDTH_M..MAX_REFLECTOR_WIDTH_M).contains(&w) {
+            return Err(err(format!(
+                "reflector_width_m is {w} m, but a reflector strip is {:.0} mm to well under {MAX_REFLECTOR_WIDTH_M:.0} m wide: is it in millimetres (if so, {w} mm is {:.3} m)? Give the strip width in metres",
+                MIN_REFLECTOR_WIDTH_M * 1e3,
+                w / 1000.0
             )));
         }
         if let Some(s) = file.position_sigma_m {
@@ -392,6 +407,20 @@ impl Map {
             pair_ab: pairs.iter().map(|p| (p.1, p.2)).collect(),
             grid,
         })
+    }
+
+    /// Landmarks that no scan by a scanner of range `max_range_m` sees with another one: their
+    /// nearest other landmark is farther than twice the range. Such a landmark cannot help fix
+    /// a pose, which needs several; far from all others it is most likely a mistyped
+    /// coordinate. Each as (id, position, distance to its nearest other landmark in metres).
+    pub fn isolated(&self, max_range_m: f64) -> Vec<(u32, Point2<f64>, f64)> {
+        (0..self.len())
+            .filter_map(|i| {
+                let nearest = *self.edge_dist.get(self.edge_start[i])?;
+                let l = &self.landmarks[i];
+                (nearest > 2.0 * max_range_m).then_some((l.id, l.position, nearest))
+            })
+            .collect()
     }
 
     /// Number of landmarks.
@@ -607,11 +636,45 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("apart"), "{e}");
+        // A width in millimetres: 80 "m".
+        let mut f = file(vec![
+            spec(1, 0.0, 0.0),
+            spec(2, 1.0, 0.0),
+            spec(3, 0.0, 1.0),
+        ]);
+        f.reflector_width_m = 80.0;
+        let e = Map::from_file(&f, "m.json").unwrap_err();
+        assert!(
+            e.to_string().contains(
+                "reflector_width_m is 80 m, but a reflector strip is 5 mm to well under 1 m wide: is it in millimetres (if so, 80 mm is 0.080 m)?"
+            ),
+            "{e}"
+        );
         let e = Map::parse(r#"{"format": "odocal.camera/1"}"#, "m").unwrap_err();
         assert!(
             e.to_string().contains("expected \"odocal.lrf-map/1\""),
             "{e}"
         );
+    }
+
+    /// A landmark 50 m from the others of a 10 m x 8 m room (a mistyped 5.0): no scan sees it
+    /// with another, and it is named; the room's own landmarks are not.
+    #[test]
+    fn a_landmark_far_from_all_others_is_isolated() {
+        let room = [(1.0, 1.0), (9.0, 1.0), (9.0, 7.0), (1.0, 7.0), (5.0, 4.0)];
+        let mut l: Vec<LandmarkSpec> = room
+            .iter()
+            .enumerate()
+            .map(|(k, &(x, y))| spec(k as u32 + 1, x, y))
+            .collect();
+        let m = Map::from_file(&file(l.clone()), "m").unwrap();
+        assert!(m.isolated(5.6).is_empty());
+        l.push(spec(31, 55.0, 1.0));
+        let m = Map::from_file(&file(l), "m").unwrap();
+        let iso = m.isolated(5.6);
+        assert_eq!(iso.len(), 1, "{iso:?}");
+        assert_eq!(iso[0].0, 31);
+        assert!((iso[0].2 - 46.0).abs() < 1e-9, "{iso:?}");
     }
 
     #[test]

@@ -100,7 +100,8 @@ pub struct Scan {
     pub t_s: Option<f64>,
     /// Beam angles in the sensor frame, radians, evenly spaced and increasing.
     pub angles_rad: Vec<f64>,
-    /// Ranges, metres; 0 (or below the minimum range) means no return.
+    /// Ranges, metres; 0 (or below the minimum range) means no return, and so does an
+    /// infinite range (ROS's convention).
     pub ranges_m: Vec<f64>,
     /// Return intensities (reflectors ≥ [`SensorConfig::intensity_min`]).
     pub intensities: Vec<f64>,
@@ -385,7 +386,12 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
                 .map_err(|_| err(line, cname, format!("\"{s}\" is not a number")))
         };
         let angle = num(ca, "angle")?;
-        let range = num(cr, "range")?;
+        // ROS drivers write +inf where a beam had no return; odocal's convention for that is 0,
+        // which every consumer of the ranges already reads as "no return".
+        let range = match num(cr, "range")? {
+            r if r == f64::INFINITY => 0.0,
+            r => r,
+        };
         let intensity = num(ci, "intensity")?;
         if !angle.is_finite() {
             return Err(err(

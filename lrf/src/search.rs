@@ -575,10 +575,11 @@ impl Localizer {
         fit_pose_weighted(guess, &self.observations(dets, matches, &guess))
     }
 
-    /// Beams that contradict the mapped walls from `pose`: a return well
-    /// beyond the nearest wall along the beam (seen through a wall), or no
-    /// return where a wall is well within range. Every `FREE_SPACE_STRIDE`-th
-    /// beam is checked; 0 when the map has no walls.
+    /// Beams that contradict the mapped walls from `pose`: a return well beyond the nearest
+    /// wall along the beam (seen through a wall). A beam without a return (range 0, below the
+    /// minimum range, or infinite) says nothing about free space: a dark or glass surface, or
+    /// a dropout, returns nothing from a wall in range, so it is no evidence against the pose.
+    /// Every `FREE_SPACE_STRIDE`-th beam is checked; 0 when the map has no walls.
     pub fn free_space_violations(&self, scan: &Scan, pose: &Pose2) -> usize {
         if self.map.walls.is_empty() {
             return 0;
@@ -594,8 +595,7 @@ impl Localizer {
                 continue;
             };
             let r = scan.ranges_m[k];
-            let valid = r >= sens.min_range_m;
-            if (valid && r > t + tol) || (!valid && t < sens.max_range_m - tol) {
+            if r >= sens.min_range_m && r.is_finite() && r > t + tol {
                 bad += 1;
             }
         }

@@ -194,3 +194,67 @@ fn history_resolves_a_symmetric_start() {
     assert_eq!(statuses[0], Status::Ambiguous);
     assert_eq!(*statuses.last().unwrap(), Status::Ok, "{statuses:?}");
 }
+
+/// [`PTS`] in a room whose walls are all within the scanner's range.
+fn walled_map() -> Map {
+    let (x0, y0, x1, y1) = (-3.0, -4.0, 7.0, 5.0);
+    let mut file = MapFile {
+        format: MAP_FORMAT.into(),
+        reflector_width_m: 0.08,
+        landmarks: Vec::new(),
+        walls: vec![
+            [x0, y0, x1, y0],
+            [x1, y0, x1, y1],
+            [x1, y1, x0, y1],
+            [x0, y1, x0, y0],
+        ],
+        position_sigma_m: None,
+    };
+    file.landmarks = map_of(&PTS)
+        .landmarks
+        .iter()
+        .map(|l| LandmarkSpec {
+            id: l.id,
+            x_m: l.position.x,
+            y_m: l.position.y,
+            facing_rad: None,
+            half_fov_rad: None,
+            visibility_line: None,
+        })
+        .collect();
+    Map::from_file(&file, "walled").unwrap()
+}
+
+/// Beams with no return in front of mapped walls (a dark or glass wall, dropouts; written 0 or,
+/// as ROS drivers do, infinite) are no evidence against a pose: the reflectors alone fix it.
+/// A return beyond a wall still is.
+#[test]
+fn beams_without_a_return_are_not_free_space() {
+    let loc = Localizer::new(walled_map(), LocalizerConfig::default());
+    let truth = Pose2::new(1.4, 0.6, 0.7);
+    // Only the reflectors return; every other beam, all of them aimed at a wall within
+    // range, has none.
+    let zero = scan_of(&loc.map, &truth, &[], &[]);
+    let mut inf = zero.clone();
+    for r in inf.ranges_m.iter_mut().filter(|r| **r == 0.0) {
+        *r = f64::INFINITY;
+    }
+    for scan in [&zero, &inf] {
+        assert_eq!(loc.free_space_violations(scan, &truth), 0);
+        let g = loc.global(scan, &loc.detections(scan));
+        assert_eq!(g.status, Status::Ok, "{g:?}");
+        let b = g.best().unwrap();
+        assert!((b.pose.position() - truth.position()).norm() < 0.01);
+    }
+    // Returns from 20 m, through the walls: every checked beam contradicts the map.
+    let mut through = zero.clone();
+    for r in through.ranges_m.iter_mut().filter(|r| **r == 0.0) {
+        *r = 20.0;
+    }
+    let checked = zero.ranges_m.len().div_ceil(8);
+    assert!(
+        loc.free_space_violations(&through, &truth) > checked / 2,
+        "{} of {checked}",
+        loc.free_space_violations(&through, &truth)
+    );
+}

@@ -5,8 +5,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    check_intensity_scale, check_map_report, check_range_unit, evaluate, localize_scans,
-    read_scan_files, read_truth_csv, Localizer, LocalizerConfig, Map, SensorConfig, Status,
+    check_intensity_scale, check_map_report, check_range_unit, check_scan_times, evaluate,
+    localize_scans, read_scan_files, read_truth_csv, Localizer, LocalizerConfig, Map, SensorConfig,
+    Status,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -71,7 +72,8 @@ pub struct LocalizeArgs {
     /// Returns at or above this intensity are reflector candidates.
     #[arg(long, default_value_t = 0.5)]
     pub intensity_min: f64,
-    /// Scan rate for files without a `t` column, Hz.
+    /// Scan rate of the scanner, Hz: the times of files without a `t` column, and the check
+    /// that the scans' times are in seconds.
     #[arg(long, default_value_t = 10.0)]
     pub rate_hz: f64,
 }
@@ -90,7 +92,19 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
     for line in check_map_report(&map, &name, a.tolerance_m, a.max_range_m, a.min_size)? {
         println!("{line}");
     }
+    warn_isolated(&map, &name, a.max_range_m);
     Ok(())
+}
+
+/// Warns of every landmark that no scan sees with another: far from all the others, its
+/// coordinates are most likely mistyped.
+fn warn_isolated(map: &Map, name: &str, max_range_m: f64) {
+    for (id, p, nearest) in map.isolated(max_range_m) {
+        eprintln!(
+            "warning: {name}: landmark id {id} at ({:.3}, {:.3}) m is {nearest:.2} m from the nearest other landmark, more than twice --max-range-m {max_range_m} m, so no scan sees it with another and it cannot help a pose: is a coordinate mistyped?",
+            p.x, p.y
+        );
+    }
 }
 
 fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
@@ -112,8 +126,10 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // The options are checked before any file is read, the scans' step after.
     cfg.sensor.check()?;
     let map = Map::read(&a.map)?;
+    warn_isolated(&map, &a.map.display().to_string(), a.max_range_m);
     let (scans, step_rad) = read_scan_files(&a.scans)?;
     check_range_unit(&scans, a.max_range_m)?;
+    check_scan_times(&scans, a.rate_hz)?;
     if let Some(step) = step_rad {
         cfg.sensor.step_rad = step;
     }
@@ -134,16 +150,28 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.max_range_m
         )
     };
-    // A file of nothing but lost rows is no result: refused, as `track` refuses a video
-    // where the tag was never accepted.
-    if !log.rows.is_empty() && count(Status::Lost) == log.rows.len() {
+    // A file without one `ok` row is no result: refused, as `track` refuses a video where
+    // the tag was never accepted.
+    if !log.rows.is_empty() && count(Status::Ok) == 0 {
         let detections: usize = log.rows.iter().map(|r| r.n_detections).sum();
+        let per_scan = detections as f64 / log.rows.len() as f64;
+        if count(Status::Lost) == log.rows.len() {
+            anyhow::bail!(
+                "none of the {} scans found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
+                log.rows.len(),
+                a.out.display(),
+                why_lost()
+            );
+        }
+        // Ambiguous scans fit the map in several places equally well: the layout repeats
+        // itself where the scanner went, which no setting of the scanner changes.
         anyhow::bail!(
-            "none of the {} scans found a pose ({:.1} reflector detections per scan), so {} was not written: {}",
+            "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan): the landmarks of {} repeat themselves (a symmetric layout), so every scan fits several places and nothing was written; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
             log.rows.len(),
-            detections as f64 / log.rows.len() as f64,
-            a.out.display(),
-            why_lost()
+            count(Status::Ambiguous),
+            count(Status::Lost),
+            a.map.display(),
+            a.map.display()
         );
     }
     // The truth is read and compared first: poses it shows to be wrong are not written.
@@ -212,7 +240,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             why_lost()
         );
     }
-    if let Some((_, e)) = &against {
+    if let Some((tp, e)) = &against {
+        // An error over a few scans reads like the error of them all: say how few they are.
+        if e.n_ok * 2 < n_ok {
+            eprintln!(
+                "warning: {} has the time of only {} of the {n_ok} ok scans ({} of all {} scans), so the figures against the truth are over those alone: are the scans and the truth timed on one clock, in seconds?",
+                tp.display(),
+                e.n_ok,
+                e.n_scans,
+                log.rows.len()
+            );
+        }
         // The bound beside each RMS: the mean over the same scans of each pose's Cramér–Rao
         // bound, from the matched detections' covariances and the map's.
         let bound = |rms: f64, crb: f64, unit: &str, scale: f64, digits: usize| {
@@ -226,14 +264,22 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 String::new()
             }
         };
+        // An RMS over no scan would read as a perfect 0.0 mm: say there is none instead.
+        let accuracy = if e.n_accuracy == 0 {
+            "no error to report: no ok scan with >= 3 landmarks has a truth pose".to_string()
+        } else {
+            format!(
+                "position RMS {:.1} mm{}, max {:.1} mm; heading RMS {:.3} deg{}; over {} ok scans with >= 3 landmarks",
+                e.position_rms_m * 1e3,
+                bound(e.position_rms_m, e.position_crb_m, "mm", 1e3, 1),
+                e.position_max_m * 1e3,
+                e.heading_rms_rad.to_degrees(),
+                bound(e.heading_rms_rad, e.heading_crb_rad, "deg", 180.0 / std::f64::consts::PI, 3),
+                e.n_accuracy
+            )
+        };
         println!(
-            "vs truth: position RMS {:.1} mm{}, max {:.1} mm; heading RMS {:.3} deg{}; over {} ok scans with >= 3 landmarks; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
-            e.position_rms_m * 1e3,
-            bound(e.position_rms_m, e.position_crb_m, "mm", 1e3, 1),
-            e.position_max_m * 1e3,
-            e.heading_rms_rad.to_degrees(),
-            bound(e.heading_rms_rad, e.heading_crb_rad, "deg", 180.0 / std::f64::consts::PI, 3),
-            e.n_accuracy,
+            "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
             e.n_wrong_ok,
             e.n_correct_eligible,
             e.n_eligible,
