@@ -51,6 +51,44 @@ pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
     Ok(())
 }
 
+/// Refuses an output path that would replace a file the command reads without it being an
+/// argument (a manifest's logs and trajectories, a frame folder's images), or land inside an
+/// input folder (whose every file is read as a frame). `inputs` are those files and folders;
+/// `whose` says where they come from ("listed in the manifest").
+pub fn check_output_not_input(
+    path: &Path,
+    option: &str,
+    inputs: &[PathBuf],
+    whose: &str,
+) -> Result<(), FileError> {
+    let Some(target) = file_identity(path) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Some(id) = file_identity(input) else {
+            continue;
+        };
+        let inside = input.is_dir() && target.starts_with(&id);
+        if inside || target == id {
+            return Err(FileError::content(
+                &format!("{option} {}", path.display()),
+                if inside {
+                    format!(
+                        "lies inside {} ({whose}), whose files are all read as input; give {option} a path outside it",
+                        input.display()
+                    )
+                } else {
+                    format!(
+                        "is {} ({whose}), which writing it would replace; give {option} another path",
+                        input.display()
+                    )
+                },
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The file a path names, whether or not it exists yet: the canonical path, or the
 /// canonical parent joined with the name. `None` when even the parent does not exist.
 fn file_identity(path: &Path) -> Option<PathBuf> {

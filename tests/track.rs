@@ -727,3 +727,108 @@ fn a_tag_off_the_axle_is_named_and_taken_off() {
         assert!(!d.join("bad.csv").exists());
     }
 }
+
+/// A frame folder is read whole, so no output goes into it (an overlay written there used to
+/// break the next run: "has no timestamp for image overlay_000000.png"), and a timestamps file
+/// is refused for a video, which carries its own times, rather than ignored.
+#[test]
+fn outputs_stay_out_of_the_frame_folder_and_timestamps_are_for_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 6, 1, &["--video", "png"]);
+    let frames = d.join("frames");
+    let listing = || {
+        let mut v: Vec<_> = std::fs::read_dir(&frames)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        v.sort();
+        v
+    };
+    let before = listing();
+    let camera = d.join("camera.json");
+    for (opt, path, says) in [
+        ("--out", frames.join("timestamps.csv"), "lies inside"),
+        ("--out", frames.join("t.csv"), "lies inside"),
+        ("--overlay", frames.clone(), "lies inside"),
+    ] {
+        let out = d.join("out.csv");
+        let mut args = vec!["track", p(&frames), "--camera", p(&camera)];
+        if opt == "--out" {
+            args.extend(["--out", p(&path)]);
+        } else {
+            args.extend(["--out", p(&out), opt, p(&path)]);
+        }
+        let e = common::fails(&args);
+        assert!(e.contains(says) && e.contains(opt), "{e}");
+    }
+    assert_eq!(listing(), before);
+    synth_track(d, 6, 1);
+    let e = common::fails(&[
+        "track",
+        p(&d.join("video.avi")),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&d.join("v.csv")),
+        "--timestamps",
+        p(&frames.join("timestamps.csv")),
+    ]);
+    assert!(
+        e.contains("only an image folder takes a timestamps file"),
+        "{e}"
+    );
+}
+
+/// A truth read wrongly is said to be, rather than reported as the tracker's error: theta in
+/// degrees used to print "heading RMS 94.6 deg … error/σ 3304" with nothing else, and a
+/// truth with one row in sixty judged one fix as if it were the run.
+#[test]
+fn a_truth_that_cannot_judge_the_run_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 30, 3);
+    let text = std::fs::read_to_string(d.join("truth.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().to_string();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let write = |name: &str, rows: &[Vec<f64>]| {
+        let mut s = format!("{header}\n");
+        for r in rows {
+            let r: Vec<String> = r.iter().map(f64::to_string).collect();
+            s.push_str(&format!("{}\n", r.join(",")));
+        }
+        std::fs::write(d.join(name), s).unwrap();
+        d.join(name)
+    };
+    let degrees: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|r| {
+            let mut r = r.clone();
+            r[3] = r[3].to_degrees();
+            r
+        })
+        .collect();
+    let run = |truth: &std::path::Path| {
+        let res = odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--out",
+            p(&d.join("out.csv")),
+            "--truth",
+            p(truth),
+        ]);
+        succeeded(&res);
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    let err = run(&write("degrees.csv", &degrees));
+    assert!(err.contains("is its theta in degrees"), "{err}");
+    let err = run(&write("few.csv", &rows[..3]));
+    assert!(err.contains("only 3 of the 30 fixes have a row"), "{err}");
+    let err = run(&d.join("truth.csv"));
+    assert!(!err.contains("warning"), "{err}");
+}

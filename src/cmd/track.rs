@@ -12,7 +12,10 @@ use odocal_tracker::{
     TrackResult,
 };
 
-use crate::output::{check_output_file, commit, progress, staged_dir, write_atomic, write_json};
+use crate::output::{
+    check_output_file, check_output_not_input, commit, progress, staged_dir, write_atomic,
+    write_json,
+};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -136,6 +139,10 @@ fn against_truth(
 /// tracker's own errors are millimetres even under heavy blur.
 const TRUTH_MISMATCH_M: f64 = 0.05;
 
+/// Headings this far from their truth (RMS, radians: 10°) with the positions agreeing are read
+/// in another unit or frame: the tracker's own heading errors are a fraction of a degree.
+const TRUTH_HEADING_MISMATCH_RAD: f64 = 0.17;
+
 /// Prints the comparison with the truth (and AprilTag 3's rate when measured).
 fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
     let e = &a.errors;
@@ -155,6 +162,19 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
             "warning: the trajectory is {:.0} mm RMS from {}: is that the truth of this video, and camera.json this camera's?",
             e.position_rms_m * 1e3,
             a.truth
+        );
+    } else if e.heading_rms_rad > TRUTH_HEADING_MISMATCH_RAD {
+        // Positions agree, so the file is this video's truth: its headings are read wrongly.
+        eprintln!(
+            "warning: the headings are {:.1}° RMS from {} while the positions agree: is its theta in degrees (it must be in radians), or its heading another body's?",
+            e.heading_rms_rad.to_degrees(),
+            a.truth
+        );
+    }
+    if 2 * e.matched < a.fixes {
+        eprintln!(
+            "warning: only {} of the {} fixes have a row of {} at their time, so the figures above judge those only: give the truth of the whole video (frames.csv of `synth track` has a row per frame)",
+            e.matched, a.fixes, a.truth
         );
     }
     if let Some(rate) = a.apriltag3_rate {
@@ -197,6 +217,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(p) = p {
             check_output_file(p, opt)?;
         }
+    }
+    // A frame folder is read whole: an output inside it would be read as a frame next time.
+    if args.video.is_dir() {
+        let folder = [args.video.clone()];
+        for (p, opt) in [
+            (Some(&args.out), "--out"),
+            (args.tum.as_ref(), "--tum"),
+            (args.report.as_ref(), "--report"),
+            (args.overlay.as_ref(), "--overlay"),
+        ] {
+            if let Some(p) = p {
+                check_output_not_input(p, opt, &folder, "the frame folder tracked")?;
+            }
+        }
+        if let (Some(ts), Some(fps)) = (&args.timestamps, args.fps) {
+            anyhow::bail!(
+                "--timestamps {} and --fps {fps} both give the frames' times: give one",
+                ts.display()
+            );
+        }
+    } else if let Some(ts) = &args.timestamps {
+        anyhow::bail!(
+            "--timestamps {}: only an image folder takes a timestamps file; the video {} carries its frames' times (--fps overrides its frame rate)",
+            ts.display(),
+            args.video.display()
+        );
     }
     quiet_video_logs();
     let camera_file = CameraFile::load(&args.camera)?;
