@@ -308,13 +308,25 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     .unwrap();
     let e = run(&m5);
     assert!(
-        e.contains("runs \"run001\" and \"run002\" list the same odometry log"),
+        e.contains("runs \"run001\" and \"run002\" list the same file runs/run001.odometry.csv (as their odometry log)"),
+        "{e}"
+    );
+    // Another run's trajectory pasted in gave run002 run001's end point as its target, with
+    // every run accepted.
+    std::fs::write(
+        &m5,
+        text.replace("run002.trajectory.csv", "run001.trajectory.csv"),
+    )
+    .unwrap();
+    let e = run(&m5);
+    assert!(
+        e.contains("runs \"run001\" and \"run002\" list the same file runs/run001.trajectory.csv (as their trajectory)"),
         "{e}"
     );
     let m3 = d.join("m3.csv");
     std::fs::write(
         &m3,
-        "id,video,odometry\nv1,runs/run001.odometry.csv,runs/run001.odometry.csv\n",
+        "id,video,odometry\nv1,runs/run002.odometry.csv,runs/run001.odometry.csv\n",
     )
     .unwrap();
     let e = fails(&[
@@ -426,4 +438,133 @@ fn wheels_that_turn_the_other_way_are_named() {
         "{e}"
     );
     assert_eq!(std::fs::read(&out).unwrap(), built);
+}
+
+/// A robot file that is not the robot's: the alignment matches the speed profiles' shapes
+/// whatever their scale, so a quadrature encoder's ×4 used to give a dataset with raw odometry
+/// "74 %" off and every run accepted. The median ratio of the odometry's end points to the
+/// camera's names it: 1.5 times or more is refused (with the likely mix-up), 20 % warned,
+/// lengths in millimetres refused on reading.
+#[test]
+fn a_robot_file_of_another_robot_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 6, 2, &[]);
+    let out = d.join("dataset.json");
+    let robot = d.join("robot.json");
+    let with = |diameter: f64, ticks: f64, base: f64| -> std::process::Output {
+        std::fs::write(
+            &robot,
+            format!(
+                r#"{{"format":"odocal.robot/1","wheel_diameter_m":{diameter},"ticks_per_rev":{ticks},"wheel_base_m":{base},"period_s":0.2}}"#
+            ),
+        )
+        .unwrap();
+        common::odocal(&[
+            "dataset",
+            "--manifest",
+            p(&d.join("manifest.json")),
+            "--robot",
+            p(&robot),
+            "--out",
+            p(&out),
+        ])
+    };
+    let refused = |o: std::process::Output, says: &str| {
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(says), "{says}: {err}");
+        assert!(!out.exists(), "{says}: written anyway");
+    };
+    refused(
+        with(0.043, 48.0, 0.1),
+        "distances are 0.258 times the camera's (median over 6 samples) with this robot file; a factor of 4 is a quadrature encoder's",
+    );
+    refused(
+        with(0.0215, 12.0, 0.1),
+        "a factor of 2 is a radius for a diameter",
+    );
+    refused(
+        with(43.0, 12.0, 0.1),
+        "wheel_diameter_m = 43 m is not a small wheeled robot's",
+    );
+    refused(
+        with(0.043, 12.0, 100.0),
+        "wheel_base_m = 100 m is not a small wheeled robot's",
+    );
+    // 30 % off is named but kept: an uncalibrated robot may be that far.
+    let o = with(0.043 * 1.3, 12.0, 0.1);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning:") && err.contains("distances are 1.3"),
+        "{err}"
+    );
+    // The robot's own file says nothing.
+    let o = with(0.043, 12.0, 0.1);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("distances are"));
+}
+
+/// Outputs never replace what the manifest lists: a dataset written over a run's odometry log
+/// or trajectory used to exit 0 with the log gone.
+#[test]
+fn outputs_never_replace_the_manifests_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 3, 2, &[]);
+    let log = d.join("runs/run001.odometry.csv");
+    let traj = d.join("runs/run002.trajectory.csv");
+    let (log_before, traj_before) = (std::fs::read(&log).unwrap(), std::fs::read(&traj).unwrap());
+    let manifest = d.join("manifest.json");
+    let e = fails(&["dataset", "--manifest", p(&manifest), "--out", p(&log)]);
+    assert!(
+        e.contains("run001.odometry.csv (listed in the manifest), which writing it would replace"),
+        "{e}"
+    );
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&d.join("o.json")),
+        "--csv",
+        p(&traj),
+    ]);
+    assert!(e.contains("--csv"), "{e}");
+    assert_eq!(std::fs::read(&log).unwrap(), log_before);
+    assert_eq!(std::fs::read(&traj).unwrap(), traj_before);
+    assert!(!d.join("o.json").exists());
+}
+
+/// Tours built as straight runs used to give "4 samples from 4 runs … mean path 17.401 m":
+/// each run is now refused as not straight, naming --layout windows. A manifest speed in mm/s
+/// used to be stored as given; it is refused against the odometry's own cruise speed.
+#[test]
+fn runs_that_are_not_straight_runs_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 2, 1, &["--paths", "tours"]);
+    let manifest = d.join("manifest.json");
+    let out = d.join("dataset.json");
+    let e = fails(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    assert!(
+        e.contains("not a straight run: its path is") && e.contains("take --layout windows"),
+        "{e}"
+    );
+    let straight = d.join("straight");
+    synth_with(&straight, 3, 1, &[]);
+    let manifest = straight.join("manifest.json");
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    m["runs"][1]["speed_mps"] = serde_json::json!(500.0);
+    std::fs::write(&manifest, m.to_string()).unwrap();
+    let o = common::odocal(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success());
+    assert!(
+        said.contains("rejected run002: the manifest's speed_mps 500 is")
+            && said.contains("is it in mm/s or cm/s?"),
+        "{said}"
+    );
 }

@@ -11,6 +11,10 @@ use crate::segment::{split_runs, RunSegment};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
 use odocal_core::{mean_pose, PoseSigma, Trajectory, TrajectoryRow};
 
+/// Chord over path length below which a run is not straight (a straight run's drift of a few
+/// degrees keeps it above 0.99).
+const MIN_STRAIGHTNESS: f64 = 0.9;
+
 /// Shortest rest, seconds, that separates two runs in one log.
 pub const DEFAULT_MIN_GAP_S: f64 = 1.0;
 
@@ -300,6 +304,17 @@ pub fn process_recording(
         }
         pts.push(end.position());
         let path: f64 = pts.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+        // The 18 inputs describe a straight run: a tour's end point says nothing of its path.
+        let chord = rel.x_m.hypot(rel.y_m);
+        if path > 0.1 && chord < MIN_STRAIGHTNESS * path {
+            out.push(reject(
+                id,
+                format!(
+                    "not a straight run: its path is {path:.2} m long and ends {chord:.2} m from its start; runs of any shape take --layout windows"
+                ),
+            ));
+            continue;
+        }
         let speeds: Vec<f64> = (1..odo.t_s.len())
             .filter(|&k| odo.rev[k] != odo.rev[k - 1])
             .map(|k| {
@@ -314,6 +329,20 @@ pub fn process_recording(
             })
             .collect();
         let odo_speed = median(speeds);
+        // Judged against the camera's mean speed, which a wrong robot file does not scale.
+        let real_speed = path / (te - tb);
+        if let Some(v) = rec.speed_mps {
+            let ratio = v / real_speed;
+            if real_speed > 0.0 && !(0.5..=2.0).contains(&ratio) {
+                out.push(reject(
+                    id,
+                    format!(
+                        "the manifest's speed_mps {v} is {ratio:.3} times the {real_speed:.3} m/s the camera saw the run average: is it in mm/s or cm/s? it must be in m/s (or leave it out to use the odometry's)"
+                    ),
+                ));
+                continue;
+            }
+        }
         out.push(RunOutcome::Sample(Box::new(Sample {
             run_id: id,
             speed_mps: rec.speed_mps.unwrap_or(odo_speed),

@@ -125,34 +125,63 @@ impl Manifest {
 
     /// Checks that every referenced file exists; the error names the run and the file.
     pub fn check_files(&self) -> Result<(), DatasetError> {
-        // A log listed twice is one recording counted twice: its copies would sit on both
-        // sides of every cross-validation split.
-        let mut logs: Vec<(PathBuf, &str)> = Vec::with_capacity(self.runs.len());
+        // A file listed twice is one recording counted twice: its copies would sit on both
+        // sides of every cross-validation split, and a trajectory or video paired with two
+        // logs gives one of them another run's end point as its target.
+        let mut seen: Vec<(PathBuf, &str, &str)> = Vec::with_capacity(3 * self.runs.len());
         for r in &self.runs {
-            for p in [Some(&r.odometry), r.video.as_ref(), r.trajectory.as_ref()]
-                .into_iter()
-                .flatten()
-            {
+            for (p, role) in [
+                (Some(&r.odometry), "odometry log"),
+                (r.video.as_ref(), "video"),
+                (r.trajectory.as_ref(), "trajectory"),
+            ] {
+                let Some(p) = p else { continue };
                 let full = self.resolve(p);
                 if !full.is_file() {
+                    let what = if full.is_dir() {
+                        "is a folder, not a file"
+                    } else {
+                        "does not exist"
+                    };
                     return Err(DatasetError::Mismatch(format!(
-                        "run \"{}\": file {} listed in the manifest does not exist",
+                        "run \"{}\": {role} {} listed in the manifest {what}",
                         r.id,
                         full.display()
                     )));
                 }
+                let file = std::fs::canonicalize(&full).unwrap_or(full);
+                if let Some((_, first, first_role)) = seen.iter().find(|(f, _, _)| *f == file) {
+                    if *first == r.id {
+                        return Err(DatasetError::Mismatch(format!(
+                            "run \"{first}\" lists {p} as both its {first_role} and its {role}: give each its own file"
+                        )));
+                    }
+                    let same_role = *first_role == role;
+                    return Err(DatasetError::Mismatch(format!(
+                        "runs \"{first}\" and \"{}\" list the same file {} (as {}): one recording counted twice or another run's file pasted in; give each run its own {role}",
+                        r.id,
+                        p,
+                        if same_role {
+                            format!("their {role}")
+                        } else {
+                            format!("{first_role} and {role}")
+                        }
+                    )));
+                }
+                seen.push((file, &r.id, role));
             }
-            let log = self.resolve(&r.odometry);
-            let log = std::fs::canonicalize(&log).unwrap_or(log);
-            if let Some((_, first)) = logs.iter().find(|(l, _)| *l == log) {
-                return Err(DatasetError::Mismatch(format!(
-                    "runs \"{first}\" and \"{}\" list the same odometry log {}: one recording counted twice; give each run its own log",
-                    r.id, r.odometry
-                )));
-            }
-            logs.push((log, &r.id));
         }
         Ok(())
+    }
+
+    /// Every file the manifest lists (logs, videos, trajectories), resolved.
+    pub fn files(&self) -> Vec<PathBuf> {
+        self.runs
+            .iter()
+            .flat_map(|r| [Some(&r.odometry), r.video.as_ref(), r.trajectory.as_ref()])
+            .flatten()
+            .map(|p| self.resolve(p))
+            .collect()
     }
 
     /// The manifest as pretty JSON.

@@ -318,6 +318,23 @@ impl RobotParams {
                 return Err(format!("{name} = {v} must be > 0"));
             }
         }
+        // A small wheeled robot: a length beyond these is in another unit.
+        for (name, v, max) in [
+            ("wheel_diameter_m", self.wheel_diameter_m, 1.0),
+            ("wheel_base_m", self.wheel_base_m, 3.0),
+        ] {
+            if v > max {
+                return Err(format!(
+                    "{name} = {v} m is not a small wheeled robot's (at most {max} m): is it in millimetres? it must be in metres"
+                ));
+            }
+        }
+        if self.period_s > 10.0 {
+            return Err(format!(
+                "period_s = {} s: odometry is logged several times a second (0.2 s in the reference experiment); is it in milliseconds? it must be in seconds",
+                self.period_s
+            ));
+        }
         Ok(())
     }
 

@@ -104,6 +104,74 @@ pub fn time_unit_mismatch(log: &OdometryLog, camera: &Trajectory) -> Option<Stri
     ))
 }
 
+/// The largest factor between the odometry's distances and the camera's that a robot file
+/// of this robot can give: uncalibrated wheels are percents off, not half again.
+const MAX_ODOMETRY_SCALE: f64 = 1.5;
+
+/// Odometry this far off the camera is named in a warning (20 %).
+const WARN_ODOMETRY_SCALE: f64 = 1.2;
+
+/// Samples whose real end point moved less than this are not compared, metres.
+const MIN_TARGET_M: f64 = 0.1;
+
+/// The odometry's distances against the camera's over a dataset's samples: the median of
+/// |raw odometry end point| / |real end point| and the samples behind it; `None` when no
+/// sample moved 10 cm.
+pub fn odometry_scale(samples: &[crate::Sample]) -> Option<(f64, usize)> {
+    let mut ratios: Vec<f64> = samples
+        .iter()
+        .filter_map(|s| {
+            let real = s.target_m[0].hypot(s.target_m[1]);
+            (real >= MIN_TARGET_M).then(|| s.raw_end_m[0].hypot(s.raw_end_m[1]) / real)
+        })
+        .collect();
+    if ratios.is_empty() {
+        return None;
+    }
+    ratios.sort_by(f64::total_cmp);
+    Some((ratios[ratios.len() / 2], ratios.len()))
+}
+
+/// How far the robot file puts the odometry's distances from the camera's: `Err` when a
+/// factor of [`MAX_ODOMETRY_SCALE`] or more says the file is not this robot's (a quadrature
+/// encoder's four edges per line, a radius given as the diameter), `Ok(Some)` with a warning
+/// beyond 20 %, `Ok(None)` within. Alignment cannot see it: it matches the speed profiles'
+/// shapes, whatever their scale.
+pub fn robot_scale_mismatch(
+    samples: &[crate::Sample],
+    robot: &RobotParams,
+) -> Result<Option<String>, String> {
+    let Some((scale, n)) = odometry_scale(samples) else {
+        return Ok(None);
+    };
+    let near = |k: f64| (scale / k - 1.0).abs() < 0.1;
+    let hint = if near(4.0) || near(0.25) {
+        format!(
+            "a factor of 4 is a quadrature encoder's four edges per line: is ticks_per_rev = {} the count the log's ticks use?",
+            robot.ticks_per_rev
+        )
+    } else if near(2.0) || near(0.5) {
+        format!(
+            "a factor of 2 is a radius for a diameter: is wheel_diameter_m = {} the wheels' diameter?",
+            robot.wheel_diameter_m
+        )
+    } else {
+        format!(
+            "check wheel_diameter_m = {} and ticks_per_rev = {} against the robot",
+            robot.wheel_diameter_m, robot.ticks_per_rev
+        )
+    };
+    let text = format!(
+        "the odometry's distances are {scale:.3} times the camera's (median over {n} samples) with this robot file; {hint}"
+    );
+    if !(1.0 / MAX_ODOMETRY_SCALE..=MAX_ODOMETRY_SCALE).contains(&scale) {
+        return Err(format!(
+            "{text} (odometry drifts by percents, not by half again)"
+        ));
+    }
+    Ok((!(1.0 / WARN_ODOMETRY_SCALE..=WARN_ODOMETRY_SCALE).contains(&scale)).then_some(text))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

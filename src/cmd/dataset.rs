@@ -13,7 +13,9 @@ use odocal_dataset::{
 };
 use odocal_tracker::{track_video, TrackOptions};
 
-use crate::output::{check_output_file, count, progress, write_atomic, write_json};
+use crate::output::{
+    check_output_file, check_output_not_input, count, progress, write_atomic, write_json,
+};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -126,6 +128,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // A wrong truth file is found before the work, not after the dataset is written.
     let oracle = args.truth.as_deref().map(OracleFile::read).transpose()?;
     manifest.check_files()?;
+    let inputs = manifest.files();
+    check_output_not_input(&args.out, "--out", &inputs, "listed in the manifest")?;
+    if let Some(csv) = &args.csv {
+        check_output_not_input(csv, "--csv", &inputs, "listed in the manifest")?;
+    }
     let has_videos = manifest.runs.iter().any(|r| r.video.is_some());
     if !has_videos {
         let unused = args.tag.given();
@@ -250,13 +257,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for n in &ds.notes {
         eprintln!("note: {n}");
     }
+    let robot_file = match &args.robot {
+        Some(p) => p.display().to_string(),
+        None => "the default robot (give yours with --robot robot.json)".into(),
+    };
+    match odocal_dataset::units::robot_scale_mismatch(&ds.samples, &opts.robot) {
+        Err(why) => bail!("{robot_file}: {why}; nothing was written"),
+        Ok(Some(w)) => eprintln!("warning: {robot_file}: {w}"),
+        Ok(None) => {}
+    }
+    // Compared before anything is written or said to be, so a wrong truth leaves nothing.
+    let against_truth = match (&args.truth, &oracle) {
+        (Some(path), Some(oracle)) => {
+            errors_against_truth(&ds, oracle, &path.display().to_string())?
+        }
+        _ => None,
+    };
     write_json(&args.out, &ds)?;
     if let Some(csv) = &args.csv {
         write_atomic(csv, samples_csv(&ds).as_bytes())?;
     }
     print_summary(&ds, &args.out);
-    if let (Some(path), Some(oracle)) = (&args.truth, &oracle) {
-        if let Some(e) = errors_against_truth(&ds, oracle, &path.display().to_string())? {
+    {
+        if let Some(e) = against_truth {
             if e.target_rms_m.is_nan() {
                 println!(
                     "against the truth: clock offsets RMS {:.2} ms (max {:.2} ms) over {} windows",
