@@ -460,8 +460,13 @@ fn a_log_paired_with_another_runs_trajectory_is_rejected_with_its_figures() {
     let manifest = exp.join("manifest.json");
     let mut m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&manifest).expect("manifest")).expect("json");
-    let other = m["runs"][2]["trajectory"].clone();
-    m["runs"][1]["trajectory"] = other;
+    // (A copy: the same file listed twice is refused before any alignment.)
+    let other = m["runs"][2]["trajectory"]
+        .as_str()
+        .expect("path")
+        .to_string();
+    std::fs::copy(exp.join(&other), exp.join("copy.trajectory.csv")).expect("copy");
+    m["runs"][1]["trajectory"] = "copy.trajectory.csv".into();
     std::fs::write(&manifest, m.to_string()).expect("write");
     let out = d.path().join("dataset.json");
     let text = ok(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
@@ -777,6 +782,41 @@ fn a_board_size_one_corner_short_is_named() {
     ];
     args.extend(views.iter().map(|v| p(v)));
     refused(dir, &args, &["8x6", "9x6 board", "pass --board 9x6"]);
+    // --board 6x5 on the 9x6 board: OpenCV takes every other corner along the board for a
+    // 6x5 grid, in every view, and the calibration was written with fx 5 times the truth and
+    // a floor "within 2 mm". The corners between the ones found name the whole board.
+    let mut args = vec![
+        "calibrate",
+        "--board",
+        "6x5",
+        "--square",
+        "0.05",
+        "--out",
+        p(&out),
+    ];
+    let all: Vec<_> = (0..4)
+        .map(|k| calib.join(format!("view_{k:02}.png")))
+        .collect();
+    args.extend(all.iter().map(|v| p(v)));
+    refused(dir, &args, &["6x5", "9x6 board", "pass --board 9x6"]);
+}
+
+/// `synth calib --blur` is checked like `--noise`: a negative or NaN blur rendered sharp
+/// views, and 1e30 allocated memory until killed.
+#[test]
+fn synth_calib_blur_is_checked() {
+    let d = tempfile::tempdir().expect("tempdir");
+    for blur in ["-1", "NaN", "1e30"] {
+        let e = fails(&[
+            "synth",
+            "calib",
+            "--out",
+            p(&d.path().join("c")),
+            "--blur",
+            blur,
+        ]);
+        assert!(e.contains("--blur") && e.contains("0 to 20 pixels"), "{e}");
+    }
 }
 
 /// ChArUco options are checked before any image is read, and a ChArUco set calibrated with

@@ -222,13 +222,18 @@ pub fn detect_file(path: &Path, board: &BoardSpec) -> Result<Detection, CalibErr
     })
 }
 
+/// Squares a grid is followed past its found corners, at most: larger boards are rare, and
+/// linear extrapolation drifts under a lens's distortion.
+const MAX_EXTRA_SQUARES: usize = 12;
+
 /// The size of the board the detected grid belongs to, when it is larger than `board`: a
-/// `--board` one corner short finds part of the board, which shifts the floor origin by a
-/// square. The grid extends past a side when the points one square beyond that side's corners
-/// are chessboard corners too (saddles: diagonal quadrants alike, neighbouring ones in
-/// contrast); beyond the outermost inner corners of a real board lies its plain margin.
-/// Looking at the image around the corners already found takes microseconds, where asking
-/// OpenCV for a board of every larger size takes tens of seconds when the size is wrong.
+/// `--board` short of the real one finds part of the board, at a different place in each view,
+/// which shifts the floor origin by squares and gives views that fit no one camera. The grid
+/// extends past a side when the points a square beyond that side's corners are chessboard
+/// corners too (saddles: diagonal quadrants alike, neighbouring ones in contrast); it is
+/// followed square by square to where the board's plain margin begins. Looking at the image
+/// around the corners already found takes microseconds, where asking OpenCV for a board of
+/// every larger size takes tens of seconds when the size is wrong.
 pub fn larger_board_around(
     path: &Path,
     board: &BoardSpec,
@@ -239,40 +244,150 @@ pub fn larger_board_around(
     if cols < 2 || rows < 2 || corners.len() != cols * rows {
         return None;
     }
-    let at = |r: usize, c: usize| corners[r * cols + c].coords;
-    // Fraction of a side's extrapolated points that are saddles.
-    let side = |line: &[(usize, usize)], inward: (isize, isize)| -> f64 {
-        let mut saddles = 0;
-        for &(r, c) in line {
-            let (ri, ci) = (
-                (r as isize + inward.0) as usize,
-                (c as isize + inward.1) as usize,
-            );
-            let out = at(r, c) - at(ri, ci);
-            // The other grid direction, from a neighbour along the side.
-            let (ra, ca) = if inward.0 == 0 {
-                (if r + 1 < rows { r + 1 } else { r - 1 }, c)
-            } else {
-                (r, if c + 1 < cols { c + 1 } else { c - 1 })
-            };
-            let along = at(ra, ca) - at(r, c);
-            let p = at(r, c) + out;
-            if is_saddle(&gray, p, out, along) == Some(true) {
-                saddles += 1;
-            }
+    let grid: Vec<nalgebra::Vector2<f64>> = corners.iter().map(|p| p.coords).collect();
+    // OpenCV can also take every other corner of a larger board for a smaller one: then the
+    // points halfway between neighbours are corners too, and the grid is filled in first.
+    let (grid, cols2, rows2) = fill_skipped_corners(&gray, grid, cols, rows);
+    let (wider, taller) = extend_grid(&gray, &grid, cols2, rows2);
+    let (c, r) = ((cols2 + wider) as u32, (rows2 + taller) as u32);
+    ((c, r) != (board.cols, board.rows)).then_some((c, r))
+}
+
+/// Whether `line`'s points are mostly chessboard corners (60 %), each with its grid's two
+/// square-spanning vectors.
+fn mostly_saddles(
+    gray: &Mat,
+    line: impl Iterator<
+        Item = (
+            nalgebra::Vector2<f64>,
+            nalgebra::Vector2<f64>,
+            nalgebra::Vector2<f64>,
+        ),
+    >,
+) -> bool {
+    let (mut n, mut saddles) = (0usize, 0usize);
+    for (p, u, v) in line {
+        n += 1;
+        if is_saddle(gray, p, u, v) == Some(true) {
+            saddles += 1;
         }
-        saddles as f64 / line.len() as f64
+    }
+    n > 0 && saddles as f64 >= 0.6 * n as f64
+}
+
+/// The grid with the corners OpenCV skipped put back: along an axis whose neighbours'
+/// midpoints are chessboard corners, a corner is inserted between every two.
+fn fill_skipped_corners(
+    gray: &Mat,
+    grid: Vec<nalgebra::Vector2<f64>>,
+    cols: usize,
+    rows: usize,
+) -> (Vec<nalgebra::Vector2<f64>>, usize, usize) {
+    let at = |g: &[nalgebra::Vector2<f64>], c: usize, r: usize| g[r * cols + c];
+    // The step to the neighbouring corner across the axis tested: down a column when
+    // `down`, along a row otherwise.
+    let other = |g: &[nalgebra::Vector2<f64>], c: usize, r: usize, down: bool| {
+        if down {
+            let r2 = if r + 1 < rows { r + 1 } else { r - 1 };
+            at(g, c, r2) - at(g, c, r)
+        } else {
+            let c2 = if c + 1 < cols { c + 1 } else { c - 1 };
+            at(g, c2, r) - at(g, c, r)
+        }
+    };
+    let skip_cols = mostly_saddles(
+        gray,
+        (0..rows)
+            .flat_map(|r| (0..cols - 1).map(move |c| (c, r)))
+            .map(|(c, r)| {
+                let half = (at(&grid, c + 1, r) - at(&grid, c, r)) / 2.0;
+                (at(&grid, c, r) + half, half, other(&grid, c, r, true))
+            }),
+    );
+    let skip_rows = mostly_saddles(
+        gray,
+        (0..cols)
+            .flat_map(|c| (0..rows - 1).map(move |r| (c, r)))
+            .map(|(c, r)| {
+                let half = (at(&grid, c, r + 1) - at(&grid, c, r)) / 2.0;
+                (at(&grid, c, r) + half, half, other(&grid, c, r, false))
+            }),
+    );
+    if !skip_cols && !skip_rows {
+        return (grid, cols, rows);
+    }
+    let cols2 = if skip_cols { 2 * cols - 1 } else { cols };
+    let rows2 = if skip_rows { 2 * rows - 1 } else { rows };
+    // Bilinear in the found grid's cells: the filled-in corners lie halfway.
+    let mut out = Vec::with_capacity(cols2 * rows2);
+    for r2 in 0..rows2 {
+        for c2 in 0..cols2 {
+            let (fc, fr) = (
+                if skip_cols {
+                    c2 as f64 / 2.0
+                } else {
+                    c2 as f64
+                },
+                if skip_rows {
+                    r2 as f64 / 2.0
+                } else {
+                    r2 as f64
+                },
+            );
+            let (c0, r0) = ((fc as usize).min(cols - 1), (fr as usize).min(rows - 1));
+            let (c1, r1) = ((c0 + 1).min(cols - 1), (r0 + 1).min(rows - 1));
+            let (wc, wr) = (fc - c0 as f64, fr - r0 as f64);
+            let top = at(&grid, c0, r0) * (1.0 - wc) + at(&grid, c1, r0) * wc;
+            let bottom = at(&grid, c0, r1) * (1.0 - wc) + at(&grid, c1, r1) * wc;
+            out.push(top * (1.0 - wr) + bottom * wr);
+        }
+    }
+    (out, cols2, rows2)
+}
+
+/// Columns and rows the grid goes on past its sides: square by square, while most of a
+/// side's points that far out are chessboard corners.
+fn extend_grid(
+    gray: &Mat,
+    grid: &[nalgebra::Vector2<f64>],
+    cols: usize,
+    rows: usize,
+) -> (usize, usize) {
+    let at = |r: usize, c: usize| grid[r * cols + c];
+    let side = |line: &[(usize, usize)], inward: (isize, isize)| -> usize {
+        let mut extra = 0;
+        while extra < MAX_EXTRA_SQUARES {
+            let k = (extra + 1) as f64;
+            let points = line.iter().map(|&(r, c)| {
+                let (ri, ci) = (
+                    (r as isize + inward.0) as usize,
+                    (c as isize + inward.1) as usize,
+                );
+                let out = at(r, c) - at(ri, ci);
+                // The other grid direction, from a neighbour along the side.
+                let (ra, ca) = if inward.0 == 0 {
+                    (if r + 1 < rows { r + 1 } else { r - 1 }, c)
+                } else {
+                    (r, if c + 1 < cols { c + 1 } else { c - 1 })
+                };
+                let along = at(ra, ca) - at(r, c);
+                (at(r, c) + out * k, out, along)
+            });
+            if !mostly_saddles(gray, points) {
+                break;
+            }
+            extra += 1;
+        }
+        extra
     };
     let right: Vec<(usize, usize)> = (0..rows).map(|r| (r, cols - 1)).collect();
     let left: Vec<(usize, usize)> = (0..rows).map(|r| (r, 0)).collect();
     let bottom: Vec<(usize, usize)> = (0..cols).map(|c| (rows - 1, c)).collect();
     let top: Vec<(usize, usize)> = (0..cols).map(|c| (0, c)).collect();
-    let wider = side(&right, (0, -1)).max(side(&left, (0, 1))) >= 0.6;
-    let taller = side(&bottom, (-1, 0)).max(side(&top, (1, 0))) >= 0.6;
-    (wider || taller).then_some((
-        board.cols + u32::from(wider),
-        board.rows + u32::from(taller),
-    ))
+    (
+        side(&right, (0, -1)) + side(&left, (0, 1)),
+        side(&bottom, (-1, 0)) + side(&top, (1, 0)),
+    )
 }
 
 /// Whether the image at `p` looks like a chessboard corner whose squares are spanned by `u`
@@ -332,9 +447,16 @@ pub fn guess_board_size(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
     candidates
         .into_iter()
         .filter(|&(a, b)| a >= 3 && b >= 3 && (a, b) != (c, r))
-        .find(|&(a, b)| {
+        .find_map(|(a, b)| {
             let spec = BoardSpec::checkerboard(a as u32, b as u32, board.square_m);
-            matches!(find_corners(&gray, &spec), Ok(Some(_)))
+            let corners = find_corners(&gray, &spec).ok()??;
+            // A nearby size may itself be part of the board: name the whole of it.
+            let whole = larger_board_around(path, &spec, &corners).unwrap_or((a as u32, b as u32));
+            Some(if (whole.0 >= whole.1) == (c >= r) {
+                whole
+            } else {
+                (whole.1, whole.0)
+            })
         })
-        .map(|(a, b)| (a as u32, b as u32))
+        .filter(|&size| size != (board.cols, board.rows))
 }

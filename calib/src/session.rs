@@ -253,9 +253,7 @@ pub fn calibrate_session(
                 .map_or(String::new(), |s| format!("{}: {}", s.image, s.reason))
         )));
     }
-    if let Some(v) = views.first() {
-        check_board_size(v, board)?;
-    }
+    check_board_size(&views, board)?;
     let mut notes: Vec<String> = skipped
         .iter()
         .map(|s| format!("skipped {}: {}", s.image, s.reason))
@@ -311,9 +309,7 @@ pub fn calibrate_session(
         // A floor photo given twice would count its board twice in the joint floor fit and
         // halve the floor's σ with no new information.
         let fviews = distinct_views(fviews, &mut fskipped);
-        if let Some(v) = fviews.first() {
-            check_board_size(v, board)?;
-        }
+        check_board_size(&fviews, board)?;
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
             fskipped
@@ -406,21 +402,51 @@ fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<
     kept
 }
 
-/// Refuses a `--board` that counts fewer corners than the checkerboard in the view has (a
-/// ChArUco board's markers name every corner, so it cannot be taken for a part of itself).
-fn check_board_size(view: &BoardView, board: &BoardSpec) -> Result<(), CalibError> {
+/// Refuses a `--board` that counts fewer corners than the checkerboard in the views has (a
+/// ChArUco board's markers name every corner, so it cannot be taken for a part of itself):
+/// when the first view, or two views or more, show the grid going on past the corners found.
+fn check_board_size(views: &[BoardView], board: &BoardSpec) -> Result<(), CalibError> {
     if board.is_charuco() {
         return Ok(());
     }
-    match crate::detect::larger_board_around(Path::new(&view.image), board, &view.corners) {
-        Some((c, r)) => Err(CalibError::Input(format!(
-            "{} shows a {c}x{r} board, but --board {}x{} finds only part of it (the floor origin would move by a square); pass --board {c}x{r} (inner corners)",
-            view.image,
-            board.cols,
-            board.rows
-        ))),
-        None => Ok(()),
+    let larger: Vec<(&BoardView, (u32, u32))> = views
+        .par_iter()
+        .filter_map(|v| {
+            crate::detect::larger_board_around(Path::new(&v.image), board, &v.corners)
+                .map(|size| (v, size))
+        })
+        .collect();
+    let first_shows = views
+        .first()
+        .is_some_and(|f| larger.iter().any(|(v, _)| v.image == f.image));
+    if !(first_shows || larger.len() >= 2) {
+        return Ok(());
     }
+    // The size most views show (a view cut by the image's edge shows less of the board).
+    // In the order --board gave its sides (OpenCV finds a board either way round).
+    let oriented = |(c, r): (u32, u32)| {
+        if (c >= r) == (board.cols >= board.rows) {
+            (c, r)
+        } else {
+            (r, c)
+        }
+    };
+    let larger: Vec<(&BoardView, (u32, u32))> =
+        larger.into_iter().map(|(v, s)| (v, oriented(s))).collect();
+    let mut sizes: Vec<(u32, u32)> = larger.iter().map(|(_, s)| *s).collect();
+    sizes.sort_by_key(|&(c, r)| std::cmp::Reverse(c * r));
+    let (c, r) = sizes[0];
+    let example = larger
+        .iter()
+        .find(|(_, s)| *s == (c, r))
+        .map_or("", |(v, _)| v.image.as_str());
+    Err(CalibError::Input(format!(
+        "{example} shows a {c}x{r} board, but --board {}x{} finds only part of it ({} of {} views show more corners around or between the corners found; a part found at another place in each view moves the floor origin and fits no one camera); pass --board {c}x{r} (inner corners)",
+        board.cols,
+        board.rows,
+        larger.len(),
+        views.len()
+    )))
 }
 
 /// Detects the board in every image in parallel.
