@@ -180,6 +180,28 @@ fn bad_arena_inputs_give_one_line() {
         p(&d.join("arena.json")),
     ]);
     assert!(e.contains("a.json") && e.contains("odocal.camera/1"), "{e}");
+    // One calibration for two cameras fit the shared boards to 0.7 mm with the camera 8 cm
+    // off: refused, whether the file is given twice or copied.
+    let cam = d.join("cam");
+    common::ok(&["synth", "track", "--out", p(&cam), "--frames", "1"]);
+    let copy = d.join("copy.json");
+    std::fs::copy(cam.join("camera.json"), &copy).unwrap();
+    for second in [cam.join("camera.json"), copy] {
+        let e = fails(&[
+            "arena",
+            "--camera",
+            p(&cam.join("camera.json")),
+            p(&second),
+            "--shared",
+            p(d),
+            "--out",
+            p(&d.join("arena.json")),
+        ]);
+        assert!(
+            e.contains("cameras 0 (") && e.contains("have the same calibration"),
+            "{e}"
+        );
+    }
     let e = fails(&[
         "track",
         "--arena",

@@ -52,6 +52,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .map(|p| CameraFile::load(p))
         .collect::<Result<Vec<_>, _>>()?;
+    // One calibration given for two cameras still fits the shared boards to a millimetre,
+    // with that camera placed centimetres off: refused by path and by content.
+    for (j, b) in files.iter().enumerate() {
+        if let Some(i) = files[..j].iter().position(|a| a == b) {
+            anyhow::bail!(
+                "--camera: cameras {i} ({}) and {j} ({}) have the same calibration: give each camera its own camera.json, in the order of the _cK shared views",
+                args.camera[i].display(),
+                args.camera[j].display()
+            );
+        }
+    }
     let board = board_of(&args, &files[0])?;
     let sizes: Vec<(u32, u32)> = files
         .iter()
