@@ -71,6 +71,13 @@ pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
             scene.noise_sigma
         )));
     }
+    // A lens blurs over a pixel or a few; wider is a board out of focus that no detector finds.
+    if !(scene.blur_px >= 0.0 && scene.blur_px <= 20.0) {
+        return Err(CalibSetError::Settings(format!(
+            "--blur {}: the optical blur σ is 0 to 20 pixels",
+            scene.blur_px
+        )));
+    }
     let model = scene.distortion.model;
     let max = crate::board::max_hfov_deg(model);
     if !(scene.hfov_deg >= 10.0 && scene.hfov_deg <= max) {
