@@ -408,7 +408,21 @@ fn bad_inputs_fail_clearly_without_output() {
             "--out",
             p(&out),
         ]),
-        "--fps 100000: a camera's frame rate is above 0 and at most 10000 frames/s",
+        "--fps 100000: a camera's frame rate is 0.1 to 10000 frames/s",
+    );
+    // 1e-300 used to time frames 1e300 s apart.
+    fails_with(
+        &odocal(&[
+            "track",
+            p(&video),
+            "--camera",
+            p(&cam),
+            "--fps",
+            "1e-300",
+            "--out",
+            p(&out),
+        ]),
+        "a camera's frame rate is 0.1 to 10000 frames/s",
     );
     assert!(!out.exists(), "no partial output after fatal errors");
     let res = odocal(&[

@@ -42,8 +42,8 @@ impl FolderSource {
         };
         let times: Vec<f64> = match (csv, opts.fps) {
             (Some(csv), _) => read_timestamps(&csv, &files)?,
-            (None, Some(fps)) if fps > 0.0 && fps <= super::MAX_FPS => (0..files.len()).map(|k| k as f64 / fps).collect(),
-            (None, Some(fps)) => return Err(TrackError::Options(format!("--fps {fps}: a camera's frame rate is above 0 and at most {} frames/s", super::MAX_FPS))),
+            (None, Some(fps)) if (super::MIN_FPS..=super::MAX_FPS).contains(&fps) => (0..files.len()).map(|k| k as f64 / fps).collect(),
+            (None, Some(fps)) => return Err(TrackError::Options(format!("--fps {fps}: a camera's frame rate is {} to {} frames/s", super::MIN_FPS, super::MAX_FPS))),
             (None, None) => {
                 return Err(TrackError::bad_input(
                     dir,

@@ -129,6 +129,10 @@ pub trait FrameSource: Send {
 /// thousand).
 pub const MAX_FPS: f64 = 10_000.0;
 
+/// The slowest frame rate `--fps` may give, frames/s: a frame every ten seconds already
+/// loses a robot driving at walking pace.
+pub const MIN_FPS: f64 = 0.1;
+
 /// How frames get their timestamps when the source does not say.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SourceOptions {

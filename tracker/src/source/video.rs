@@ -92,10 +92,11 @@ impl VideoSource {
         let fourcc = fourcc_string(cap.0.get(videoio::CAP_PROP_FOURCC)? as i32);
         let own_fps = cap.0.get(videoio::CAP_PROP_FPS)?;
         let fps = match opts.fps {
-            Some(f) if f > 0.0 && f <= super::MAX_FPS => f,
+            Some(f) if (super::MIN_FPS..=super::MAX_FPS).contains(&f) => f,
             Some(f) => {
                 return Err(TrackError::Options(format!(
-                    "--fps {f}: a camera's frame rate is above 0 and at most {} frames/s",
+                    "--fps {f}: a camera's frame rate is {} to {} frames/s",
+                    super::MIN_FPS,
                     super::MAX_FPS
                 )))
             }
