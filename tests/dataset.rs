@@ -567,4 +567,22 @@ fn runs_that_are_not_straight_runs_are_named() {
             && said.contains("is it in mm/s or cm/s?"),
         "{said}"
     );
+    // Recordings shorter than a window used to vanish from a windows dataset unsaid, and a
+    // window longer than all of them read "all 0 rejected ()".
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--layout",
+        "windows",
+        "--window-s",
+        "1000",
+        "--out",
+        p(&out),
+    ]);
+    assert!(
+        e.contains("all 3 rejected")
+            && e.contains("fewer than one window of 5000 (--window-s 1000.0 s)"),
+        "{e}"
+    );
 }

@@ -91,6 +91,18 @@ pub fn window_samples(
         std::f64::consts::PI * geom.right_wheel_diameter_m,
     ];
     let n = revs.t_s.len();
+    // A recording shorter than one window gives none: said, not dropped in silence.
+    if n <= w.steps {
+        return Ok(vec![RunOutcome::Rejected(RejectedRun {
+            run_id: rec.id.to_string(),
+            reason: format!(
+                "its log has {} periods, fewer than one window of {} (--window-s {:.1} s): give a shorter --window-s",
+                n.saturating_sub(1),
+                w.steps,
+                w.steps as f64 * robot.period_s
+            ),
+        })]);
+    }
     let mut out = Vec::new();
     let mut k = 0;
     while k + w.steps < n {
