@@ -174,6 +174,27 @@ fn camera_files_without_physical_sense_name_the_field() {
     let e = fails(&["track", p(&video), "--camera", p(&zero), "--out", p(&out)]);
     assert!(e.contains("cam_rot.json"), "{e}");
     assert!(!out.exists());
+    // The board block fed `arena` a raw OpenCV error (cols 0) or a square of -0.07 m with exit
+    // 0; a pose putting the camera below the floor was blamed on --tag-size.
+    let mut edits: Vec<(&str, serde_json::Value, &str)> = Vec::new();
+    let mut c = cam.clone();
+    c["board"]["cols"] = serde_json::json!(0);
+    edits.push(("cols", c, "board is 0x6"));
+    let mut c = cam.clone();
+    c["board"]["square_m"] = serde_json::json!(-0.07);
+    edits.push(("square", c, "board.square_m = -0.07"));
+    let mut c = cam.clone();
+    c["floor"]["floor_to_camera"]["translation"][2] = serde_json::json!(-2.189);
+    edits.push(("below", c, "floor.floor_to_camera puts the camera"));
+    for (name, c, needle) in edits {
+        let path = dir.join(format!("cam_{name}.json"));
+        std::fs::write(&path, c.to_string()).expect("write");
+        refused(
+            dir,
+            &["track", p(&video), "--camera", p(&path), "--out", p(&out)],
+            &[&format!("cam_{name}.json"), needle],
+        );
+    }
 }
 
 #[test]

@@ -275,6 +275,37 @@ impl CameraFile {
                     f.camera_height_m
                 ));
             }
+            // The pose puts the camera where the height says: an edited pose would map every
+            // fix through a floor the camera is not above.
+            let z = iso.inverse().translation.vector.z;
+            if (z - f.camera_height_m).abs() > 0.01 {
+                return Err(format!(
+                    "floor.floor_to_camera puts the camera {z:.3} m above the floor, but floor.camera_height_m says {:.3} m",
+                    f.camera_height_m
+                ));
+            }
+        }
+        if let Some(b) = &self.board {
+            if !(2..=1000).contains(&b.cols) || !(2..=1000).contains(&b.rows) {
+                return Err(format!(
+                    "board is {}x{}: a board has 2 to 1000 inner corners each way",
+                    b.cols, b.rows
+                ));
+            }
+            if !(b.square_m.is_finite() && b.square_m > 0.0 && b.square_m <= 1.0) {
+                return Err(format!(
+                    "board.square_m = {} must be a square's side in metres (above 0, at most 1)",
+                    b.square_m
+                ));
+            }
+            if let BoardTarget::Charuco { marker_m, .. } = b.target {
+                if !(marker_m.is_finite() && marker_m > 0.0 && marker_m < b.square_m) {
+                    return Err(format!(
+                        "board marker_m = {marker_m} must be above 0 and smaller than square_m = {}",
+                        b.square_m
+                    ));
+                }
+            }
         }
         Ok(())
     }
