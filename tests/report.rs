@@ -426,6 +426,31 @@ fn missing_inputs_are_left_out_with_a_note() {
     }
     let text = std::fs::read_to_string(&html).expect("html");
     assert!(text.contains("Sections left out"));
+    // A file where a folder is read used to leave its section out as if nothing was given.
+    for opt in ["--experiment", "--trajectories"] {
+        let e = fails(&[
+            "report",
+            "--lrf-poses",
+            p(&poses),
+            opt,
+            p(&poses),
+            "--out",
+            p(&d.join("f.html")),
+        ]);
+        assert!(
+            e.contains(opt) && e.contains("is a file, not a folder"),
+            "{e}"
+        );
+    }
+    let e = fails(&[
+        "report",
+        "--calib-truth",
+        p(&poses),
+        "--out",
+        p(&d.join("f.html")),
+    ]);
+    assert!(e.contains("give --camera camera.json too"), "{e}");
+    assert!(!d.join("f.html").exists());
 }
 
 #[test]

@@ -87,6 +87,18 @@ fn input(
     Ok(demo.as_ref().map(|d| d.join(rel)).filter(|p| p.exists()))
 }
 
+/// `path` when it is a folder: a file given where a folder is read would leave its section
+/// out as if nothing had been given.
+fn folder(path: Option<PathBuf>, option: &str) -> anyhow::Result<Option<PathBuf>> {
+    match path {
+        Some(p) if !p.is_dir() => bail!(
+            "{option} {}: is a file, not a folder (the folder of `odocal synth experiment` or of the trajectories)",
+            p.display()
+        ),
+        p => Ok(p),
+    }
+}
+
 /// Runs the subcommand.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let demo = &a.demo_dir;
@@ -100,8 +112,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let dataset = input(&a.dataset, demo, "dataset.json")?;
     let model = input(&a.model, demo, "model.json")?;
     let train_report = input(&a.train_report, demo, "train/report.json")?;
-    let experiment = input(&a.experiment, demo, "experiment")?;
-    let trajectories = input(&a.trajectories, demo, "trajectories")?;
+    let experiment = folder(input(&a.experiment, demo, "experiment")?, "--experiment")?;
+    let trajectories = folder(
+        input(&a.trajectories, demo, "trajectories")?,
+        "--trajectories",
+    )?;
+    if let (Some(t), None) = (&a.calib_truth, &camera) {
+        bail!(
+            "--calib-truth {}: the coverage plot draws its corners over a calibration: give --camera camera.json too",
+            t.display()
+        );
+    }
     let lrf_poses = input(&a.lrf_poses, demo, "lrf/poses.csv")?;
     let lrf_truth = input(&a.lrf_truth, demo, "lrf/truth.csv")?;
     let lrf_map = input(&a.lrf_map, demo, "lrf/map.json")?;
