@@ -153,6 +153,21 @@ fn bad_arena_inputs_give_one_line() {
         p(&d.join("t.csv")),
     ]);
     assert!(e.contains("given twice"), "{e}");
+    // --tag-id beside --tags used to be ignored.
+    let res = odocal(&[
+        "track",
+        "v.mp4",
+        "--camera",
+        "c.json",
+        "--tags",
+        "0",
+        "--tag-id",
+        "3",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert_eq!(res.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&res.stderr).contains("cannot be used with"));
     let e = fails(&[
         "track",
         "v.mp4",

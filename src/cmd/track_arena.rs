@@ -23,7 +23,8 @@ use crate::output::{check_output_file, progress, write_atomic, write_json};
 pub struct MultiArgs {
     /// Several robots: tag ids separated by commas (0,3,7), or all. One trajectory file per
     /// id: --out traj.csv writes traj_tag0.csv, traj_tag3.csv, … (a single id writes --out).
-    #[arg(long)]
+    /// Replaces --tag-id, which may not be given with it.
+    #[arg(long, conflicts_with = "tag_id")]
     pub tags: Option<String>,
     /// arena.json from `odocal arena`: VIDEO and the videos after it are the arena's cameras
     /// in its order; one fused trajectory per robot (arena floor frame, first camera's
