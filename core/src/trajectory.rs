@@ -177,6 +177,17 @@ impl Trajectory {
                     "value is not a finite number",
                 ));
             }
+            if !(0.0..=1.0).contains(&r.quality) {
+                return Err(FileError::parse(
+                    name,
+                    line_of(i),
+                    5,
+                    format!(
+                        "quality {} is outside 0 to 1 (1 for a sure pose; write 1 when the source gives none)",
+                        r.quality
+                    ),
+                ));
+            }
             if i > 0 {
                 let a = self.rows[i - 1].t_s;
                 if r.t_s == a {
@@ -362,6 +373,12 @@ mod tests {
         assert!(e
             .to_string()
             .starts_with("tr.csv:3:1: duplicated timestamp"));
+        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,5\n", "tr.csv").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("tr.csv:2:5: quality 5 is outside 0 to 1"),
+            "{e}"
+        );
         let e = Trajectory::parse_csv("t,x,y\n", "tr.csv").unwrap_err();
         assert!(e.to_string().contains("expected \"t,x,y,theta,quality\""));
         assert!(!e.to_string().contains("lrf localize"));
