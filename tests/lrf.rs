@@ -295,6 +295,18 @@ fn odocal(args: &[&str]) -> std::process::Output {
         .expect("run odocal")
 }
 
+/// The header and the rows (their fields) of `synth lrf`'s scans.csv in `dir`.
+fn scan_rows(dir: &Path) -> (String, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(dir.join("scans.csv")).expect("scans");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header").to_string();
+    assert_eq!(header, "scan,t,angle,range,intensity");
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
 /// `odocal synth lrf` into `dir` with `seed` and `scans` scans.
 fn synth_lrf(dir: &Path, seed: u64, scans: usize) {
     let out = odocal(&[
@@ -695,13 +707,7 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     synth_lrf(d, 4, 40);
-    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
-    let mut lines = text.lines();
-    let header = lines.next().expect("header");
-    assert_eq!(header, "scan,t,angle,range,intensity");
-    let rows: Vec<Vec<String>> = lines
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect();
+    let (header, rows) = scan_rows(d);
     let write = |name: &str, f: &dyn Fn(&[String]) -> Vec<String>, reverse: bool| {
         let mut out = vec![header.to_string()];
         let mut start = 0;
@@ -928,13 +934,7 @@ fn cli_beams_without_a_return_keep_the_fix() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     synth_lrf(d, 2, 30);
-    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
-    let mut lines = text.lines();
-    let header = lines.next().expect("header");
-    assert_eq!(header, "scan,t,angle,range,intensity");
-    let rows: Vec<Vec<String>> = lines
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect();
+    let (header, rows) = scan_rows(d);
     let num = |v: &str| v.parse::<f64>().expect("number");
     let write = |name: &str, no_return: &dyn Fn(usize, &[String]) -> Option<&'static str>| {
         let mut out = vec![header.to_string()];

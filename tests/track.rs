@@ -30,6 +30,22 @@ fn synth_track_with(dir: &std::path::Path, frames: usize, seed: u64, extra: &[&s
     succeeded(&odocal(&args));
 }
 
+/// The number written right after `key` in `text` (a sign, digits and a point).
+fn number_after(text: &str, key: &str) -> f64 {
+    let at = text
+        .find(key)
+        .unwrap_or_else(|| panic!("{key:?} in {text}"))
+        + key.len();
+    let rest = &text[at..];
+    let len = rest
+        .char_indices()
+        .find(|&(i, c)| !(c.is_ascii_digit() || c == '.' || (i == 0 && c == '-')))
+        .map_or(rest.len(), |(i, _)| i);
+    rest[..len]
+        .parse()
+        .unwrap_or_else(|_| panic!("a number after {key:?} in {text}"))
+}
+
 /// Position and heading RMS of `est` against `truth` at the same timestamps.
 fn errors(est: &Trajectory, truth: &Trajectory) -> (f64, f64, usize) {
     let (mut sp, mut sh, mut n) = (0.0, 0.0, 0);
@@ -627,17 +643,6 @@ fn a_wrong_marker_height_is_flagged_by_the_tags_apparent_size() {
             String::from_utf8_lossy(&res.stdout).into_owned(),
         )
     };
-    let number_after = |text: &str, key: &str| -> f64 {
-        let at = text
-            .find(key)
-            .unwrap_or_else(|| panic!("{key:?} in {text}"))
-            + key.len();
-        text[at..]
-            .split(|c: char| !(c.is_ascii_digit() || c == '.'))
-            .next()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| panic!("a number after {key:?} in {text}"))
-    };
     let (err, _) = track("0.08");
     assert!(!err.contains("apparent size"), "{err}");
     let (err, out) = track("0.0");
@@ -675,13 +680,6 @@ fn a_tag_off_the_axle_is_named_and_taken_off() {
         let res = odocal(&args);
         succeeded(&res);
         String::from_utf8_lossy(&res.stderr).into_owned()
-    };
-    let number_after = |text: &str, key: &str| -> f64 {
-        text.split(key)
-            .nth(1)
-            .and_then(|v| v.split([' ', ',']).next())
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| panic!("no {key:?} in: {text}"))
     };
     let err = run(&[]);
     let yaw = number_after(&err, "give --tag-yaw ");
