@@ -101,6 +101,35 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     );
     assert!(net <= 1.3 * orc, "perceptron {net} vs oracle {orc}");
     assert!(net < 0.1 * raw, "perceptron {net} vs raw {raw}");
+    // A side the squares' wheel travel contradicts used to scale E_d and E_b unsaid (2 m
+    // for these 4 m squares gave E_d 1.020); calibrating on the squares judged is warned.
+    let e = fails(&[
+        "evaluate",
+        &d("squares/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+        "--umbmark-m",
+        "2",
+        "--umbmark-calibration",
+        &d("squares-cal/manifest.json"),
+    ]);
+    assert!(
+        e.contains("--umbmark-m 2: the squares of")
+            && e.contains(" m a side by their wheel travel"),
+        "{e}"
+    );
+    let same = common::odocal(&[
+        "evaluate",
+        &d("squares/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+        "--umbmark-m",
+        "4",
+        "--umbmark-calibration",
+        &d("squares/manifest.json"),
+    ]);
+    assert!(same.status.success());
+    assert!(String::from_utf8_lossy(&same.stderr).contains("is the manifest being evaluated"));
 
     ok(&[
         "evaluate",

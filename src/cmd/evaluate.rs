@@ -51,6 +51,32 @@ fn read_recordings(manifest: &std::path::Path) -> anyhow::Result<Vec<PathRecordi
     Ok(recs)
 }
 
+/// Refuses an `--umbmark-m` the squares' own wheel travel contradicts: a square of side L is
+/// about 4 L of travel (the turns on the spot add a few centimetres), and UMBMark's E_d and
+/// E_b scale with the side given.
+fn check_square_side(
+    runs: &[odocal_trainer::evaluate::RunResult],
+    side_m: f64,
+    manifest: &std::path::Path,
+) -> anyhow::Result<()> {
+    let mut travel: Vec<f64> = runs.iter().map(|r| r.path_length_m).collect();
+    if travel.is_empty() {
+        return Ok(());
+    }
+    travel.sort_by(f64::total_cmp);
+    let measured = travel[travel.len() / 2] / 4.0;
+    if !(0.8..=1.25).contains(&(side_m / measured)) {
+        bail!(
+            "--umbmark-m {side_m}: the squares of {} are {:.2} m a side by their wheel travel (median {:.2} m over {} recordings, a quarter of it); give the side the squares were driven at",
+            manifest.display(),
+            measured,
+            4.0 * measured,
+            runs.len()
+        );
+    }
+    Ok(())
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
@@ -90,6 +116,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             true,
         )
         .with_context(|| format!("{}", cal.display()))?;
+        check_square_side(&ev.runs, side, cal)?;
+        if std::fs::canonicalize(cal).ok() == std::fs::canonicalize(&args.manifest).ok() {
+            eprintln!(
+                "warning: --umbmark-calibration {} is the manifest being evaluated: UMBMark's correction is then judged on the squares it was fitted to; calibrate on other squares",
+                cal.display()
+            );
+        }
         let errors: Vec<SquareError> = ev
             .runs
             .iter()
@@ -124,6 +157,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let recs = read_recordings(&args.manifest)?;
     let ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
         .with_context(|| format!("{}", args.manifest.display()))?;
+    if let Some(side) = args.umbmark_m {
+        check_square_side(&ev.runs, side, &args.manifest)?;
+    }
     let path_m: f64 = ev.runs.iter().map(|r| r.path_length_m).sum();
     println!(
         "{} held-out recordings, {path_m:.1} m of wheel travel; end-point error per metre driven (mean over recordings){}:",
