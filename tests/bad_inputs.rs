@@ -104,6 +104,31 @@ fn correct_refuses_logs_outside_the_training_domain() {
         ],
         &["ms.csv: rows are 200.000 s apart", "in milliseconds?"],
     );
+    // A robot clock 100 s on: the refusal names input 16 as the run's start on that clock.
+    let late: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match l.split_once(',') {
+            Some((t, rest)) if i > 0 => {
+                format!("{},{rest}\n", t.parse::<f64>().expect("time") + 100.0)
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let late_log = dir.join("late.csv");
+    std::fs::write(&late_log, late).expect("write");
+    refused(
+        dir,
+        &[
+            "correct",
+            "--model",
+            p(&model),
+            p(&late_log),
+            "--out",
+            p(&out),
+        ],
+        &["input 16 = ", "t_b, the run's start on the robot's clock"],
+    );
     let back = dir.join("back.csv");
     std::fs::write(&back, scaled(-1)).expect("write");
     refused(

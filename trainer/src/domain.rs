@@ -72,7 +72,23 @@ impl TrainingDomain {
             };
             let m = INPUT_MARGIN * (b - a).abs().max(1e-3);
             if !(v >= a - m && v <= b + m) {
-                why.push(format!("input {i} = {v:.4} (trained on {a:.4}-{b:.4})"));
+                // The 18 inputs of the feature rule: x_k, y_k of the dead-reckoned run at eight
+                // times, then t_b and t_e on the robot's clock.
+                let what = match i {
+                    16 => " (t_b, the run's start on the robot's clock, s: does this log's clock start where the training logs' did?)".to_string(),
+                    17 => " (t_e, the run's end on the robot's clock, s)".to_string(),
+                    _ if i < 16 => format!(
+                        " ({}_{}, the dead-reckoned {} at {}/9 of the run, m)",
+                        if i % 2 == 0 { "x" } else { "y" },
+                        i / 2 + 1,
+                        if i % 2 == 0 { "forward position" } else { "sideways position" },
+                        i / 2 + 1
+                    ),
+                    _ => String::new(),
+                };
+                why.push(format!(
+                    "input {i} = {v:.4}{what} (trained on {a:.4}-{b:.4})"
+                ));
                 break;
             }
         }
