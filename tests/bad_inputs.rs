@@ -845,6 +845,26 @@ fn a_board_size_one_corner_short_is_named() {
         .collect();
     args.extend(all.iter().map(|v| p(v)));
     refused(dir, &args, &["6x5", "9x6 board", "pass --board 9x6"]);
+    // A size OpenCV's classic detector spends 17 s per 1280x720 view failing to find is
+    // named from the first view alone, before any view is searched.
+    let mut args = vec![
+        "calibrate",
+        "--board",
+        "7x7",
+        "--square",
+        "0.05",
+        "--out",
+        p(&out),
+    ];
+    args.extend(all.iter().map(|v| p(v)));
+    refused(
+        dir,
+        &args,
+        &[
+            "view_00.png shows a 9x6 board, not the 7x7 of --board",
+            "pass --board 9x6",
+        ],
+    );
 }
 
 /// `synth calib --blur` is checked like `--noise`: a negative or NaN blur rendered sharp
