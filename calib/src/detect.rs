@@ -239,7 +239,11 @@ pub fn larger_board_around(
     board: &BoardSpec,
     corners: &[Point2<f64>],
 ) -> Option<(u32, u32)> {
-    let gray = read_gray(path).ok()?;
+    board_around(&read_gray(path).ok()?, board, corners)
+}
+
+/// [`larger_board_around`] in an image already read.
+fn board_around(gray: &Mat, board: &BoardSpec, corners: &[Point2<f64>]) -> Option<(u32, u32)> {
     let (cols, rows) = (board.cols as usize, board.rows as usize);
     if cols < 2 || rows < 2 || corners.len() != cols * rows {
         return None;
@@ -247,8 +251,8 @@ pub fn larger_board_around(
     let grid: Vec<nalgebra::Vector2<f64>> = corners.iter().map(|p| p.coords).collect();
     // OpenCV can also take every other corner of a larger board for a smaller one: then the
     // points halfway between neighbours are corners too, and the grid is filled in first.
-    let (grid, cols2, rows2) = fill_skipped_corners(&gray, grid, cols, rows);
-    let (wider, taller) = extend_grid(&gray, &grid, cols2, rows2);
+    let (grid, cols2, rows2) = fill_skipped_corners(gray, grid, cols, rows);
+    let (wider, taller) = extend_grid(gray, &grid, cols2, rows2);
     let (c, r) = ((cols2 + wider) as u32, (rows2 + taller) as u32);
     ((c, r) != (board.cols, board.rows)).then_some((c, r))
 }
@@ -549,17 +553,31 @@ fn regular_part(
 /// detector and the squares around what it finds. A `--board` typo otherwise costs the
 /// classic detector tens of seconds per view before the error says anything.
 pub fn quick_board_size_check(path: &Path, board: &BoardSpec) -> Option<BoardSizeSeen> {
-    let size = board_size_seen(path, board)?;
+    if board.is_charuco() {
+        return None;
+    }
+    let gray = read_gray(path).ok()?;
+    let size = board_size_seen(&gray, board)?;
     // Followed square by square, a grid may stop short of a worn or shadowed edge: the size
     // is only named as the board's when the detector finds a board of that size.
-    let gray = read_gray(path).ok()?;
     let confirmed = find_corners_quick(&gray, size.0, size.1).is_some_and(|corners| {
         let (c, r) = (size.0 as usize, size.1 as usize);
         let (_, c2, r2) = regular_part(&corners, c, r);
         let spec = BoardSpec::checkerboard(size.0, size.1, board.square_m);
-        (c2, r2) == (c, r) && larger_board_around(path, &spec, &corners).is_none()
+        (c2, r2) == (c, r) && board_around(&gray, &spec, &corners).is_none()
     });
     Some(BoardSizeSeen { size, confirmed })
+}
+
+/// `size` with its sides in the order `board` gives its own (OpenCV finds a board either way
+/// round).
+pub(crate) fn oriented_like(size: (u32, u32), board: &BoardSpec) -> (u32, u32) {
+    let (a, b) = size;
+    if (a >= b) == (board.cols >= board.rows) {
+        (a, b)
+    } else {
+        (b, a)
+    }
 }
 
 /// A board size read off an image by [`quick_board_size_check`].
@@ -571,22 +589,13 @@ pub struct BoardSizeSeen {
     pub confirmed: bool,
 }
 
-fn board_size_seen(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
-    if board.is_charuco() {
-        return None;
-    }
-    let gray = read_gray(path).ok()?;
-    let oriented = |(a, b): (u32, u32)| {
-        if (a >= b) == (board.cols >= board.rows) {
-            (a, b)
-        } else {
-            (b, a)
-        }
-    };
-    if let Some(corners) = find_corners_quick(&gray, board.cols, board.rows) {
+/// The size of the board `gray` shows when it is not `board`'s, oriented like `board`.
+fn board_size_seen(gray: &Mat, board: &BoardSpec) -> Option<(u32, u32)> {
+    let oriented = |size| oriented_like(size, board);
+    if let Some(corners) = find_corners_quick(gray, board.cols, board.rows) {
         let (part, c, r) = regular_part(&corners, board.cols as usize, board.rows as usize);
         let spec = BoardSpec::checkerboard(c as u32, r as u32, board.square_m);
-        return larger_board_around(path, &spec, &part)
+        return board_around(gray, &spec, &part)
             .map(oriented)
             .filter(|&size| size != (board.cols, board.rows));
     }
@@ -605,11 +614,11 @@ fn board_size_seen(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
     .filter(|&(a, b)| a >= 3 && b >= 3)
     .find_map(|(a, b)| {
         let (a, b) = (a as u32, b as u32);
-        let corners = find_corners_quick(&gray, a, b)?;
+        let corners = find_corners_quick(gray, a, b)?;
         let (part, c, r) = regular_part(&corners, a as usize, b as usize);
         let spec = BoardSpec::checkerboard(c as u32, r as u32, board.square_m);
         Some(oriented(
-            larger_board_around(path, &spec, &part).unwrap_or((c as u32, r as u32)),
+            board_around(gray, &spec, &part).unwrap_or((c as u32, r as u32)),
         ))
     })
     .filter(|&size| size != (board.cols, board.rows) && size != (board.rows, board.cols))
@@ -636,12 +645,8 @@ pub fn guess_board_size(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
             let spec = BoardSpec::checkerboard(a as u32, b as u32, board.square_m);
             let corners = find_corners(&gray, &spec).ok()??;
             // A nearby size may itself be part of the board: name the whole of it.
-            let whole = larger_board_around(path, &spec, &corners).unwrap_or((a as u32, b as u32));
-            Some(if (whole.0 >= whole.1) == (c >= r) {
-                whole
-            } else {
-                (whole.1, whole.0)
-            })
+            let whole = board_around(&gray, &spec, &corners).unwrap_or((a as u32, b as u32));
+            Some(oriented_like(whole, board))
         })
         .filter(|&size| size != (board.cols, board.rows))
 }

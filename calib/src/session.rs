@@ -447,16 +447,10 @@ fn check_board_size(views: &[BoardView], board: &BoardSpec) -> Result<(), CalibE
         return Ok(());
     }
     // The size most views show (a view cut by the image's edge shows less of the board).
-    // In the order --board gave its sides (OpenCV finds a board either way round).
-    let oriented = |(c, r): (u32, u32)| {
-        if (c >= r) == (board.cols >= board.rows) {
-            (c, r)
-        } else {
-            (r, c)
-        }
-    };
-    let larger: Vec<(&BoardView, (u32, u32))> =
-        larger.into_iter().map(|(v, s)| (v, oriented(s))).collect();
+    let larger: Vec<(&BoardView, (u32, u32))> = larger
+        .into_iter()
+        .map(|(v, s)| (v, crate::detect::oriented_like(s, board)))
+        .collect();
     let mut sizes: Vec<(u32, u32)> = larger.iter().map(|(_, s)| *s).collect();
     sizes.sort_by_key(|&(c, r)| std::cmp::Reverse(c * r));
     let (c, r) = sizes[0];
