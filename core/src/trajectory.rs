@@ -28,6 +28,23 @@ pub const TRAJECTORY_SIGMA_HEADER: [&str; 8] = [
     "sigma_theta",
 ];
 
+/// Rows of a reference this close in time (seconds) to an estimate are taken as its own time.
+pub const SAME_TIME_S: f64 = 1e-4;
+
+/// The widest gap between reference rows (seconds) interpolated across: over 25 ms a robot
+/// accelerating at 1 m/s² strays 0.08 mm from the straight line between the rows, a third of
+/// the tracker's own error. A truth sampled at 40 Hz or more (motion capture) qualifies.
+pub const REFERENCE_MAX_GAP_S: f64 = 0.025;
+
+/// A reference pose at an estimate's time (see [`Trajectory::reference_at`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reference {
+    /// The reference's pose at that time (the floor pose of the body it follows).
+    pub pose: Pose2,
+    /// The reference row at that very time; None when interpolated between two rows.
+    pub row: Option<usize>,
+}
+
 /// Standard deviations of a floor pose along the floor axes and of its heading.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseSigma {
@@ -319,6 +336,34 @@ impl Trajectory {
         let b = self.rows.partition_point(|r| r.t_s <= t1);
         &self.rows[a..b.max(a)]
     }
+
+    /// The median interval between rows, seconds: the source's period, which a missed frame
+    /// does not move. None for fewer than two rows.
+    pub fn median_spacing_s(&self) -> Option<f64> {
+        let mut dt: Vec<f64> = self.rows.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
+        dt.sort_by(f64::total_cmp);
+        dt.get(dt.len() / 2).copied()
+    }
+
+    /// This trajectory as a reference to judge an estimate by at time `t`: the row at that
+    /// time (within [`SAME_TIME_S`]), else the pose interpolated between neighbouring rows at
+    /// most [`REFERENCE_MAX_GAP_S`] apart, so that a motion-capture truth on its own clock
+    /// judges fixes taken between its samples. None outside it or across a longer gap.
+    pub fn reference_at(&self, t: f64) -> Option<Reference> {
+        let i = self.rows.partition_point(|r| r.t_s < t - SAME_TIME_S);
+        if let Some(r) = self
+            .rows
+            .get(i)
+            .filter(|r| (r.t_s - t).abs() <= SAME_TIME_S)
+        {
+            return Some(Reference {
+                pose: r.pose,
+                row: Some(i),
+            });
+        }
+        self.pose_at(t, REFERENCE_MAX_GAP_S)
+            .map(|pose| Reference { pose, row: None })
+    }
 }
 
 /// Mean of poses: arithmetic mean of positions, circular mean of headings.
@@ -361,6 +406,35 @@ mod tests {
         assert!(!t.covers(0.0, 4.0 / 30.0, 0.01));
         assert_eq!(t.rows_between(0.02, 0.07).len(), 2);
         assert!(t.to_tum().lines().count() == 6);
+    }
+
+    #[test]
+    fn references_are_rows_or_interpolated_within_the_gap() {
+        let row = |t_s: f64, x: f64, theta: f64| TrajectoryRow {
+            t_s,
+            pose: Pose2::new(x, 0.0, theta),
+            quality: 1.0,
+            sigma: None,
+        };
+        // 100 Hz, then a 50 ms gap.
+        let t = Trajectory::new(vec![
+            row(0.0, 0.0, 3.1),
+            row(0.01, 0.01, -3.1),
+            row(0.02, 0.02, -3.0),
+            row(0.07, 0.07, -3.0),
+        ])
+        .unwrap();
+        assert_eq!(t.median_spacing_s(), Some(0.01));
+        let at = t.reference_at(0.01 + 0.5 * SAME_TIME_S).unwrap();
+        assert_eq!((at.row, at.pose.x_m), (Some(1), 0.01));
+        let between = t.reference_at(0.005).unwrap();
+        assert_eq!(between.row, None);
+        assert!((between.pose.x_m - 0.005).abs() < 1e-12);
+        // Across ±π the heading goes the short way.
+        assert!((wrap_angle(between.pose.theta_rad) - std::f64::consts::PI).abs() < 0.06);
+        assert!(t.reference_at(0.03).is_none(), "interpolated across 50 ms");
+        assert!(t.reference_at(-0.001).is_none() && t.reference_at(0.08).is_none());
+        assert!(Trajectory::default().median_spacing_s().is_none());
     }
 
     #[test]

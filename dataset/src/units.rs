@@ -75,16 +75,7 @@ const MAX_ROW_INTERVAL_S: f64 = 2.0;
 /// [`MAX_ROW_INTERVAL_S`] apart (milliseconds give 33 for a 30 frames/s camera), with the
 /// likely unit from how its span compares with the log's.
 pub fn time_unit_mismatch(log: &OdometryLog, camera: &Trajectory) -> Option<String> {
-    let mut dt: Vec<f64> = camera
-        .rows
-        .windows(2)
-        .map(|w| w[1].t_s - w[0].t_s)
-        .collect();
-    if dt.is_empty() {
-        return None;
-    }
-    dt.sort_by(f64::total_cmp);
-    let median = dt[dt.len() / 2];
+    let median = camera.median_spacing_s()?;
     if median <= MAX_ROW_INTERVAL_S {
         return None;
     }
