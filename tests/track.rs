@@ -840,7 +840,81 @@ fn a_truth_that_cannot_judge_the_run_is_named() {
     let err = run(&write("degrees.csv", &degrees));
     assert!(err.contains("is its theta in degrees"), "{err}");
     let err = run(&write("few.csv", &rows[..3]));
-    assert!(err.contains("only 3 of the 30 fixes have a row"), "{err}");
+    assert!(
+        err.contains("only 3 of the 30 fixes have a truth in"),
+        "{err}"
+    );
     let err = run(&d.join("truth.csv"));
     assert!(!err.contains("warning"), "{err}");
+}
+
+/// A motion-capture truth runs on its own clock: its samples fall between the camera's
+/// frames, and no row has a fix's time. Each fix is judged by the truth interpolated between
+/// the two samples around it (at 100 Hz: all 58 fixes inside the recording, as closely as by
+/// the truth at the frames' own times); a truth too sparse to interpolate (20 Hz) is refused
+/// by its spacing rather than as a truth "of another video".
+#[test]
+fn a_motion_capture_truth_judges_the_fixes_between_its_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 60, 2, &["--mocap-hz", "100"]);
+    let track = |truth: &str| {
+        odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--out",
+            p(&d.join("out.csv")),
+            "--truth",
+            p(&d.join(truth)),
+        ])
+    };
+    let judged = |res: &std::process::Output| {
+        succeeded(res);
+        let out = String::from_utf8_lossy(&res.stdout).into_owned();
+        println!("{out}");
+        assert!(!String::from_utf8_lossy(&res.stderr).contains("warning"));
+        (
+            number_after(&out, "position RMS "),
+            number_after(&out, "over the "),
+            out,
+        )
+    };
+    let (mocap_rms_mm, mocap_n, out) = judged(&track("mocap.csv"));
+    let (frames_rms_mm, frames_n, _) = judged(&track("truth.csv"));
+    // The first frame (t = 0) comes before the first sample (2.5 ms); the last after the last.
+    assert!(mocap_n >= 58.0 && frames_n == 60.0, "{mocap_n} {frames_n}");
+    assert!(
+        out.contains(&format!(
+            "({mocap_n} of them between two truth rows ≤ 25 ms apart)"
+        )),
+        "{out}"
+    );
+    assert!(
+        (mocap_rms_mm - frames_rms_mm).abs() <= 0.01 && mocap_rms_mm < 0.2,
+        "{mocap_rms_mm} mm against mocap.csv, {frames_rms_mm} mm against truth.csv"
+    );
+
+    // 20 Hz: 50 ms between samples.
+    let sparse = d.join("sparse");
+    synth_track_with(&sparse, 30, 2, &["--mocap-hz", "20"]);
+    std::fs::copy(sparse.join("mocap.csv"), d.join("mocap20.csv")).unwrap();
+    let res = track("mocap20.csv");
+    let err = fails_with(&res, "its rows are 50 ms apart (median), too far apart");
+    assert!(
+        err.contains("give a truth sampled at 40 Hz or more"),
+        "{err}"
+    );
+    // And the rate is checked where it is given.
+    let res = odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(&d.join("zero")),
+        "--mocap-hz",
+        "0",
+    ]);
+    fails_with(&res, "--mocap-hz 0: a motion-capture rate is 1 to 10000 Hz");
+    assert!(!d.join("zero").exists());
 }

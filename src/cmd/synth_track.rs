@@ -54,6 +54,11 @@ pub struct Args {
     /// Angle from the robot's front to the tag's x axis, degrees counter-clockwise.
     #[arg(long, default_value_t = 0.0, value_name = "DEG")]
     pub tag_yaw: f64,
+    /// Also write mocap.csv: the robot's true pose as a motion-capture system at this rate
+    /// (Hz) records it, its samples falling between the camera's frames. `track --truth
+    /// mocap.csv` judges each fix by the truth interpolated at its time.
+    #[arg(long)]
+    pub mocap_hz: Option<f64>,
     /// A realistic camera.
     #[command(flatten)]
     pub camera: CameraArgs,
@@ -222,6 +227,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.tag_yaw.to_radians(),
         ),
         effects,
+        mocap_hz: args.mocap_hz,
     };
     scene.check()?;
     let dir = staged_dir(&args.out, "--out")?;
@@ -230,12 +236,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let written = written?;
     println!(
-        "wrote {} frames ({}x{}, {} fps) to {}, the true camera.json, truth.csv and frames.csv",
+        "wrote {} frames ({}x{}, {} fps) to {}, the true camera.json, truth.csv and frames.csv{}",
         written.frames,
         written.size_px.0,
         written.size_px.1,
         args.fps,
-        args.out.join(&written.video).display()
+        args.out.join(&written.video).display(),
+        args.mocap_hz
+            .map(|hz| format!(", and mocap.csv (the truth at {hz} Hz)"))
+            .unwrap_or_default()
     );
     Ok(())
 }

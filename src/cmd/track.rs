@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use odocal_calib::CameraFile;
-use odocal_core::TextFormat;
+use odocal_core::{TextFormat, REFERENCE_MAX_GAP_S};
 use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
@@ -107,6 +107,21 @@ fn against_truth(
 ) -> anyhow::Result<AgainstTruth> {
     let e = errors_against(trajectory, truth);
     if e.matched == 0 {
+        // A truth too sparse to interpolate is named by its spacing; otherwise its times are
+        // another clock's or another recording's.
+        let overlaps =
+            truth.start_s() <= trajectory.end_s() && truth.end_s() >= trajectory.start_s();
+        if let Some(gap) = truth
+            .median_spacing_s()
+            .filter(|s| overlaps && *s > REFERENCE_MAX_GAP_S)
+        {
+            anyhow::bail!(
+                "{}: no row has the time of a tracked frame, and its rows are {:.0} ms apart (median), too far apart to interpolate between (at most {:.0} ms): give a truth sampled at 40 Hz or more, or at the frames' times",
+                path.display(),
+                gap * 1e3,
+                REFERENCE_MAX_GAP_S * 1e3
+            );
+        }
         // Under a rolling shutter each fix is timed at its tag's row: only a truth timed
         // with the same readout has rows at those times.
         let r = args.tag.rolling_shutter_s;
@@ -117,8 +132,19 @@ fn against_truth(
         } else {
             String::new()
         };
+        let span = if overlaps {
+            String::new()
+        } else {
+            format!(
+                " (it spans {:.3} to {:.3} s, the fixes {:.3} to {:.3} s)",
+                truth.start_s(),
+                truth.end_s(),
+                trajectory.start_s(),
+                trajectory.end_s()
+            )
+        };
         anyhow::bail!(
-            "{}: no row has the timestamp of a tracked frame: give the truth of this video (synth track's truth.csv or frames.csv){readout}",
+            "{}: no row has the timestamp of a tracked frame, nor are two rows around one{span}: give the truth of this video (synth track's truth.csv or frames.csv, on the video's clock){readout}",
             path.display()
         );
     }
@@ -148,12 +174,21 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
     let e = &a.errors;
     let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
     println!(
-        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth row at their time; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
+        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth at their time{}; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
         a.truth,
         e.position_rms_m * 1e3,
         e.position_max_m * 1e3,
         e.heading_rms_rad.to_degrees(),
         e.matched,
+        if e.interpolated > 0 {
+            format!(
+                " ({} of them between two truth rows ≤ {:.0} ms apart)",
+                e.interpolated,
+                REFERENCE_MAX_GAP_S * 1e3
+            )
+        } else {
+            String::new()
+        },
         z(e.error_over_sigma_xy),
         z(e.error_over_sigma_theta),
     );
@@ -173,7 +208,7 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
     }
     if 2 * e.matched < a.fixes {
         eprintln!(
-            "warning: only {} of the {} fixes have a row of {} at their time, so the figures above judge those only: give the truth of the whole video (frames.csv of `synth track` has a row per frame)",
+            "warning: only {} of the {} fixes have a truth in {} at their time, so the figures above judge those only: give the truth of the whole video (frames.csv of `synth track` has a row per frame)",
             e.matched, a.fixes, a.truth
         );
     }

@@ -1,9 +1,10 @@
 //! A tracking scene on disk, as `odocal synth track` writes it: a ceiling video of the robot
 //! driving the demonstration path (video.avi, video.mp4 or frames/), the true camera.json,
 //! the true trajectory (truth.csv), the camera's truth per frame (frames.csv: dropped,
-//! occluded, blur, the rolling shutter's row times; see [`frames_csv`]) and the scene's
+//! occluded, blur, the rolling shutter's row times; see [`frames_csv`]), the scene's
 //! settings (scene.json, with the camera's effects and its row-time convention when any is
-//! on).
+//! on) and, when asked, the truth as a motion-capture system would record it (mocap.csv: the
+//! robot's pose at its own rate, sampled between the camera's frames).
 
 use std::path::{Path, PathBuf};
 
@@ -44,6 +45,8 @@ pub struct TrackScene {
     pub tag_to_robot: TagToRobot,
     /// What a real camera adds (all off by default).
     pub effects: CameraEffects,
+    /// Rate of the motion-capture truth written to mocap.csv, Hz (none: not written).
+    pub mocap_hz: Option<f64>,
 }
 
 /// The camera's effects as scene.json states them.
@@ -172,8 +175,50 @@ impl TrackScene {
                 (2.5 * self.effects.occlusion_s * self.fps).ceil() as usize + 1
             ));
         }
+        if let Some(hz) = self.mocap_hz {
+            if !(1.0..=10_000.0).contains(&hz) {
+                return bad(format!(
+                    "--mocap-hz {hz}: a motion-capture rate is 1 to 10000 Hz (100 to 360 is typical)"
+                ));
+            }
+        }
         self.effects.check(self.fps)
     }
+}
+
+/// The robot's path as a motion-capture system at `hz` records it: its samples start a
+/// quarter of their period after the camera's first frame, so that they fall between frames
+/// as an unsynchronised system's do.
+fn mocap_csv(
+    path: &[(f64, odocal_core::Pose2)],
+    hz: f64,
+    duration_s: f64,
+) -> Result<String, SceneError> {
+    let rows = path
+        .iter()
+        .map(|(t_s, pose)| odocal_core::TrajectoryRow {
+            t_s: *t_s,
+            pose: *pose,
+            quality: 1.0,
+            sigma: None,
+        })
+        .collect();
+    let fine = odocal_core::Trajectory::new(rows)
+        .map_err(|e| SceneError::Input(format!("the simulated path: {e}")))?;
+    let rows = (0..)
+        .map(|j| (j as f64 + 0.25) / hz)
+        .take_while(|t| *t <= duration_s)
+        .filter_map(|t_s| {
+            fine.pose_at(t_s, f64::INFINITY)
+                .map(|pose| odocal_core::TrajectoryRow {
+                    t_s,
+                    pose,
+                    quality: 1.0,
+                    sigma: None,
+                })
+        })
+        .collect();
+    Ok(odocal_core::Trajectory { rows }.to_csv())
 }
 
 /// Renders the scene into the existing directory `out`; `on_frame` is called after each
@@ -235,6 +280,12 @@ pub fn write_track_scene(
     )?;
     write(&out.join("truth.csv"), truth_csv(&truths, false).as_bytes())?;
     write(&out.join("frames.csv"), frames_csv(&truths).as_bytes())?;
+    if let Some(hz) = s.mocap_hz {
+        write(
+            &out.join("mocap.csv"),
+            mocap_csv(&traj, hz, duration)?.as_bytes(),
+        )?;
+    }
     let e = &s.effects;
     let camera_effects = (*e != CameraEffects::default()).then(|| EffectsInfo {
         row_time: ROW_TIME_CONVENTION,

@@ -10,8 +10,13 @@ pub const TRACK_REPORT_FORMAT: &str = "odocal.track-report/1";
 /// A trajectory's errors against the truth, and how honest its σ is there.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TruthErrors {
-    /// Rows of the trajectory matched with a truth row (at the fix's own time, within 0.1 ms).
+    /// Rows of the trajectory judged: those with a truth row at the fix's own time (within
+    /// 0.1 ms) or between two truth rows at most 25 ms apart
+    /// ([`odocal_core::Trajectory::reference_at`]).
     pub matched: usize,
+    /// Of those, the ones judged by interpolating between truth rows.
+    #[serde(default)]
+    pub interpolated: usize,
     /// RMS and largest position error, metres.
     pub position_rms_m: f64,
     pub position_max_m: f64,
@@ -23,13 +28,14 @@ pub struct TruthErrors {
     pub error_over_sigma_theta: Option<f64>,
 }
 
-/// `est`'s errors against `truth`, rows matched by timestamp (within 0.1 ms).
+/// `est`'s errors against `truth`, each row judged by the truth at its time (a row, or
+/// interpolated between close rows).
 pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> TruthErrors {
-    let (mut sp, mut sh, mut max, mut n) = (0.0, 0.0, 0.0f64, 0usize);
+    let (mut sp, mut sh, mut max, mut n, mut between) = (0.0, 0.0, 0.0f64, 0usize, 0usize);
     let (mut zxy, mut zt, mut nz) = (0.0, 0.0, 0usize);
     for r in &est.rows {
-        let i = truth.rows.partition_point(|t| t.t_s < r.t_s - 1e-4);
-        if let Some(t) = truth.rows.get(i).filter(|t| (t.t_s - r.t_s).abs() <= 1e-4) {
+        if let Some(t) = truth.reference_at(r.t_s) {
+            between += usize::from(t.row.is_none());
             let d = r.pose.position() - t.pose.position();
             let dh = odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad);
             sp += d.norm_squared();
@@ -47,6 +53,7 @@ pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> TruthErrors {
     let z = |sum: f64, per: usize| (nz > 0).then(|| (sum / (per * nz) as f64).sqrt());
     TruthErrors {
         matched: n,
+        interpolated: between,
         position_rms_m: (sp / k).sqrt(),
         position_max_m: max,
         heading_rms_rad: (sh / k).sqrt(),
