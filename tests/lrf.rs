@@ -6,8 +6,8 @@ use std::process::Command;
 
 use nalgebra::Matrix2;
 use odocal_lrf::{
-    evaluate, EstimatedPose, Evaluation, Localizer, LocalizerConfig, Map, Scan, ScanTracker,
-    Status, TruthPose,
+    evaluate, EstimatedPose, Evaluation, LaserTruth, Localizer, LocalizerConfig, Map, Scan,
+    ScanTracker, Status, TruthPose,
 };
 use odocal_synth::lrf_sim::{simulate, LrfSim, LrfSimConfig};
 
@@ -24,15 +24,18 @@ fn scans_of(sim: &LrfSim) -> Vec<Scan> {
         .collect()
 }
 
-fn truth_of(sim: &LrfSim) -> Vec<TruthPose> {
-    sim.scans
-        .iter()
-        .map(|s| TruthPose {
-            t_s: s.t_s,
-            pose: s.truth,
-            n_detected: Some(s.n_detected),
-        })
-        .collect()
+fn truth_of(sim: &LrfSim) -> LaserTruth {
+    LaserTruth::new(
+        sim.scans
+            .iter()
+            .map(|s| TruthPose {
+                t_s: s.t_s,
+                pose: s.truth,
+                n_detected: Some(s.n_detected),
+            })
+            .collect(),
+    )
+    .expect("the simulator's scans are in time order")
 }
 
 /// The tracker's poses of a scan sequence.
@@ -663,7 +666,7 @@ fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
     let truth = truth_of(&sim);
     let is_wrong_ok = |status: Status, pose: Option<odocal_core::Pose2>, k: usize| {
         status == Status::Ok
-            && pose.is_some_and(|p| (p.position() - truth[k].pose.position()).norm() > 0.05)
+            && pose.is_some_and(|p| (p.position() - truth.poses()[k].pose.position()).norm() > 0.05)
     };
     let strict = Localizer::new(map.clone(), LocalizerConfig::default());
     let d = strict.detections(&scans[272]);

@@ -1,10 +1,9 @@
 //! Comparison of estimated sensor poses with a truth file.
 
-use std::collections::HashMap;
 use std::path::Path;
 
 use nalgebra::Matrix3;
-use odocal_core::{wrap_angle, Pose2};
+use odocal_core::{wrap_angle, Pose2, Trajectory, TrajectoryRow};
 
 use crate::{LrfError, Status};
 
@@ -19,9 +18,63 @@ pub struct TruthPose {
     pub n_detected: Option<usize>,
 }
 
+/// The sensor's true poses, to judge each scan's pose by the truth at its time: the row at
+/// that time, or one interpolated between rows close enough
+/// ([`odocal_core::Trajectory::reference_at`]), as a motion-capture truth on its own clock
+/// needs.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LaserTruth {
+    poses: Vec<TruthPose>,
+    reference: Trajectory,
+}
+
+/// The truth at a scan's time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthAt {
+    /// True sensor pose in the map frame.
+    pub pose: Pose2,
+    /// Landmarks truly detected in the scan, when the truth has a row at its very time and
+    /// says.
+    pub n_detected: Option<usize>,
+    /// Whether the pose was interpolated between two truth rows.
+    pub interpolated: bool,
+}
+
+impl LaserTruth {
+    /// The truth of these poses, which must be in increasing time.
+    pub fn new(poses: Vec<TruthPose>) -> Result<Self, LrfError> {
+        let rows = poses
+            .iter()
+            .map(|p| TrajectoryRow {
+                t_s: p.t_s,
+                pose: p.pose,
+                quality: 1.0,
+                sigma: None,
+            })
+            .collect();
+        let reference = Trajectory::new(rows)?;
+        Ok(Self { poses, reference })
+    }
+
+    /// The true poses, in time order.
+    pub fn poses(&self) -> &[TruthPose] {
+        &self.poses
+    }
+
+    /// The truth at time `t`, seconds; None where the truth does not tell.
+    pub fn at(&self, t: f64) -> Option<TruthAt> {
+        let r = self.reference.reference_at(t)?;
+        Some(TruthAt {
+            pose: r.pose,
+            n_detected: r.row.and_then(|i| self.poses.get(i)?.n_detected),
+            interpolated: r.row.is_none(),
+        })
+    }
+}
+
 /// Reads a truth CSV with header containing `t,x,y,theta` (metres, radians)
-/// and optionally `n_detected`.
-pub fn read_truth_csv(path: &Path) -> Result<Vec<TruthPose>, LrfError> {
+/// and optionally `n_detected`, rows in increasing time.
+pub fn read_truth_csv(path: &Path) -> Result<LaserTruth, LrfError> {
     let name = path.display().to_string();
     let err = |line: usize, message: String| LrfError::Truth {
         path: name.clone(),
@@ -61,6 +114,17 @@ pub fn read_truth_csv(path: &Path) -> Result<Vec<TruthPose>, LrfError> {
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| err(line, format!("\"{s}\" is not a finite number")))
         };
+        if let Some(prev) = out.last().map(|p: &TruthPose| p.t_s) {
+            if num(ct)? <= prev {
+                return Err(err(
+                    line,
+                    format!(
+                        "time {} is not after the previous row's {prev}: rows must be in increasing time",
+                        num(ct)?
+                    ),
+                ));
+            }
+        }
         out.push(TruthPose {
             t_s: num(ct)?,
             pose: Pose2::new(num(cx)?, num(cy)?, num(ch)?),
@@ -70,7 +134,7 @@ pub fn read_truth_csv(path: &Path) -> Result<Vec<TruthPose>, LrfError> {
             },
         });
     }
-    Ok(out)
+    LaserTruth::new(out)
 }
 
 /// Accuracy of a pose sequence against the truth.
@@ -78,6 +142,8 @@ pub fn read_truth_csv(path: &Path) -> Result<Vec<TruthPose>, LrfError> {
 pub struct Evaluation {
     /// Estimated scans that had a truth pose.
     pub n_scans: usize,
+    /// Of those, scans whose truth was interpolated between two truth rows.
+    pub n_interpolated: usize,
     /// Scans reported `ok`.
     pub n_ok: usize,
     /// Scans reported `ambiguous`.
@@ -127,17 +193,16 @@ pub const CORRECT_POS_M: f64 = 0.05;
 /// Heading error bound of a correct pose, radians (1°).
 pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
 
-/// Compares estimated poses with truth poses matched by time (to 1 µs).
-pub fn evaluate(rows: &[EstimatedPose], truth: &[TruthPose]) -> Evaluation {
-    let key = |t: f64| (t * 1e6).round() as i64;
-    let by_t: HashMap<i64, &TruthPose> = truth.iter().map(|p| (key(p.t_s), p)).collect();
+/// Compares estimated poses with the truth at their times.
+pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
     let mut e = Evaluation::default();
     let (mut sp, mut sh, mut bp, mut bh) = (0.0, 0.0, 0.0, 0.0);
     for r in rows {
         let (t, status, pose, n_lm) = (r.t_s, r.status, r.pose, r.n_landmarks);
-        let Some(tp) = by_t.get(&key(t)) else {
+        let Some(tp) = truth.at(t) else {
             continue;
         };
+        e.n_interpolated += usize::from(tp.interpolated);
         e.n_scans += 1;
         match status {
             Status::Ok => e.n_ok += 1,
@@ -180,4 +245,60 @@ pub fn evaluate(rows: &[EstimatedPose], truth: &[TruthPose]) -> Evaluation {
         e.heading_crb_rad = (bh / e.n_bound as f64).sqrt();
     }
     e
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A truth at 100 Hz judges a scan between its samples by the pose interpolated there
+    /// (without a detection count, so the scan is eligible); a scan at a row's own time takes
+    /// that row's count.
+    #[test]
+    fn scans_between_truth_rows_are_judged_by_the_interpolated_truth() {
+        let truth = LaserTruth::new(
+            (0..=10)
+                .map(|i| TruthPose {
+                    t_s: i as f64 * 0.01,
+                    pose: Pose2::new(i as f64 * 0.01, 0.0, 0.0),
+                    n_detected: Some(2),
+                })
+                .collect(),
+        )
+        .expect("rows in time order");
+        let at = truth.at(0.055).expect("inside the truth");
+        assert!(at.interpolated && at.n_detected.is_none());
+        assert!((at.pose.x_m - 0.055).abs() < 1e-12);
+        let row = truth.at(0.05).expect("a row");
+        assert_eq!((row.interpolated, row.n_detected), (false, Some(2)));
+        assert!(truth.at(0.2).is_none());
+        let scan = |t_s: f64, x: f64| EstimatedPose {
+            t_s,
+            status: Status::Ok,
+            pose: Some(Pose2::new(x, 0.0, 0.0)),
+            n_landmarks: 4,
+            cov: None,
+        };
+        let e = evaluate(
+            &[scan(0.055, 0.056), scan(0.05, 0.05), scan(0.5, 0.0)],
+            &truth,
+        );
+        assert_eq!((e.n_scans, e.n_interpolated, e.n_accuracy), (2, 1, 2));
+        // The row at 0.05 s says 2 landmarks were detected: not eligible.
+        assert_eq!((e.n_eligible, e.n_correct_eligible), (1, 1));
+        assert!((e.position_max_m - 0.001).abs() < 1e-9);
+    }
+
+    #[test]
+    fn truth_rows_out_of_time_order_are_refused_by_line() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("truth.csv");
+        std::fs::write(&path, "t,x,y,theta\n0.1,0,0,0\n0.1,0,0,0\n").expect("write");
+        let e = read_truth_csv(&path).expect_err("a duplicated time");
+        assert!(
+            e.to_string()
+                .contains("line 3: time 0.1 is not after the previous row's 0.1"),
+            "{e}"
+        );
+    }
 }

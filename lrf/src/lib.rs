@@ -27,7 +27,9 @@ mod search;
 
 pub use check::{check_map_report, find_ambiguities, Ambiguity, AmbiguityKind};
 pub use error::LrfError;
-pub use eval::{evaluate, read_truth_csv, EstimatedPose, Evaluation, TruthPose};
+pub use eval::{
+    evaluate, read_truth_csv, EstimatedPose, Evaluation, LaserTruth, TruthAt, TruthPose,
+};
 pub use localize::{
     check_intensity_scale, check_range_unit, check_scan_times, localize_scans, read_scan_files,
 };

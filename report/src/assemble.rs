@@ -184,7 +184,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
             let poses = odocal_lrf::PoseLog::read(pp)?.rows;
             let truth = match tp {
                 Some(t) => odocal_lrf::read_truth_csv(t)?,
-                None => Vec::new(),
+                None => odocal_lrf::LaserTruth::default(),
             };
             let landmarks_m = match &inp.lrf_map {
                 Some(m) => odocal_lrf::Map::read(m)?

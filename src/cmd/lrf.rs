@@ -181,8 +181,9 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             let e = evaluate(&log.for_evaluation(), &truth);
             if e.n_scans == 0 {
                 anyhow::bail!(
-                    "{}: no truth pose has the time of a scan; pass the truth of these scans",
-                    tp.display()
+                    "{}: no truth pose has the time of a scan, nor are two truth rows at most {:.0} ms apart around one; pass the truth of these scans (on the scans' clock, in seconds)",
+                    tp.display(),
+                    odocal_core::REFERENCE_MAX_GAP_S * 1e3
                 );
             }
             Some((tp, e))
@@ -279,11 +280,21 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             )
         };
         println!(
-            "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %)",
+            "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %){}",
             e.n_wrong_ok,
             e.n_correct_eligible,
             e.n_eligible,
-            100.0 * e.n_correct_eligible as f64 / e.n_eligible.max(1) as f64
+            100.0 * e.n_correct_eligible as f64 / e.n_eligible.max(1) as f64,
+            if e.n_interpolated > 0 {
+                format!(
+                    "; the truth interpolated between rows ≤ {:.0} ms apart for {} of the {} scans judged",
+                    odocal_core::REFERENCE_MAX_GAP_S * 1e3,
+                    e.n_interpolated,
+                    e.n_scans
+                )
+            } else {
+                String::new()
+            }
         );
     }
     if let Some(why) = refused {

@@ -8,7 +8,7 @@ pub struct LaserInput {
     /// Poses from `odocal lrf localize`.
     pub poses: Vec<odocal_lrf::PoseLogRow>,
     /// True sensor poses.
-    pub truth: Vec<TruthPose>,
+    pub truth: LaserTruth,
     /// Landmark positions of the map (x, y), metres.
     pub landmarks_m: Vec<(f64, f64)>,
 }
@@ -16,15 +16,12 @@ pub struct LaserInput {
 /// Laser positioning: estimated sensor poses against the truth.
 pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     let mut s = Section::new("laser", "Laser positioning against the truth");
-    let key = |t: f64| (t * 1e6).round() as i64;
-    let truth: std::collections::HashMap<i64, &TruthPose> =
-        l.truth.iter().map(|p| (key(p.t_s), p)).collect();
     let count = |st: &str| l.poses.iter().filter(|p| p.status.as_str() == st).count();
     let mut pos_err = Vec::new();
     let mut head_err = Vec::new();
     let mut err_series = Vec::new();
     for p in &l.poses {
-        if let (Some(e), Some(tp)) = (p.pose, truth.get(&key(p.t_s))) {
+        if let (Some(e), Some(tp)) = (p.pose, l.truth.at(p.t_s)) {
             if p.status == odocal_lrf::Status::Ok {
                 let d = (e.x_m - tp.pose.x_m).hypot(e.y_m - tp.pose.y_m);
                 pos_err.push(d);
@@ -68,10 +65,14 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         }
     }
     // The true path last, on top of the estimates.
-    if !l.truth.is_empty() {
+    if !l.truth.poses().is_empty() {
         ch.series.push(Series::new(
             "true path",
-            l.truth.iter().map(|p| (p.pose.x_m, p.pose.y_m)).collect(),
+            l.truth
+                .poses()
+                .iter()
+                .map(|p| (p.pose.x_m, p.pose.y_m))
+                .collect(),
             Mark::Line,
             6,
         ));

@@ -18,7 +18,7 @@ pub use training::training_section;
 
 use odocal_core::{wrap_angle, Pose2};
 use odocal_dataset::{RobotParams, Sample, WheelGeometry};
-use odocal_lrf::TruthPose;
+use odocal_lrf::LaserTruth;
 use odocal_trainer::SweepReport;
 
 use crate::chart::{Cells, Chart, Mark, Series};
