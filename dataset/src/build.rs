@@ -3,7 +3,7 @@
 use nalgebra::Point2;
 use odocal_core::{wrap_angle, Pose2};
 
-use crate::align::{coarse_offset, refine_offset, AlignOptions};
+use crate::align::{coarse_offset, refine_offset, AlignOptions, CoarseOffset};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
 use crate::odometry::OdometryLog;
@@ -177,6 +177,26 @@ pub fn process_recording(
     rec: &Recording,
     opts: &BuildOptions,
 ) -> Result<Vec<RunOutcome>, DatasetError> {
+    process_recording_at(rec, opts, coarse_of(rec, opts))
+}
+
+/// The coarse clock offset of a whole recording (speed-profile cross-correlation), found
+/// once per recording and shared by the checks and the samples.
+pub(crate) fn coarse_of(
+    rec: &Recording,
+    opts: &BuildOptions,
+) -> Result<CoarseOffset, DatasetError> {
+    let revs = rec.log.wheel_revs(&opts.robot);
+    let geom = WheelGeometry::nominal(&opts.robot);
+    coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id)
+}
+
+/// [`process_recording`] with the recording's coarse offset already found.
+pub(crate) fn process_recording_at(
+    rec: &Recording,
+    opts: &BuildOptions,
+    coarse: Result<CoarseOffset, DatasetError>,
+) -> Result<Vec<RunOutcome>, DatasetError> {
     let reject =
         |id: String, reason: String| RunOutcome::Rejected(RejectedRun { run_id: id, reason });
     let segs = split_runs(rec.log, opts.min_gap_s);
@@ -195,7 +215,7 @@ pub fn process_recording(
     };
     let revs = rec.log.wheel_revs(&opts.robot);
     let geom = WheelGeometry::nominal(&opts.robot);
-    let coarse = coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id)?;
+    let coarse = coarse?;
     let mut out = Vec::with_capacity(segs.len());
     for (j, seg) in segs.iter().enumerate() {
         let id = name(j);

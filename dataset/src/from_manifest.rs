@@ -8,12 +8,14 @@ use std::sync::Mutex;
 
 use odocal_core::Trajectory;
 
-use crate::build::{assemble, process_recording, BuildOptions, Recording, RunOutcome};
+use crate::build::{
+    assemble, coarse_of, process_recording_at, BuildOptions, Recording, RunOutcome,
+};
 use crate::manifest::{Manifest, ManifestRow};
 use crate::odometry::OdometryLog;
 use crate::oracle::OracleFile;
 use crate::sample::Dataset;
-use crate::windows::{window_samples, Layout, WINDOW_RULE};
+use crate::windows::{window_samples_at, Layout, WINDOW_RULE};
 use crate::DatasetError;
 
 /// Makes the camera trajectory of a row that has a video (the tracker, in the binary): the
@@ -65,13 +67,16 @@ fn one_row(
             log_path.display()
         )));
     }
-    if let Some(why) = trajectory_mismatch(&log, &traj, &opts.robot, &opts.align) {
+    let mismatch = |why: String| {
         let camera = row.trajectory.as_ref().or(row.video.as_ref());
-        return Err(DatasetError::Mismatch(format!(
+        Err(DatasetError::Mismatch(format!(
             "run \"{}\" ({}): {why}",
             row.id,
             camera.map_or(log_path.clone(), |c| m.resolve(c)).display()
-        )));
+        )))
+    };
+    if let Some(why) = mismatch_before_alignment(&log, &traj, &opts.robot) {
+        return mismatch(why);
     }
     let rec = Recording {
         id: &row.id,
@@ -79,9 +84,17 @@ fn one_row(
         log: &log,
         camera: &traj,
     };
+    let coarse = coarse_of(&rec, opts);
+    if let Some(why) = coarse
+        .as_ref()
+        .ok()
+        .and_then(|c| crate::turn_sides::turn_mismatch(&log, &traj, &opts.robot, &opts.align, c))
+    {
+        return mismatch(why);
+    }
     let runs = match opts.layout {
-        Layout::StraightRuns => process_recording(&rec, opts),
-        Layout::Windows(w) => window_samples(&rec, opts, &w),
+        Layout::StraightRuns => process_recording_at(&rec, opts, coarse),
+        Layout::Windows(w) => window_samples_at(&rec, opts, &w, coarse),
     }?;
     Ok((runs, note))
 }
@@ -95,9 +108,24 @@ pub fn trajectory_mismatch(
     robot: &crate::RobotParams,
     align: &crate::align::AlignOptions,
 ) -> Option<String> {
+    mismatch_before_alignment(log, camera, robot).or_else(|| {
+        let revs = log.wheel_revs(robot);
+        let geom = crate::kinematics::WheelGeometry::nominal(robot);
+        let coarse = crate::align::coarse_offset(log, &revs, &geom, camera, align, "").ok()?;
+        crate::turn_sides::turn_mismatch(log, camera, robot, align, &coarse)
+    })
+}
+
+/// The checks of [`trajectory_mismatch`] that need no clock offset: times that are not
+/// seconds, a heading that does not point where the robot drives. They come first, since
+/// the offset's search spans the trajectory's times, which may be milliseconds.
+fn mismatch_before_alignment(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &crate::RobotParams,
+) -> Option<String> {
     crate::units::time_unit_mismatch(log, camera)
         .or_else(|| crate::heading::heading_mismatch(log, camera, robot))
-        .or_else(|| crate::turn_sides::turn_mismatch(log, camera, robot, align))
 }
 
 /// Builds the dataset of every row of `m`. Rows with a video are tracked by `track` on

@@ -7,7 +7,7 @@
 
 use odocal_core::{wrap_angle, Trajectory};
 
-use crate::align::{coarse_offset, AlignOptions};
+use crate::align::{AlignOptions, CoarseOffset};
 use crate::kinematics::WheelGeometry;
 use crate::odometry::OdometryLog;
 use crate::RobotParams;
@@ -20,17 +20,18 @@ const MIN_TURNING_RAD: f64 = std::f64::consts::FRAC_PI_2;
 /// Correlation of the two turn rates below which the wheels turn the robot the other way.
 const OPPOSITE: f64 = -0.5;
 
-/// Why the log's turns cannot be the camera's (they go the other way), or `None` when they
-/// agree, the clock offset is not found, or there is too little turning to tell.
+/// Why the log's turns cannot be the camera's (they go the other way) with the clocks `coarse`
+/// apart, or `None` when they agree, the offset is not sure, or there is too little turning
+/// to tell.
 pub fn turn_mismatch(
     log: &OdometryLog,
     camera: &Trajectory,
     robot: &RobotParams,
     align: &AlignOptions,
+    coarse: &CoarseOffset,
 ) -> Option<String> {
     let geom = WheelGeometry::nominal(robot);
     let revs = log.wheel_revs(robot);
-    let coarse = coarse_offset(log, &revs, &geom, camera, align, "").ok()?;
     if coarse.correlation < align.min_correlation {
         return None;
     }

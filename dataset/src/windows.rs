@@ -10,7 +10,8 @@
 
 use odocal_core::wrap_angle;
 
-use crate::align::coarse_offset;
+use crate::align::CoarseOffset;
+use crate::build::coarse_of;
 use crate::build::{BuildOptions, Recording, RunOutcome};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
@@ -59,6 +60,16 @@ pub fn window_samples(
     opts: &BuildOptions,
     w: &WindowOptions,
 ) -> Result<Vec<RunOutcome>, DatasetError> {
+    window_samples_at(rec, opts, w, coarse_of(rec, opts))
+}
+
+/// [`window_samples`] with the recording's coarse offset already found.
+pub(crate) fn window_samples_at(
+    rec: &Recording,
+    opts: &BuildOptions,
+    w: &WindowOptions,
+    coarse: Result<CoarseOffset, DatasetError>,
+) -> Result<Vec<RunOutcome>, DatasetError> {
     if w.steps == 0 || w.stride == 0 {
         return Err(DatasetError::Mismatch(
             "--window-steps and --window-stride must be at least 1".into(),
@@ -67,7 +78,7 @@ pub fn window_samples(
     let robot = &opts.robot;
     let geom = WheelGeometry::nominal(robot);
     let revs = rec.log.wheel_revs(robot);
-    let coarse = match coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id) {
+    let coarse = match coarse {
         Ok(c) if c.correlation >= opts.align.min_correlation => c,
         Ok(c) => {
             return Ok(vec![RunOutcome::Rejected(RejectedRun {
