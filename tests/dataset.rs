@@ -323,6 +323,25 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         e.contains("runs \"run001\" and \"run002\" list the same file runs/run001.trajectory.csv (as their trajectory)"),
         "{e}"
     );
+    // The same log copied under another name is the same recording.
+    let runs = manifest.parent().unwrap().join("runs");
+    std::fs::copy(
+        runs.join("run001.odometry.csv"),
+        runs.join("copy.odometry.csv"),
+    )
+    .unwrap();
+    std::fs::write(
+        &m5,
+        text.replace("run002.odometry.csv", "copy.odometry.csv"),
+    )
+    .unwrap();
+    let e = run(&m5);
+    assert!(
+        e.contains("runs \"run001\" and \"run002\" list files with the same bytes")
+            && e.contains("copy.odometry.csv (odometry log)"),
+        "{e}"
+    );
+    std::fs::remove_file(runs.join("copy.odometry.csv")).unwrap();
     let m3 = d.join("m3.csv");
     std::fs::write(
         &m3,

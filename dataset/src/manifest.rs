@@ -171,6 +171,23 @@ impl Manifest {
                 seen.push((file, &r.id, role));
             }
         }
+        // A copy under another name is the same recording too (a video exported twice, a
+        // log saved again): only files of one size can hold the same bytes.
+        let sized: Vec<_> = seen
+            .iter()
+            .filter_map(|(f, id, role)| Some((std::fs::metadata(f).ok()?.len(), f, *id, *role)))
+            .collect();
+        for (i, (size, a, first, first_role)) in sized.iter().enumerate() {
+            for (size_b, b, id, role) in &sized[i + 1..] {
+                if size == size_b && *size > 0 && same_bytes(a, b) {
+                    return Err(DatasetError::Mismatch(format!(
+                        "runs \"{first}\" and \"{id}\" list files with the same bytes, {} ({first_role}) and {} ({role}): one recording copied under two names is counted twice; give each run its own recording",
+                        a.display(),
+                        b.display()
+                    )));
+                }
+            }
+        }
         Ok(())
     }
 
@@ -248,6 +265,37 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
         lines.push(line);
     }
     Ok((Manifest::new(runs, Path::new("")), lines))
+}
+
+/// Whether two files hold the same bytes (false when either cannot be read).
+fn same_bytes(a: &Path, b: &Path) -> bool {
+    use std::io::Read;
+    let (Ok(fa), Ok(fb)) = (std::fs::File::open(a), std::fs::File::open(b)) else {
+        return false;
+    };
+    let (mut ra, mut rb) = (std::io::BufReader::new(fa), std::io::BufReader::new(fb));
+    let (mut ba, mut bb) = (vec![0u8; 1 << 16], vec![0u8; 1 << 16]);
+    loop {
+        let (Ok(na), Ok(nb)) = (read_full(&mut ra, &mut ba), read_full(&mut rb, &mut bb)) else {
+            return false;
+        };
+        if na != nb || ba[..na] != bb[..nb] {
+            return false;
+        }
+        if na == 0 {
+            return true;
+        }
+    }
+    fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+        let mut n = 0;
+        while n < buf.len() {
+            match r.read(&mut buf[n..])? {
+                0 => break,
+                k => n += k,
+            }
+        }
+        Ok(n)
+    }
 }
 
 #[cfg(test)]
