@@ -4,6 +4,24 @@
 
 use clap::{CommandFactory, FromArgMatches, Subcommand};
 
+/// `println!` that carries on when standard output is closed (`odocal dataset … | head -1`):
+/// the command's outputs are files committed after its summary is printed, and must not be
+/// lost with a line nobody reads (a closed pipe would otherwise end the process there).
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `eprintln!` that carries on when standard error is closed, as [`say!`].
+macro_rules! tell {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
 mod cmd;
 mod output;
 
@@ -71,12 +89,8 @@ fn negative_numbers_are_values(cmd: clap::Command) -> clap::Command {
 }
 
 fn main() {
-    // Printing into a closed pipe (`odocal synth lrf | head -1`) ends the process quietly, as
-    // for any Unix filter, instead of panicking on the failed write.
-    // SAFETY: restores the default action of one signal before any other thread exists.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
-    }
+    // Rust ignores SIGPIPE, so a write into a closed pipe is an error that `say!` and `tell!`
+    // pass over: the command runs to its end and commits its files.
     let matches = negative_numbers_are_values(Cli::command()).get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
@@ -110,7 +124,7 @@ fn main() {
                 msg = format!("{msg}: {cause}");
             }
         }
-        eprintln!("odocal: error: {msg}");
+        tell!("odocal: error: {msg}");
         std::process::exit(2);
     }
 }

@@ -1025,3 +1025,37 @@ fn charuco_options_and_boards_are_checked() {
         "{err}"
     );
 }
+
+/// Standard output closed before odocal prints its summary (`odocal … | head -1`, quitting
+/// `less`): the command still runs to its end and commits its files. A closed pipe used to
+/// end the process at the summary line, before its outputs were renamed into place, leaving
+/// only a temporary file.
+#[test]
+fn a_closed_standard_output_loses_no_file() {
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("lrf");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(["synth", "lrf", "--scans", "20", "--out", p(&out)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("odocal starts");
+    // Close the reading ends at once, as `| true` does.
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    let status = child.wait().expect("odocal ends");
+    assert_eq!(status.code(), Some(0), "{status:?}");
+    for f in ["map.json", "scans.csv", "truth.csv"] {
+        assert!(
+            out.join(f).is_file(),
+            "{f} missing: {:?}",
+            listing(dir.path())
+        );
+    }
+    assert!(
+        listing(dir.path()).iter().all(|f| !f.contains(".tmp")),
+        "{:?}",
+        listing(dir.path())
+    );
+}

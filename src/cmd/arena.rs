@@ -70,20 +70,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let (shared, notes) = detect_shared(&args.shared, files.len(), &board, &sizes)?;
     for n in &notes {
-        eprintln!("{n}");
+        tell!("{n}");
     }
     let paths: Vec<&Path> = args.camera.iter().map(|p| p.as_path()).collect();
     let (arena, _) = build_arena(&files, &paths, &shared, &board)?;
     write_json(&args.out, &arena)?;
     for (k, c) in arena.cameras.iter().enumerate() {
         let at = c.arena_to_camera.0.inverse().translation.vector;
-        println!(
+        say!(
             "camera {k} ({}): at ({:.3}, {:.3}) m, {:.3} m above the floor; {} shared views, corner residual {:.3} px RMS",
             c.source, at.x, at.y, at.z, c.shared_views, c.rms_px
         );
     }
     for p in &arena.pairs {
-        println!(
+        say!(
             "cameras {} and {}: the same floor point {:.2} mm apart RMS, {:.2} mm at most ({} corners)",
             p.cameras.0,
             p.cameras.1,
@@ -93,13 +93,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let c = &arena.consistency;
-    println!(
+    say!(
         "consistency in the overlaps: {:.2} mm RMS, {:.2} mm max over {} corners of {} shared views",
         c.rms_mm,
         c.max_mm,
         c.points,
         arena.shared_views.len()
     );
-    println!("wrote {}", args.out.display());
+    say!("wrote {}", args.out.display());
     Ok(())
 }

@@ -67,7 +67,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let session = session?;
     for note in &session.notes {
-        eprintln!("{note}");
+        tell!("{note}");
     }
     let file = &session.file;
     write_json(&a.out, file)?;
@@ -78,8 +78,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         write_atomic(p, ros_yaml(file, "odocal_ceiling").as_bytes())?;
     }
     for line in summary(file) {
-        println!("{line}");
+        say!("{line}");
     }
-    println!("wrote {}", a.out.display());
+    say!("wrote {}", a.out.display());
     Ok(())
 }

@@ -40,7 +40,7 @@ fn robot_and_log(
     };
     let log = OdometryLog::read_csv(&args.log)?;
     if let Some(n) = log.wrap_note() {
-        eprintln!("note: {}: {n}", args.log.display());
+        tell!("note: {}: {n}", args.log.display());
     }
     Ok((robot, log))
 }
@@ -49,7 +49,7 @@ fn robot_and_log(
 /// with `--allow-extrapolation`).
 fn warn_outside_domain(outside_domain: &[String]) {
     for why in outside_domain {
-        eprintln!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
+        tell!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
     }
 }
 
@@ -57,7 +57,7 @@ fn warn_outside_domain(outside_domain: &[String]) {
 fn write_track(args: &Args, csv: String) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         write_atomic(out, csv.as_bytes())?;
-        println!("wrote {}", out.display());
+        say!("wrote {}", out.display());
     }
     Ok(())
 }
@@ -76,7 +76,7 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
         .with_context(|| format!("{}", args.model.display()))?;
     warn_outside_domain(&run.outside_domain);
     let (raw, corrected) = run.ends();
-    println!(
+    say!(
         "raw odometry end: x {:.4} m, y {:.4} m, heading {:.2} deg; corrected end: x {:.4} m, y {:.4} m, heading {:.2} deg (start frame; correction {:.2} cm over {:.3} m of wheel travel)",
         raw.x_m,
         raw.y_m,
@@ -114,7 +114,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("{}", args.model.display()))?;
     let (raw, corrected) = (run.raw_end_m, run.corrected_end_m);
     warn_outside_domain(&run.outside_domain);
-    println!(
+    say!(
         "raw odometry end: x {:.4} m, y {:.4} m; corrected end: x {:.4} m, y {:.4} m (start frame; correction {:.2} cm over {:.3} m of odometry)",
         raw[0],
         raw[1],

@@ -70,7 +70,7 @@ pub enum LayoutArg {
 fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
     let s = &ds.summary;
     if ds.is_windows() {
-        println!(
+        say!(
             "dataset: {} from {} ({} rejected) -> {}",
             count(ds.samples.len(), "window"),
             count(s.recordings, "recording"),
@@ -78,10 +78,10 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
             out.display()
         );
         for r in &ds.rejected {
-            println!("  rejected {}: {}", r.run_id, r.reason);
+            say!("  rejected {}: {}", r.run_id, r.reason);
         }
         if !ds.samples.is_empty() {
-            println!(
+            say!(
                 "raw odometry window end-point error: {:.2} % of wheel travel (RMS {:.1} mm, mean travel {:.3} m)",
                 100.0 * s.raw_relative_error,
                 1e3 * s.raw_rms_error_m,
@@ -90,7 +90,7 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
         }
         return;
     }
-    println!(
+    say!(
         "dataset: {} from {} in {} ({} rejected) -> {}",
         count(ds.samples.len(), "sample"),
         count(s.runs, "run"),
@@ -99,16 +99,16 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
         out.display()
     );
     for r in &ds.rejected {
-        println!("  rejected {}: {}", r.run_id, r.reason);
+        say!("  rejected {}: {}", r.run_id, r.reason);
     }
     if !ds.samples.is_empty() {
-        println!(
+        say!(
             "raw odometry end-point error: {:.2} % of path length (RMS {:.1} mm, mean path {:.3} m)",
             100.0 * s.raw_relative_error,
             1e3 * s.raw_rms_error_m,
             s.mean_path_length_m
         );
-        println!(
+        say!(
             "largest alignment residual: {:.4} m/s",
             s.max_alignment_residual_mps
         );
@@ -141,7 +141,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if args.camera.is_some() {
                 what.insert(0, "--camera".into());
             }
-            eprintln!(
+            tell!(
                 "note: {} not used: they track the manifest's videos, and it lists trajectories only",
                 what.join(", ")
             );
@@ -203,7 +203,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map_err(|e| format!("run \"{}\": tracking {}: {e}", row.id, video.display()))?;
         for w in warnings {
             if repeated.first(&w, &row.id) {
-                bar.suspend(|| eprintln!("warning: run \"{}\": {}: {w}", row.id, video.display()));
+                bar.suspend(|| tell!("warning: run \"{}\": {}: {w}", row.id, video.display()));
             }
         }
         Ok(trajectory)
@@ -248,14 +248,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if !hint.is_empty() && unmatched * 2 >= manifest.runs.len() {
-        eprintln!(
+        tell!(
             "warning: {} of {} runs rejected{hint}",
             ds.rejected.len(),
             manifest.runs.len()
         );
     }
     for n in &ds.notes {
-        eprintln!("note: {n}");
+        tell!("note: {n}");
     }
     let robot_file = match &args.robot {
         Some(p) => p.display().to_string(),
@@ -263,7 +263,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     match odocal_dataset::units::robot_scale_mismatch(&ds.samples, &opts.robot) {
         Err(why) => bail!("{robot_file}: {why}; nothing was written"),
-        Ok(Some(w)) => eprintln!("warning: {robot_file}: {w}"),
+        Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
         Ok(None) => {}
     }
     // Compared before anything is written or said to be, so a wrong truth leaves nothing.
@@ -281,7 +281,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         if let Some(e) = against_truth {
             if e.target_rms_m.is_nan() {
-                println!(
+                say!(
                     "against the truth: clock offsets RMS {:.2} ms (max {:.2} ms) over {} windows",
                     1e3 * e.offset_rms_s,
                     1e3 * e.offset_max_s,
@@ -289,7 +289,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 );
                 return Ok(());
             }
-            println!(
+            say!(
                 "against the truth: end-point targets RMS {:.2} mm (max {:.2} mm), clock offsets RMS {:.2} ms (max {:.2} ms) over {} samples",
                 1e3 * e.target_rms_m,
                 1e3 * e.target_max_m,
@@ -336,7 +336,7 @@ impl RepeatedWarnings {
             let mut runs = runs.clone();
             runs.sort();
             let shown: Vec<&str> = runs.iter().take(5).map(String::as_str).collect();
-            eprintln!(
+            tell!(
                 "warning: {} more run(s) gave the warning \"{head}…\" (each with its own figures): {}{}",
                 runs.len(),
                 shown.join(", "),

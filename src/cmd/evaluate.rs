@@ -45,7 +45,7 @@ fn read_recordings(manifest: &std::path::Path) -> anyhow::Result<Vec<PathRecordi
     let recs = PathRecording::read_manifest(&Manifest::read(manifest)?)?;
     for r in &recs {
         if let Some(n) = r.log.wrap_note() {
-            eprintln!("note: run \"{}\": {n}", r.id);
+            tell!("note: run \"{}\": {n}", r.id);
         }
     }
     Ok(recs)
@@ -118,7 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("{}", cal.display()))?;
         check_square_side(&ev.runs, side, cal)?;
         if std::fs::canonicalize(cal).ok() == std::fs::canonicalize(&args.manifest).ok() {
-            eprintln!(
+            tell!(
                 "warning: --umbmark-calibration {} is the manifest being evaluated: UMBMark's correction is then judged on the squares it was fitted to; calibrate on other squares",
                 cal.display()
             );
@@ -132,7 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             })
             .collect();
         let c = Umbmark::of(&errors)?.correction(side, &robot);
-        println!(
+        say!(
             "UMBMark calibration from {} squares: E_d = {:.5} (wheel diameter ratio right/left), E_b = {:.5} (wheel base factor)",
             errors.len(),
             c.e_d,
@@ -161,7 +161,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         check_square_side(&ev.runs, side, &args.manifest)?;
     }
     let path_m: f64 = ev.runs.iter().map(|r| r.path_length_m).sum();
-    println!(
+    say!(
         "{} held-out recordings, {path_m:.1} m of wheel travel; end-point error per metre driven (mean over recordings){}:",
         ev.runs.len(),
         if args.umbmark_m.is_some() {
@@ -172,7 +172,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     for m in &ev.methods {
         match &m.umbmark {
-            Some(u) => println!(
+            Some(u) => say!(
                 "  {:<32} {:6.2} % of path   E_max,syst {:8.1} mm (cw {:.1} mm, ccw {:.1} mm; {}+{} squares)",
                 m.name,
                 100.0 * m.end_error_per_m,
@@ -182,12 +182,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 u.runs[0],
                 u.runs[1]
             ),
-            None => println!("  {:<32} {:6.2} % of path", m.name, 100.0 * m.end_error_per_m),
+            None => say!("  {:<32} {:6.2} % of path", m.name, 100.0 * m.end_error_per_m),
         }
     }
     if let Some(out) = &args.out {
         write_json(out, &ev)?;
-        println!("wrote {}", out.display());
+        say!("wrote {}", out.display());
     }
     Ok(())
 }

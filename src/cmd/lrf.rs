@@ -90,7 +90,7 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
     let map = Map::read(&a.map)?;
     let name = a.map.display().to_string();
     for line in check_map_report(&map, &name, a.tolerance_m, a.max_range_m, a.min_size)? {
-        println!("{line}");
+        say!("{line}");
     }
     warn_isolated(&map, &name, a.max_range_m);
     Ok(())
@@ -100,7 +100,7 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
 /// coordinates are most likely mistyped.
 fn warn_isolated(map: &Map, name: &str, max_range_m: f64) {
     for (id, p, nearest) in map.isolated(max_range_m) {
-        eprintln!(
+        tell!(
             "warning: {name}: landmark id {id} at ({:.3}, {:.3}) m is {nearest:.2} m from the nearest other landmark, more than twice --max-range-m {max_range_m} m, so no scan sees it with another and it cannot help a pose: is a coordinate mistyped?",
             p.x, p.y
         );
@@ -218,7 +218,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     let n = log.rows.len().max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
-    println!(
+    say!(
         "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; {}",
         log.rows.len(),
         if a.global_only { "global" } else { "tracking" },
@@ -234,7 +234,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         }
     );
     if count(Status::Lost) * 2 > log.rows.len() {
-        eprintln!(
+        tell!(
             "warning: {} of {} scans found no pose: {}",
             count(Status::Lost),
             log.rows.len(),
@@ -244,7 +244,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     if let Some((tp, e)) = &against {
         // An error over a few scans reads like the error of them all: say how few they are.
         if e.n_ok * 2 < n_ok {
-            eprintln!(
+            tell!(
                 "warning: {} has the time of only {} of the {n_ok} ok scans ({} of all {} scans), so the figures against the truth are over those alone: are the scans and the truth timed on one clock, in seconds?",
                 tp.display(),
                 e.n_ok,
@@ -279,7 +279,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 e.n_accuracy
             )
         };
-        println!(
+        say!(
             "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %){}",
             e.n_wrong_ok,
             e.n_correct_eligible,

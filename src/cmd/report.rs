@@ -184,7 +184,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     let n_fig = report.figures().len();
-    println!(
+    say!(
         "report: {} sections, {} plots -> {}{}",
         report.sections.len(),
         n_fig,
@@ -194,7 +194,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map_or(String::new(), |d| format!(" (SVGs in {})", d.display()))
     );
     for (t, why) in &report.omitted {
-        println!("  left out: {t}: {why}");
+        say!("  left out: {t}: {why}");
     }
     Ok(())
 }

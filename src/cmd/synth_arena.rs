@@ -77,7 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t = &written.truth;
     for c in &t.cameras {
         let at = c.arena_to_camera.0.inverse().translation.vector;
-        println!(
+        say!(
             "{}: {} calibration views, {} floor views, at ({:.2}, {:.2}) m, {:.2} m up; clock offset {:+.3} ms",
             c.name,
             c.views.len(),
@@ -88,7 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.clock_offset_s * 1e3
         );
     }
-    println!(
+    say!(
         "wrote {} shared-view images of {} boards, {} video frames ({}x{}, {} fps) and the truth to {}",
         written.shared_images,
         t.shared.len(),
@@ -98,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.fps,
         args.out.display()
     );
-    println!(
+    say!(
         "next: odocal calibrate {0}/cam0/view_*.png --floor {0}/cam0/floor_*.png --square {1} --out {0}/cam0/camera.json (each camera), then odocal arena --camera {0}/cam*/camera.json --shared {0}/shared --out {0}/arena.json",
         args.out.display(),
         args.square

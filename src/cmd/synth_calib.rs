@@ -110,7 +110,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let truth = write_calib_set(&a.out, &scene, a.seed)?;
     let k = truth.camera.intrinsics;
     if scene.board.is_charuco() {
-        println!(
+        say!(
             "wrote {} board views and {} floor views ({}x{}, {}) to {}",
             truth.views.len(),
             truth.floor_views.len(),
@@ -127,13 +127,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let partly = shares.iter().filter(|&&s| s < 1.0).count();
         let third = shares.iter().filter(|&&s| s <= 2.0 / 3.0).count();
         let least = shares.iter().copied().fold(1.0, f64::min);
-        println!(
+        say!(
             "board partly outside the image in {partly} of {} views, a third or more outside in {third}; least in view: {:.0} % of the inner corners",
             shares.len(),
             least * 100.0
         );
     } else {
-        println!(
+        say!(
             "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
             truth.views.len(),
             truth.floor_views.len(),
@@ -145,7 +145,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.out.display()
         );
     }
-    println!(
+    say!(
         "true camera: {} lens, {:.0}° across, fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
         lens, a.hfov, k.fx, k.fy, k.cx, k.cy
     );
@@ -173,7 +173,7 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
         &truth.camera,
         &truth.floor_to_camera,
     );
-    println!(
+    say!(
         "calibration error against the truth: fx {:.3} %, fy {:.3} %, cx {:.2} px, cy {:.2} px (bounds 0.2 %, 0.2 %, 1 px, 1 px)",
         e.fx_rel * 100.0,
         e.fy_rel * 100.0,
@@ -181,17 +181,17 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
         e.cy_px
     );
     match (e.floor_max_m, e.floor_rms_m, e.floor_reach_m) {
-        (Some(max), Some(rms), Some(reach)) => println!(
+        (Some(max), Some(rms), Some(reach)) => say!(
             "floor mapping error over all the floor the image sees (out to {reach:.2} m from the point under the camera): {:.2} mm RMS, {:.2} mm max (bound 2 mm)",
             rms * 1e3,
             max * 1e3
         ),
-        _ => println!("no floor plane in {}", a.camera.display()),
+        _ => say!("no floor plane in {}", a.camera.display()),
     }
     let mut lo = 0.0;
     for (r, max) in FLOOR_RINGS_DEG.iter().zip(&e.floor_max_by_ring_m) {
         if let Some(m) = max {
-            println!(
+            say!(
                 "  floor seen {lo:.0}-{r:.0}° off the nadir: largest mapping error {:.2} mm",
                 m * 1e3
             );
@@ -200,7 +200,7 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
     }
     let vouched = vouched_floor_error(&cam, &truth);
     if let Some((reach, max)) = vouched {
-        println!(
+        say!(
             "  floor `calibrate` vouches for ({} mm at {}σ: out to {:.2} m from the point under the camera, {:.0}° off the nadir): largest mapping error {:.2} mm",
             odocal_calib::FLOOR_BOUND_MM,
             odocal_calib::FLOOR_BOUND_SIGMAS,
@@ -218,7 +218,7 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             failed.join("; ")
         );
     }
-    println!(
+    say!(
         "check passed: fx, fy within 0.2 %, cx, cy within 1 px{}",
         if vouched.is_some() {
             ", floor within 2 mm where calibrate vouches for it"

@@ -132,7 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.seed,
         )?;
     }
-    println!(
+    say!(
         "synth experiment: {} in {} (seed {}, frames {}) -> {}",
         count(
             args.runs,

@@ -53,7 +53,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     write_atomic(&scans, sim.scans_csv().as_bytes())?;
     write_atomic(&truth, sim.truth_csv().as_bytes())?;
     let (det, spur, missed) = sim.summary();
-    println!(
+    say!(
         "synth lrf: {} landmarks in {:.1} m x {:.1} m{}, {} scans; per scan {:.1} reflectors detected, {:.1} spurious ({:.0} %), {:.0} % missed; sigma_range {:.0} mm",
         sim.world.landmarks.len(),
         cfg.room_w_m,
@@ -66,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         100.0 * missed,
         cfg.sigma_range_m * 1e3
     );
-    println!(
+    say!(
         "wrote {}, {}, {}\nnext: odocal lrf localize --map {} {} --out poses.csv --truth {}",
         map.display(),
         scans.display(),

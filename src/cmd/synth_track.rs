@@ -235,7 +235,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let written = write_track_scene(&dir, &scene, &|_| bar.inc(1));
     bar.finish_and_clear();
     let written = written?;
-    println!(
+    say!(
         "wrote {} frames ({}x{}, {} fps) to {}, the true camera.json, truth.csv and frames.csv{}",
         written.frames,
         written.size_px.0,

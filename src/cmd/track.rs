@@ -173,7 +173,7 @@ const TRUTH_HEADING_MISMATCH_RAD: f64 = 0.17;
 fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
     let e = &a.errors;
     let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
-    println!(
+    say!(
         "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth at their time{}; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
         a.truth,
         e.position_rms_m * 1e3,
@@ -193,27 +193,27 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
         z(e.error_over_sigma_theta),
     );
     if e.position_rms_m > TRUTH_MISMATCH_M {
-        eprintln!(
+        tell!(
             "warning: the trajectory is {:.0} mm RMS from {}: is that the truth of this video, and camera.json this camera's?",
             e.position_rms_m * 1e3,
             a.truth
         );
     } else if e.heading_rms_rad > TRUTH_HEADING_MISMATCH_RAD {
         // Positions agree, so the file is this video's truth: its headings are read wrongly.
-        eprintln!(
+        tell!(
             "warning: the headings are {:.1}° RMS from {} while the positions agree: is its theta in degrees (it must be in radians), or its heading another body's?",
             e.heading_rms_rad.to_degrees(),
             a.truth
         );
     }
     if 2 * e.matched < a.fixes {
-        eprintln!(
+        tell!(
             "warning: only {} of the {} fixes have a truth in {} at their time, so the figures above judge those only: give the truth of the whole video (frames.csv of `synth track` has a row per frame)",
             e.matched, a.fixes, a.truth
         );
     }
     if let Some(rate) = a.apriltag3_rate {
-        println!(
+        say!(
             "AprilTag 3 alone (decimation 2, its defaults) finds tag {tag_id} in {:.1} % of the {} frames; odocal tracks {} ({:.1} %)",
             100.0 * rate,
             a.frames,
@@ -340,7 +340,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(|r| TimingReport::of(r).warnings())
         .unwrap_or_default();
     for w in &warnings {
-        eprintln!("warning: {}: {w}", args.video.display());
+        tell!("warning: {}: {w}", args.video.display());
     }
     let result = match result {
         Err(TrackError::NoFix { message, result }) => {
@@ -356,7 +356,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let trajectory = result.trajectory()?;
     for w in fix_warnings(&result, &camera_file, &floor, &opts) {
-        eprintln!("warning: {}: {w}", args.video.display());
+        tell!("warning: {}: {w}", args.video.display());
         warnings.push(w);
     }
     let compared = match (&truth, &args.truth) {
@@ -377,7 +377,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.report {
         write_report(&args, &opts, &result, compared.clone(), &warnings, path)?;
     }
-    eprintln!("{} → {}", result.summary(opts.tag_id), args.out.display());
+    tell!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {
         print_against_truth(a, args.tag.tag_id);
     }

@@ -98,7 +98,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         let path = out_path(&args.out, *id, single);
         check_output_file(&path, "--out")?;
         write_atomic(&path, t.to_csv().as_bytes())?;
-        eprintln!("tag {id}: {} poses → {}", t.rows.len(), path.display());
+        tell!("tag {id}: {} poses → {}", t.rows.len(), path.display());
     }
     Ok(())
 }
@@ -109,7 +109,7 @@ fn fixes_to_trajectories(
     let mut out = Vec::new();
     for (id, r) in results {
         if r.fixes().next().is_none() {
-            eprintln!("warning: tag {id} never gave a confident fix; no file written for it");
+            tell!("warning: tag {id} never gave a confident fix; no file written for it");
             continue;
         }
         out.push((id, r.trajectory()?));
@@ -146,7 +146,7 @@ fn track_one_video(
     let results = results?;
     for (id, r) in &results {
         for w in fix_warnings(r, &camera_file, &floor, opts) {
-            eprintln!("warning: {}: tag {id}: {w}", args.video.display());
+            tell!("warning: {}: tag {id}: {w}", args.video.display());
         }
     }
     let why = why_no_fix(
@@ -228,12 +228,12 @@ fn track_arena(
         .map(|c| c.arena_to_camera.0.inverse().translation.vector.z)
         .fold(f64::INFINITY, f64::min);
     opts.check(Some(lowest))?;
-    eprintln!("tracking {} videos in parallel", videos.len());
+    tell!("tracking {} videos in parallel", videos.len());
     let results = track_cameras(&arena, &videos, opts, selection, true)?;
     for ((cam, per_tag), video) in arena.cameras.iter().zip(&results).zip(&videos) {
         for (id, r) in per_tag {
             for w in tag_shape_warnings(r, &cam.calibration, &cam.arena_to_camera, opts) {
-                eprintln!("warning: {}: tag {id}: {w}", video.display());
+                tell!("warning: {}: tag {id}: {w}", video.display());
             }
         }
     }
@@ -253,7 +253,7 @@ fn track_arena(
     if let TagSelection::Ids(ids) = selection {
         for id in ids {
             if !tracking.robots.iter().any(|r| r.tag_id == *id) {
-                eprintln!("warning: tag {id} never gave a confident fix in any camera; no file written for it");
+                tell!("warning: tag {id} never gave a confident fix in any camera; no file written for it");
             }
         }
     }
@@ -261,18 +261,18 @@ fn track_arena(
     for r in &tracking.robots {
         let mount = &opts.tag_to_robot;
         for w in mount_warnings(&r.trajectory, mount) {
-            eprintln!("warning: tag {}: {w}", r.tag_id);
+            tell!("warning: tag {}: {w}", r.tag_id);
         }
     }
-    println!(
+    say!(
         "frame rate {fps:.3} frames/s, taken to be every camera's (clocks without drift, one constant offset each)"
     );
     for k in 0..arena.cameras.len() {
         let (o, sd) = (tracking.offsets.offset_s[k], tracking.offsets.sigma_s[k]);
         if sd.is_nan() {
-            println!("camera {k} clock offset unknown: it saw no robot");
+            say!("camera {k} clock offset unknown: it saw no robot");
         } else {
-            println!(
+            say!(
                 "camera {k} clock offset {:+.3} ms ± {:.3} ms (t_arena = t_camera + offset)",
                 o * 1e3,
                 sd * 1e3
@@ -280,9 +280,9 @@ fn track_arena(
         }
     }
     if tracking.offsets.pairs.is_empty() {
-        println!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
+        say!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
     } else {
-        println!(
+        say!(
             "simultaneous fixes of two cameras after the offsets: {:.2} mm RMS apart ({} pairs of cameras)",
             tracking.offsets.rms_m * 1e3,
             tracking.offsets.pairs.len()
@@ -295,7 +295,7 @@ fn track_arena(
             .iter()
             .map(|h| h.disagreement_m)
             .fold(0.0, f64::max);
-        println!(
+        say!(
             "tag {}: {} fused poses over {:.2} s, {} handoffs, largest jump at a handoff {:.3} mm (the cameras disagreed by up to {:.2} mm there)",
             r.tag_id,
             r.trajectory.rows.len(),
@@ -368,7 +368,7 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
     let truth = ArenaTruth::read(&dir.join("truth.json"))?;
     for (k, c) in truth.cameras.iter().enumerate() {
         if let Some(o) = tracking.offsets.offset_s.get(k) {
-            println!(
+            say!(
                 "against the truth: camera {k} clock offset off by {:.3} ms",
                 (o - c.clock_offset_s).abs() * 1e3
             );
@@ -376,7 +376,7 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
     }
     for r in &tracking.robots {
         let Some(rt) = truth.robots.iter().find(|t| t.tag_id == r.tag_id) else {
-            println!(
+            say!(
                 "against the truth: tag {} is no robot of the arena",
                 r.tag_id
             );
@@ -421,7 +421,7 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
                 (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt()
             )
         };
-        println!(
+        say!(
             "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses; largest error step at a handoff {:.3} mm{z_rms}",
             r.tag_id,
             rms * 1e3,

@@ -129,19 +129,19 @@ fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
         "kinematic fit",
         &format!("perceptron 2-{hidden}-3"),
     ];
-    println!(
+    say!(
         "path model: {} windows; chained window end vs camera (RMS over the training windows):",
         model.n_windows
     );
     for (name, f) in names.iter().zip(&model.window_fit) {
-        println!(
+        say!(
             "  {name:<18} position {:7.1} mm   heading {:6.3} deg",
             1e3 * f.position_rms_m,
             f.heading_rms_rad.to_degrees()
         );
     }
     let g = &model.kinematic_fit;
-    println!(
+    say!(
         "kinematic fit: left wheel {:.3} mm, right wheel {:.3} mm, wheel base {:.2} mm (nominal {:.3} mm, {:.2} mm)",
         1e3 * g.left_wheel_diameter_m,
         1e3 * g.right_wheel_diameter_m,
@@ -149,7 +149,7 @@ fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
         1e3 * ds.robot.wheel_diameter_m,
         1e3 * ds.robot.wheel_base_m
     );
-    println!("wrote {}", out.display());
+    say!("wrote {}", out.display());
     Ok(())
 }
 
@@ -255,16 +255,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .with_context(|| format!("{}", args.dataset.display()))?;
     bar.finish_and_clear();
     for w in &fitted.warnings {
-        eprintln!("odocal: warning: {w}");
+        tell!("odocal: warning: {w}");
     }
     if let Some(md) = &fitted.table2_markdown {
-        println!("{md}");
+        say!("{md}");
     }
     write_json(out, &fitted.model)?;
     for line in fitted.summary(args.folds.unwrap_or(DEFAULT_FOLDS)) {
-        println!("{line}");
+        say!("{line}");
     }
-    println!("wrote {}", out.display());
+    say!("wrote {}", out.display());
     Ok(())
 }
 
@@ -298,23 +298,21 @@ fn run_sweep(
         .with_context(|| format!("{}", args.dataset.display()))?;
     bar.finish_and_clear();
     for w in &rep.warnings {
-        eprintln!("odocal: warning: {w}");
+        tell!("odocal: warning: {w}");
     }
     let md = report::markdown(&rep);
-    println!("{md}");
+    say!("{md}");
     if let Some(dir) = &args.report {
         write_json(&dir.join("report.json"), &rep)?;
         write_atomic(&dir.join("report.md"), md.as_bytes())?;
-        eprintln!(
+        tell!(
             "wrote {} and {}",
             dir.join("report.json").display(),
             dir.join("report.md").display()
         );
     }
     if args.out.is_some() {
-        eprintln!(
-            "odocal: note: --out is ignored with --sweep; train the chosen k without --sweep"
-        );
+        tell!("odocal: note: --out is ignored with --sweep; train the chosen k without --sweep");
     }
     Ok(())
 }
