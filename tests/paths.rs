@@ -336,8 +336,19 @@ fn a_path_model_trained_on_forward_tours_refuses_a_log_driven_backwards() {
     v.as_object_mut().unwrap().remove("step_directions");
     let old = dir.path().join("old-model.json");
     std::fs::write(&old, serde_json::to_string_pretty(&v).unwrap()).unwrap();
-    ok(&["correct", "--model", p(&old), p(&back_csv)]);
+    let o = odocal(&["correct", "--model", p(&old), p(&back_csv)]);
+    succeeded(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        err.trim_end(),
+        format!("odocal: warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
+        "{err}"
+    );
 }
+
+/// What `correct` and `evaluate` say of a path model written before the training's directions
+/// were recorded, after its name.
+const UNRECORDED_DIRECTIONS: &str = "predates the record of the directions its training drove (step_directions): a log driven in directions the training did not see (backwards, turning on the spot one way) cannot be detected and is corrected unflagged; retrain the model with `odocal train` on its window dataset to have logs checked for it";
 
 /// The recording `id` of the experiment in `from` driven in reverse, as its own experiment in
 /// `to` (manifest.json): both wheels' counts negated, and the camera's poses mirrored through
@@ -457,6 +468,20 @@ fn evaluate_refuses_a_held_out_recording_driven_backwards_as_correct_does() {
     assert!(!String::from_utf8_lossy(&o.stdout).contains("EXTRAPOLATED"));
     let ev: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert!(ev["runs"][0].get("outside_domain").is_none(), "{ev}");
+    // A model without the record of its directions cannot refuse the reversed recording, and
+    // says so.
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    v.as_object_mut().unwrap().remove("step_directions");
+    let old = dir.path().join("old-model.json");
+    std::fs::write(&old, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let o = odocal(&["evaluate", p(&manifest), "--model", p(&old)]);
+    succeeded(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        err.trim_end(),
+        format!("odocal: warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
+        "{err}"
+    );
 }
 
 #[test]

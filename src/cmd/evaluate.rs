@@ -114,6 +114,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--umbmark-calibration needs --umbmark-m (the squares' side, metres)");
     }
     let model = PathModelFile::read(&args.model)?;
+    if let Some(w) = model.unrecorded_directions(&args.model.display().to_string()) {
+        eprintln!("odocal: warning: {w}");
+    }
     let robot = match &args.robot {
         Some(p) => RobotParams::read(p)?,
         None => model.robot,

@@ -272,6 +272,17 @@ impl PathModelFile {
         Ok(outside_domain)
     }
 
+    /// Why logs cannot be checked for the directions they were driven in: models written
+    /// before the training's directions were recorded (`step_directions` absent). `name`
+    /// names the model. None when the record is there.
+    pub fn unrecorded_directions(&self, name: &str) -> Option<String> {
+        self.step_directions.is_none().then(|| {
+            format!(
+                "{name} predates the record of the directions its training drove (step_directions): a log driven in directions the training did not see (backwards, turning on the spot one way) cannot be detected and is corrected unflagged; retrain the model with `odocal train` on its window dataset to have logs checked for it"
+            )
+        })
+    }
+
     /// Corrects a whole log of `robot` (`name` names the log in messages): the raw and the
     /// corrected trajectory from the log's first row. A log outside the training domain
     /// ([`Self::check_domain`]) is refused unless `allow_extrapolation`, when the reasons are
