@@ -4,7 +4,7 @@
 
 use clap::{CommandFactory, FromArgMatches, Subcommand};
 
-/// `println!` that carries on when standard output is closed (`odocal dataset … | head -1`):
+/// `say!` that carries on when standard output is closed (`odocal dataset … | head -1`):
 /// the command's outputs are files committed after its summary is printed, and must not be
 /// lost with a line nobody reads (a closed pipe would otherwise end the process there).
 macro_rules! say {
@@ -14,7 +14,7 @@ macro_rules! say {
     }};
 }
 
-/// `eprintln!` that carries on when standard error is closed, as [`say!`].
+/// `tell!` that carries on when standard error is closed, as [`say!`].
 macro_rules! tell {
     ($($t:tt)*) => {{
         use std::io::Write as _;

@@ -336,7 +336,152 @@ fn a_path_model_trained_on_forward_tours_refuses_a_log_driven_backwards() {
     v.as_object_mut().unwrap().remove("step_directions");
     let old = dir.path().join("old-model.json");
     std::fs::write(&old, serde_json::to_string_pretty(&v).unwrap()).unwrap();
-    ok(&["correct", "--model", p(&old), p(&back_csv)]);
+    let o = odocal(&["correct", "--model", p(&old), p(&back_csv)]);
+    succeeded(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        err.trim_end(),
+        format!("odocal: warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
+        "{err}"
+    );
+}
+
+/// What `correct` and `evaluate` say of a path model written before the training's directions
+/// were recorded, after its name.
+const UNRECORDED_DIRECTIONS: &str = "predates the record of the directions its training drove (step_directions): a log driven in directions the training did not see (backwards, turning on the spot one way) cannot be detected and is corrected unflagged; retrain the model with `odocal train` on its window dataset to have logs checked for it";
+
+/// The recording `id` of the experiment in `from` driven in reverse, as its own experiment in
+/// `to` (manifest.json): both wheels' counts negated, and the camera's poses mirrored through
+/// the start frame's y axis (x and the heading negated), where wheels turning backwards take
+/// a differential drive.
+fn reversed_recording(
+    from: &std::path::Path,
+    id: &str,
+    to: &std::path::Path,
+) -> std::path::PathBuf {
+    std::fs::create_dir_all(to).unwrap();
+    let log = std::fs::read_to_string(from.join(format!("runs/{id}.odometry.csv"))).unwrap();
+    let mut lines = log.lines();
+    let mut back = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let c: Vec<&str> = l.split(',').collect();
+        let neg = |v: &str| -v.parse::<i64>().unwrap();
+        back += &format!("{},{},{}\n", c[0], neg(c[1]), neg(c[2]));
+    }
+    std::fs::write(to.join("back.odometry.csv"), back).unwrap();
+    let traj = std::fs::read_to_string(from.join(format!("runs/{id}.trajectory.csv"))).unwrap();
+    let mut lines = traj.lines();
+    let mut mirrored = format!("{}\n", lines.next().unwrap());
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let num = |r: &[&str], i: usize| r[i].parse::<f64>().unwrap();
+    let (x0, y0, th0) = (num(&rows[0], 1), num(&rows[0], 2), num(&rows[0], 3));
+    let (c, s) = (th0.cos(), th0.sin());
+    for r in &rows {
+        let (dx, dy) = (num(r, 1) - x0, num(r, 2) - y0);
+        // In the start frame: (x, y, theta) -> (-x, y, -theta).
+        let (lx, ly) = (-(c * dx + s * dy), -s * dx + c * dy);
+        let th = th0 - (num(r, 3) - th0);
+        let mut row = vec![
+            r[0].to_string(),
+            (x0 + c * lx - s * ly).to_string(),
+            (y0 + s * lx + c * ly).to_string(),
+            th.to_string(),
+        ];
+        row.extend(r[4..].iter().map(|v| v.to_string()));
+        mirrored += &format!("{}\n", row.join(","));
+    }
+    std::fs::write(to.join("back.trajectory.csv"), mirrored).unwrap();
+    let manifest = to.join("manifest.json");
+    std::fs::write(
+        &manifest,
+        r#"{"format":"odocal.manifest/1","runs":[{"id":"back","trajectory":"back.trajectory.csv","odometry":"back.odometry.csv"}]}"#,
+    )
+    .unwrap();
+    manifest
+}
+
+#[test]
+fn evaluate_refuses_a_held_out_recording_driven_backwards_as_correct_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let manifest = reversed_recording(&tours, "run001", &dir.path().join("back"));
+    let out = dir.path().join("ev.json");
+    let args = [
+        "evaluate",
+        p(&manifest),
+        "--model",
+        &model,
+        "--out",
+        p(&out),
+    ];
+    let e = fails_with(
+        &odocal(&args),
+        &format!(
+            "odocal: error: {model}: model: run \"back\" of {}: outside what the model was trained on: the model was trained on forward driving (driving backwards in ",
+            p(&manifest)
+        ),
+    );
+    assert!(
+        e.contains("but the log drives backwards (both wheels backwards) in ")
+            && e.trim_end().ends_with("; a correction there would be a guess (pass --allow-extrapolation to get it anyway, flagged)"),
+        "{e}"
+    );
+    assert!(!out.exists(), "nothing is written on refusal");
+    // On request it is evaluated, flagged on stderr, in the summary and in the file.
+    let mut flagged = args.to_vec();
+    flagged.push("--allow-extrapolation");
+    let o = odocal(&flagged);
+    succeeded(&o);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(
+        stderr.starts_with(&format!(
+            "odocal: warning: EXTRAPOLATED, outside the training domain: run \"back\" of {}: the model was trained on forward driving",
+            p(&manifest)
+        )),
+        "{stderr}"
+    );
+    assert!(
+        stdout.contains("  EXTRAPOLATED: 1 of 1 recordings lie outside the perceptron's training domain (warnings above; outside_domain in --out): its figures include its guesses there"),
+        "{stdout}"
+    );
+    let ev: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let why = ev["runs"][0]["outside_domain"][0].as_str().unwrap();
+    assert!(why.contains("drives backwards"), "{why}");
+    // The forward tours are inside: nothing flagged, nothing recorded.
+    let o = odocal(&[
+        "evaluate",
+        p(&tours.join("manifest.json")),
+        "--model",
+        &model,
+        "--out",
+        p(&out),
+    ]);
+    succeeded(&o);
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("EXTRAPOLATED"));
+    let ev: Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert!(ev["runs"][0].get("outside_domain").is_none(), "{ev}");
+    // A model without the record of its directions cannot refuse the reversed recording, and
+    // says so.
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    v.as_object_mut().unwrap().remove("step_directions");
+    let old = dir.path().join("old-model.json");
+    std::fs::write(&old, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let o = odocal(&["evaluate", p(&manifest), "--model", p(&old)]);
+    succeeded(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(
+        err.trim_end(),
+        format!("odocal: warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
+        "{err}"
+    );
 }
 
 #[test]

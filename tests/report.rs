@@ -489,6 +489,122 @@ fn malformed_inputs_are_one_line_errors() {
     assert!(!html.exists(), "a failed report must not leave a file");
 }
 
+/// A model or sweep report of another dataset than the one given used to be drawn beside its
+/// runs as if fitted to them; the report is refused, naming both files and both hashes.
+#[test]
+fn a_model_or_sweep_of_another_dataset_is_refused() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let (ds, other) = (d.join("dataset.json"), d.join("other.json"));
+    experiment_dataset(&d.join("exp"), &ds, 12, 2);
+    experiment_dataset(&d.join("exp-other"), &other, 12, 3);
+    let (model, sweep) = (d.join("model.json"), d.join("train"));
+    ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&model),
+        "--hidden",
+        "3",
+        "--no-cv",
+    ]);
+    ok(&[
+        "train",
+        p(&ds),
+        "--sweep",
+        "2..2",
+        "--restarts",
+        "1",
+        "--folds",
+        "3",
+        "--report",
+        p(&sweep),
+    ]);
+    let sha = |f: &Path| -> String {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(f).expect("read")).expect("json");
+        v["dataset_sha256"]
+            .as_str()
+            .expect("dataset_sha256")
+            .chars()
+            .take(12)
+            .collect()
+    };
+    let trained_on = sha(&model);
+    assert_eq!(sha(&sweep.join("report.json")), trained_on);
+    // The other dataset's hash as train records it, from a model trained on it.
+    let other_model = d.join("other-model.json");
+    ok(&[
+        "train",
+        p(&other),
+        "--out",
+        p(&other_model),
+        "--hidden",
+        "3",
+        "--no-cv",
+    ]);
+    let other_sha = sha(&other_model);
+    assert_ne!(other_sha, trained_on);
+    let html = d.join("r.html");
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&other),
+        "--model",
+        p(&model),
+    ]);
+    assert_eq!(
+        e.trim_end(),
+        format!(
+            "odocal: error: {}: the model was trained on another dataset than {} (its dataset_sha256 {trained_on}…, the dataset's SHA-256 {other_sha}…): its corrections of these runs would be drawn as its fit to them; give the dataset.json it was trained on, or retrain it on this one with `odocal train`",
+            p(&model),
+            p(&other)
+        )
+    );
+    let report_json = sweep.join("report.json");
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&other),
+        "--train-report",
+        p(&report_json),
+    ]);
+    assert_eq!(
+        e.trim_end(),
+        format!(
+            "odocal: error: {}: the sweep ran on another dataset than {} (its dataset_sha256 {trained_on}…, the dataset's SHA-256 {other_sha}…): its Tables 1 and 2 would be shown beside runs they were not computed on; give the report.json of a sweep on this dataset, or rerun `odocal train --sweep` on it",
+            p(&report_json),
+            p(&other)
+        )
+    );
+    assert!(!html.exists(), "nothing written on refusal");
+    // The dataset they were made from, and each of them without a dataset, are reported.
+    ok(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&ds),
+        "--model",
+        p(&model),
+        "--train-report",
+        p(&report_json),
+    ]);
+    ok(&[
+        "report",
+        "--out",
+        p(&html),
+        "--model",
+        p(&model),
+        "--train-report",
+        p(&report_json),
+    ]);
+}
+
 /// `odocal track --truth frames.csv --report` carries its comparison with the truth into the
 /// report's table of tracking conditions; the figures are checked here against the truth.
 #[test]

@@ -333,6 +333,65 @@ fn sweep_ranges_and_folds_are_checked_as_options() {
     ok(&["train", p(&ds), "--out", p(&m), "--no-cv"]);
 }
 
+/// Options that another option given beside them would leave without effect are refused,
+/// each naming both, before any training and with nothing written.
+#[test]
+fn options_another_option_leaves_without_effect_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 12, 2);
+    let (m, rep) = (dir.path().join("m.json"), dir.path().join("rep"));
+    let oracle = dir.path().join("exp/truth/oracle.json");
+    let cases: [(Vec<&str>, String); 6] = [
+        (
+            vec!["--out", p(&m), "--no-cv", "--folds", "4"],
+            "--folds 4 with --no-cv: --no-cv fits the one model without cross-validation, so there are no folds; leave out --folds, or --no-cv to have the cross-validated estimate".into(),
+        ),
+        (
+            vec!["--sweep", "2..3", "--hidden", "8"],
+            "--hidden 8 with --sweep 2..3: a sweep trains every hidden size of its range; leave out --hidden (--sweep 8..8 sweeps k = 8 alone), or --sweep to train the one model".into(),
+        ),
+        (
+            vec!["--sweep", "2..3", "--no-cv"],
+            "--no-cv with --sweep 2..3: a sweep is cross-validation; leave out --no-cv, or --sweep to fit the one model without the estimate".into(),
+        ),
+        (
+            vec!["--sweep", "2..3", "--out", p(&m)],
+            format!("--out {} with --sweep 2..3: a sweep writes no model (Tables 1 and 2 go to --report); leave out --out, and train the chosen k without --sweep", p(&m)),
+        ),
+        (
+            vec!["--out", p(&m), "--report", p(&rep)],
+            format!("--report {} without --sweep: only a sweep writes report.json and report.md (the one model's figures are printed and kept in model.json); leave out --report, or add --sweep A..B", p(&rep)),
+        ),
+        (
+            vec!["--out", p(&m), "--no-cv", "--oracle", p(&oracle)],
+            format!("--oracle {} with --no-cv: the oracle is a row of the cross-validated Table 2, which --no-cv leaves out; leave out --oracle, or --no-cv", p(&oracle)),
+        ),
+    ];
+    for (extra, message) in cases {
+        let mut args = vec!["train", p(&ds)];
+        args.extend(extra);
+        let e = fails(&args);
+        assert_eq!(
+            e.trim_end(),
+            format!("odocal: error: {message}"),
+            "{args:?}"
+        );
+        assert!(!m.exists() && !rep.exists(), "{args:?} wrote a file");
+    }
+    // Each option alone, or with the mode it belongs to, is still taken.
+    ok(&["train", p(&ds), "--out", p(&m), "--no-cv", "--hidden", "3"]);
+    ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&m),
+        "--folds",
+        "4",
+        "--oracle",
+        p(&oracle),
+    ]);
+}
+
 /// A hand edit of a model's JSON.
 type Edit = fn(&mut serde_json::Value);
 

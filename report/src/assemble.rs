@@ -7,7 +7,7 @@ use odocal_calib::CameraFile;
 use odocal_core::TextFormat;
 use odocal_dataset::Dataset;
 use odocal_synth::board::{true_corners, CalibTruth};
-use odocal_trainer::{ModelFile, SweepReport};
+use odocal_trainer::{sha256_hex, ModelFile, SweepReport};
 
 use crate::{
     calibration_section, corrector_section, heading_section, laser_section, parse_track_csv,
@@ -85,7 +85,15 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     }
 
     // Runs: trajectories, heading, corrector.
-    let ds = inp.dataset.as_deref().map(Dataset::read).transpose()?;
+    let ds = match &inp.dataset {
+        Some(p) => {
+            let text = odocal_core::read_text(p)?;
+            let ds = Dataset::parse(&text, &p.display().to_string())?;
+            // What `odocal train` records of the file it trained on.
+            Some((ds, sha256_hex(text.as_bytes())))
+        }
+        None => None,
+    };
     let mdl = match &inp.model {
         Some(p) => {
             let m = ModelFile::read(p)?;
@@ -94,8 +102,35 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
         }
         None => None,
     };
+    let sweep = inp
+        .train_report
+        .as_deref()
+        .map(SweepReport::read)
+        .transpose()?;
+    if let (Some(dp), Some((_, sha))) = (&inp.dataset, &ds) {
+        if let (Some(mp), Some(m)) = (&inp.model, &mdl) {
+            check_same_dataset(
+                mp,
+                &m.dataset_sha256,
+                dp,
+                sha,
+                "the model was trained",
+                "its corrections of these runs would be drawn as its fit to them; give the dataset.json it was trained on, or retrain it on this one with `odocal train`",
+            )?;
+        }
+        if let (Some(rp), Some(r)) = (&inp.train_report, &sweep) {
+            check_same_dataset(
+                rp,
+                &r.dataset_sha256,
+                dp,
+                sha,
+                "the sweep ran",
+                "its Tables 1 and 2 would be shown beside runs they were not computed on; give the report.json of a sweep on this dataset, or rerun `odocal train --sweep` on it",
+            )?;
+        }
+    }
     match &ds {
-        Some(ds) if !ds.samples.is_empty() => {
+        Some((ds, _)) if !ds.samples.is_empty() => {
             if let Some(p) = &inp.dataset {
                 used.push(format!(
                     "dataset {} ({} runs)",
@@ -165,13 +200,12 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     }
 
     // Tables 1 and 2.
-    match &inp.train_report {
-        Some(p) => {
-            let rep = SweepReport::read(p)?;
+    match (&inp.train_report, &sweep) {
+        (Some(p), Some(rep)) => {
             used.push(format!("training report {}", p.display()));
-            report.sections.push(training_section(&rep)?);
+            report.sections.push(training_section(rep)?);
         }
-        None => omit(
+        _ => omit(
             &mut report,
             "Training: Tables 1 and 2",
             "no training report given (--train-report DIR/report.json)",
@@ -271,6 +305,32 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
         .intro
         .push("Units: metres (m), centimetres (cm), millimetres (mm), pixels (px), degrees (deg), seconds (s).".into());
     Ok(report)
+}
+
+/// Refuses a model or sweep report (`file`, whose `dataset_sha256` is `its_sha`) made from
+/// another dataset than the report's (`dataset`, hashed `sha` as `odocal train` hashes it):
+/// the report would present its figures as this dataset's with nothing to tell them apart.
+/// `made` says how the file came from its dataset, `then` what would go wrong and what to do.
+fn check_same_dataset(
+    file: &Path,
+    its_sha: &str,
+    dataset: &Path,
+    sha: &str,
+    made: &str,
+    then: &str,
+) -> Result<(), ReportError> {
+    if its_sha == sha {
+        return Ok(());
+    }
+    // Enough digits to tell the two apart at a glance; a hand-edited hash may be anything.
+    let short = |h: &str| h.chars().take(12).collect::<String>();
+    Err(ReportError::Mismatch(format!(
+        "{}: {made} on another dataset than {} (its dataset_sha256 {}…, the dataset's SHA-256 {}…): {then}",
+        file.display(),
+        dataset.display(),
+        short(its_sha),
+        short(sha)
+    )))
 }
 
 fn file_name(s: &str) -> &str {

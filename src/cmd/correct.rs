@@ -65,6 +65,9 @@ fn write_track(args: &Args, csv: String) -> anyhow::Result<()> {
 /// Corrects a log of any path with a path model: the whole corrected trajectory.
 fn correct_path(args: &Args) -> anyhow::Result<()> {
     let model = PathModelFile::read(&args.model)?;
+    if let Some(w) = model.unrecorded_directions(&args.model.display().to_string()) {
+        tell!("odocal: warning: {w}");
+    }
     let (robot, log) = robot_and_log(args, model.robot)?;
     let run = model
         .correct_log(

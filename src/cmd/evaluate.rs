@@ -38,6 +38,11 @@ pub struct Args {
     /// Write the evaluation as JSON.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Evaluate recordings outside the model's training domain anyway (wheels faster than the
+    /// training's, driven in directions it hardly saw); each is flagged, and the perceptron's
+    /// figures with it.
+    #[arg(long)]
+    pub allow_extrapolation: bool,
 }
 
 /// The recordings of a manifest, with a note on each log whose encoder counts were unwrapped.
@@ -77,6 +82,25 @@ fn check_square_side(
     Ok(())
 }
 
+/// Judges a held-out log against the model's training domain as `odocal correct` does: the
+/// perceptron's figures on a log it was not trained for would be read as its accuracy.
+/// Refused unless --allow-extrapolation, when it is flagged and the reasons returned.
+fn outside_domain(
+    model: &PathModelFile,
+    rec: &PathRecording,
+    robot: &RobotParams,
+    args: &Args,
+) -> anyhow::Result<Vec<String>> {
+    let name = format!("run \"{}\" of {}", rec.id, args.manifest.display());
+    let why = model
+        .check_domain(&rec.log, robot, &name, args.allow_extrapolation)
+        .with_context(|| format!("{}", args.model.display()))?;
+    for w in &why {
+        tell!("odocal: warning: EXTRAPOLATED, outside the training domain: {name}: {w}");
+    }
+    Ok(why)
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
@@ -90,6 +114,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--umbmark-calibration needs --umbmark-m (the squares' side, metres)");
     }
     let model = PathModelFile::read(&args.model)?;
+    if let Some(w) = model.unrecorded_directions(&args.model.display().to_string()) {
+        tell!("odocal: warning: {w}");
+    }
     let robot = match &args.robot {
         Some(p) => RobotParams::read(p)?,
         None => model.robot,
@@ -155,8 +182,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         methods.push(("oracle (true kinematics)".into(), Reckoner::Truth(k)));
     }
     let recs = read_recordings(&args.manifest)?;
-    let ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
+    let mut ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
         .with_context(|| format!("{}", args.manifest.display()))?;
+    for (run, rec) in ev.runs.iter_mut().zip(&recs) {
+        run.outside_domain = outside_domain(&model, rec, &robot, &args)?;
+    }
+    let extrapolated = ev
+        .runs
+        .iter()
+        .filter(|r| !r.outside_domain.is_empty())
+        .count();
     if let Some(side) = args.umbmark_m {
         check_square_side(&ev.runs, side, &args.manifest)?;
     }
@@ -184,6 +219,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ),
             None => say!("  {:<32} {:6.2} % of path", m.name, 100.0 * m.end_error_per_m),
         }
+    }
+    if extrapolated > 0 {
+        say!(
+            "  EXTRAPOLATED: {extrapolated} of {} recordings lie outside the perceptron's training domain (warnings above; outside_domain in --out): its figures include its guesses there",
+            ev.runs.len()
+        );
     }
     if let Some(out) = &args.out {
         write_json(out, &ev)?;

@@ -28,10 +28,11 @@ pub struct Args {
     /// dataset.json from `odocal dataset`.
     #[arg(long)]
     pub dataset: Option<PathBuf>,
-    /// model.json from `odocal train`.
+    /// model.json from `odocal train` (trained on --dataset, when that is given).
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// report.json from `odocal train --sweep A..B --report DIR`.
+    /// report.json from `odocal train --sweep A..B --report DIR` (a sweep on --dataset, when
+    /// that is given).
     #[arg(long)]
     pub train_report: Option<PathBuf>,
     /// Output folder of `odocal synth experiment` (real tracks: truth/<id>.true.csv or

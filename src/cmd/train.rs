@@ -18,11 +18,12 @@ use crate::output::{check_output_dir, check_output_file, progress, write_atomic,
 pub struct Args {
     /// The training set (dataset.json from `odocal dataset`).
     pub dataset: PathBuf,
-    /// Where to write the trained model (model.json); required unless --sweep is given.
+    /// Where to write the trained model (model.json); required unless --sweep is given, and
+    /// refused with it (a sweep writes no model).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Hidden neurons k (default: 8 for straight runs, as the source chose; 2 for a path
-    /// model trained on windows).
+    /// model trained on windows). A sweep takes its sizes from --sweep instead.
     #[arg(long)]
     pub hidden: Option<usize>,
     /// Training method: lm (Levenberg–Marquardt, the levenberg-marquardt crate; the default)
@@ -45,7 +46,7 @@ pub struct Args {
     /// then records no cross-validated figures).
     #[arg(long)]
     pub no_cv: bool,
-    /// Directory for the sweep report (report.json, report.md).
+    /// Directory for the sweep report (report.json, report.md); with --sweep only.
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Truth of a synthetic experiment (truth/oracle.json): adds the oracle row to Table 2.
@@ -98,6 +99,43 @@ fn unused_for_paths(args: &Args) -> Vec<&'static str> {
     .into_iter()
     .filter_map(|(name, given)| given.then_some(name))
     .collect()
+}
+
+/// Refuses straight-run options that another option given beside them leaves without effect:
+/// a sweep cross-validates every size of its range and writes no model, and one model fitted
+/// with --no-cv makes no folds and no Table 2. Ignored, they would leave the user believing
+/// they had set something.
+fn refuse_unused_combinations(args: &Args) -> anyhow::Result<()> {
+    match &args.sweep {
+        Some(range) => {
+            if let Some(k) = args.hidden {
+                bail!("--hidden {k} with --sweep {range}: a sweep trains every hidden size of its range; leave out --hidden (--sweep {k}..{k} sweeps k = {k} alone), or --sweep to train the one model");
+            }
+            if args.no_cv {
+                bail!("--no-cv with --sweep {range}: a sweep is cross-validation; leave out --no-cv, or --sweep to fit the one model without the estimate");
+            }
+            if let Some(out) = &args.out {
+                bail!("--out {} with --sweep {range}: a sweep writes no model (Tables 1 and 2 go to --report); leave out --out, and train the chosen k without --sweep", out.display());
+            }
+        }
+        None => {
+            if args.restarts.is_some() {
+                bail!("--restarts is used by --sweep only (the one model of --out is trained once); leave it out, or add --sweep A..B");
+            }
+            if let Some(dir) = &args.report {
+                bail!("--report {} without --sweep: only a sweep writes report.json and report.md (the one model's figures are printed and kept in model.json); leave out --report, or add --sweep A..B", dir.display());
+            }
+            if args.no_cv {
+                if let Some(n) = args.folds {
+                    bail!("--folds {n} with --no-cv: --no-cv fits the one model without cross-validation, so there are no folds; leave out --folds, or --no-cv to have the cross-validated estimate");
+                }
+                if let Some(p) = &args.oracle {
+                    bail!("--oracle {} with --no-cv: the oracle is a row of the cross-validated Table 2, which --no-cv leaves out; leave out --oracle, or --no-cv", p.display());
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Trains the path corrector on a window dataset.
@@ -207,7 +245,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let folds = args.folds.unwrap_or(DEFAULT_FOLDS);
     if !args.no_cv && folds < 2 {
         bail!(
-            "--folds {folds}: cross-validation needs at least 2 folds; give --folds 2 or more, or --no-cv"
+            "--folds {folds}: cross-validation needs at least 2 folds; give --folds 2 or more, or --no-cv in place of --folds"
         );
     }
     let bytes = std::fs::read(&args.dataset)
@@ -216,21 +254,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if ds.is_windows() {
         return run_paths(&args, &ds, &sha);
     }
+    refuse_unused_combinations(&args)?;
     let ts = settings(&args)?;
-    if args.sweep.is_none() && args.restarts.is_some() {
-        bail!("--restarts is used by --sweep only (the one model of --out is trained once); leave it out, or add --sweep A..B");
-    }
     // Cross-validation holds out every fold in turn and needs at least 2 samples in each. The
     // default on a small dataset only costs the one model its estimate (a warning); folds
     // asked for cannot be had.
     let n = ds.samples.len();
-    if args.folds.is_some() && (args.sweep.is_some() || !args.no_cv) && folds > n / 2 {
+    if args.folds.is_some() && folds > n / 2 {
         bail!(
             "--folds {folds}: too few samples for {folds} folds: {} has {n}, enough for at most {} folds of 2; give --folds {} or fewer{}",
             args.dataset.display(),
             n / 2,
             n / 2,
-            if args.sweep.is_some() { "" } else { ", or --no-cv" }
+            if args.sweep.is_some() { "" } else { ", or --no-cv in place of --folds" }
         );
     }
     let oracle = match &args.oracle {
@@ -310,9 +346,6 @@ fn run_sweep(
             dir.join("report.json").display(),
             dir.join("report.md").display()
         );
-    }
-    if args.out.is_some() {
-        tell!("odocal: note: --out is ignored with --sweep; train the chosen k without --sweep");
     }
     Ok(())
 }

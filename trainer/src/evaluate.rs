@@ -92,6 +92,10 @@ pub struct RunResult {
     pub true_end_m: [f64; 2],
     /// Per method: "true minus computed" end position, start frame, metres.
     pub errors_m: Vec<[f64; 2]>,
+    /// Why the log lies outside the path model's training domain, when it was evaluated
+    /// anyway: the perceptron's error on it judges an extrapolation, not the model's accuracy.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outside_domain: Vec<String>,
 }
 
 /// One method's figures.
@@ -204,6 +208,7 @@ pub fn evaluate_paths(
             path_length_m,
             true_end_m: [truth.x_m, truth.y_m],
             errors_m,
+            outside_domain: Vec::new(),
         });
     }
     if squares {

@@ -223,31 +223,31 @@ impl PathModelFile {
         StepCorrector::new(self.robot, net)
     }
 
-    /// Corrects a whole log of `robot` (`name` names the log in messages): the raw and the
-    /// corrected trajectory from the log's first row. A log whose steps are faster than the
-    /// training's, or go mostly in a direction the training did not (driving backwards), is
-    /// refused unless `allow_extrapolation`, when the reasons are returned.
-    pub fn correct_log(
+    /// Refuses a log of `robot` (`name` names it in the message) whose steps lie outside what
+    /// the model was trained on: wheels faster than the training's, or driven mostly in a
+    /// direction the training hardly saw (backwards after forward tours). With
+    /// `allow_extrapolation` the reasons are returned instead, for the caller to flag; an empty
+    /// list means the log lies inside. `odocal correct` and `odocal evaluate` judge logs by
+    /// this one check.
+    pub fn check_domain(
         &self,
         log: &OdometryLog,
         robot: &RobotParams,
         name: &str,
         allow_extrapolation: bool,
-    ) -> Result<CorrectedPath, TrainError> {
-        self.check_robot(robot, name)?;
-        let revs = log.wheel_revs(robot);
-        let steps = nominal_travels(&revs.rev, robot);
-        for (k, w) in revs.t_s.windows(2).enumerate() {
-            let dt = w[1] - w[0];
-            if (dt - robot.period_s).abs() > 0.05 * robot.period_s {
-                return Err(TrainError::Model(format!(
-                    "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?)",
-                    k + 2,
-                    k + 3,
-                    robot.period_s
-                )));
-            }
-        }
+    ) -> Result<Vec<String>, TrainError> {
+        let steps = nominal_travels(&log.wheel_revs(robot).rev, robot);
+        self.check_steps_domain(&steps, robot, name, allow_extrapolation)
+    }
+
+    /// [`Self::check_domain`] on a log's nominal wheel travels per step.
+    fn check_steps_domain(
+        &self,
+        steps: &[[f64; 2]],
+        robot: &RobotParams,
+        name: &str,
+        allow_extrapolation: bool,
+    ) -> Result<Vec<String>, TrainError> {
         let fastest = steps
             .iter()
             .fold(0.0f64, |a, d| a.max(d[0].abs()).max(d[1].abs()))
@@ -269,6 +269,46 @@ impl PathModelFile {
                 outside_domain.join("; ")
             )));
         }
+        Ok(outside_domain)
+    }
+
+    /// Why logs cannot be checked for the directions they were driven in: models written
+    /// before the training's directions were recorded (`step_directions` absent). `name`
+    /// names the model. None when the record is there.
+    pub fn unrecorded_directions(&self, name: &str) -> Option<String> {
+        self.step_directions.is_none().then(|| {
+            format!(
+                "{name} predates the record of the directions its training drove (step_directions): a log driven in directions the training did not see (backwards, turning on the spot one way) cannot be detected and is corrected unflagged; retrain the model with `odocal train` on its window dataset to have logs checked for it"
+            )
+        })
+    }
+
+    /// Corrects a whole log of `robot` (`name` names the log in messages): the raw and the
+    /// corrected trajectory from the log's first row. A log outside the training domain
+    /// ([`Self::check_domain`]) is refused unless `allow_extrapolation`, when the reasons are
+    /// returned.
+    pub fn correct_log(
+        &self,
+        log: &OdometryLog,
+        robot: &RobotParams,
+        name: &str,
+        allow_extrapolation: bool,
+    ) -> Result<CorrectedPath, TrainError> {
+        self.check_robot(robot, name)?;
+        let revs = log.wheel_revs(robot);
+        let steps = nominal_travels(&revs.rev, robot);
+        for (k, w) in revs.t_s.windows(2).enumerate() {
+            let dt = w[1] - w[0];
+            if (dt - robot.period_s).abs() > 0.05 * robot.period_s {
+                return Err(TrainError::Model(format!(
+                    "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?)",
+                    k + 2,
+                    k + 3,
+                    robot.period_s
+                )));
+            }
+        }
+        let outside_domain = self.check_steps_domain(&steps, robot, name, allow_extrapolation)?;
         let c = self.corrector()?;
         let corrected = c.dead_reckon_travels(&steps);
         let raw = odocal_dataset::dead_reckon(&revs.rev, &WheelGeometry::nominal(robot));
