@@ -582,6 +582,34 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         )
     );
     assert!(!html.exists(), "nothing written on refusal");
+    // Another experiment's tracks share the run ids: drawn beside this dataset's odometry,
+    // they used to give its heading figure another run's oscillation.
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&ds),
+        "--experiment",
+        p(&d.join("exp-other")),
+    ]);
+    assert!(
+        e.contains("its tracks end ")
+            && e.contains(
+                "mm (median over 3 runs) from the end points the dataset has for the same run ids"
+            ),
+        "{e}"
+    );
+    assert!(!html.exists(), "nothing written on refusal");
+    ok(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&ds),
+        "--experiment",
+        p(&d.join("exp")),
+    ]);
     // The dataset they were made from, and each of them without a dataset, are reported.
     ok(&[
         "report",

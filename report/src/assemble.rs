@@ -171,6 +171,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                     track.as_ref(),
                 ));
             }
+            check_tracks_fit(&views, inp)?;
             report.sections.push(trajectory_section(&views)?);
             report
                 .sections
@@ -432,6 +433,36 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
         }),
         floor_sigma: cam.floor_uncertainty.clone(),
     }
+}
+
+/// Real tracks farther than this from the dataset's end points (median over the runs drawn,
+/// metres) are another recording's: a track and the camera's end point of one recording agree
+/// to millimetres.
+const TRACK_END_MISMATCH_M: f64 = 0.05;
+
+/// Refuses real tracks (--experiment, --trajectories) that are not of the recordings the
+/// dataset was built from: they are found by run id alone, and another experiment's runs
+/// share the ids.
+fn check_tracks_fit(views: &[RunView], inp: &ReportInputs) -> Result<(), ReportError> {
+    let mut off: Vec<f64> = views.iter().filter_map(RunView::real_end_off_m).collect();
+    if off.is_empty() {
+        return Ok(());
+    }
+    off.sort_by(f64::total_cmp);
+    let median = off[off.len() / 2];
+    if median <= TRACK_END_MISMATCH_M {
+        return Ok(());
+    }
+    let source = match (&inp.experiment, &inp.trajectories) {
+        (Some(e), _) => format!("--experiment {}", e.display()),
+        (None, Some(t)) => format!("--trajectories {}", t.display()),
+        (None, None) => "the real tracks".into(),
+    };
+    Err(ReportError::Mismatch(format!(
+        "{source}: its tracks end {:.0} mm (median over {} runs) from the end points the dataset has for the same run ids, where one recording's agree to millimetres: give the experiment or trajectories the dataset was built from",
+        median * 1e3,
+        off.len()
+    )))
 }
 
 /// The real track of a recording from the experiment or trajectory folders, if there is one.

@@ -84,6 +84,21 @@ impl RunView {
     }
 }
 
+impl RunView {
+    /// How far the real track's pose at the run's end lies from the dataset's end point,
+    /// metres: millimetres when both come from one recording, more when the track is another
+    /// recording's of the same run id. None without a real pose within 0.1 s of the end.
+    pub fn real_end_off_m(&self) -> Option<f64> {
+        let end = *self.odo_t_s.last()?;
+        let (ts, ps) = self.real.as_ref()?;
+        let (t, p) = ts
+            .iter()
+            .zip(ps)
+            .min_by(|a, b| (a.0 - end).abs().total_cmp(&(b.0 - end).abs()))?;
+        ((t - end).abs() <= 0.1).then(|| (p.x_m - self.target_m[0]).hypot(p.y_m - self.target_m[1]))
+    }
+}
+
 /// Indices of up to `max` samples to draw: the first run of each commanded speed.
 pub fn pick_runs(samples: &[Sample], max: usize) -> Vec<usize> {
     let mut speeds: Vec<f64> = Vec::new();
