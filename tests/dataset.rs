@@ -4,7 +4,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{fails, ok, p, rms};
+use common::{fails, ok, p, rms, succeeded};
 use odocal_dataset::{Dataset, OracleFile};
 
 fn synth(dir: &Path, runs: usize, seed: u64, per: usize) {
@@ -523,6 +523,74 @@ fn a_robot_file_of_another_robot_is_refused() {
     let o = with(0.043, 12.0, 0.1);
     assert!(o.status.success());
     assert!(!String::from_utf8_lossy(&o.stderr).contains("distances are"));
+    std::fs::remove_file(&out).unwrap();
+    // A parameter odocal does not read used to be passed over: a gear ratio its writer
+    // expected applied. Notes are kept.
+    let text = std::fs::read_to_string(&robot).unwrap();
+    std::fs::write(
+        &robot,
+        text.replace("\"period_s\"", "\"gear_ratio\":30,\"period_s\""),
+    )
+    .unwrap();
+    refused(
+        common::odocal(&[
+            "dataset",
+            "--manifest",
+            p(&d.join("manifest.json")),
+            "--robot",
+            p(&robot),
+            "--out",
+            p(&out),
+        ]),
+        "\"gear_ratio\" is not a robot parameter odocal reads",
+    );
+    std::fs::write(
+        &robot,
+        text.replace("\"period_s\"", "\"name\":\"rover 2\",\"period_s\""),
+    )
+    .unwrap();
+    succeeded(&common::odocal(&[
+        "dataset",
+        "--manifest",
+        p(&d.join("manifest.json")),
+        "--robot",
+        p(&robot),
+        "--out",
+        p(&out),
+    ]));
+    // So are manifest fields and columns it does not read.
+    let manifest = std::fs::read_to_string(d.join("manifest.json")).unwrap();
+    let m2 = d.join("m2.json");
+    std::fs::write(
+        &m2,
+        manifest.replacen("\"id\"", "\"tag_offset\": \"0.05,0\", \"id\"", 1),
+    )
+    .unwrap();
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&m2),
+        "--out",
+        p(&d.join("x.json")),
+    ]);
+    assert!(e.contains("unknown field `tag_offset`"), "{e}");
+    let m3 = d.join("m3.csv");
+    std::fs::write(
+        &m3,
+        "id,odometry,trajectory,clock_offset_s\nr,a.csv,b.csv,0.1\n",
+    )
+    .unwrap();
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&m3),
+        "--out",
+        p(&d.join("x.json")),
+    ]);
+    assert!(
+        e.contains("column \"clock_offset_s\" is not one odocal reads"),
+        "{e}"
+    );
 }
 
 /// Outputs never replace what the manifest lists: a dataset written over a run's odometry log

@@ -14,8 +14,11 @@ use odocal_core::csv_table;
 /// The `format` tag of manifest JSON files.
 pub const MANIFEST_FORMAT: &str = "odocal.manifest/1";
 
-/// One recording: a camera source and the robot's odometry log.
+/// One recording: a camera source and the robot's odometry log. Fields odocal does not read
+/// (a row's own tag offset or clock offset, say) are refused rather than passed over, since
+/// whoever wrote them expects them used.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ManifestRow {
     /// Recording identifier; runs split from it are named `<id>.<k>` (k from 1).
     pub id: String,
@@ -34,6 +37,7 @@ pub struct ManifestRow {
 
 /// A run manifest.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Manifest {
     /// Always [`MANIFEST_FORMAT`].
     pub format: String,
@@ -207,12 +211,30 @@ impl Manifest {
     }
 }
 
+/// The columns of a CSV manifest.
+const MANIFEST_COLUMNS: [&str; 5] = ["id", "video", "trajectory", "odometry", "speed_mps"];
+
 fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetError> {
     let Some(table) = csv_table(text, name)? else {
         return Ok((Manifest::new(Vec::new(), Path::new("")), Vec::new()));
     };
     let (line, header) = &table.header;
     let h: Vec<String> = header.iter().map(str::to_string).collect();
+    if let Some((i, c)) = h
+        .iter()
+        .enumerate()
+        .find(|(_, c)| !MANIFEST_COLUMNS.contains(&c.as_str()))
+    {
+        return Err(DatasetError::parse(
+            name,
+            *line,
+            i as u64 + 1,
+            format!(
+                "column \"{c}\" is not one odocal reads (it reads {}); remove it, or give what it says through the options or files that carry it",
+                MANIFEST_COLUMNS.join(",")
+            ),
+        ));
+    }
     for need in ["id", "odometry"] {
         if !h.iter().any(|c| c == need) {
             return Err(DatasetError::parse(

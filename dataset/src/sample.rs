@@ -294,11 +294,33 @@ impl RobotParams {
     /// Reads robot parameters from a small JSON file with `"format": "odocal.robot/1"`.
     pub fn read(path: &std::path::Path) -> Result<Self, crate::DatasetError> {
         let text = crate::error::read_text(path)?;
-        let f: RobotFile =
-            crate::error::parse_json_with_format(&text, &path.display().to_string(), ROBOT_FORMAT)?;
+        let name = path.display().to_string();
+        let f: RobotFile = crate::error::parse_json_with_format(&text, &name, ROBOT_FORMAT)?;
+        // A parameter odocal does not read (a gear ratio, a wheel radius) would be passed
+        // over while its writer expects it used; notes are welcome.
+        if let Ok(serde_json::Value::Object(fields)) = serde_json::from_str(&text) {
+            let known = [
+                "format",
+                "wheel_diameter_m",
+                "ticks_per_rev",
+                "wheel_base_m",
+                "period_s",
+                "name",
+                "comment",
+                "description",
+            ];
+            if let Some(k) = fields.keys().find(|k| !known.contains(&k.as_str())) {
+                return Err(crate::DatasetError::content(
+                    &name,
+                    format!(
+                        "\"{k}\" is not a robot parameter odocal reads (it reads wheel_diameter_m, ticks_per_rev counted per wheel revolution after any gearbox, wheel_base_m and period_s; \"name\", \"comment\" and \"description\" are kept as notes): fold it into those, or remove it"
+                    ),
+                ));
+            }
+        }
         f.robot.check().map_err(|e| {
             crate::DatasetError::content(
-                &path.display().to_string(),
+                &name,
                 format!("{e}; robot parameters must be positive finite numbers"),
             )
         })?;
