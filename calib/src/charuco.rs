@@ -440,8 +440,33 @@ pub fn find_charuco_corners(
         }
     }
     if ids.len() < MIN_CHARUCO_CORNERS {
+        // Markers found but too small to place the corners between them is a matter of
+        // pixels, not of the options that describe the board.
+        let mut sides: Vec<f64> = corners_on
+            .iter()
+            .map(|q| {
+                let q: Vec<Point2f> = q.iter().collect();
+                (0..q.len())
+                    .map(|i| {
+                        let (a, b) = (q[i], q[(i + 1) % q.len()]);
+                        f64::from(a.x - b.x).hypot(f64::from(a.y - b.y))
+                    })
+                    .sum::<f64>()
+                    / q.len().max(1) as f64
+            })
+            .collect();
+        sides.sort_by(f64::total_cmp);
+        let small = sides
+            .get(sides.len() / 2)
+            .filter(|side| **side < MIN_MARKER_SIDE_PX)
+            .map(|side| {
+                format!(
+                    ": its markers are {side:.0} px across (median), too few pixels to place the corners between them ({MIN_MARKER_SIDE_PX:.0} px or more needed); use larger squares and markers, views from closer, or a higher resolution"
+                )
+            })
+            .unwrap_or_default();
         return Ok(Err(format!(
-            "only {} ChArUco corner(s) of the {} found ({markers} marker(s)); at least {MIN_CHARUCO_CORNERS} needed",
+            "only {} ChArUco corner(s) of the {} found ({markers} marker(s)); at least {MIN_CHARUCO_CORNERS} needed{small}",
             ids.len(),
             board_name(board)
         )));
@@ -482,6 +507,10 @@ fn refine_half_window(markers: &[Vec<(f64, f64)>], square_per_marker: f64) -> Op
     let half = (0.4 * side * square_per_marker).floor().min(11.0) as i32;
     (half >= MIN_HALF_WINDOW_PX).then_some(half)
 }
+
+/// Markers smaller than this (side, pixels) are read, but the corners between them are not
+/// placed reliably: the synthetic ChArUco views place them from 13 px markers on.
+const MIN_MARKER_SIDE_PX: f64 = 12.0;
 
 /// The smallest half window (pixels) that refines a corner: a 5x5 window.
 const MIN_HALF_WINDOW_PX: i32 = 2;

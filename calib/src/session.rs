@@ -559,14 +559,24 @@ fn no_charuco_error(
     dictionary: ArucoDictionary,
     what: &str,
 ) -> CalibError {
-    let first = paths.first().map(|p| {
+    let reason = paths.first().map(|p| {
         let reason = match detect_file(p, board) {
             Ok(Detection::NotFound { reason, .. }) => reason,
             Ok(Detection::Found(_)) => "the board was found".into(),
             Err(e) => e.to_string(),
         };
-        format!(" In {}: {reason}.", p.display())
+        (p, reason)
     });
+    // Markers too small to use are a matter of pixels: the options are not blamed.
+    let options = if reason
+        .as_ref()
+        .is_some_and(|(_, r)| r.contains("too few pixels"))
+    {
+        ""
+    } else {
+        " --board counts the ChArUco board's squares and --dictionary names its markers."
+    };
+    let first = reason.map(|(p, r)| format!(" In {}: {r}.", p.display()));
     let hint = paths
         .iter()
         .take(3)
@@ -574,7 +584,7 @@ fn no_charuco_error(
         .map(|(d, n)| format!(" {n} markers of dictionary {d} were found: pass --dictionary {d}."))
         .unwrap_or_default();
     CalibError::Input(format!(
-        "no {} found in any of the {} {what} image(s): --board counts the ChArUco board's squares and --dictionary names its markers.{}{hint}",
+        "no {} found in any of the {} {what} image(s):{options}{}{hint}",
         crate::charuco::board_name(board),
         paths.len(),
         first.unwrap_or_default()
