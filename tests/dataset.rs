@@ -605,3 +605,168 @@ fn runs_that_are_not_straight_runs_are_named() {
         "{e}"
     );
 }
+
+/// Keeps the header and the rows of a CSV file whose first column `keep` accepts.
+fn keep_rows(path: &Path, keep: &dyn Fn(f64) -> bool) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let kept: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, l)| *i == 0 || keep(l.split(',').next().unwrap().parse().unwrap()))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(path, kept.join("\n") + "\n").unwrap();
+}
+
+/// Builds the dataset of the experiment in `dir`, expecting success; (dataset, stdout+stderr).
+fn build_said(dir: &Path) -> (Dataset, String) {
+    let out = dir.join("dataset.json");
+    let o = common::odocal(&[
+        "dataset",
+        "--manifest",
+        p(&dir.join("manifest.json")),
+        "--out",
+        p(&out),
+    ]);
+    common::succeeded(&o);
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (Dataset::read(&out).expect("dataset.json"), said)
+}
+
+/// The rejection of `run`, or a panic naming what was rejected.
+fn rejection<'a>(ds: &'a Dataset, run: &str) -> &'a str {
+    ds.rejected
+        .iter()
+        .find(|r| r.run_id == run)
+        .map(|r| r.reason.as_str())
+        .unwrap_or_else(|| panic!("{run} not rejected: {:?}", ds.rejected))
+}
+
+/// A camera that missed 2.5 s in the middle of one run used to stop the whole dataset ("the
+/// trajectory never covers the log's motion"), after minutes of tracking with videos: that
+/// run is rejected with where the camera lost it, the others kept.
+#[test]
+fn a_run_the_camera_partly_missed_is_rejected_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 3, 1, 1);
+    keep_rows(&d.join("runs/run001.trajectory.csv"), &|t| {
+        !(3.5..=6.0).contains(&t)
+    });
+    let (ds, said) = build_said(d);
+    assert_eq!(ds.samples.len(), 2, "{said}");
+    let why = rejection(&ds, "run001");
+    assert!(
+        why.contains("the camera's trajectory has no rows for 2.5")
+            && why.contains("(3.47-6.0")
+            && why.contains("during this run (missed frames?"),
+        "{why}"
+    );
+    assert!(
+        said.contains("rejected run001: the camera's trajectory has no rows"),
+        "{said}"
+    );
+}
+
+/// Recordings of three runs whose camera stopped early or started late: the log's motion did
+/// not fit inside the trajectory, so the whole dataset failed ("they cannot overlap"), or a
+/// wrong clock offset rejected all three runs ("correlation -0.11"). The runs the camera saw
+/// are kept, at the true clock offset; the others are rejected, saying where the trajectory
+/// starts or ends.
+#[test]
+fn a_camera_that_started_late_or_stopped_early_keeps_the_runs_it_saw() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 9, 1, 3);
+    let traj = d.join("runs/rec001.trajectory.csv");
+    let full = std::fs::read_to_string(&traj).unwrap();
+    let oracle = OracleFile::read(&d.join("truth/oracle.json")).unwrap();
+    for (keep, missed, says) in [
+        (
+            &(|t: f64| t < 20.0) as &dyn Fn(f64) -> bool,
+            "rec001.3",
+            "the camera's trajectory ends at 19.43 s, before this run (the log puts this run at 22.5",
+        ),
+        (
+            &|t: f64| t > 11.0,
+            "rec001.1",
+            "the camera's trajectory starts at 11.03 s, after this run (the log puts this run at 2.3",
+        ),
+        (
+            &|t: f64| t > 4.0,
+            "rec001.1",
+            "the camera's trajectory starts at 4.03 s, during this run",
+        ),
+    ] {
+        std::fs::write(&traj, &full).unwrap();
+        keep_rows(&traj, keep);
+        let (ds, said) = build_said(d);
+        assert_eq!(ds.samples.len(), 8, "{missed}: {said}");
+        let why = rejection(&ds, missed);
+        assert!(why.contains(says), "{missed}: {why}");
+        for s in &ds.samples {
+            let truth = oracle.get(&s.run_id).unwrap().clock_offset_s;
+            assert!(
+                (s.clock_offset_s - truth).abs() < 0.02,
+                "{}: offset {} against {truth}",
+                s.run_id,
+                s.clock_offset_s
+            );
+        }
+    }
+    // Less than half of the log's motion inside the trajectory is another recording's file.
+    std::fs::write(&traj, &full).unwrap();
+    keep_rows(&traj, &|t| t < 8.0);
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&d.join("manifest.json")),
+        "--out",
+        p(&d.join("dataset.json")),
+    ]);
+    assert!(
+        e.contains("rec001: the log moves for 23.00 s but the trajectory spans only 7.97 s")
+            && e.contains("check that the manifest pairs"),
+        "{e}"
+    );
+}
+
+/// Runs alike in speed and rest: a camera that saw two of three fits the log at two clock
+/// offsets, one run apart, and which runs it saw cannot be told. The recording's runs are
+/// rejected saying so, not given a guessed offset.
+#[test]
+fn a_partly_seen_recording_of_runs_alike_is_not_guessed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 3, 1, 1);
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("truth/experiment.json")).unwrap())
+            .unwrap();
+    let mut config = truth["config"].clone();
+    config["protocol"]["speeds_mps"] = serde_json::json!([0.5]);
+    let config_path = d.join("alike.json");
+    std::fs::write(&config_path, config.to_string()).unwrap();
+    let alike = d.join("alike");
+    synth_with(
+        &alike,
+        6,
+        1,
+        &["--runs-per-recording", "3", "--config", p(&config_path)],
+    );
+    keep_rows(&alike.join("runs/rec001.trajectory.csv"), &|t| t < 14.0);
+    let (ds, _) = build_said(&alike);
+    assert_eq!(ds.samples.len(), 3, "{:?}", ds.rejected);
+    for run in ["rec001.1", "rec001.2", "rec001.3"] {
+        let why = rejection(&ds, run);
+        assert!(
+            why.contains(
+                "the camera saw only part of the log's motion, and it fits two clock offsets"
+            ) && why.contains("which runs the camera saw cannot be told"),
+            "{why}"
+        );
+    }
+}
