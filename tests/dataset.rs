@@ -238,6 +238,14 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let short: Vec<&str> = full.lines().take(20).collect();
     std::fs::write(&traj, short.join("\n")).unwrap();
     assert!(run(&manifest).contains("cannot overlap"));
+    // A header and no rows read as "the trajectory covers 0.00 s; they cannot overlap".
+    std::fs::write(&traj, full.lines().next().unwrap()).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("run \"run002\" (")
+            && e.contains("run002.trajectory.csv): the trajectory has no rows (only its header)"),
+        "{e}"
+    );
     // The trajectory with `columns` rewritten by `f`, run through `dataset`.
     let rewritten = |columns: &[usize], f: &dyn Fn(f64) -> f64| -> String {
         let rows: Vec<String> = full
