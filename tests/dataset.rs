@@ -778,3 +778,43 @@ fn a_partly_seen_recording_of_runs_alike_is_not_guessed() {
         );
     }
 }
+
+/// The warning that most runs' logs never followed the camera used to count recordings as
+/// runs ("6 of 3 runs rejected"); it gives the runs' totals.
+#[test]
+fn the_warning_on_logs_that_never_follow_counts_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 9, 1, 3);
+    // Two of the three logs played backwards: the same wheel travel, another speed profile.
+    for rec in ["rec001", "rec002"] {
+        let path = d.join(format!("runs/{rec}.odometry.csv"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let rows: Vec<Vec<i64>> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+            .collect();
+        let times: Vec<&str> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap())
+            .collect();
+        let mut out = String::from("t,left_ticks,right_ticks\n");
+        let last = rows.len() - 1;
+        for (i, t) in times.iter().enumerate() {
+            let (l, r) = (
+                rows[last][0] - rows[last - i][0],
+                rows[last][1] - rows[last - i][1],
+            );
+            out.push_str(&format!("{t},{l},{r}\n"));
+        }
+        std::fs::write(&path, out).unwrap();
+    }
+    let (ds, said) = build_said(d);
+    assert_eq!(ds.rejected.len(), 6, "{said}");
+    assert!(
+        said.contains("warning: 6 of 9 runs rejected; the log's speed never followed the camera's in 6 of the 9 runs: are the ticks cumulative counts"),
+        "{said}"
+    );
+}

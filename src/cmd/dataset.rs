@@ -218,15 +218,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     bar.finish_and_clear();
     repeated.report();
+    // Straight runs are rejected one by one; windows whose log never follows the camera are
+    // rejected a recording at a time.
+    let (unit, total) = if ds.is_windows() {
+        ("recordings", ds.summary.recordings)
+    } else {
+        ("runs", ds.summary.runs)
+    };
     let unmatched = ds
         .rejected
         .iter()
-        .filter(|r| r.reason.contains("correlation"))
+        .filter(|r| {
+            r.reason.contains("speed-profile correlation")
+                || r.reason.contains("speed profiles correlate")
+        })
         .count();
     // When the logs' speed never follows the camera's, the logs are read wrongly, not the runs.
     let hint = if unmatched * 2 >= ds.rejected.len().max(1) && unmatched > 0 {
         format!(
-            "; in {unmatched} runs the log's speed never followed the camera's: are the ticks cumulative counts (not counts per period), the times in seconds, and each log paired with its own run?"
+            "; the log's speed never followed the camera's in {unmatched} of the {total} {unit}: are the ticks cumulative counts (not counts per period), the times in seconds, and each log paired with its own run?"
         )
     } else {
         String::new()
@@ -247,12 +257,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             why.join("; ")
         );
     }
-    if !hint.is_empty() && unmatched * 2 >= manifest.runs.len() {
-        tell!(
-            "warning: {} of {} runs rejected{hint}",
-            ds.rejected.len(),
-            manifest.runs.len()
-        );
+    if !hint.is_empty() && unmatched * 2 >= total {
+        // A window dataset's rejections mix windows and recordings: only the recordings count.
+        let rejected = if ds.is_windows() {
+            unmatched
+        } else {
+            ds.rejected.len()
+        };
+        tell!("warning: {rejected} of {total} {unit} rejected{hint}");
     }
     for n in &ds.notes {
         tell!("note: {n}");
