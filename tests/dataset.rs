@@ -818,3 +818,82 @@ fn the_warning_on_logs_that_never_follow_counts_runs() {
         "{said}"
     );
 }
+
+/// A log with rows lost: windows are cut by row count, so a 1.6 s step read as one 200 ms
+/// step of 3.5 m/s, and the path model trained on it took 3.55 m/s for its largest wheel
+/// speed (0.79 without), so `correct` accepted logs far too fast. The windows spanning the gap
+/// are rejected naming its rows, as `correct` names them; a straight run spanning one too.
+#[test]
+fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 3, 1, &["--paths", "tours"]);
+    let log = d.join("runs/run001.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let cut: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(99..106).contains(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&log, cut.join("\n") + "\n").unwrap();
+    let out = d.join("windows.json");
+    let said = ok(&[
+        "dataset",
+        "--manifest",
+        p(&d.join("manifest.json")),
+        "--layout",
+        "windows",
+        "--out",
+        p(&out),
+    ]);
+    let ds = Dataset::read(&out).unwrap();
+    let gap = "rows 99 and 100 are 1.600 s apart, but the robot logs every 0.200 s";
+    let (gap_rows, _) = gap.split_once(", but").unwrap();
+    let spanning: Vec<&str> = ds
+        .rejected
+        .iter()
+        .filter(|r| r.reason.contains(gap))
+        .map(|r| r.run_id.as_str())
+        .collect();
+    assert_eq!(spanning, ["run001.w0050", "run001.w0075"], "{said}");
+    let fastest = ds
+        .samples
+        .iter()
+        .flat_map(|s| s.inputs.iter())
+        .fold(0.0f64, |m, d| m.max(d.abs()))
+        / 0.2;
+    assert!(fastest < 1.0, "a wheel at {fastest} m/s");
+    let model = d.join("path-model.json");
+    ok(&["train", p(&out), "--out", p(&model)]);
+    let e = fails(&[
+        "correct",
+        "--model",
+        p(&model),
+        p(&log),
+        "--out",
+        p(&d.join("c.csv")),
+    ]);
+    assert!(e.contains(gap_rows), "{e}");
+
+    let straight = d.join("straight");
+    synth(&straight, 2, 1, 1);
+    let log = straight.join("runs/run002.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let cut: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(19..24).contains(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&log, cut.join("\n") + "\n").unwrap();
+    let (ds, _) = build_said(&straight);
+    assert_eq!(ds.samples.len(), 1);
+    let why = rejection(&ds, "run002");
+    assert!(
+        why.contains(
+            "the log's rows 19 and 20 are 1.200 s apart, but the robot logs every 0.200 s"
+        ),
+        "{why}"
+    );
+}

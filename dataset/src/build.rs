@@ -6,7 +6,7 @@ use odocal_core::{wrap_angle, Pose2};
 use crate::align::{coarse_offset, refine_offset, AlignOptions, CoarseOffset};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
-use crate::odometry::OdometryLog;
+use crate::odometry::{OdometryLog, STEP_TOLERANCE_PERIODS};
 use crate::segment::{split_runs, RunSegment};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
 use odocal_core::{mean_pose, PoseSigma, Trajectory, TrajectoryRow};
@@ -284,6 +284,21 @@ pub(crate) fn process_recording_at(
         }
         if let Some(why) = cut_reason(seg) {
             out.push(reject(id, format!("the log {why}")));
+            continue;
+        }
+        if let Some((k, dt)) = rec.log.off_period_step(
+            seg.start_row,
+            seg.end_row,
+            opts.robot.period_s,
+            STEP_TOLERANCE_PERIODS,
+        ) {
+            out.push(reject(
+                id,
+                format!(
+                    "the log's {}: the run's odometry would bridge the gap as one step",
+                    OdometryLog::step_message(k, dt, opts.robot.period_s)
+                ),
+            ));
             continue;
         }
         let odo = seg.odometry(&revs);
