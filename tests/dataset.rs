@@ -380,6 +380,21 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         p(&manifest),
     ]);
     assert!(e.contains("odocal.oracle/1"), "{e}");
+    // Window options for a dataset of straight runs used to be ignored unsaid.
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&out),
+        "--window-s",
+        "5",
+    ]);
+    assert!(
+        e.contains("--window-s is only used with --layout windows")
+            && e.contains("add --layout windows, or leave it out"),
+        "{e}"
+    );
     assert!(!out.exists(), "nothing half-written");
 
     // And the intact experiment still builds; tag options given for a manifest without
