@@ -238,6 +238,14 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     let short: Vec<&str> = full.lines().take(20).collect();
     std::fs::write(&traj, short.join("\n")).unwrap();
     assert!(run(&manifest).contains("cannot overlap"));
+    // A header and no rows read as "the trajectory covers 0.00 s; they cannot overlap".
+    std::fs::write(&traj, full.lines().next().unwrap()).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("run \"run002\" (")
+            && e.contains("run002.trajectory.csv): the trajectory has no rows (only its header)"),
+        "{e}"
+    );
     // The trajectory with `columns` rewritten by `f`, run through `dataset`.
     let rewritten = |columns: &[usize], f: &dyn Fn(f64) -> f64| -> String {
         let rows: Vec<String> = full
@@ -372,6 +380,21 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         p(&manifest),
     ]);
     assert!(e.contains("odocal.oracle/1"), "{e}");
+    // Window options for a dataset of straight runs used to be ignored unsaid.
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&out),
+        "--window-s",
+        "5",
+    ]);
+    assert!(
+        e.contains("--window-s is only used with --layout windows")
+            && e.contains("add --layout windows, or leave it out"),
+        "{e}"
+    );
     assert!(!out.exists(), "nothing half-written");
 
     // And the intact experiment still builds; tag options given for a manifest without
@@ -671,5 +694,289 @@ fn runs_that_are_not_straight_runs_are_named() {
         e.contains("all 3 rejected")
             && e.contains("fewer than one window of 5000 (--window-s 1000.0 s)"),
         "{e}"
+    );
+}
+
+/// Keeps the header and the rows of a CSV file whose first column `keep` accepts.
+fn keep_rows(path: &Path, keep: &dyn Fn(f64) -> bool) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let kept: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, l)| *i == 0 || keep(l.split(',').next().unwrap().parse().unwrap()))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(path, kept.join("\n") + "\n").unwrap();
+}
+
+/// Builds the dataset of the experiment in `dir`, expecting success; (dataset, stdout+stderr).
+fn build_said(dir: &Path) -> (Dataset, String) {
+    let out = dir.join("dataset.json");
+    let o = common::odocal(&[
+        "dataset",
+        "--manifest",
+        p(&dir.join("manifest.json")),
+        "--out",
+        p(&out),
+    ]);
+    common::succeeded(&o);
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (Dataset::read(&out).expect("dataset.json"), said)
+}
+
+/// The rejection of `run`, or a panic naming what was rejected.
+fn rejection<'a>(ds: &'a Dataset, run: &str) -> &'a str {
+    ds.rejected
+        .iter()
+        .find(|r| r.run_id == run)
+        .map(|r| r.reason.as_str())
+        .unwrap_or_else(|| panic!("{run} not rejected: {:?}", ds.rejected))
+}
+
+/// A camera that missed 2.5 s in the middle of one run used to stop the whole dataset ("the
+/// trajectory never covers the log's motion"), after minutes of tracking with videos: that
+/// run is rejected with where the camera lost it, the others kept.
+#[test]
+fn a_run_the_camera_partly_missed_is_rejected_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 3, 1, 1);
+    keep_rows(&d.join("runs/run001.trajectory.csv"), &|t| {
+        !(3.5..=6.0).contains(&t)
+    });
+    let (ds, said) = build_said(d);
+    assert_eq!(ds.samples.len(), 2, "{said}");
+    let why = rejection(&ds, "run001");
+    assert!(
+        why.contains("the camera's trajectory has no rows for 2.5")
+            && why.contains("(3.47-6.0")
+            && why.contains("during this run (missed frames?"),
+        "{why}"
+    );
+    assert!(
+        said.contains("rejected run001: the camera's trajectory has no rows"),
+        "{said}"
+    );
+}
+
+/// Recordings of three runs whose camera stopped early or started late: the log's motion did
+/// not fit inside the trajectory, so the whole dataset failed ("they cannot overlap"), or a
+/// wrong clock offset rejected all three runs ("correlation -0.11"). The runs the camera saw
+/// are kept, at the true clock offset; the others are rejected, saying where the trajectory
+/// starts or ends.
+#[test]
+fn a_camera_that_started_late_or_stopped_early_keeps_the_runs_it_saw() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 9, 1, 3);
+    let traj = d.join("runs/rec001.trajectory.csv");
+    let full = std::fs::read_to_string(&traj).unwrap();
+    let oracle = OracleFile::read(&d.join("truth/oracle.json")).unwrap();
+    for (keep, missed, says) in [
+        (
+            &(|t: f64| t < 20.0) as &dyn Fn(f64) -> bool,
+            "rec001.3",
+            "the camera's trajectory ends at 19.43 s, before this run (the log puts this run at 22.5",
+        ),
+        (
+            &|t: f64| t > 11.0,
+            "rec001.1",
+            "the camera's trajectory starts at 11.03 s, after this run (the log puts this run at 2.3",
+        ),
+        (
+            &|t: f64| t > 4.0,
+            "rec001.1",
+            "the camera's trajectory starts at 4.03 s, during this run",
+        ),
+    ] {
+        std::fs::write(&traj, &full).unwrap();
+        keep_rows(&traj, keep);
+        let (ds, said) = build_said(d);
+        assert_eq!(ds.samples.len(), 8, "{missed}: {said}");
+        let why = rejection(&ds, missed);
+        assert!(why.contains(says), "{missed}: {why}");
+        for s in &ds.samples {
+            let truth = oracle.get(&s.run_id).unwrap().clock_offset_s;
+            assert!(
+                (s.clock_offset_s - truth).abs() < 0.02,
+                "{}: offset {} against {truth}",
+                s.run_id,
+                s.clock_offset_s
+            );
+        }
+    }
+    // Less than half of the log's motion inside the trajectory is another recording's file.
+    std::fs::write(&traj, &full).unwrap();
+    keep_rows(&traj, &|t| t < 8.0);
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&d.join("manifest.json")),
+        "--out",
+        p(&d.join("dataset.json")),
+    ]);
+    assert!(
+        e.contains("rec001: the log moves for 23.00 s but the trajectory spans only 7.97 s")
+            && e.contains("check that the manifest pairs"),
+        "{e}"
+    );
+}
+
+/// Runs alike in speed and rest: a camera that saw two of three fits the log at two clock
+/// offsets, one run apart, and which runs it saw cannot be told. The recording's runs are
+/// rejected saying so, not given a guessed offset.
+#[test]
+fn a_partly_seen_recording_of_runs_alike_is_not_guessed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 3, 1, 1);
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("truth/experiment.json")).unwrap())
+            .unwrap();
+    let mut config = truth["config"].clone();
+    config["protocol"]["speeds_mps"] = serde_json::json!([0.5]);
+    let config_path = d.join("alike.json");
+    std::fs::write(&config_path, config.to_string()).unwrap();
+    let alike = d.join("alike");
+    synth_with(
+        &alike,
+        6,
+        1,
+        &["--runs-per-recording", "3", "--config", p(&config_path)],
+    );
+    keep_rows(&alike.join("runs/rec001.trajectory.csv"), &|t| t < 14.0);
+    let (ds, _) = build_said(&alike);
+    assert_eq!(ds.samples.len(), 3, "{:?}", ds.rejected);
+    for run in ["rec001.1", "rec001.2", "rec001.3"] {
+        let why = rejection(&ds, run);
+        assert!(
+            why.contains(
+                "the camera saw only part of the log's motion, and it fits two clock offsets"
+            ) && why.contains("which runs the camera saw cannot be told"),
+            "{why}"
+        );
+    }
+}
+
+/// The warning that most runs' logs never followed the camera used to count recordings as
+/// runs ("6 of 3 runs rejected"); it gives the runs' totals.
+#[test]
+fn the_warning_on_logs_that_never_follow_counts_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 9, 1, 3);
+    // Two of the three logs played backwards: the same wheel travel, another speed profile.
+    for rec in ["rec001", "rec002"] {
+        let path = d.join(format!("runs/{rec}.odometry.csv"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let rows: Vec<Vec<i64>> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+            .collect();
+        let times: Vec<&str> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap())
+            .collect();
+        let mut out = String::from("t,left_ticks,right_ticks\n");
+        let last = rows.len() - 1;
+        for (i, t) in times.iter().enumerate() {
+            let (l, r) = (
+                rows[last][0] - rows[last - i][0],
+                rows[last][1] - rows[last - i][1],
+            );
+            out.push_str(&format!("{t},{l},{r}\n"));
+        }
+        std::fs::write(&path, out).unwrap();
+    }
+    let (ds, said) = build_said(d);
+    assert_eq!(ds.rejected.len(), 6, "{said}");
+    assert!(
+        said.contains("warning: 6 of 9 runs rejected; the log's speed never followed the camera's in 6 of the 9 runs: are the ticks cumulative counts"),
+        "{said}"
+    );
+}
+
+/// A log with rows lost: windows are cut by row count, so a 1.6 s step read as one 200 ms
+/// step of 3.5 m/s, and the path model trained on it took 3.55 m/s for its largest wheel
+/// speed (0.79 without), so `correct` accepted logs far too fast. The windows spanning the gap
+/// are rejected naming its rows, as `correct` names them; a straight run spanning one too.
+#[test]
+fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 3, 1, &["--paths", "tours"]);
+    let log = d.join("runs/run001.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let cut: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(99..106).contains(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&log, cut.join("\n") + "\n").unwrap();
+    let out = d.join("windows.json");
+    let said = ok(&[
+        "dataset",
+        "--manifest",
+        p(&d.join("manifest.json")),
+        "--layout",
+        "windows",
+        "--out",
+        p(&out),
+    ]);
+    let ds = Dataset::read(&out).unwrap();
+    let gap = "rows 99 and 100 are 1.600 s apart, but the robot logs every 0.200 s";
+    let (gap_rows, _) = gap.split_once(", but").unwrap();
+    let spanning: Vec<&str> = ds
+        .rejected
+        .iter()
+        .filter(|r| r.reason.contains(gap))
+        .map(|r| r.run_id.as_str())
+        .collect();
+    assert_eq!(spanning, ["run001.w0050", "run001.w0075"], "{said}");
+    let fastest = ds
+        .samples
+        .iter()
+        .flat_map(|s| s.inputs.iter())
+        .fold(0.0f64, |m, d| m.max(d.abs()))
+        / 0.2;
+    assert!(fastest < 1.0, "a wheel at {fastest} m/s");
+    let model = d.join("path-model.json");
+    ok(&["train", p(&out), "--out", p(&model)]);
+    let e = fails(&[
+        "correct",
+        "--model",
+        p(&model),
+        p(&log),
+        "--out",
+        p(&d.join("c.csv")),
+    ]);
+    assert!(e.contains(gap_rows), "{e}");
+
+    let straight = d.join("straight");
+    synth(&straight, 2, 1, 1);
+    let log = straight.join("runs/run002.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let cut: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(19..24).contains(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&log, cut.join("\n") + "\n").unwrap();
+    let (ds, _) = build_said(&straight);
+    assert_eq!(ds.samples.len(), 1);
+    let why = rejection(&ds, "run002");
+    assert!(
+        why.contains(
+            "the log's rows 19 and 20 are 1.200 s apart, but the robot logs every 0.200 s"
+        ),
+        "{why}"
     );
 }

@@ -3,8 +3,9 @@
 //! The clock offset (t_camera = t_robot + offset) is found in two steps:
 //! 1. coarse: normalised cross-correlation of the speed profiles (odometry speed per log
 //!    interval against the camera's speed over the same interval shifted by the lag), on a
-//!    10 ms lag grid over every lag at which the log's motion lies inside the trajectory, with
-//!    parabolic interpolation of the peak;
+//!    10 ms lag grid over every lag at which the log's motion lies inside the trajectory (or,
+//!    when none matches, at which the camera sees most of it), with parabolic interpolation of
+//!    the peak;
 //! 2. fine, per run: each wheel's reading at each log row is compared with that wheel's travel
 //!    seen by the camera at the shifted time (forward travel of the tag along its own heading,
 //!    ∓ b/2 times the heading change), the camera positions being interpolated between frames
@@ -86,10 +87,31 @@ fn travel(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
         .collect()
 }
 
+/// Smallest share of the log's motion (from its first moving interval to its last, rests
+/// between runs included) that the trajectory's time span must hold at an offset where it
+/// does not hold the whole motion: more than half, so the speed profiles compared are mostly
+/// the log's own and the runs missed at either end cannot outweigh them.
+pub const MIN_PARTIAL_COVERAGE: f64 = 0.5;
+
+/// Closest that two clock offsets matching a partly seen log may lie, seconds, and still be
+/// one match: farther apart, the log fits the camera twice (runs alike in speed and rest)
+/// and which runs the camera saw is a guess.
+const DISTINCT_OFFSETS_S: f64 = 1.0;
+
 /// Coarse clock offset of a whole log by speed-profile cross-correlation.
 ///
-/// Fails with [`DatasetError::Mismatch`] when the log's motion cannot lie inside the trajectory
-/// at any offset, or the trajectory never covers it; `what` names the pair in the message.
+/// Offsets that put the log's whole motion inside the trajectory come first, as the
+/// reference experiment records them. Only when none of them correlates at
+/// `opts.min_correlation` (a camera started late or stopped early, or frames missed during a
+/// run) are offsets searched where the trajectory's span holds more than
+/// [`MIN_PARTIAL_COVERAGE`] of the motion and the camera sees at least half of the moving
+/// intervals there; the runs it did not see are then the caller's to reject.
+///
+/// Fails with [`DatasetError::Mismatch`] when the trajectory is too short to hold most of the
+/// log's motion at any offset (another recording's file), and with
+/// [`DatasetError::NoClockOffset`] when it could but the camera saw too little of the motion
+/// at every offset, or a partly seen log fits it at two offsets (a reason for the recording's
+/// runs, which names no recording); `what` names the pair in the hard errors.
 pub fn coarse_offset(
     log: &OdometryLog,
     revs: &WheelRevs,
@@ -105,14 +127,21 @@ pub fn coarse_offset(
             "{what}: the odometry log shows no motion"
         )));
     };
+    if traj.rows.len() < 2 {
+        return Err(DatasetError::Mismatch(format!(
+            "{what}: the trajectory has {} (a camera trajectory needs a row per frame the robot was seen in)",
+            match traj.rows.len() {
+                0 => "no rows".to_string(),
+                _ => format!("only one row, at {:.2} s", traj.start_s()),
+            }
+        )));
+    }
     let t = &revs.t_s;
     let (c0, c1) = (traj.start_s(), traj.end_s());
     let motion_s = t[m1] - t[m0 - 1];
-    let lo = c0 - t[m0 - 1];
-    let hi = c1 - t[m1];
-    if traj.rows.len() < 2 || hi.is_nan() || lo.is_nan() || hi < lo {
+    if c1 - c0 <= MIN_PARTIAL_COVERAGE * motion_s {
         return Err(DatasetError::Mismatch(format!(
-            "{what}: the log moves for {motion_s:.2} s but the trajectory covers {:.2} s; they cannot overlap \
+            "{what}: the log moves for {motion_s:.2} s but the trajectory spans only {:.2} s: they cannot overlap over half the motion, so it is not this log's recording \
              (check that the manifest pairs the right log and video/trajectory)",
             (c1 - c0).max(0.0)
         )));
@@ -123,15 +152,17 @@ pub fn coarse_offset(
         .collect();
     let first = m0.saturating_sub(5).max(1);
     let last = (m1 + 5).min(n - 1);
-    let need = (moving.len() * 4).div_ceil(5);
-    let steps = ((hi - lo) / opts.coarse_step_s).floor() as usize;
-    let mut scores = vec![f64::NEG_INFINITY; steps + 1];
     let mut a = Vec::with_capacity(last - first + 1);
     let mut b = Vec::with_capacity(last - first + 1);
-    for (j, score) in scores.iter_mut().enumerate() {
-        let lag = lo + j as f64 * opts.coarse_step_s;
+    // The speed-profile correlation at one lag, the moving log intervals the camera sees
+    // there, and those inside the trajectory's span.
+    let mut score_at = |lag: f64| -> (f64, usize, usize) {
         a.clear();
         b.clear();
+        let inside = moving
+            .iter()
+            .filter(|&&k| t[k - 1] + lag >= c0 && t[k] + lag <= c1)
+            .count();
         let mut moving_ok = 0;
         for k in first..=last {
             let (Some(p0), Some(p1)) = (
@@ -146,33 +177,165 @@ pub fn coarse_offset(
             a.push(v_robot[k - 1]);
             b.push((p1 - p0).norm() / (t[k] - t[k - 1]));
         }
-        if moving_ok < need || a.len() < 3 {
+        let score = if a.len() < 3 {
+            f64::NEG_INFINITY
+        } else {
+            ncc(&a, &b)
+        };
+        (score, moving_ok, inside)
+    };
+    // The whole motion inside the trajectory, most of its moving intervals seen.
+    let need = (moving.len() * 4).div_ceil(5);
+    let lo = c0 - t[m0 - 1];
+    let hi = c1 - t[m1];
+    let whole = (hi >= lo).then(|| {
+        let steps = ((hi - lo) / opts.coarse_step_s).floor() as usize;
+        let scores: Vec<f64> = (0..=steps)
+            .map(|j| {
+                let (s, moving_ok, _) = score_at(lo + j as f64 * opts.coarse_step_s);
+                if moving_ok < need {
+                    f64::NEG_INFINITY
+                } else {
+                    s
+                }
+            })
+            .collect();
+        peak(&scores, lo, opts.coarse_step_s)
+    });
+    if let Some(Some(c)) = whole {
+        if c.correlation >= opts.min_correlation {
+            return Ok(c);
+        }
+    }
+    // Part of the motion outside the trajectory or unseen: lags at which the trajectory's
+    // span holds most of the motion and the camera sees most of the moving intervals there.
+    let lo = c0 - t[m1];
+    let steps = ((c1 - t[m0 - 1] - lo) / opts.coarse_step_s).floor() as usize;
+    let (mut best_seen, mut scores) = (0, Vec::with_capacity(steps + 1));
+    for j in 0..=steps {
+        let lag = lo + j as f64 * opts.coarse_step_s;
+        let held = (t[m1] + lag).min(c1) - (t[m0 - 1] + lag).max(c0);
+        if held <= MIN_PARTIAL_COVERAGE * motion_s {
+            scores.push(f64::NEG_INFINITY);
             continue;
         }
-        *score = ncc(&a, &b);
+        let (s, moving_ok, inside) = score_at(lag);
+        best_seen = best_seen.max(moving_ok);
+        scores.push(if 2 * moving_ok >= inside.max(1) {
+            s
+        } else {
+            f64::NEG_INFINITY
+        });
     }
+    let partial = peak(&scores, lo, opts.coarse_step_s);
+    match (whole.flatten(), partial) {
+        (_, Some(p)) if p.correlation >= opts.min_correlation => {
+            if let Some(other) = other_match(&scores, lo, opts, p.offset_s) {
+                return Err(DatasetError::NoClockOffset(format!(
+                    "the camera saw only part of the log's motion, and it fits two clock offsets, {:.2} s and {other:.2} s (runs alike in speed and rest); which runs the camera saw cannot be told",
+                    p.offset_s
+                )));
+            }
+            Ok(rematch_near(traj, t, &v_robot, first..=last, p, opts))
+        }
+        (Some(w), Some(p)) => Ok(if w.correlation >= p.correlation { w } else { p }),
+        (Some(c), None) | (None, Some(c)) => Ok(c),
+        (None, None) => Err(DatasetError::NoClockOffset(format!(
+            "the camera sees at most {best_seen} of the log's {} moving intervals at any clock offset that puts most of the motion inside its trajectory (too many missed frames?)",
+            moving.len()
+        ))),
+    }
+}
+
+/// A partial match `p` chosen again near itself on the log intervals `rows` that the camera
+/// sees at every lag within half of [`DISTINCT_OFFSETS_S`]: the intervals compared change
+/// with the lag as motion slips in and out of the camera's span, and dropping a run's start
+/// or end can raise the score (the offset missed by 0.15 s with a camera that started 0.5 s
+/// before a run). `p` itself when no lag there reaches the threshold.
+fn rematch_near(
+    traj: &Trajectory,
+    t: &[f64],
+    v_robot: &[f64],
+    rows: std::ops::RangeInclusive<usize>,
+    p: CoarseOffset,
+    opts: &AlignOptions,
+) -> CoarseOffset {
+    let near = 0.5 * DISTINCT_OFFSETS_S;
+    let gap = opts.max_frame_gap_s;
+    let rows: Vec<usize> = rows
+        .filter(|&k| traj.covers(t[k - 1] + p.offset_s - near, t[k] + p.offset_s + near, gap))
+        .collect();
+    let lo = p.offset_s - near;
+    let steps = (2.0 * near / opts.coarse_step_s).round() as usize;
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let scores: Vec<f64> = (0..=steps)
+        .map(|j| {
+            let lag = lo + j as f64 * opts.coarse_step_s;
+            a.clear();
+            b.clear();
+            for &k in &rows {
+                if let (Some(p0), Some(p1)) = (
+                    traj.position_at(t[k - 1] + lag, gap),
+                    traj.position_at(t[k] + lag, gap),
+                ) {
+                    a.push(v_robot[k - 1]);
+                    b.push((p1 - p0).norm() / (t[k] - t[k - 1]));
+                }
+            }
+            if a.len() < 3 {
+                f64::NEG_INFINITY
+            } else {
+                ncc(&a, &b)
+            }
+        })
+        .collect();
+    peak(&scores, lo, opts.coarse_step_s)
+        .filter(|q| q.correlation >= opts.min_correlation)
+        .unwrap_or(p)
+}
+
+/// The best of `scores` (lags `lo` + j `step`), its lag refined on a parabola through its
+/// neighbours; None when no lag was scored.
+fn peak(scores: &[f64], lo: f64, step: f64) -> Option<CoarseOffset> {
     let (jbest, &best) = scores
         .iter()
         .enumerate()
-        .max_by(|x, y| x.1.total_cmp(y.1))
-        .unwrap_or((0, &f64::NEG_INFINITY));
+        .max_by(|x, y| x.1.total_cmp(y.1))?;
     if !best.is_finite() {
-        return Err(DatasetError::Mismatch(format!(
-            "{what}: the trajectory never covers the log's motion (too many missed frames?)"
-        )));
+        return None;
     }
-    let mut offset = lo + jbest as f64 * opts.coarse_step_s;
-    if jbest > 0 && jbest < steps {
+    let mut offset = lo + jbest as f64 * step;
+    if jbest > 0 && jbest + 1 < scores.len() {
         let (ym, y0, yp) = (scores[jbest - 1], best, scores[jbest + 1]);
         let den = ym - 2.0 * y0 + yp;
         if ym.is_finite() && yp.is_finite() && den < 0.0 {
-            offset += 0.5 * (ym - yp) / den * opts.coarse_step_s;
+            offset += 0.5 * (ym - yp) / den * step;
         }
     }
-    Ok(CoarseOffset {
+    Some(CoarseOffset {
         offset_s: offset,
         correlation: best,
     })
+}
+
+/// The lag of another stretch of lags correlating at the threshold, at least
+/// [`DISTINCT_OFFSETS_S`] from `best_s`: the log fits the camera there too.
+fn other_match(scores: &[f64], lo: f64, opts: &AlignOptions, best_s: f64) -> Option<f64> {
+    let mut stretches: Vec<(usize, f64)> = Vec::new();
+    let mut inside = false;
+    for (j, &s) in scores.iter().enumerate() {
+        let ok = s >= opts.min_correlation;
+        match stretches.last_mut() {
+            Some(top) if ok && inside && s > top.1 => *top = (j, s),
+            _ if ok && !inside => stretches.push((j, s)),
+            _ => {}
+        }
+        inside = ok;
+    }
+    stretches
+        .into_iter()
+        .map(|(j, _)| lo + j as f64 * opts.coarse_step_s)
+        .find(|lag| (lag - best_s).abs() >= DISTINCT_OFFSETS_S)
 }
 
 /// Normalised cross-correlation (Pearson) of two equally long series.

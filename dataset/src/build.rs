@@ -6,7 +6,7 @@ use odocal_core::{wrap_angle, Pose2};
 use crate::align::{coarse_offset, refine_offset, AlignOptions, CoarseOffset};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
-use crate::odometry::OdometryLog;
+use crate::odometry::{OdometryLog, STEP_TOLERANCE_PERIODS};
 use crate::segment::{split_runs, RunSegment};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
 use odocal_core::{mean_pose, PoseSigma, Trajectory, TrajectoryRow};
@@ -170,9 +170,55 @@ fn rest_cluster(rows: &[TrajectoryRow], near: &[TrajectoryRow], tol: f64) -> Vec
         .collect()
 }
 
+/// Why the camera's trajectory cannot give the run whose motion spans `motion` (camera clock,
+/// coarse offset): it starts or ends during the run, or misses frames in it; None when it
+/// sees the whole run. A recording's coarse offset may rest on the runs the camera saw, so
+/// the others are named here rather than left to the fine alignment's generic failure.
+fn unseen_reason(camera: &Trajectory, motion: (f64, f64), max_gap_s: f64) -> Option<String> {
+    let (t0, t1) = motion;
+    let (c0, c1) = (camera.start_s(), camera.end_s());
+    let span = format!("the log puts this run at {t0:.2}-{t1:.2} s on the camera's clock");
+    if c1 < t1 {
+        let when = if c1 <= t0 { "before" } else { "during" };
+        return Some(format!(
+            "the camera's trajectory ends at {c1:.2} s, {when} this run ({span})"
+        ));
+    }
+    if c0 > t0 {
+        let when = if c0 >= t1 { "after" } else { "during" };
+        return Some(format!(
+            "the camera's trajectory starts at {c0:.2} s, {when} this run ({span})"
+        ));
+    }
+    // The rows around the motion: the last at or before its start to the first at or after
+    // its end.
+    let a = camera
+        .rows
+        .partition_point(|r| r.t_s <= t0)
+        .saturating_sub(1);
+    let b = camera
+        .rows
+        .partition_point(|r| r.t_s < t1)
+        .min(camera.rows.len().saturating_sub(1));
+    let (gap, from) = camera
+        .rows
+        .get(a..=b)?
+        .windows(2)
+        .map(|w| (w[1].t_s - w[0].t_s, w[0].t_s))
+        .max_by(|x, y| x.0.total_cmp(&y.0))?;
+    (gap > max_gap_s).then(|| {
+        format!(
+            "the camera's trajectory has no rows for {gap:.2} s ({from:.2}-{:.2} s) during this run (missed frames?; {span})",
+            from + gap
+        )
+    })
+}
+
 /// Splits a recording into runs and turns each into a sample or a rejection.
 ///
-/// Hard errors (the whole build must stop): a log whose motion cannot overlap the trajectory.
+/// Hard errors (the whole build must stop): a log whose motion cannot overlap the trajectory
+/// (another recording's file). A camera that saw too little of the recording rejects its
+/// runs, and one that missed some of them rejects those.
 pub fn process_recording(
     rec: &Recording,
     opts: &BuildOptions,
@@ -215,7 +261,14 @@ pub(crate) fn process_recording_at(
     };
     let revs = rec.log.wheel_revs(&opts.robot);
     let geom = WheelGeometry::nominal(&opts.robot);
-    let coarse = coarse?;
+    let coarse = match coarse {
+        Err(DatasetError::NoClockOffset(why)) => {
+            return Ok((0..segs.len())
+                .map(|j| reject(name(j), why.clone()))
+                .collect())
+        }
+        c => c?,
+    };
     let mut out = Vec::with_capacity(segs.len());
     for (j, seg) in segs.iter().enumerate() {
         let id = name(j);
@@ -233,6 +286,21 @@ pub(crate) fn process_recording_at(
             out.push(reject(id, format!("the log {why}")));
             continue;
         }
+        if let Some((k, dt)) = rec.log.off_period_step(
+            seg.start_row,
+            seg.end_row,
+            opts.robot.period_s,
+            STEP_TOLERANCE_PERIODS,
+        ) {
+            out.push(reject(
+                id,
+                format!(
+                    "the log's {}: the run's odometry would bridge the gap as one step",
+                    OdometryLog::step_message(k, dt, opts.robot.period_s)
+                ),
+            ));
+            continue;
+        }
         let odo = seg.odometry(&revs);
         let travel = odo.travel_m(&geom);
         if travel < opts.min_travel_m {
@@ -243,6 +311,11 @@ pub(crate) fn process_recording_at(
                     opts.min_travel_m
                 ),
             ));
+            continue;
+        }
+        let motion = (odo.t_b() + coarse.offset_s, odo.t_e() + coarse.offset_s);
+        if let Some(why) = unseen_reason(rec.camera, motion, opts.align.max_frame_gap_s) {
+            out.push(reject(id, why));
             continue;
         }
         let al = match refine_offset(

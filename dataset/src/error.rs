@@ -11,6 +11,11 @@ pub enum DatasetError {
     /// Inputs that do not fit together (e.g. a log that cannot overlap its trajectory).
     #[error("{0}")]
     Mismatch(String),
+    /// No clock offset between a recording's log and its camera: the camera saw too little of
+    /// the motion, or saw it ambiguously. Its runs are rejected with this reason; the build
+    /// goes on.
+    #[error("{0}")]
+    NoClockOffset(String),
 }
 
 impl DatasetError {

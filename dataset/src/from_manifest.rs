@@ -60,6 +60,21 @@ fn one_row(
             )))
         }
     };
+    // A header alone (an export of no fixes) would otherwise read as a trajectory of 0 s that
+    // cannot overlap the log, blaming the manifest's pairing.
+    if traj.rows.len() < 2 {
+        let camera = row.trajectory.as_ref().or(row.video.as_ref());
+        return Err(DatasetError::Mismatch(format!(
+            "run \"{}\" ({}): the trajectory has {}; give this run's camera trajectory, or leave the run out of the manifest",
+            row.id,
+            camera.map_or(log_path.clone(), |c| m.resolve(c)).display(),
+            if traj.rows.is_empty() {
+                "no rows (only its header)".to_string()
+            } else {
+                format!("one row only, at {:.2} s", traj.start_s())
+            }
+        )));
+    }
     if let Some(why) = crate::units::unit_mismatch(&log, &traj, &opts.robot) {
         return Err(DatasetError::Mismatch(format!(
             "run \"{}\" ({}): {why}",

@@ -17,6 +17,11 @@ pub const SPEEDS_HEADER: [&str; 3] = ["t", "v_left", "v_right"];
 /// Speed below which a wheel-speed log row counts as standing still, m/s.
 pub const SPEED_REST_THRESHOLD_MPS: f64 = 0.005;
 
+/// How far, in log periods, a step may be off the robot's period before samples refuse it: a
+/// logger's jitter stays well inside, a lost row (twice the period) or an extra one (half)
+/// does not.
+pub const STEP_TOLERANCE_PERIODS: f64 = 0.5;
+
 /// What the two wheel columns of a log hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LogKind {
@@ -123,6 +128,34 @@ impl OdometryLog {
         Some(format!(
             "rows are {p:.3} s apart, but the robot logs every {period_s:.3} s{unit}"
         ))
+    }
+
+    /// The first step among rows `first..=last` (0-based) whose interval is off the robot's
+    /// `period_s` by more than `tolerance` periods, as the row it ends at and its interval:
+    /// every per-step input and correction takes a step for one period, so a lost row (a
+    /// 1.4 s step counted as one 200 ms step reads as seven times the speed) or an extra
+    /// one would pass for a step of the robot's.
+    pub fn off_period_step(
+        &self,
+        first: usize,
+        last: usize,
+        period_s: f64,
+        tolerance: f64,
+    ) -> Option<(usize, f64)> {
+        let last = last.min(self.t_s.len().saturating_sub(1));
+        (first + 1..=last)
+            .map(|k| (k, self.t_s[k] - self.t_s[k - 1]))
+            .find(|(_, dt)| (dt - period_s).abs() > tolerance * period_s)
+    }
+
+    /// What is wrong with the step of [`Self::off_period_step`] ending at row `k` (0-based),
+    /// naming its rows as the file numbers its lines (the header is line 1).
+    pub fn step_message(k: usize, dt: f64, period_s: f64) -> String {
+        format!(
+            "rows {} and {} are {dt:.3} s apart, but the robot logs every {period_s:.3} s (a dropped or extra row?)",
+            k + 1,
+            k + 2
+        )
     }
 
     /// What reading the log took out of its counts, for the user: the encoder-counter wraps

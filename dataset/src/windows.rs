@@ -15,6 +15,7 @@ use crate::build::coarse_of;
 use crate::build::{BuildOptions, Recording, RunOutcome};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
+use crate::odometry::{OdometryLog, STEP_TOLERANCE_PERIODS};
 use crate::{RejectedRun, Sample};
 
 /// The feature rule of window datasets, exactly; a model trained on one rule refuses data
@@ -135,6 +136,22 @@ pub(crate) fn window_samples_at(
             .collect();
         let travel: f64 = inputs.iter().map(|d| 0.5 * d.abs()).sum();
         if travel < w.min_travel_m {
+            continue;
+        }
+        if let Some((k, dt)) = rec.log.off_period_step(
+            *rows.start(),
+            *rows.end(),
+            robot.period_s,
+            STEP_TOLERANCE_PERIODS,
+        ) {
+            out.push(RunOutcome::Rejected(RejectedRun {
+                run_id: format!("{}.w{:04}", rec.id, rows.start()),
+                reason: format!(
+                    "{}: a window's inputs take each step for one period, so this one would read {dt:.3} s of travel as {:.3} s",
+                    OdometryLog::step_message(k, dt, robot.period_s),
+                    robot.period_s
+                ),
+            }));
             continue;
         }
         let (t0, t1) = (t[0] + offset, t[t.len() - 1] + offset);

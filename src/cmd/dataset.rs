@@ -42,12 +42,13 @@ pub struct Args {
     /// `windows`, windows of any motion (curves, turns, squares) for a path corrector.
     #[arg(long, value_enum, default_value_t = LayoutArg::Runs)]
     pub layout: LayoutArg,
-    /// With --layout windows: window length, seconds (a whole number of log periods).
-    #[arg(long, default_value_t = 10.0)]
-    pub window_s: f64,
-    /// With --layout windows: time between window starts, seconds.
-    #[arg(long, default_value_t = 5.0)]
-    pub window_stride_s: f64,
+    /// With --layout windows: window length, seconds (a whole number of log periods;
+    /// default 10).
+    #[arg(long)]
+    pub window_s: Option<f64>,
+    /// With --layout windows: time between window starts, seconds (default 5).
+    #[arg(long)]
+    pub window_stride_s: Option<f64>,
     /// Truth of a synthetic experiment (truth/oracle.json from `odocal synth experiment`):
     /// also print the targets' and clock offsets' errors against it.
     #[arg(long)]
@@ -120,6 +121,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.min_gap_s.is_finite() && args.min_gap_s > 0.0) {
         bail!("--min-gap-s must be a positive number of seconds");
     }
+    // Straight runs have no windows: a window option given to them would change nothing.
+    let window_options: Vec<&str> = [
+        ("--window-s", args.window_s.is_some()),
+        ("--window-stride-s", args.window_stride_s.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(name, given)| given.then_some(name))
+    .collect();
+    if args.layout == LayoutArg::Runs && !window_options.is_empty() {
+        bail!(
+            "{} {} only used with --layout windows; a dataset of straight runs (the default --layout runs) has no windows: add --layout windows, or leave {} out",
+            window_options.join(" and "),
+            if window_options.len() == 1 { "is" } else { "are" },
+            if window_options.len() == 1 { "it" } else { "them" }
+        );
+    }
     check_output_file(&args.out, "--out")?;
     if let Some(csv) = &args.csv {
         check_output_file(csv, "--csv")?;
@@ -183,8 +200,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 Ok(n.round() as usize)
             };
             Layout::Windows(WindowOptions {
-                steps: steps(args.window_s, "--window-s")?,
-                stride: steps(args.window_stride_s, "--window-stride-s")?,
+                steps: steps(args.window_s.unwrap_or(10.0), "--window-s")?,
+                stride: steps(args.window_stride_s.unwrap_or(5.0), "--window-stride-s")?,
                 ..WindowOptions::default()
             })
         }
@@ -218,15 +235,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     bar.finish_and_clear();
     repeated.report();
+    // Straight runs are rejected one by one; windows whose log never follows the camera are
+    // rejected a recording at a time.
+    let (unit, total) = if ds.is_windows() {
+        ("recordings", ds.summary.recordings)
+    } else {
+        ("runs", ds.summary.runs)
+    };
     let unmatched = ds
         .rejected
         .iter()
-        .filter(|r| r.reason.contains("correlation"))
+        .filter(|r| {
+            r.reason.contains("speed-profile correlation")
+                || r.reason.contains("speed profiles correlate")
+        })
         .count();
     // When the logs' speed never follows the camera's, the logs are read wrongly, not the runs.
     let hint = if unmatched * 2 >= ds.rejected.len().max(1) && unmatched > 0 {
         format!(
-            "; in {unmatched} runs the log's speed never followed the camera's: are the ticks cumulative counts (not counts per period), the times in seconds, and each log paired with its own run?"
+            "; the log's speed never followed the camera's in {unmatched} of the {total} {unit}: are the ticks cumulative counts (not counts per period), the times in seconds, and each log paired with its own run?"
         )
     } else {
         String::new()
@@ -247,12 +274,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             why.join("; ")
         );
     }
-    if !hint.is_empty() && unmatched * 2 >= manifest.runs.len() {
-        tell!(
-            "warning: {} of {} runs rejected{hint}",
-            ds.rejected.len(),
-            manifest.runs.len()
-        );
+    if !hint.is_empty() && unmatched * 2 >= total {
+        // A window dataset's rejections mix windows and recordings: only the recordings count.
+        let rejected = if ds.is_windows() {
+            unmatched
+        } else {
+            ds.rejected.len()
+        };
+        tell!("warning: {rejected} of {total} {unit} rejected{hint}");
     }
     for n in &ds.notes {
         tell!("note: {n}");

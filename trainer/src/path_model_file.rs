@@ -297,16 +297,13 @@ impl PathModelFile {
         self.check_robot(robot, name)?;
         let revs = log.wheel_revs(robot);
         let steps = nominal_travels(&revs.rev, robot);
-        for (k, w) in revs.t_s.windows(2).enumerate() {
-            let dt = w[1] - w[0];
-            if (dt - robot.period_s).abs() > 0.05 * robot.period_s {
-                return Err(TrainError::Model(format!(
-                    "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?)",
-                    k + 2,
-                    k + 3,
-                    robot.period_s
-                )));
-            }
+        if let Some((k, dt)) = log.off_period_step(0, log.len(), robot.period_s, 0.05) {
+            return Err(TrainError::Model(format!(
+                "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?)",
+                k + 1,
+                k + 2,
+                robot.period_s
+            )));
         }
         let outside_domain = self.check_steps_domain(&steps, robot, name, allow_extrapolation)?;
         let c = self.corrector()?;
