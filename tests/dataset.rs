@@ -1013,3 +1013,34 @@ fn the_truth_of_another_experiment_is_named() {
     let err = run(&e1.join("truth/oracle.json"));
     assert!(!err.contains("warning"), "{err}");
 }
+
+/// One glitched row in a tick log (a counter jumping by 40000 and back): the recording used
+/// to be rejected as "speed-profile correlation 0.01", which points at the pairing. It is
+/// rejected alone, before any tracking, naming the rows and the speed they imply.
+#[test]
+fn a_glitch_in_a_log_rejects_its_recording_naming_the_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 6, 2, &[]);
+    let log = d.join("runs/run001.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut f: Vec<String> = lines[30].split(',').map(str::to_string).collect();
+    f[1] = (f[1].parse::<f64>().unwrap() + 40000.0).to_string();
+    lines[30] = f.join(",");
+    std::fs::write(&log, lines.join("\n") + "\n").unwrap();
+    let out = ok(&[
+        "dataset",
+        "--manifest",
+        p(&d.join("manifest.json")),
+        "--out",
+        p(&d.join("ds.json")),
+    ]);
+    assert!(
+        out.contains("5 samples from 6 runs")
+            && out.contains("rejected run001: ")
+            && out.contains("rows 30 and 31: the left wheel goes from ")
+            && out.contains("where a small robot's wheels turn at 5 m/s at most"),
+        "{out}"
+    );
+}

@@ -42,6 +42,14 @@ fn one_row(
             log_path.display()
         )));
     }
+    // A glitch in the log spoils its recording alone, and is found before any tracking.
+    if let Some(why) = log.implausible_step(&opts.robot) {
+        let rejected = RunOutcome::Rejected(crate::sample::RejectedRun {
+            run_id: row.id.clone(),
+            reason: format!("{}: {why}", log_path.display()),
+        });
+        return Ok((vec![rejected], note));
+    }
     let traj = match (&row.trajectory, &row.video, track) {
         (Some(t), _, _) => Trajectory::read_csv(&m.resolve(t))?,
         (None, Some(v), Some(track)) => {

@@ -22,6 +22,10 @@ pub const SPEED_REST_THRESHOLD_MPS: f64 = 0.005;
 /// does not.
 pub const STEP_TOLERANCE_PERIODS: f64 = 0.5;
 
+/// The fastest a small wheeled robot's wheel surface moves, m/s: the reference robot drives
+/// at 0.1-0.7 m/s; a faster step is a glitch or a unit error.
+pub const MAX_WHEEL_SPEED_MPS: f64 = 5.0;
+
 /// What the two wheel columns of a log hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LogKind {
@@ -325,6 +329,37 @@ impl OdometryLog {
                     || self.right[i].abs() > SPEED_REST_THRESHOLD_MPS
             }
         }
+    }
+
+    /// The first step in which a wheel's surface moves faster than
+    /// [`MAX_WHEEL_SPEED_MPS`], as what is wrong with it (its rows numbered as the file's
+    /// lines): a counter glitch or a spike in a speed column, which the alignment would
+    /// otherwise only see as speed profiles that do not match.
+    pub fn implausible_step(&self, robot: &RobotParams) -> Option<String> {
+        let revs = self.wheel_revs(robot);
+        let circ = std::f64::consts::PI * robot.wheel_diameter_m;
+        (1..revs.t_s.len()).find_map(|k| {
+            let dt = revs.t_s[k] - revs.t_s[k - 1];
+            (0..2).find_map(|w| {
+                let v = (revs.rev[k][w] - revs.rev[k - 1][w]) * circ / dt;
+                (v.abs() > MAX_WHEEL_SPEED_MPS).then(|| {
+                    let (side, column) = [("left", &self.left), ("right", &self.right)][w];
+                    let what = match self.kind {
+                        LogKind::Ticks => format!(
+                            "goes from {} to {} ticks",
+                            column[k - 1], column[k]
+                        ),
+                        LogKind::Speeds => format!("reads {} m/s", column[k]),
+                    };
+                    format!(
+                        "rows {} and {}: the {side} wheel {what}, {:.1} m/s over {dt:.3} s with this robot file, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most (a glitch in the log, or ticks_per_rev and wheel_diameter_m not the robot's?)",
+                        k + 1,
+                        k + 2,
+                        v.abs()
+                    )
+                })
+            })
+        })
     }
 
     /// Cumulative wheel revolutions relative to the first row. Speeds are converted with the
