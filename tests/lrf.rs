@@ -1115,6 +1115,53 @@ fn cli_scan_files_out_of_time_order_or_twice_are_refused() {
     );
 }
 
+/// One file per scan without a t column (scan0.csv, scan1.csv, scan10.csv, … as the shell
+/// lists them): the files are taken in number order, as the logger wrote them. Plain order
+/// put scan10 after scan1, and the scrambled recording gave 25 confident wrong poses of 27.
+#[test]
+fn cli_untimed_scan_files_are_taken_in_number_order() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    let (_, rows) = scan_rows(d);
+    let per_scan = d.join("per_scan");
+    std::fs::create_dir(&per_scan).expect("mkdir");
+    let mut files: Vec<Vec<String>> = Vec::new();
+    for r in rows {
+        let k: usize = r[0].parse().expect("scan id");
+        if files.len() <= k {
+            files.push(vec!["angle,range,intensity".to_string()]);
+        }
+        files[k].push(r[2..].join(","));
+    }
+    let mut paths: Vec<String> = (0..files.len())
+        .map(|k| {
+            let path = per_scan.join(format!("scan{k}.csv"));
+            std::fs::write(&path, files[k].join("\n") + "\n").expect("write");
+            s(&path).to_string()
+        })
+        .collect();
+    // The shell's order.
+    paths.sort();
+    assert!(paths[2].ends_with("scan10.csv"));
+    let (map, truth, poses) = (d.join("map.json"), d.join("truth.csv"), d.join("poses.csv"));
+    let mut args = vec!["lrf", "localize", "--map", s(&map), "--out", s(&poses)];
+    args.extend(["--truth", s(&truth)]);
+    args.extend(paths.iter().map(String::as_str));
+    let out = odocal(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("30 scans (tracking mode): 30 ok"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("confident wrong poses: 0;"), "{stdout}");
+}
+
 /// Scan times in milliseconds are refused with the unit named (a truth in seconds matched one
 /// scan of 30, and its error passed for the recording's), and a truth that has the time of
 /// few of the `ok` scans is called out beside the figures it gives.

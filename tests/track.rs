@@ -459,6 +459,43 @@ fn bad_inputs_fail_clearly_without_output() {
     );
 }
 
+/// Frames numbered without padding (img0, img1, img10, …, img2) used to be read in plain
+/// alphabetical order, scrambling time (exit 0, 129 mm RMS); and a hidden file beside a frame
+/// (macOS's `._img0.png`) was read as one ("cannot decode this image") or demanded in
+/// timestamps.csv. Names are taken in number order and hidden files left out.
+#[test]
+fn unpadded_frame_names_count_and_hidden_files_are_no_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 30, 2, &["--video", "png"]);
+    let frames = d.join("frames");
+    let csv = frames.join("timestamps.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut rows = vec!["file,t".to_string()];
+    for (k, line) in text.lines().skip(1).enumerate() {
+        let (name, t) = line.split_once(',').unwrap();
+        let new = format!("img{k}.png");
+        std::fs::rename(frames.join(name), frames.join(&new)).unwrap();
+        rows.push(format!("{new},{t}"));
+    }
+    std::fs::write(&csv, rows.join("\n") + "\n").unwrap();
+    // AppleDouble: a few header bytes, no image.
+    std::fs::write(frames.join("._img0.png"), [0, 5, 22, 7, 0, 2, 0, 0]).unwrap();
+    let (camera, truth) = (d.join("camera.json"), d.join("truth.csv"));
+    let truth = Trajectory::read_csv(&truth).unwrap();
+    let track = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["track", p(&frames), "--camera", p(&camera), "--out", p(out)];
+        args.extend(extra);
+        succeeded(&odocal(&args));
+        errors(&Trajectory::read_csv(out).unwrap(), &truth)
+    };
+    let (pos, _, n) = track(&d.join("by_file.csv"), &[]);
+    assert!(n == 30 && pos < 1e-3, "{n} fixes, {pos} m");
+    std::fs::remove_file(&csv).unwrap();
+    let (pos, _, n) = track(&d.join("counted.csv"), &["--fps", "30"]);
+    assert!(n == 30 && pos < 1e-3, "{n} fixes, {pos} m");
+}
+
 /// `odocal synth calib` with `views` hand-held and `floor_views` floor views (seed 1), then
 /// `odocal calibrate` on them: the camera file's path.
 fn calibrate_synth(d: &std::path::Path, views: usize, floor_views: usize) -> std::path::PathBuf {

@@ -43,7 +43,8 @@ pub struct LocalizeArgs {
     /// The landmark map (JSON, "format": "odocal.lrf-map/1").
     #[arg(long)]
     pub map: PathBuf,
-    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`), in time order.
+    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`): with t, in time order;
+    /// without, taken in natural name order (scan2.csv before scan10.csv).
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan (x,y,theta empty when lost).
