@@ -266,19 +266,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 check_output_not_input(p, opt, &folder, "the frame folder tracked")?;
             }
         }
-        if let (Some(ts), Some(fps)) = (&args.timestamps, args.fps) {
-            anyhow::bail!(
-                "--timestamps {} and --fps {fps} both give the frames' times: give one",
-                ts.display()
-            );
-        }
-    } else if let Some(ts) = &args.timestamps {
-        anyhow::bail!(
-            "--timestamps {}: only an image folder takes a timestamps file; the video {} carries its frames' times (--fps overrides its frame rate)",
-            ts.display(),
-            args.video.display()
-        );
     }
+    let source_options = SourceOptions {
+        fps: args.fps,
+        timestamps: args.timestamps.clone(),
+    };
+    // Two timings of the frames are refused before any work, not one of them dropped.
+    source_options.timestamps_file(&args.video)?;
     quiet_video_logs();
     let camera_file = CameraFile::load(&args.camera)?;
     let truth = match &args.truth {
@@ -289,13 +283,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The calibration's uncertainty goes into every fix's σ.
     let opts = options(&args).with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
-    let source = open_source(
-        &args.video,
-        &SourceOptions {
-            fps: args.fps,
-            timestamps: args.timestamps.clone(),
-        },
-    )?;
+    let source = open_source(&args.video, &source_options)?;
     let overlay_dir = match &args.overlay {
         Some(dir) => Some(staged_dir(dir, "--overlay")?),
         None => None,

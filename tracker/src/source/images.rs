@@ -41,11 +41,7 @@ impl FolderSource {
                 "the folder holds no PNG/JPEG images",
             ));
         }
-        let default_csv = dir.join("timestamps.csv");
-        let csv = opts
-            .timestamps
-            .clone()
-            .or_else(|| (opts.fps.is_none() && default_csv.is_file()).then_some(default_csv));
+        let csv = opts.timestamps_file(dir)?;
         let timing = match (&csv, opts.fps) {
             (Some(csv), _) => format!("timestamps file {}", csv.display()),
             (None, fps) => format!("frame count at {} fps (--fps)", fps.unwrap_or(f64::NAN)),
