@@ -575,6 +575,37 @@ fn unpadded_frame_names_count_and_hidden_files_are_no_frames() {
     assert!(n == 30 && pos < 1e-3, "{n} fixes, {pos} m");
 }
 
+/// An id the family does not hold is refused at once, naming the family's range: it used to
+/// be searched for through the whole video (45 s for 60 frames) before "never seen".
+#[test]
+fn tag_ids_outside_the_family_are_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 6, 1);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    let track = |extra: &[&str]| {
+        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
+        args.extend(extra);
+        odocal(&args)
+    };
+    fails_with(
+        &track(&["--tag-id", "99999"]),
+        "--tag-id 99999: tag36h11 holds tags 0 to 586; give the id of the robot's tag, or the --family it belongs to",
+    );
+    fails_with(&track(&["--tag-id", "587"]), "tag36h11 holds tags 0 to 586");
+    fails_with(
+        &track(&["--family", "tag16h5", "--tag-id", "30"]),
+        "--tag-id 30: tag16h5 holds tags 0 to 29",
+    );
+    fails_with(
+        &track(&["--tags", "0,3,587"]),
+        "--tags 587: tag36h11 holds tags 0 to 586",
+    );
+    assert!(!out.exists());
+    // The last id of the family is looked for, and named as not seen.
+    fails_with(&track(&["--tag-id", "586"]), "ids seen: 0 (");
+}
+
 /// `odocal synth calib` with `views` hand-held and `floor_views` floor views (seed 1), then
 /// `odocal calibrate` on them: the camera file's path.
 fn calibrate_synth(d: &std::path::Path, views: usize, floor_views: usize) -> std::path::PathBuf {

@@ -72,6 +72,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         Some(s) => TagSelection::parse(s)?,
         None => TagSelection::Ids(vec![args.tag.tag_id]),
     };
+    selection.check(&args.tag.family)?;
     let single = matches!(&selection, TagSelection::Ids(ids) if ids.len() == 1);
     if let TagSelection::Ids(ids) = &selection {
         for id in ids {

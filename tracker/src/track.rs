@@ -97,6 +97,7 @@ impl TrackOptions {
     /// with the camera's height above the floor, the marker must be below the camera.
     pub fn check(&self, camera_height_m: Option<f64>) -> Result<(), TrackError> {
         let bad = |m: String| Err(TrackError::Options(m));
+        crate::detect::check_tag_id(&self.family, self.tag_id, "--tag-id")?;
         if !(self.tag_size_m > 0.0 && self.tag_size_m <= 1.0) {
             return bad(format!(
                 "--tag-size {}: the tag's black square is 0 to 1 m across",
