@@ -606,6 +606,63 @@ fn tag_ids_outside_the_family_are_refused_at_once() {
     fails_with(&track(&["--tag-id", "586"]), "ids seen: 0 (");
 }
 
+/// --tag-yaw is checked on its own: NaN and infinity were blamed on "--tag-offset 0,0", and
+/// 1e300 degrees was taken (wrapped to some angle).
+#[test]
+fn tag_yaw_is_checked_on_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 6, 1);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    for (yaw, shown) in [
+        ("nan", "NaN"),
+        ("inf", "inf"),
+        ("1e300", "1e300"),
+        ("360.5", "360.5"),
+    ] {
+        let e = fails_with(
+            &odocal(&[
+                "track",
+                p(&video),
+                "--camera",
+                p(&camera),
+                "--out",
+                p(&out),
+                "--tag-yaw",
+                yaw,
+            ]),
+            &format!(
+                "--tag-yaw {shown}: the angle from the robot's front to the tag's x axis is -360 to 360 degrees"
+            ),
+        );
+        assert!(!e.contains("--tag-offset"), "{e}");
+    }
+    fails_with(
+        &odocal(&[
+            "synth",
+            "track",
+            "--out",
+            p(&d.join("s")),
+            "--frames",
+            "3",
+            "--tag-yaw",
+            "1e300",
+        ]),
+        "--tag-yaw 1e300: ",
+    );
+    assert!(!out.exists() && !d.join("s").exists());
+    succeeded(&odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--tag-yaw",
+        "-360",
+    ]));
+}
+
 /// `odocal synth calib` with `views` hand-held and `floor_views` floor views (seed 1), then
 /// `odocal calibrate` on them: the camera file's path.
 fn calibrate_synth(d: &std::path::Path, views: usize, floor_views: usize) -> std::path::PathBuf {

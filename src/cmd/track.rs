@@ -77,14 +77,14 @@ pub struct Args {
 }
 
 /// The tracker's options from the command line (one tag, several, or an arena alike).
-pub(super) fn options(args: &Args) -> TrackOptions {
-    args.tag.apply(TrackOptions {
+pub(super) fn options(args: &Args) -> anyhow::Result<TrackOptions> {
+    Ok(args.tag.apply(TrackOptions {
         use_roi: !args.no_roi,
         max_speed_mps: args.max_speed,
         max_reprojection_px: args.max_reprojection,
         pnp_cross_check: args.pnp_check,
         ..TrackOptions::default()
-    })
+    })?)
 }
 
 /// The truth to compare with and the frames it says are in the file (when it knows).
@@ -281,7 +281,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let floor = *camera_file.require_floor(&args.camera)?;
     // The calibration's uncertainty goes into every fix's σ.
-    let opts = options(&args).with_calibration(&camera_file);
+    let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(&args.video, &source_options)?;
     let overlay_dir = match &args.overlay {

@@ -125,8 +125,14 @@ impl TrackOptions {
             ));
         }
         let m = &self.tag_to_robot.0;
+        if !m.theta_rad.is_finite() {
+            return bad(format!(
+                "--tag-yaw {}: the angle from the robot's front to the tag's x axis is a number of degrees",
+                m.theta_rad.to_degrees()
+            ));
+        }
         let lever_m = m.x_m.hypot(m.y_m);
-        if !(lever_m <= MAX_TAG_OFFSET_M && m.theta_rad.is_finite()) {
+        if !(lever_m.is_finite() && lever_m <= MAX_TAG_OFFSET_M) {
             return bad(format!(
                 "--tag-offset {},{}: the tag's centre {lever_m:.2} m from the robot's axle midpoint is not on a small wheeled robot; the offset is in metres, ahead and to the left of the axle (0.12,0 for 12 cm ahead)",
                 m.x_m, m.y_m
