@@ -43,7 +43,8 @@ pub struct Args {
     /// Frame rate, frames/s: overrides the video's own; for image folders without timestamps.
     #[arg(long)]
     pub fps: Option<f64>,
-    /// CSV of image timestamps for an image folder (`file,t`, or `t` per image in name order).
+    /// CSV of image timestamps for an image folder (`file,t`, or `t` per image in natural name
+    /// order: img2 before img10).
     #[arg(long)]
     pub timestamps: Option<PathBuf>,
     /// Detect on the full frame in every frame (no region of interest).

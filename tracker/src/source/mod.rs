@@ -138,8 +138,8 @@ pub const MIN_FPS: f64 = 0.1;
 pub struct SourceOptions {
     /// Fixed frame rate, frames per second (overrides a video's own rate).
     pub fps: Option<f64>,
-    /// CSV of image timestamps (`file,t` or `t` per image in name order); for
-    /// folders, `timestamps.csv` inside the folder is used when present.
+    /// CSV of image timestamps (`file,t` or `t` per image in natural name order, img2 before
+    /// img10); for folders, `timestamps.csv` inside the folder is used when present.
     pub timestamps: Option<PathBuf>,
 }
 
