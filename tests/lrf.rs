@@ -1115,6 +1115,103 @@ fn cli_scan_files_out_of_time_order_or_twice_are_refused() {
     );
 }
 
+/// One file per scan without a t column (scan0.csv, scan1.csv, scan10.csv, … as the shell
+/// lists them): the files are taken in number order, as the logger wrote them. Plain order
+/// put scan10 after scan1, and the scrambled recording gave 25 confident wrong poses of 27.
+#[test]
+fn cli_untimed_scan_files_are_taken_in_number_order() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 2, 30);
+    let (_, rows) = scan_rows(d);
+    let per_scan = d.join("per_scan");
+    std::fs::create_dir(&per_scan).expect("mkdir");
+    let mut files: Vec<Vec<String>> = Vec::new();
+    for r in rows {
+        let k: usize = r[0].parse().expect("scan id");
+        if files.len() <= k {
+            files.push(vec!["angle,range,intensity".to_string()]);
+        }
+        files[k].push(r[2..].join(","));
+    }
+    let mut paths: Vec<String> = (0..files.len())
+        .map(|k| {
+            let path = per_scan.join(format!("scan{k}.csv"));
+            std::fs::write(&path, files[k].join("\n") + "\n").expect("write");
+            s(&path).to_string()
+        })
+        .collect();
+    // The shell's order.
+    paths.sort();
+    assert!(paths[2].ends_with("scan10.csv"));
+    let (map, truth, poses) = (d.join("map.json"), d.join("truth.csv"), d.join("poses.csv"));
+    let mut args = vec!["lrf", "localize", "--map", s(&map), "--out", s(&poses)];
+    args.extend(["--truth", s(&truth)]);
+    args.extend(paths.iter().map(String::as_str));
+    let out = odocal(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("30 scans (tracking mode): 30 ok"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("confident wrong poses: 0;"), "{stdout}");
+}
+
+/// Scans of another room against a map with no congruent configuration: every scan is lost
+/// or ambiguous, and the layout was blamed ("repeat themselves (a symmetric layout) … add or
+/// move a landmark") where `lrf check-map` finds no symmetry. The likely causes are named.
+#[test]
+fn cli_scans_of_another_map_are_not_blamed_on_its_layout() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    synth_lrf(&a, 1, 50);
+    synth_lrf(&b, 2, 50);
+    let map = a.join("map.json");
+    let check = odocal(&["lrf", "check-map", s(&map)]);
+    assert!(
+        String::from_utf8_lossy(&check.stdout).contains("verdict: no congruent configuration"),
+        "{}",
+        String::from_utf8_lossy(&check.stdout)
+    );
+    let (poses, scans) = (b.join("poses.csv"), b.join("scans.csv"));
+    let args = [
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&scans),
+        "--out",
+        s(&poses),
+    ];
+    let out = odocal(&args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("ambiguous, "),
+        "some scans are ambiguous: {err}"
+    );
+    for want in [
+        &format!(
+            "{} has no congruent configuration (`odocal lrf check-map {}`), so no symmetric layout explains the ambiguous ones: is {} the map of this room",
+            s(&map),
+            s(&map),
+            s(&map)
+        ),
+        "a scanner mounted upside down mirrors them",
+        "--intensity-min 0.5",
+        "--max-range-m 5.6 m",
+    ] {
+        expect_error(&args, want);
+    }
+    assert!(!err.contains("symmetric layout)"), "{err}");
+    assert!(!poses.exists());
+}
+
 /// Scan times in milliseconds are refused with the unit named (a truth in seconds matched one
 /// scan of 30, and its error passed for the recording's), and a truth that has the time of
 /// few of the `ok` scans is called out beside the figures it gives.

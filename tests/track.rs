@@ -189,7 +189,8 @@ fn png_sequence_and_mp4_are_tracked() {
         pos <= 1.0e-3 && head.to_degrees() <= 0.3,
         "PNG: {pos} m, {head} rad"
     );
-    // Fixed frame rate instead of the timestamp file: times are k / fps.
+    // Fixed frame rate instead of the timestamp file (moved aside): times are k / fps.
+    std::fs::rename(frames.join("timestamps.csv"), d.join("timestamps.csv")).unwrap();
     let out2 = d.join("traj_fps.csv");
     succeeded(&odocal(&[
         "track",
@@ -457,6 +458,209 @@ fn bad_inputs_fail_clearly_without_output() {
         err.contains("--fps 60 overrides the video's own 30 fps: every time is 0.500 times"),
         "{err}"
     );
+}
+
+/// The frames of `folder` and their rows in its timestamps.csv (`file,t`), without frames
+/// `drop`.
+fn drop_frames(folder: &std::path::Path, drop: std::ops::Range<usize>) {
+    let csv = folder.join("timestamps.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut kept = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        // Line k + 1 is frame k's.
+        if k > 0 && drop.contains(&(k - 1)) {
+            let name = line.split(',').next().unwrap();
+            std::fs::remove_file(folder.join(name)).unwrap();
+        } else {
+            kept.push(line);
+        }
+    }
+    std::fs::write(&csv, kept.join("\n") + "\n").unwrap();
+}
+
+/// A frame folder's own timestamps.csv times its frames: `--fps` beside it used to be
+/// preferred silently, and with 5 frames missing from the folder every later pose was 167 ms
+/// early (42.5 mm RMS against the truth). Refused, naming the file and both ways out; moved
+/// aside, `--fps` times by counting. The timings are decided in one place, so `--tags` (one
+/// video, several robots) refuses them alike.
+#[test]
+fn fps_beside_a_frame_folders_own_timestamps_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 30, 2, &["--video", "png"]);
+    let frames = d.join("frames");
+    drop_frames(&frames, 10..15);
+    let (camera, truth, out) = (d.join("camera.json"), d.join("truth.csv"), d.join("t.csv"));
+    let track = |extra: &[&str]| {
+        let mut args = vec![
+            "track",
+            p(&frames),
+            "--camera",
+            p(&camera),
+            "--out",
+            p(&out),
+        ];
+        args.extend(extra);
+        odocal(&args)
+    };
+    let own = frames.join("timestamps.csv");
+    let e = fails_with(
+        &track(&["--fps", "30"]),
+        &format!(
+            "{}: times the frames of this folder, and --fps 30 would time them by counting instead",
+            own.display()
+        ),
+    );
+    assert!(
+        e.contains(
+            "leave out --fps, or remove or rename timestamps.csv to time the frames by counting"
+        ),
+        "{e}"
+    );
+    fails_with(
+        &track(&["--tags", "0", "--fps", "30"]),
+        "timestamps.csv: times the frames of this folder",
+    );
+    fails_with(
+        &track(&["--timestamps", p(&own), "--fps", "30"]),
+        "both give the frames' times: give one",
+    );
+    assert!(!out.exists());
+    // Timed by its file, the frames after the missing ones are on time.
+    succeeded(&track(&[]));
+    let est = Trajectory::read_csv(&out).unwrap();
+    let (pos, _, n) = errors(&est, &Trajectory::read_csv(&truth).unwrap());
+    assert_eq!(n, 25);
+    assert!(pos < 1e-3, "{pos} m");
+    std::fs::rename(&own, d.join("aside.csv")).unwrap();
+    succeeded(&track(&["--fps", "30"]));
+    let est = Trajectory::read_csv(&out).unwrap();
+    assert!((est.rows[20].t_s - 20.0 / 30.0).abs() < 1e-9, "counted");
+}
+
+/// Frames numbered without padding (img0, img1, img10, …, img2) used to be read in plain
+/// alphabetical order, scrambling time (exit 0, 129 mm RMS); and a hidden file beside a frame
+/// (macOS's `._img0.png`) was read as one ("cannot decode this image") or demanded in
+/// timestamps.csv. Names are taken in number order and hidden files left out.
+#[test]
+fn unpadded_frame_names_count_and_hidden_files_are_no_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 30, 2, &["--video", "png"]);
+    let frames = d.join("frames");
+    let csv = frames.join("timestamps.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut rows = vec!["file,t".to_string()];
+    for (k, line) in text.lines().skip(1).enumerate() {
+        let (name, t) = line.split_once(',').unwrap();
+        let new = format!("img{k}.png");
+        std::fs::rename(frames.join(name), frames.join(&new)).unwrap();
+        rows.push(format!("{new},{t}"));
+    }
+    std::fs::write(&csv, rows.join("\n") + "\n").unwrap();
+    // AppleDouble: a few header bytes, no image.
+    std::fs::write(frames.join("._img0.png"), [0, 5, 22, 7, 0, 2, 0, 0]).unwrap();
+    let (camera, truth) = (d.join("camera.json"), d.join("truth.csv"));
+    let truth = Trajectory::read_csv(&truth).unwrap();
+    let track = |out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["track", p(&frames), "--camera", p(&camera), "--out", p(out)];
+        args.extend(extra);
+        succeeded(&odocal(&args));
+        errors(&Trajectory::read_csv(out).unwrap(), &truth)
+    };
+    let (pos, _, n) = track(&d.join("by_file.csv"), &[]);
+    assert!(n == 30 && pos < 1e-3, "{n} fixes, {pos} m");
+    std::fs::remove_file(&csv).unwrap();
+    let (pos, _, n) = track(&d.join("counted.csv"), &["--fps", "30"]);
+    assert!(n == 30 && pos < 1e-3, "{n} fixes, {pos} m");
+}
+
+/// An id the family does not hold is refused at once, naming the family's range: it used to
+/// be searched for through the whole video (45 s for 60 frames) before "never seen".
+#[test]
+fn tag_ids_outside_the_family_are_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 6, 1);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    let track = |extra: &[&str]| {
+        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
+        args.extend(extra);
+        odocal(&args)
+    };
+    fails_with(
+        &track(&["--tag-id", "99999"]),
+        "--tag-id 99999: tag36h11 holds tags 0 to 586; give the id of the robot's tag, or the --family it belongs to",
+    );
+    fails_with(&track(&["--tag-id", "587"]), "tag36h11 holds tags 0 to 586");
+    fails_with(
+        &track(&["--family", "tag16h5", "--tag-id", "30"]),
+        "--tag-id 30: tag16h5 holds tags 0 to 29",
+    );
+    fails_with(
+        &track(&["--tags", "0,3,587"]),
+        "--tags 587: tag36h11 holds tags 0 to 586",
+    );
+    assert!(!out.exists());
+    // The last id of the family is looked for, and named as not seen.
+    fails_with(&track(&["--tag-id", "586"]), "ids seen: 0 (");
+}
+
+/// --tag-yaw is checked on its own: NaN and infinity were blamed on "--tag-offset 0,0", and
+/// 1e300 degrees was taken (wrapped to some angle).
+#[test]
+fn tag_yaw_is_checked_on_its_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 6, 1);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    for (yaw, shown) in [
+        ("nan", "NaN"),
+        ("inf", "inf"),
+        ("1e300", "1e300"),
+        ("360.5", "360.5"),
+    ] {
+        let e = fails_with(
+            &odocal(&[
+                "track",
+                p(&video),
+                "--camera",
+                p(&camera),
+                "--out",
+                p(&out),
+                "--tag-yaw",
+                yaw,
+            ]),
+            &format!(
+                "--tag-yaw {shown}: the angle from the robot's front to the tag's x axis is -360 to 360 degrees"
+            ),
+        );
+        assert!(!e.contains("--tag-offset"), "{e}");
+    }
+    fails_with(
+        &odocal(&[
+            "synth",
+            "track",
+            "--out",
+            p(&d.join("s")),
+            "--frames",
+            "3",
+            "--tag-yaw",
+            "1e300",
+        ]),
+        "--tag-yaw 1e300: ",
+    );
+    assert!(!out.exists() && !d.join("s").exists());
+    succeeded(&odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--tag-yaw",
+        "-360",
+    ]));
 }
 
 /// `odocal synth calib` with `views` hand-held and `floor_views` floor views (seed 1), then

@@ -11,6 +11,7 @@ mod file_kind;
 mod fit;
 pub mod lsq;
 mod motion_heading;
+mod natural_order;
 mod pose;
 mod ray;
 pub mod staging;
@@ -23,10 +24,11 @@ pub use file_error::{read_text, FileError};
 pub use file_kind::{file_kind, is_video};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};
 pub use motion_heading::MotionAgainstHeading;
+pub use natural_order::{natural_cmp, natural_path_cmp, sort_naturally};
 pub use pose::{wrap_angle, Pose2};
 pub use ray::ray_segment;
 pub use table::{csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, TextFormat};
-pub use tag_mount::{MountFit, TagToRobot};
+pub use tag_mount::{MountFit, TagToRobot, TagYawError, MAX_TAG_YAW_DEG};
 pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};
 pub use trajectory::{
     mean_pose, PoseSigma, Reference, Trajectory, TrajectoryRow, REFERENCE_MAX_GAP_S, SAME_TIME_S,

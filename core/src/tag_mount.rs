@@ -13,6 +13,16 @@
 use crate::pose::{wrap_angle, Pose2};
 use crate::trajectory::{PoseSigma, Trajectory, TrajectoryRow};
 
+/// Largest angle a tag may be turned on its robot, degrees either way: a mount is turned
+/// less than a full turn, and a larger number is no angle anyone measured (1e300 degrees used
+/// to wrap to some angle, unsaid).
+pub const MAX_TAG_YAW_DEG: f64 = 360.0;
+
+/// A tag yaw that is no angle of a mount.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("--tag-yaw {0:?}: the angle from the robot's front to the tag's x axis is -{max} to {max} degrees, counter-clockwise (90: the tag's x axis points to the robot's left)", max = MAX_TAG_YAW_DEG)]
+pub struct TagYawError(pub f64);
+
 /// The tag's pose on the robot: maps points in the tag's frame into the robot's frame
 /// (origin the midpoint of the wheel axle, x forwards, y to the left). The identity is a tag
 /// centred over the axle with its x axis pointing forwards.
@@ -31,6 +41,15 @@ impl TagToRobot {
     /// its x axis turned `yaw_rad` counter-clockwise from the robot's forward direction.
     pub fn new(ahead_m: f64, left_m: f64, yaw_rad: f64) -> Self {
         Self(Pose2::new(ahead_m, left_m, wrap_angle(yaw_rad)))
+    }
+
+    /// [`Self::new`] with the yaw in degrees as a user gives it, refused unless finite and
+    /// within [`MAX_TAG_YAW_DEG`] either way.
+    pub fn from_degrees(ahead_m: f64, left_m: f64, yaw_deg: f64) -> Result<Self, TagYawError> {
+        if !yaw_deg.is_finite() || yaw_deg.abs() > MAX_TAG_YAW_DEG {
+            return Err(TagYawError(yaw_deg));
+        }
+        Ok(Self::new(ahead_m, left_m, yaw_deg.to_radians()))
     }
 
     /// Whether the tag is the robot (no offset, no turn).
@@ -242,6 +261,29 @@ impl MountFit {
 mod tests {
     use super::*;
     use std::f64::consts::PI;
+
+    #[test]
+    fn a_yaw_is_a_finite_angle_within_a_turn() {
+        let t = TagToRobot::from_degrees(0.1, 0.0, -270.0).unwrap();
+        assert!((t.0.theta_rad - PI / 2.0).abs() < 1e-12);
+        assert!(TagToRobot::from_degrees(0.0, 0.0, 360.0).is_ok());
+        for bad in [
+            f64::NAN,
+            f64::INFINITY,
+            -f64::INFINITY,
+            1e300,
+            360.5,
+            -361.0,
+        ] {
+            let e = TagToRobot::from_degrees(0.0, 0.0, bad)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with(&format!("--tag-yaw {bad:?}: ")) && e.contains("-360 to 360 degrees"),
+                "{e}"
+            );
+        }
+    }
 
     /// A robot driving figure-eights: 0.3 m/s, turning at ±1.2 rad/s, 30 rows a second, its
     /// axle midpoint's poses.

@@ -46,6 +46,20 @@ pub fn find_ambiguities(map: &Map, tol_m: f64, radius_m: f64, min_size: usize) -
     find_ambiguities_within(map, tol_m, radius_m, min_size, usize::MAX).0
 }
 
+/// `lrf check-map`'s tolerance unless told: two configurations match if every landmark is
+/// within this, metres.
+pub const DEFAULT_TOLERANCE_M: f64 = 0.03;
+
+/// Whether scans may fit `map` in several places for its layout alone: it holds congruent
+/// configurations of 3 or more landmarks seen together within `max_range_m` (at
+/// [`DEFAULT_TOLERANCE_M`]), or so many candidates that the search gave up, as
+/// `lrf check-map` would report.
+pub fn layout_repeats(map: &Map, max_range_m: f64) -> bool {
+    let (found, complete) =
+        find_ambiguities_within(map, DEFAULT_TOLERANCE_M, max_range_m, 3, CHECK_BUDGET);
+    !complete || found.iter().any(|a| a.kind == AmbiguityKind::Congruent)
+}
+
 /// The most candidate matches [`check_map_report`] tries: a map of a building's reflectors
 /// needs far fewer; a regular lattice needs millions, and is ambiguous anyway.
 pub const CHECK_BUDGET: usize = 200_000;

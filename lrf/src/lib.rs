@@ -25,7 +25,10 @@ mod scan;
 mod scan_track;
 mod search;
 
-pub use check::{check_map_report, find_ambiguities, Ambiguity, AmbiguityKind};
+pub use check::{
+    check_map_report, find_ambiguities, layout_repeats, Ambiguity, AmbiguityKind,
+    DEFAULT_TOLERANCE_M,
+};
 pub use error::LrfError;
 pub use eval::{
     evaluate, read_truth_csv, EstimatedPose, Evaluation, LaserTruth, TruthAt, TruthPose,

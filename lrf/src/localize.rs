@@ -9,14 +9,13 @@ use crate::scan_track::ScanTracker;
 use crate::search::Localizer;
 use crate::LrfError;
 
-/// Reads scan files in order; all must share one angular step (one sensor setting), and each
-/// file's times must follow the previous file's, as they do within a file. Returns the scans
-/// and that step, radians.
+/// Reads scan files; all must share one angular step (one sensor setting). Files with times
+/// are taken in the order given, and each file's times must follow the previous file's, as
+/// they do within a file. Files without times (one scan per file, say) are taken in natural
+/// name order (`scan2.csv` before `scan10.csv`), the order a logger numbers them in: the
+/// shell lists them alphabetically, `scan10.csv` between `scan1.csv` and `scan2.csv`, and
+/// nothing else would show the scrambled time. Returns the scans and that step, radians.
 pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), LrfError> {
-    let mut scans: Vec<Scan> = Vec::new();
-    let mut step: Option<(f64, String)> = None;
-    // The last timed scan so far and its file.
-    let mut last: Option<(f64, &PathBuf)> = None;
     for (k, p) in paths.iter().enumerate() {
         if let Some(q) = paths[..k].iter().find(|q| same_file(q, p)) {
             let also = if q == p {
@@ -29,7 +28,19 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
                 p.display()
             )));
         }
-        let s = read_scans_csv(p)?;
+    }
+    let mut files: Vec<(&PathBuf, Vec<Scan>)> = paths
+        .iter()
+        .map(|p| Ok((p, read_scans_csv(p)?)))
+        .collect::<Result<_, LrfError>>()?;
+    if files.iter().all(|(_, s)| s.iter().all(|s| s.t_s.is_none())) {
+        files.sort_by(|(a, _), (b, _)| odocal_core::natural_path_cmp(a, b));
+    }
+    let mut scans: Vec<Scan> = Vec::new();
+    let mut step: Option<(f64, String)> = None;
+    // The last timed scan so far and its file.
+    let mut last: Option<(f64, &PathBuf)> = None;
+    for (p, s) in files {
         if let (Some((prev, prev_file)), Some(t)) = (last, s.first().and_then(|s| s.t_s)) {
             if t <= prev {
                 return Err(LrfError::Config(format!(

@@ -178,7 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     // The tag's options are checked before any video is opened.
-    let track_options = args.tag.apply(TrackOptions::default());
+    let track_options = args.tag.apply(TrackOptions::default())?;
     if let Some(c) = &camera {
         track_options.check(c.floor.as_ref().map(|f| f.camera_height_m))?;
     }

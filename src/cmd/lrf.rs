@@ -6,8 +6,8 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_intensity_scale, check_map_report, check_range_unit, check_scan_times, evaluate,
-    localize_scans, read_scan_files, read_truth_csv, Localizer, LocalizerConfig, Map, SensorConfig,
-    Status,
+    layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localizer, LocalizerConfig,
+    Map, SensorConfig, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -27,7 +27,7 @@ pub struct CheckMapArgs {
     /// The landmark map (JSON, "format": "odocal.lrf-map/1").
     pub map: PathBuf,
     /// Two configurations match if every landmark is within this distance, metres.
-    #[arg(long, default_value_t = 0.03)]
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE_M)]
     pub tolerance_m: f64,
     /// Sensor range: only landmarks seen together (within this of each other's midpoint) count, metres.
     #[arg(long, default_value_t = 5.6)]
@@ -43,7 +43,8 @@ pub struct LocalizeArgs {
     /// The landmark map (JSON, "format": "odocal.lrf-map/1").
     #[arg(long)]
     pub map: PathBuf,
-    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`), in time order.
+    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`): with t, in time order;
+    /// without, taken in natural name order (scan2.csv before scan10.csv).
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan (x,y,theta empty when lost).
@@ -160,6 +161,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 "none of the {} scans found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
                 log.rows.len(),
                 a.out.display(),
+                why_lost()
+            );
+        }
+        // Ambiguous scans of a map with no congruent configuration fit it nowhere well: the
+        // scans are of another room, or read wrongly, not of a symmetric layout.
+        if !layout_repeats(&loc.map, a.max_range_m) {
+            anyhow::bail!(
+                "none of the {} scans found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written; {} has no congruent configuration (`odocal lrf check-map {}`), so no symmetric layout explains the ambiguous ones: {}",
+                log.rows.len(),
+                count(Status::Ambiguous),
+                count(Status::Lost),
+                a.out.display(),
+                a.map.display(),
+                a.map.display(),
                 why_lost()
             );
         }

@@ -221,11 +221,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         noise_sigma: args.noise,
         exposure_s,
         tag_id: args.tag_id,
-        tag_to_robot: odocal_core::TagToRobot::new(
+        tag_to_robot: odocal_core::TagToRobot::from_degrees(
             args.tag_offset.ahead_m,
             args.tag_offset.left_m,
-            args.tag_yaw.to_radians(),
-        ),
+            args.tag_yaw,
+        )?,
         effects,
         mocap_hz: args.mocap_hz,
     };

@@ -1,7 +1,7 @@
 //! The robot's tag and how the camera reads it: the options `track` and `dataset` (whose
 //! manifest rows with a video are tracked) share, with the same names and defaults.
 
-use odocal_core::TagToRobot;
+use odocal_core::{TagToRobot, TagYawError};
 use odocal_tracker::TrackOptions;
 
 /// Where the tag's centre sits on the robot, metres ahead of and to the left of the midpoint
@@ -111,20 +111,21 @@ impl TagArgs {
         out
     }
 
-    /// `opts` with this tag and readout.
-    pub fn apply(&self, opts: TrackOptions) -> TrackOptions {
-        TrackOptions {
+    /// `opts` with this tag and readout; a --tag-yaw that is no angle is refused here, as
+    /// the mount wraps it.
+    pub fn apply(&self, opts: TrackOptions) -> Result<TrackOptions, TagYawError> {
+        Ok(TrackOptions {
             family: self.family.clone(),
             tag_id: self.tag_id,
             tag_size_m: self.tag_size,
             marker_height_m: self.marker_height,
             rolling_shutter_s: self.rolling_shutter_s,
-            tag_to_robot: TagToRobot::new(
+            tag_to_robot: TagToRobot::from_degrees(
                 self.tag_offset.ahead_m,
                 self.tag_offset.left_m,
-                self.tag_yaw.to_radians(),
-            ),
+                self.tag_yaw,
+            )?,
             ..opts
-        }
+        })
     }
 }

@@ -43,7 +43,8 @@ pub struct Args {
     /// Frame rate, frames/s: overrides the video's own; for image folders without timestamps.
     #[arg(long)]
     pub fps: Option<f64>,
-    /// CSV of image timestamps for an image folder (`file,t`, or `t` per image in name order).
+    /// CSV of image timestamps for an image folder (`file,t`, or `t` per image in natural name
+    /// order: img2 before img10).
     #[arg(long)]
     pub timestamps: Option<PathBuf>,
     /// Detect on the full frame in every frame (no region of interest).
@@ -77,14 +78,14 @@ pub struct Args {
 }
 
 /// The tracker's options from the command line (one tag, several, or an arena alike).
-pub(super) fn options(args: &Args) -> TrackOptions {
-    args.tag.apply(TrackOptions {
+pub(super) fn options(args: &Args) -> anyhow::Result<TrackOptions> {
+    Ok(args.tag.apply(TrackOptions {
         use_roi: !args.no_roi,
         max_speed_mps: args.max_speed,
         max_reprojection_px: args.max_reprojection,
         pnp_cross_check: args.pnp_check,
         ..TrackOptions::default()
-    })
+    })?)
 }
 
 /// The truth to compare with and the frames it says are in the file (when it knows).
@@ -266,19 +267,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 check_output_not_input(p, opt, &folder, "the frame folder tracked")?;
             }
         }
-        if let (Some(ts), Some(fps)) = (&args.timestamps, args.fps) {
-            anyhow::bail!(
-                "--timestamps {} and --fps {fps} both give the frames' times: give one",
-                ts.display()
-            );
-        }
-    } else if let Some(ts) = &args.timestamps {
-        anyhow::bail!(
-            "--timestamps {}: only an image folder takes a timestamps file; the video {} carries its frames' times (--fps overrides its frame rate)",
-            ts.display(),
-            args.video.display()
-        );
     }
+    let source_options = SourceOptions {
+        fps: args.fps,
+        timestamps: args.timestamps.clone(),
+    };
+    // Two timings of the frames are refused before any work, not one of them dropped.
+    source_options.timestamps_file(&args.video)?;
     quiet_video_logs();
     let camera_file = CameraFile::load(&args.camera)?;
     let truth = match &args.truth {
@@ -287,15 +282,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let floor = *camera_file.require_floor(&args.camera)?;
     // The calibration's uncertainty goes into every fix's σ.
-    let opts = options(&args).with_calibration(&camera_file);
+    let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
-    let source = open_source(
-        &args.video,
-        &SourceOptions {
-            fps: args.fps,
-            timestamps: args.timestamps.clone(),
-        },
-    )?;
+    let source = open_source(&args.video, &source_options)?;
     let overlay_dir = match &args.overlay {
         Some(dir) => Some(staged_dir(dir, "--overlay")?),
         None => None,

@@ -72,6 +72,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         Some(s) => TagSelection::parse(s)?,
         None => TagSelection::Ids(vec![args.tag.tag_id]),
     };
+    selection.check(&args.tag.family)?;
     let single = matches!(&selection, TagSelection::Ids(ids) if ids.len() == 1);
     if let TagSelection::Ids(ids) = &selection {
         for id in ids {
@@ -89,7 +90,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         }
     }
     quiet_video_logs();
-    let opts = super::track::options(&args);
+    let opts = super::track::options(&args)?;
     let trajectories: Vec<(u32, Trajectory)> = match &m.arena {
         Some(arena_path) => track_arena(&args, arena_path, &opts, &selection)?,
         None => track_one_video(&args, &opts, &selection)?,

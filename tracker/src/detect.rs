@@ -10,6 +10,45 @@ use nalgebra::Point2;
 use crate::source::GrayFrame;
 use crate::TrackError;
 
+/// The tag families the AprilTag library knows, each with the number of tags it holds (ids 0
+/// to that less one; the unit test reads each from the C library's own code table).
+const FAMILIES: [(&str, u32); 8] = [
+    ("tag36h11", 587),
+    ("tag25h9", 35),
+    ("tag16h5", 30),
+    ("tagStandard41h12", 2115),
+    ("tagStandard52h13", 48714),
+    ("tagCircle21h7", 38),
+    ("tagCircle49h12", 65535),
+    ("tagCustom48h12", 42211),
+];
+
+fn unknown_family(family: &str) -> TrackError {
+    let names: Vec<&str> = FAMILIES.iter().map(|(name, _)| *name).collect();
+    TrackError::Options(format!(
+        "unknown tag family {family:?}: use {} or {}",
+        names[..names.len() - 1].join(", "),
+        names[names.len() - 1]
+    ))
+}
+
+/// Refuses a tag id that `family` does not hold, naming its range and `option` (the
+/// command-line option that gave it): no frame could show that tag, and looking for it
+/// would search the whole video before saying so.
+pub fn check_tag_id(family: &str, id: u32, option: &str) -> Result<(), TrackError> {
+    let (_, size) = FAMILIES
+        .iter()
+        .find(|(name, _)| *name == family)
+        .ok_or_else(|| unknown_family(family))?;
+    if id >= *size {
+        return Err(TrackError::Options(format!(
+            "{option} {id}: {family} holds tags 0 to {}; give the id of the robot's tag, or the --family it belongs to",
+            size - 1
+        )));
+    }
+    Ok(())
+}
+
 /// A rectangle of pixels: columns x0..x0+width, rows y0..y0+height.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Roi {
@@ -95,11 +134,7 @@ impl TagDetector {
     /// A detector for `family` (e.g. "tag36h11") correcting up to `max_bits`
     /// bit errors, with quad decimation `decimate` (1 = full resolution).
     pub fn new(family: &str, max_bits: usize, decimate: f32) -> Result<Self, TrackError> {
-        let fam = Family::from_str(family).map_err(|_| {
-            TrackError::Options(format!(
-                "unknown tag family {family:?}: use tag36h11, tag25h9, tag16h5, tagStandard41h12, tagStandard52h13, tagCircle21h7, tagCircle49h12 or tagCustom48h12"
-            ))
-        })?;
+        let fam = Family::from_str(family).map_err(|_| unknown_family(family))?;
         let mut det = DetectorBuilder::new()
             .add_family_bits(fam, max_bits)
             .build()
@@ -261,5 +296,73 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("tag99h1"), "{e}");
+        assert!(
+            e.contains("use tag36h11, tag25h9,") && e.contains(" or tagCustom48h12"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn family_sizes_are_the_c_library_s() {
+        use apriltag_sys as sys;
+        type Make = unsafe extern "C" fn() -> *mut sys::apriltag_family_t;
+        type Free = unsafe extern "C" fn(*mut sys::apriltag_family_t);
+        let c: [(&str, Make, Free); 8] = [
+            ("tag36h11", sys::tag36h11_create, sys::tag36h11_destroy),
+            ("tag25h9", sys::tag25h9_create, sys::tag25h9_destroy),
+            ("tag16h5", sys::tag16h5_create, sys::tag16h5_destroy),
+            (
+                "tagStandard41h12",
+                sys::tagStandard41h12_create,
+                sys::tagStandard41h12_destroy,
+            ),
+            (
+                "tagStandard52h13",
+                sys::tagStandard52h13_create,
+                sys::tagStandard52h13_destroy,
+            ),
+            (
+                "tagCircle21h7",
+                sys::tagCircle21h7_create,
+                sys::tagCircle21h7_destroy,
+            ),
+            (
+                "tagCircle49h12",
+                sys::tagCircle49h12_create,
+                sys::tagCircle49h12_destroy,
+            ),
+            (
+                "tagCustom48h12",
+                sys::tagCustom48h12_create,
+                sys::tagCustom48h12_destroy,
+            ),
+        ];
+        for ((name, size), (c_name, make, free)) in FAMILIES.iter().zip(c) {
+            assert_eq!(*name, c_name);
+            // SAFETY: the family is created, read and freed here by the library's own calls.
+            let ncodes = unsafe {
+                let f = make();
+                let n = (*f).ncodes;
+                free(f);
+                n
+            };
+            assert_eq!(*size, ncodes, "{name}");
+            assert!(Family::from_str(name).is_ok(), "{name}");
+        }
+        assert!(check_tag_id("tag36h11", 586, "--tag-id").is_ok());
+        let e = check_tag_id("tag36h11", 587, "--tag-id")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("--tag-id 587: tag36h11 holds tags 0 to 586"),
+            "{e}"
+        );
+        let e = check_tag_id("tag16h5", 30, "--tags")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("--tags 30: tag16h5 holds tags 0 to 29"),
+            "{e}"
+        );
     }
 }

@@ -21,7 +21,7 @@ pub mod track;
 pub mod uncertainty;
 pub mod vouched;
 
-pub use detect::{Roi, TagDetection, TagDetector};
+pub use detect::{check_tag_id, Roi, TagDetection, TagDetector};
 pub use error::TrackError;
 pub use marker_height::MarkerHeight;
 pub use odocal_core::{PoseSigma, Trajectory, TrajectoryRow};

@@ -59,6 +59,16 @@ impl TagSelection {
         }
         Ok(Self::Ids(ids))
     }
+
+    /// Refuses an id that `family` does not hold (see [`crate::check_tag_id`]).
+    pub fn check(&self, family: &str) -> Result<(), TrackError> {
+        if let Self::Ids(ids) = self {
+            for &id in ids {
+                crate::check_tag_id(family, id, "--tags")?;
+            }
+        }
+        Ok(())
+    }
 }
 
 struct IdState {

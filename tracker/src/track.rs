@@ -97,6 +97,7 @@ impl TrackOptions {
     /// with the camera's height above the floor, the marker must be below the camera.
     pub fn check(&self, camera_height_m: Option<f64>) -> Result<(), TrackError> {
         let bad = |m: String| Err(TrackError::Options(m));
+        crate::detect::check_tag_id(&self.family, self.tag_id, "--tag-id")?;
         if !(self.tag_size_m > 0.0 && self.tag_size_m <= 1.0) {
             return bad(format!(
                 "--tag-size {}: the tag's black square is 0 to 1 m across",
@@ -124,8 +125,14 @@ impl TrackOptions {
             ));
         }
         let m = &self.tag_to_robot.0;
+        if !m.theta_rad.is_finite() {
+            return bad(format!(
+                "--tag-yaw {}: the angle from the robot's front to the tag's x axis is a number of degrees",
+                m.theta_rad.to_degrees()
+            ));
+        }
         let lever_m = m.x_m.hypot(m.y_m);
-        if !(lever_m <= MAX_TAG_OFFSET_M && m.theta_rad.is_finite()) {
+        if !(lever_m.is_finite() && lever_m <= MAX_TAG_OFFSET_M) {
             return bad(format!(
                 "--tag-offset {},{}: the tag's centre {lever_m:.2} m from the robot's axle midpoint is not on a small wheeled robot; the offset is in metres, ahead and to the left of the axle (0.12,0 for 12 cm ahead)",
                 m.x_m, m.y_m

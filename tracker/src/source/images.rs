@@ -3,7 +3,7 @@
 use super::timestamps::read_timestamps;
 use super::*;
 
-/// A folder of PNG/JPEG frames in file-name order.
+/// A folder of PNG/JPEG frames in natural file-name order (`img2` before `img10`).
 pub struct FolderSource {
     info: SourceInfo,
     files: Vec<(PathBuf, f64)>,
@@ -12,30 +12,36 @@ pub struct FolderSource {
 
 const IMAGE_EXTS: [&str; 6] = ["png", "jpg", "jpeg", "pgm", "bmp", "tif"];
 
+/// Whether `path` is one of a folder's frames: an image, and not a hidden file (macOS leaves
+/// `._frame_000000.png` beside each frame copied to some drives, holding no image).
+fn is_frame(path: &Path) -> bool {
+    let hidden = path
+        .file_name()
+        .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+    let image = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| IMAGE_EXTS.contains(&e.to_ascii_lowercase().as_str()));
+    image && !hidden
+}
+
 impl FolderSource {
     /// Lists the images of `dir` and assigns their timestamps.
     pub fn open(dir: &Path, opts: &SourceOptions) -> Result<Self, TrackError> {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(|e| TrackError::io(dir, format!("cannot list: {e}")))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                p.extension()
-                    .and_then(|e| e.to_str())
-                    .is_some_and(|e| IMAGE_EXTS.contains(&e.to_ascii_lowercase().as_str()))
-            })
+            .filter(|p| is_frame(p))
             .collect();
-        files.sort();
+        // Unpadded numbers (img2, img10) are common: plain order would scramble time.
+        odocal_core::sort_naturally(&mut files);
         if files.is_empty() {
             return Err(TrackError::bad_input(
                 dir,
                 "the folder holds no PNG/JPEG images",
             ));
         }
-        let default_csv = dir.join("timestamps.csv");
-        let csv = opts
-            .timestamps
-            .clone()
-            .or_else(|| (opts.fps.is_none() && default_csv.is_file()).then_some(default_csv));
+        let csv = opts.timestamps_file(dir)?;
         let timing = match (&csv, opts.fps) {
             (Some(csv), _) => format!("timestamps file {}", csv.display()),
             (None, fps) => format!("frame count at {} fps (--fps)", fps.unwrap_or(f64::NAN)),

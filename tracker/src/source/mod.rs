@@ -138,10 +138,50 @@ pub const MIN_FPS: f64 = 0.1;
 pub struct SourceOptions {
     /// Fixed frame rate, frames per second (overrides a video's own rate).
     pub fps: Option<f64>,
-    /// CSV of image timestamps (`file,t` or `t` per image in name order); for
-    /// folders, `timestamps.csv` inside the folder is used when present.
+    /// CSV of image timestamps (`file,t` or `t` per image in natural name order, img2 before
+    /// img10); for folders, `timestamps.csv` inside the folder is used when present.
     pub timestamps: Option<PathBuf>,
 }
+
+impl SourceOptions {
+    /// The timestamps file that times the frames of `path`: `--timestamps`, else a folder's own
+    /// `timestamps.csv`; `None` when frames are timed by a video's container or by counting
+    /// at `--fps`. Refuses options that give the frames two timings, so none is silently
+    /// dropped: `--fps` beside a timestamps file (counting shifts every frame after one
+    /// missing from the folder), and `--timestamps` for a video, which carries its own.
+    pub fn timestamps_file(&self, path: &Path) -> Result<Option<PathBuf>, TrackError> {
+        if !path.is_dir() {
+            return match &self.timestamps {
+                Some(ts) => Err(TrackError::Options(format!(
+                    "--timestamps {}: only an image folder takes a timestamps file; the video {} carries its frames' times (--fps overrides its frame rate)",
+                    ts.display(),
+                    path.display()
+                ))),
+                None => Ok(None),
+            };
+        }
+        let own = path.join(FOLDER_TIMESTAMPS);
+        match (&self.timestamps, self.fps) {
+            (Some(ts), Some(fps)) => Err(TrackError::Options(format!(
+                "--timestamps {} and --fps {fps} both give the frames' times: give one",
+                ts.display()
+            ))),
+            (Some(ts), None) => Ok(Some(ts.clone())),
+            (None, Some(fps)) if own.is_file() => Err(TrackError::bad_input(
+                &own,
+                format!(
+                    "times the frames of this folder, and --fps {fps} would time them by counting instead (a frame missing from the folder would shift every later one): leave out --fps, or remove or rename {FOLDER_TIMESTAMPS} to time the frames by counting"
+                ),
+            )),
+            (None, Some(_)) => Ok(None),
+            (None, None) => Ok(own.is_file().then_some(own)),
+        }
+    }
+}
+
+/// The timestamps file a frame folder carries: it times the folder's frames unless
+/// `--timestamps` names another.
+const FOLDER_TIMESTAMPS: &str = "timestamps.csv";
 
 /// Opens a video file or an image folder.
 pub fn open_source(path: &Path, opts: &SourceOptions) -> Result<Box<dyn FrameSource>, TrackError> {
@@ -150,6 +190,7 @@ pub fn open_source(path: &Path, opts: &SourceOptions) -> Result<Box<dyn FrameSou
     if meta.is_dir() {
         Ok(Box::new(FolderSource::open(path, opts)?))
     } else {
+        opts.timestamps_file(path)?;
         Ok(Box::new(VideoSource::open(path, opts)?))
     }
 }

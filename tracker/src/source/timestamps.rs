@@ -1,9 +1,10 @@
-//! Image timestamps: a CSV of `file,t` (matched by name) or one `t` per image in name order.
+//! Image timestamps: a CSV of `file,t` (matched by name) or one `t` per image in natural name
+//! order (img2 before img10).
 
 use super::*;
 
 /// Reads image timestamps: CSV with header `file,t` (any order of rows) or `t`
-/// (one row per image in name order).
+/// (one row per image in natural name order).
 pub(super) fn read_timestamps(csv_path: &Path, files: &[PathBuf]) -> Result<Vec<f64>, TrackError> {
     let text = std::fs::read_to_string(csv_path)
         .map_err(|e| TrackError::io(csv_path, format!("cannot read: {e}")))?;
