@@ -544,13 +544,14 @@ fn cli_check_map_flags_the_symmetric_layout() {
 }
 
 /// Runs odocal expecting exit code 2 and a one-line error containing `want`.
-fn expect_error(args: &[&str], want: &str) {
+fn expect_error(args: &[&str], want: &str) -> String {
     let out = odocal(args);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
     assert!(err.starts_with("odocal: error: "), "{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
     assert!(err.contains(want), "{args:?}: expected {want:?} in {err}");
+    err
 }
 
 #[test]
@@ -748,6 +749,15 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
         },
         false,
     );
+    let centimetres = write(
+        "cm.csv",
+        &|r| {
+            let mut r = r.to_vec();
+            r[3] = format!("{:.2}", num(&r[3]) * 100.0);
+            r
+        },
+        false,
+    );
     let byte_scale = write(
         "i255.csv",
         &|r| {
@@ -792,6 +802,19 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     expect_error(
         &a.iter().map(String::as_str).collect::<Vec<_>>(),
         "ranges are in metres (if these are millimetres",
+    );
+    // In centimetres the advice used to say millimetres, with the median in raw digits.
+    let a = args(&centimetres);
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "ranges are in metres (if these are centimetres",
+    );
+    assert!(
+        e.split("median range is ")
+            .nth(1)
+            .and_then(|rest| rest.split(' ').next())
+            .is_some_and(|median| median.split('.').nth(1).is_some_and(|d| d.len() == 3)),
+        "{e}"
     );
     // Intensities on a 0-255 scale against the default 0.5: every wall passes for a
     // reflector. Refused with a threshold on their scale, which then localises as the 0-1

@@ -118,9 +118,15 @@ pub fn check_range_unit(scans: &[Scan], max_range_m: f64) -> Result<(), LrfError
     ranges.sort_by(f64::total_cmp);
     let median = ranges[ranges.len() / 2];
     if median > 2.0 * max_range_m {
+        // The unit that brings the median inside the scanner's range is the likely one.
+        let (unit, per_m) = if median / 100.0 <= max_range_m {
+            ("centimetres", 100.0)
+        } else {
+            ("millimetres", 1000.0)
+        };
         return Err(LrfError::Config(format!(
-            "the scans' median range is {median} against --max-range-m {max_range_m} m: ranges are in metres (if these are millimetres, {median} is {:.3} m); give ranges in metres, or the scanner's real --max-range-m",
-            median / 1000.0
+            "the scans' median range is {median:.3} against --max-range-m {max_range_m} m: ranges are in metres (if these are {unit}, {median:.3} is {:.3} m); give ranges in metres, or the scanner's real --max-range-m",
+            median / per_m
         )));
     }
     Ok(())

@@ -532,6 +532,16 @@ fn check_steps(
     }
     for k in 1..s.angles_rad.len() {
         let d = s.angles_rad[k] - s.angles_rad[k - 1];
+        // Angles starting over at the first beam's are the scan's rows again.
+        if d < 0.0 && (s.angles_rad[k] - s.angles_rad[0]).abs() < 0.5 * step0 {
+            return Err(err(
+                first_line + k,
+                format!(
+                    "scan {}'s angles start again at its first beam's ({:.6} rad) after {k} beams: the scan's rows appear twice; give each scan's rows once",
+                    s.id, s.angles_rad[0]
+                ),
+            ));
+        }
         if (d - step0).abs() > 0.05 * step0 {
             return Err(err(
                 first_line + k,
@@ -682,6 +692,19 @@ mod tests {
         assert!(
             e.to_string()
                 .contains("line 4, column angle: mismatched angle step"),
+            "{e}"
+        );
+        // A scan's rows given twice (a scan id repeated in a log) used to read as a
+        // "mismatched angle step -0.02 rad".
+        let e = parse_scans_csv(
+            "scan,t,angle,range,intensity\n7,0.1,0.0,1,0\n7,0.1,0.01,1,0\n7,0.1,0.0,1,0\n7,0.1,0.01,1,0\n",
+            "s.csv",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains(
+                "line 4, column angle: scan 7's angles start again at its first beam's (0.000000 rad) after 2 beams: the scan's rows appear twice"
+            ),
             "{e}"
         );
         let e = parse_scans_csv("angle,rng\n", "s.csv").unwrap_err();
