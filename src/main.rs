@@ -10,7 +10,9 @@ use clap::{CommandFactory, FromArgMatches, Subcommand};
 macro_rules! say {
     ($($t:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($t)*);
+        if let Err(e) = writeln!(std::io::stdout(), $($t)*) {
+            $crate::output::stdout_failed(e);
+        }
     }};
 }
 

@@ -9,6 +9,22 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub use odocal_core::staging::{check_output_dir, commit, discard, staged_dir, write_atomic};
 use odocal_core::FileError;
 
+/// What a failed write to standard output means: a closed pipe (`| head -1`) is a reader
+/// who has seen enough, and the command goes on to commit its files; any other failure (a
+/// full disk under `> out.csv`) loses what was printed, which for `correct` or `lrf
+/// check-map` is the result, so the command fails and commits nothing.
+pub fn stdout_failed(e: std::io::Error) {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        return;
+    }
+    discard();
+    let _ = std::io::Write::write_all(
+        &mut std::io::stderr(),
+        format!("odocal: error: cannot write to standard output: {e}\n").as_bytes(),
+    );
+    std::process::exit(2);
+}
+
 /// Refuses an output path that is not a plain file to be replaced
 /// ([`odocal_core::staging::check_output_file`]), or that names the same file as another
 /// argument of the command: an input the output would destroy (`track a.avi --out a.avi`),

@@ -1116,3 +1116,28 @@ fn charuco_markers_too_small_are_named_by_their_pixels() {
     );
     assert!(!out.exists());
 }
+
+/// Standard output that cannot be written (a full disk under `> poses.csv`): what was
+/// printed is lost, which for some commands is their result, so the command fails with the
+/// reason and commits no file. Only a closed pipe is passed over.
+#[test]
+fn a_standard_output_that_cannot_be_written_fails_the_command() {
+    use std::process::{Command, Stdio};
+    let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+        return; // no /dev/full on this system
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("lrf");
+    let o = Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(["synth", "lrf", "--scans", "20", "--out", p(&out)])
+        .stdout(Stdio::from(full))
+        .output()
+        .expect("odocal runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("odocal: error: cannot write to standard output: No space left on device"),
+        "{err}"
+    );
+    assert!(listing(&out).is_empty(), "{:?}", listing(&out));
+}

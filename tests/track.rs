@@ -1100,6 +1100,32 @@ fn a_motion_capture_truth_judges_the_fixes_between_its_samples() {
         "{mocap_rms_mm} mm against mocap.csv, {frames_rms_mm} mm against truth.csv"
     );
 
+    // Samples the motion capture lost, written as quality 0 at the origin (as exports mark
+    // them), are no truth: the fixes among them are left unjudged, not judged 0.7 m off.
+    let text = std::fs::read_to_string(d.join("mocap.csv")).unwrap();
+    let lost: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if (50..60).contains(&i) {
+                let t = l.split(',').next().unwrap();
+                format!("{t},0,0,0,0\n")
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    std::fs::write(d.join("lost.csv"), lost).unwrap();
+    let (lost_rms_mm, lost_n, _) = judged(&track("lost.csv"));
+    assert!(
+        lost_n < mocap_n && lost_n >= mocap_n - 4.0,
+        "{lost_n} of {mocap_n}"
+    );
+    assert!(
+        (lost_rms_mm - mocap_rms_mm).abs() <= 0.02,
+        "{lost_rms_mm} mm"
+    );
+
     // 20 Hz: 50 ms between samples.
     let sparse = d.join("sparse");
     synth_track_with(&sparse, 30, 2, &["--mocap-hz", "20"]);

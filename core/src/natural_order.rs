@@ -11,6 +11,10 @@ use std::path::{Path, PathBuf};
 /// agrees with plain order on names whose numbers all have the same digit count.
 pub fn natural_cmp(a: &str, b: &str) -> Ordering {
     let (mut x, mut y) = (a.as_bytes(), b.as_bytes());
+    // Whether the names so far end in a number and a decimal point: the digits after it are
+    // a fraction (frames named by their timestamps, `1700000000.1` after
+    // `1700000000.033333`), compared digit by digit, not as a count.
+    let (mut after_number, mut fraction) = (false, false);
     loop {
         match (x.first(), y.first()) {
             (None, None) => return a.cmp(b),
@@ -19,23 +23,36 @@ pub fn natural_cmp(a: &str, b: &str) -> Ordering {
             (Some(p), Some(q)) if p.is_ascii_digit() && q.is_ascii_digit() => {
                 let (m, rest_x) = split_digits(x);
                 let (n, rest_y) = split_digits(y);
-                // Leading zeros say nothing of the value: compare the significant digits,
-                // the longer being the larger.
-                let (m, n) = (strip_zeros(m), strip_zeros(n));
-                let by_value = m.len().cmp(&n.len()).then_with(|| m.cmp(n));
+                let by_value = if fraction {
+                    // Trailing zeros say nothing of a fraction's value.
+                    strip_trailing_zeros(m).cmp(strip_trailing_zeros(n))
+                } else {
+                    // Leading zeros say nothing of the value: compare the significant
+                    // digits, the longer being the larger.
+                    let (m, n) = (strip_zeros(m), strip_zeros(n));
+                    m.len().cmp(&n.len()).then_with(|| m.cmp(n))
+                };
                 if by_value != Ordering::Equal {
                     return by_value;
                 }
                 (x, y) = (rest_x, rest_y);
+                (after_number, fraction) = (true, false);
             }
             (Some(p), Some(q)) => {
                 if p != q {
                     return p.cmp(q);
                 }
+                fraction = after_number && *p == b'.';
+                after_number = false;
                 (x, y) = (&x[1..], &y[1..]);
             }
         }
     }
+}
+
+fn strip_trailing_zeros(s: &[u8]) -> &[u8] {
+    let end = s.iter().rposition(|c| *c != b'0').map_or(0, |i| i + 1);
+    &s[..end]
 }
 
 fn split_digits(s: &[u8]) -> (&[u8], &[u8]) {
@@ -69,6 +86,34 @@ mod tests {
         let mut v: Vec<PathBuf> = names.iter().map(PathBuf::from).collect();
         sort_naturally(&mut v);
         v.iter().map(|p| p.display().to_string()).collect()
+    }
+
+    #[test]
+    fn digits_after_a_decimal_point_are_a_fraction() {
+        // Frames named by their timestamps, printed with as many decimals as they need.
+        assert_eq!(
+            sorted(&[
+                "1700000000.1.png",
+                "1700000000.033333.png",
+                "1700000000.066667.png",
+                "1700000000.2.png",
+                "1700000000.133333.png",
+                "1700000001.png",
+            ]),
+            [
+                "1700000000.033333.png",
+                "1700000000.066667.png",
+                "1700000000.1.png",
+                "1700000000.133333.png",
+                "1700000000.2.png",
+                "1700000001.png",
+            ]
+        );
+        // A dot after letters is no decimal point: `img.10` still counts past `img.9`.
+        assert_eq!(
+            sorted(&["img.10.png", "img.9.png"]),
+            ["img.9.png", "img.10.png"]
+        );
     }
 
     #[test]

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use odocal_calib::CameraFile;
-use odocal_core::{TextFormat, REFERENCE_MAX_GAP_S};
+use odocal_core::{TextFormat, REFERENCE_MAX_GAP_S, SAME_TIME_S};
 use odocal_synth::scene::FramesTruth;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
@@ -95,7 +95,10 @@ fn read_truth(path: &Path) -> anyhow::Result<(Trajectory, Option<usize>)> {
         let frames = FramesTruth::parse(&text, &path.display().to_string())?;
         return Ok((frames.trajectory()?, Some(frames.frames_in_file())));
     }
-    Ok((Trajectory::read_csv(path)?, None))
+    // A motion-capture export marks the frames it lost with quality 0: they are no truth.
+    let mut truth = Trajectory::read_csv(path)?;
+    truth.rows.retain(|r| r.quality > 0.0);
+    Ok((truth, None))
 }
 
 /// The trajectory against the truth.
@@ -114,7 +117,7 @@ fn against_truth(
             truth.start_s() <= trajectory.end_s() && truth.end_s() >= trajectory.start_s();
         if let Some(gap) = truth
             .median_spacing_s()
-            .filter(|s| overlaps && *s > REFERENCE_MAX_GAP_S)
+            .filter(|s| overlaps && *s > REFERENCE_MAX_GAP_S + SAME_TIME_S)
         {
             anyhow::bail!(
                 "{}: no row has the time of a tracked frame, and its rows are {:.0} ms apart (median), too far apart to interpolate between (at most {:.0} ms): give a truth sampled at 40 Hz or more, or at the frames' times",
