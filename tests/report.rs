@@ -407,6 +407,12 @@ fn missing_inputs_are_left_out_with_a_note() {
         e.contains("nothing to report") && e.contains("no inputs were given"),
         "{e}"
     );
+    // Given, but drawing nothing alone: said so, not "no inputs were given".
+    let e = fails(&["report", "--out", p(&html), "--experiment", p(d)]);
+    assert!(
+        e.contains("--experiment only draws against other inputs (--model, --experiment and --trajectories against --dataset's runs"),
+        "{e}"
+    );
     let e = fails(&["report", "--demo-dir", p(d), "--out", p(&html)]);
     assert!(e.contains("holds none of the demo's outputs"), "{e}");
     assert!(!html.exists(), "nothing written");

@@ -432,6 +432,18 @@ fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
         assert!(e.contains(needle), "{e}");
     }
     ok(&["correct", "--model", p(&model), p(&log)]);
+    // A path model given where a straight-run model is read: the message said to retrain a
+    // model that this build had just written.
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
+    v["format"] = serde_json::json!("odocal.path-model/1");
+    let path_model = dir.path().join("path.json");
+    std::fs::write(&path_model, v.to_string()).expect("write");
+    let html = dir.path().join("r.html");
+    let e = fails(&["report", "--out", p(&html), "--model", p(&path_model)]);
+    assert!(
+        e.contains("(a path model, odocal.path-model/1, from a window dataset, is judged with `odocal evaluate`)"),
+        "{e}"
+    );
 
     // t_b and t_e (inputs 16 and 17) swapped in one sample.
     let mut v: serde_json::Value =

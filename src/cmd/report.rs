@@ -171,7 +171,29 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "--demo-dir {} holds none of the demo's outputs (camera.json, dataset.json, model.json, train/report.json, lrf/poses.csv, track/report.json, …)",
                 d.display()
             ),
-            None => "no inputs were given".to_string(),
+            None => {
+                // Inputs that only draw against others: a model or real tracks against the
+                // dataset's runs, a laser truth or map against the laser poses.
+                let given: Vec<&str> = [
+                    ("--model", a.model.is_some()),
+                    ("--experiment", a.experiment.is_some()),
+                    ("--trajectories", a.trajectories.is_some()),
+                    ("--lrf-truth", a.lrf_truth.is_some()),
+                    ("--lrf-map", a.lrf_map.is_some()),
+                ]
+                .into_iter()
+                .filter_map(|(o, on)| on.then_some(o))
+                .collect();
+                if given.is_empty() {
+                    "no inputs were given".to_string()
+                } else {
+                    format!(
+                        "{} only {} against other inputs (--model, --experiment and --trajectories against --dataset's runs, --lrf-truth and --lrf-map against --lrf-poses)",
+                        given.join(" and "),
+                        if given.len() == 1 { "draws" } else { "draw" }
+                    )
+                }
+            }
         };
         bail!(
             "nothing to report, so {} was not written: {what}; give the folder `make demo` wrote (--demo-dir demo-out), or the stages' outputs one by one (odocal report --help lists them)",

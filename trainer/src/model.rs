@@ -144,7 +144,7 @@ impl ModelFile {
             text,
             name,
             MODEL_FORMAT,
-            "pass a model.json written by `odocal train` (or retrain with this build)",
+            "pass a model.json that `odocal train` writes from a dataset of straight runs (a path model, odocal.path-model/1, from a window dataset, is judged with `odocal evaluate`), or retrain with this build",
         )?;
         m.robot
             .check()
