@@ -44,11 +44,24 @@ fn one_row(
     }
     // A glitch in the log spoils its recording alone, and is found before any tracking.
     if let Some(why) = log.implausible_step(&opts.robot) {
-        let rejected = RunOutcome::Rejected(crate::sample::RejectedRun {
-            run_id: row.id.clone(),
-            reason: format!("{}: {why}", log_path.display()),
-        });
-        return Ok((vec![rejected], note));
+        // Counted as the runs it holds, as the runs of a recording are counted otherwise.
+        let runs = match opts.layout {
+            Layout::StraightRuns => crate::segment::split_runs(&log, opts.min_gap_s).len(),
+            Layout::Windows(_) => 1,
+        };
+        let rejected = (0..runs.max(1))
+            .map(|j| {
+                RunOutcome::Rejected(crate::sample::RejectedRun {
+                    run_id: if runs > 1 {
+                        format!("{}.{}", row.id, j + 1)
+                    } else {
+                        row.id.clone()
+                    },
+                    reason: format!("{}: {why}", log_path.display()),
+                })
+            })
+            .collect();
+        return Ok((rejected, note));
     }
     let traj = match (&row.trajectory, &row.video, track) {
         (Some(t), _, _) => Trajectory::read_csv(&m.resolve(t))?,
