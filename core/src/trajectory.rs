@@ -101,7 +101,10 @@ impl Trajectory {
         let (line, header) = &table.header;
         let fields: Vec<&str> = header.iter().collect();
         let with_sigma = fields == TRAJECTORY_SIGMA_HEADER;
-        if fields != TRAJECTORY_HEADER && !with_sigma {
+        // A motion-capture export or a hand-made truth often has no quality: every row is
+        // then a sure pose, as laser truths read it.
+        let without_quality = fields == TRAJECTORY_HEADER[..4];
+        if fields != TRAJECTORY_HEADER && !with_sigma && !without_quality {
             // The laser's pose log is ground truth too, in its own format.
             let hint = if fields.get(4) == Some(&"status") {
                 "; this is the pose log of `odocal lrf localize`: its --trajectory FILE writes the poses as a trajectory"
@@ -113,7 +116,7 @@ impl Trajectory {
                 *line,
                 1,
                 format!(
-                    "header is \"{}\", expected \"t,x,y,theta,quality\" or \"t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\"{hint}",
+                    "header is \"{}\", expected \"t,x,y,theta,quality\", \"t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta\" or \"t,x,y,theta\" (every row of quality 1){hint}",
                     fields.join(",")
                 ),
             ));
@@ -143,6 +146,14 @@ impl Trajectory {
                         y_m: v[6],
                         theta_rad: v[7],
                     }),
+                }
+            } else if without_quality {
+                let v: [f64; 4] = numeric_row(name, line, rec)?;
+                TrajectoryRow {
+                    t_s: v[0],
+                    pose: Pose2::new(v[1], v[2], v[3]),
+                    quality: 1.0,
+                    sigma: None,
                 }
             } else {
                 let v: [f64; 5] = numeric_row(name, line, rec)?;
@@ -462,6 +473,9 @@ mod tests {
                 .starts_with("tr.csv:2:5: quality 5 is outside 0 to 1"),
             "{e}"
         );
+        // Without quality every row is a sure pose.
+        let t = Trajectory::parse_csv("t,x,y,theta\n0,1,2,0.5\n", "tr.csv").unwrap();
+        assert_eq!((t.rows[0].pose.y_m, t.rows[0].quality), (2.0, 1.0));
         let e = Trajectory::parse_csv("t,x,y\n", "tr.csv").unwrap_err();
         assert!(e.to_string().contains("expected \"t,x,y,theta,quality\""));
         assert!(!e.to_string().contains("lrf localize"));
