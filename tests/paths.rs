@@ -564,3 +564,78 @@ fn options_a_path_model_does_not_use_are_refused_not_ignored() {
     ok(&["train", p(&windows), "--out", p(&out), "--seed", "3"]);
     assert_ne!(std::fs::read(&out).unwrap(), std::fs::read(&model).unwrap());
 }
+
+/// Recording `id` of `from` with two consecutive rows cut from the middle of its log, alone
+/// in a manifest under `to`: (the manifest, the log, the row before the gap, numbered as the
+/// file's lines are, the header being 1).
+fn recording_with_gap(
+    from: &std::path::Path,
+    id: &str,
+    to: &std::path::Path,
+) -> (std::path::PathBuf, std::path::PathBuf, usize) {
+    std::fs::create_dir_all(to).unwrap();
+    let log = std::fs::read_to_string(from.join(format!("runs/{id}.odometry.csv"))).unwrap();
+    let lines: Vec<&str> = log.lines().collect();
+    // Data row m (0-based) is at index m + 1 of the lines; rows m and m + 1 go, so line m + 1
+    // (numbered from 1) is the last before the gap.
+    let m = lines.len() / 2;
+    let kept: Vec<&str> = lines
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != m + 1 && *i != m + 2)
+        .map(|(_, l)| *l)
+        .collect();
+    let odo = to.join(format!("{id}.odometry.csv"));
+    std::fs::write(&odo, kept.join("\n") + "\n").unwrap();
+    std::fs::copy(
+        from.join(format!("runs/{id}.trajectory.csv")),
+        to.join(format!("{id}.trajectory.csv")),
+    )
+    .unwrap();
+    let manifest = to.join("manifest.json");
+    std::fs::write(
+        &manifest,
+        format!(
+            r#"{{"format":"odocal.manifest/1","runs":[{{"id":"{id}","trajectory":"{id}.trajectory.csv","odometry":"{id}.odometry.csv"}}]}}"#
+        ),
+    )
+    .unwrap();
+    (manifest, odo, m + 1)
+}
+
+#[test]
+fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let (manifest, odo, row) = recording_with_gap(&tours, "run001", &dir.path().join("gap"));
+    let gap = format!(
+        "rows {row} and {} are 0.600 s apart, but the model corrects steps of 0.200 s (a dropped or extra row?); record the run again, or leave it out",
+        row + 1
+    );
+    let out = dir.path().join("ev.json");
+    // The 0.6 s step read as one 0.2 s step would pass for a wheel three times as fast:
+    // the gap is named, before the speed, with or without --allow-extrapolation.
+    for extra in [&[][..], &["--allow-extrapolation"][..]] {
+        let mut args = vec![
+            "evaluate",
+            p(&manifest),
+            "--model",
+            &model,
+            "--out",
+            p(&out),
+        ];
+        args.extend(extra);
+        let e = fails(&args);
+        assert_eq!(
+            e.trim_end(),
+            format!(
+                "odocal: error: {model}: model: run \"run001\" of {}: {gap}",
+                p(&manifest)
+            ),
+            "{args:?}"
+        );
+        assert!(!out.exists(), "nothing is written on refusal");
+    }
+    let e = fails(&["correct", "--model", &model, p(&odo)]);
+    assert!(e.contains(&format!(": {gap}")), "{e}");
+}

@@ -341,7 +341,7 @@ fn options_another_option_leaves_without_effect_are_refused() {
     let ds = experiment(dir.path(), 12, 2);
     let (m, rep) = (dir.path().join("m.json"), dir.path().join("rep"));
     let oracle = dir.path().join("exp/truth/oracle.json");
-    let cases: [(Vec<&str>, String); 6] = [
+    let cases: [(Vec<&str>, String); 8] = [
         (
             vec!["--out", p(&m), "--no-cv", "--folds", "4"],
             "--folds 4 with --no-cv: --no-cv fits the one model without cross-validation, so there are no folds; leave out --folds, or --no-cv to have the cross-validated estimate".into(),
@@ -366,6 +366,14 @@ fn options_another_option_leaves_without_effect_are_refused() {
             vec!["--out", p(&m), "--no-cv", "--oracle", p(&oracle)],
             format!("--oracle {} with --no-cv: the oracle is a row of the cross-validated Table 2, which --no-cv leaves out; leave out --oracle, or --no-cv", p(&oracle)),
         ),
+        (
+            vec!["--out", p(&m), "--val-fraction", "0", "--no-cv", "--max-fail", "7", "--min-improvement", "0.5"],
+            "--max-fail 7 and --min-improvement 0.5 with --val-fraction 0: --val-fraction 0 turns early stopping off (no validation samples), so training stops only at --max-epochs or when the fit converges; leave them out, or give --val-fraction above 0 (default 0.15) to stop early".into(),
+        ),
+        (
+            vec!["--sweep", "2..3", "--val-fraction", "0", "--min-improvement", "0.1"],
+            "--min-improvement 0.1 with --val-fraction 0: --val-fraction 0 turns early stopping off (no validation samples), so training stops only at --max-epochs or when the fit converges; leave it out, or give --val-fraction above 0 (default 0.15) to stop early".into(),
+        ),
     ];
     for (extra, message) in cases {
         let mut args = vec!["train", p(&ds)];
@@ -380,6 +388,26 @@ fn options_another_option_leaves_without_effect_are_refused() {
     }
     // Each option alone, or with the mode it belongs to, is still taken.
     ok(&["train", p(&ds), "--out", p(&m), "--no-cv", "--hidden", "3"]);
+    ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&m),
+        "--no-cv",
+        "--val-fraction",
+        "0",
+    ]);
+    ok(&[
+        "train",
+        p(&ds),
+        "--out",
+        p(&m),
+        "--no-cv",
+        "--val-fraction",
+        "0.2",
+        "--max-fail",
+        "3",
+    ]);
     ok(&[
         "train",
         p(&ds),

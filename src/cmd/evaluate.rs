@@ -84,7 +84,8 @@ fn check_square_side(
 
 /// Judges a held-out log against the model's training domain as `odocal correct` does: the
 /// perceptron's figures on a log it was not trained for would be read as its accuracy.
-/// Refused unless --allow-extrapolation, when it is flagged and the reasons returned.
+/// Refused unless --allow-extrapolation, when it is flagged and the reasons returned; a log
+/// with a gap is refused either way, as its steps' speeds would be misread.
 fn outside_domain(
     model: &PathModelFile,
     rec: &PathRecording,
@@ -182,10 +183,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         methods.push(("oracle (true kinematics)".into(), Reckoner::Truth(k)));
     }
     let recs = read_recordings(&args.manifest)?;
+    // Judged before any evaluation: a log with a gap or outside the domain is refused whole.
+    let domains = recs
+        .iter()
+        .map(|rec| outside_domain(&model, rec, &robot, &args))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let mut ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
         .with_context(|| format!("{}", args.manifest.display()))?;
-    for (run, rec) in ev.runs.iter_mut().zip(&recs) {
-        run.outside_domain = outside_domain(&model, rec, &robot, &args)?;
+    for (run, why) in ev.runs.iter_mut().zip(domains) {
+        run.outside_domain = why;
     }
     let extrapolated = ev
         .runs

@@ -102,10 +102,28 @@ fn unused_for_paths(args: &Args) -> Vec<&'static str> {
 }
 
 /// Refuses straight-run options that another option given beside them leaves without effect:
-/// a sweep cross-validates every size of its range and writes no model, and one model fitted
-/// with --no-cv makes no folds and no Table 2. Ignored, they would leave the user believing
-/// they had set something.
+/// a sweep cross-validates every size of its range and writes no model, one model fitted
+/// with --no-cv makes no folds and no Table 2, and --val-fraction 0 holds out no validation
+/// samples, so early stopping has no error to watch. Ignored, they would leave the user
+/// believing they had set something (model.json records them as set).
 fn refuse_unused_combinations(args: &Args) -> anyhow::Result<()> {
+    if args.val_fraction == Some(0.0) {
+        let stopping: Vec<String> = [
+            args.max_fail.map(|n| format!("--max-fail {n}")),
+            args.min_improvement
+                .map(|v| format!("--min-improvement {v}")),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        if !stopping.is_empty() {
+            bail!(
+                "{} with --val-fraction 0: --val-fraction 0 turns early stopping off (no validation samples), so training stops only at --max-epochs or when the fit converges; leave {} out, or give --val-fraction above 0 (default 0.15) to stop early",
+                stopping.join(" and "),
+                if stopping.len() == 1 { "it" } else { "them" }
+            );
+        }
+    }
     match &args.sweep {
         Some(range) => {
             if let Some(k) = args.hidden {

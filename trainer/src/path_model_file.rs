@@ -99,6 +99,21 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
     Ok(())
 }
 
+/// Refuses a log with a step off the robot's period (`name` names the log): the model takes
+/// every step for one period, so a gap (two rows lost) reads as one step three times as fast
+/// and would be judged, corrected and scored as such.
+fn check_period(log: &OdometryLog, robot: &RobotParams, name: &str) -> Result<(), TrainError> {
+    match log.off_period_step(0, log.len(), robot.period_s, 0.05) {
+        Some((k, dt)) => Err(TrainError::Model(format!(
+            "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?); record the run again, or leave it out",
+            k + 1,
+            k + 2,
+            robot.period_s
+        ))),
+        None => Ok(()),
+    }
+}
+
 impl PathModelFile {
     /// Fits a path model with `hidden` neurons to a window dataset.
     pub fn fit(
@@ -223,12 +238,13 @@ impl PathModelFile {
         StepCorrector::new(self.robot, net)
     }
 
-    /// Refuses a log of `robot` (`name` names it in the message) whose steps lie outside what
-    /// the model was trained on: wheels faster than the training's, or driven mostly in a
-    /// direction the training hardly saw (backwards after forward tours). With
-    /// `allow_extrapolation` the reasons are returned instead, for the caller to flag; an empty
-    /// list means the log lies inside. `odocal correct` and `odocal evaluate` judge logs by
-    /// this one check.
+    /// Refuses a log of `robot` (`name` names it in the message) with a gap (a step off the
+    /// robot's period, refused even with `allow_extrapolation`: its speed would be misread),
+    /// or whose steps lie outside what the model was trained on: wheels faster than the
+    /// training's, or driven mostly in a direction the training hardly saw (backwards after
+    /// forward tours). With `allow_extrapolation` the reasons are returned instead, for the
+    /// caller to flag; an empty list means the log lies inside. `odocal correct` and `odocal
+    /// evaluate` judge logs by this one check.
     pub fn check_domain(
         &self,
         log: &OdometryLog,
@@ -236,6 +252,7 @@ impl PathModelFile {
         name: &str,
         allow_extrapolation: bool,
     ) -> Result<Vec<String>, TrainError> {
+        check_period(log, robot, name)?;
         let steps = nominal_travels(&log.wheel_revs(robot).rev, robot);
         self.check_steps_domain(&steps, robot, name, allow_extrapolation)
     }
@@ -297,14 +314,7 @@ impl PathModelFile {
         self.check_robot(robot, name)?;
         let revs = log.wheel_revs(robot);
         let steps = nominal_travels(&revs.rev, robot);
-        if let Some((k, dt)) = log.off_period_step(0, log.len(), robot.period_s, 0.05) {
-            return Err(TrainError::Model(format!(
-                "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?)",
-                k + 1,
-                k + 2,
-                robot.period_s
-            )));
-        }
+        check_period(log, robot, name)?;
         let outside_domain = self.check_steps_domain(&steps, robot, name, allow_extrapolation)?;
         let c = self.corrector()?;
         let corrected = c.dead_reckon_travels(&steps);
