@@ -631,6 +631,71 @@ fn a_robot_file_of_another_robot_is_refused() {
     );
 }
 
+/// Keeps the data rows of the trajectory at `path` whose 1-based index passes `keep` (and its header).
+fn keep_data_rows(path: &Path, keep: &dyn Fn(usize) -> bool) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let rows: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|&(i, _)| i == 0 || keep(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(path, rows.join("\n") + "\n").unwrap();
+}
+
+/// The data row (1-based) of the trajectory at `path` where the robot moves fastest: well
+/// inside a run.
+fn fastest_row(path: &Path) -> usize {
+    let text = std::fs::read_to_string(path).unwrap();
+    let xy: Vec<(f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (f[1], f[2])
+        })
+        .collect();
+    (1..xy.len() - 1)
+        .max_by(|&a, &b| {
+            let v = |i: usize| (xy[i + 1].0 - xy[i - 1].0).hypot(xy[i + 1].1 - xy[i - 1].1);
+            v(a).total_cmp(&v(b))
+        })
+        .unwrap()
+        + 1
+}
+
+/// The gap bridged between a trajectory's rows follows its rate: a 10 Hz laser trajectory
+/// missing one scan mid-run (a 0.2 s gap) used to reject the run ("the camera's trajectory has
+/// no rows for 0.20 s"); 10 missed frames of a 30 frames/s camera still reject it.
+#[test]
+fn the_bridged_trajectory_gap_follows_its_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // One run per recording: the fastest rows are then the run's, not a carry back.
+    synth(d, 2, 3, 1);
+    let traj = d.join("runs/run001.trajectory.csv");
+    let full = std::fs::read_to_string(&traj).unwrap();
+    // 10 Hz: every 3rd row, then one scan missed where the robot moves fastest.
+    keep_data_rows(&traj, &|i| (i - 1) % 3 == 0);
+    let mid = fastest_row(&traj);
+    keep_data_rows(&traj, &|i| i != mid);
+    let ds = build(d);
+    assert_eq!(ds.samples.len(), 2, "rejected: {:?}", ds.rejected);
+    // 30 frames/s with 10 frames missing mid-run.
+    std::fs::write(&traj, &full).unwrap();
+    let mid = fastest_row(&traj);
+    keep_data_rows(&traj, &|i| !(mid - 5..mid + 5).contains(&i));
+    let ds = build(d);
+    assert_eq!((ds.samples.len(), ds.rejected.len()), (1, 1));
+    assert!(
+        ds.rejected[0]
+            .reason
+            .contains("the camera's trajectory has no rows for 0.37 s"),
+        "{:?}",
+        ds.rejected
+    );
+}
+
 /// Outputs never replace what the manifest lists: a dataset written over a run's odometry log
 /// or trajectory used to exit 0 with the log gone.
 #[test]
