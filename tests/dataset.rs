@@ -631,6 +631,65 @@ fn a_robot_file_of_another_robot_is_refused() {
     );
 }
 
+/// Notes for people are not fields odocal must use: "comment", "notes" and "description"
+/// at the top of a JSON manifest, in its runs, and as CSV columns are read and ignored. A
+/// byte order mark (Windows editors save one) used to read as "invalid JSON … line 1
+/// column 1".
+#[test]
+fn manifests_take_notes_and_a_byte_order_mark() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 2, 4, 1);
+    let plain = build(d);
+    let manifest = d.join("manifest.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let noted = text
+        .replacen(
+            "\"runs\"",
+            "\"comment\": \"lab B, 3 May\", \"description\": {\"floor\": \"lino\"}, \"runs\"",
+            1,
+        )
+        .replace(
+            "\"id\"",
+            "\"notes\": \"battery fresh\", \"comment\": \"\", \"id\"",
+        );
+    std::fs::write(&manifest, format!("\u{feff}{noted}")).unwrap();
+    let noted_ds = build(d);
+    assert_eq!(noted_ds.samples, plain.samples);
+    // A field that is not a note is still refused.
+    std::fs::write(
+        &manifest,
+        text.replacen("\"runs\"", "\"remark\": 1, \"runs\"", 1),
+    )
+    .unwrap();
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&d.join("x.json")),
+    ]);
+    assert!(e.contains("unknown field `remark`"), "{e}");
+    std::fs::write(&manifest, &text).unwrap();
+    let csv = d.join("m.csv");
+    std::fs::write(
+        &csv,
+        "id,trajectory,odometry,notes,description,comment\n\
+         run001,runs/run001.trajectory.csv,runs/run001.odometry.csv,fresh battery,,x\n\
+         run002,runs/run002.trajectory.csv,runs/run002.odometry.csv,,,\n",
+    )
+    .unwrap();
+    let out = d.join("csv.json");
+    ok(&["dataset", "--manifest", p(&csv), "--out", p(&out)]);
+    let from_csv = Dataset::read(&out).unwrap();
+    assert_eq!(
+        from_csv.samples.len(),
+        2,
+        "rejected: {:?}",
+        from_csv.rejected
+    );
+}
+
 /// Keeps the data rows of the trajectory at `path` whose 1-based index passes `keep` (and its header).
 fn keep_data_rows(path: &Path, keep: &dyn Fn(usize) -> bool) {
     let text = std::fs::read_to_string(path).unwrap();
