@@ -106,6 +106,21 @@ fn long_recordings_are_split_into_runs() {
     assert!(rms(&err) <= 0.0025, "target RMS {}", rms(&err));
 }
 
+/// A recording of 6 runs (and one of 12): the robot is carried back between runs, which the
+/// log cannot see, so its dead-reckoned path grows with every run (9 m for 6 runs of 1.5 m)
+/// while the camera's stays at 1.5 m. That used to be refused as "a ratio of 0.172; is the
+/// log paired with the right trajectory".
+#[test]
+fn recordings_of_many_runs_are_not_refused_as_mispaired() {
+    for per in [6, 12] {
+        let dir = tempfile::tempdir().unwrap();
+        synth(dir.path(), per, 5, per);
+        let ds = build(dir.path());
+        assert_eq!(ds.summary.recordings, 1);
+        assert_eq!(ds.samples.len(), per, "rejected: {:?}", ds.rejected);
+    }
+}
+
 /// A robot's 16-bit encoder counters wrap (unsigned from 65 535 to 0, signed from 32 767 to
 /// −32 768) within its logs: the dataset is the same as from the unwrapped logs, and says
 /// where it unwrapped them.
@@ -613,6 +628,130 @@ fn a_robot_file_of_another_robot_is_refused() {
     assert!(
         e.contains("column \"clock_offset_s\" is not one odocal reads"),
         "{e}"
+    );
+}
+
+/// Notes for people are not fields odocal must use: "comment", "notes" and "description"
+/// at the top of a JSON manifest, in its runs, and as CSV columns are read and ignored. A
+/// byte order mark (Windows editors save one) used to read as "invalid JSON … line 1
+/// column 1".
+#[test]
+fn manifests_take_notes_and_a_byte_order_mark() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 2, 4, 1);
+    let plain = build(d);
+    let manifest = d.join("manifest.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let noted = text
+        .replacen(
+            "\"runs\"",
+            "\"comment\": \"lab B, 3 May\", \"description\": {\"floor\": \"lino\"}, \"runs\"",
+            1,
+        )
+        .replace(
+            "\"id\"",
+            "\"notes\": \"battery fresh\", \"comment\": \"\", \"id\"",
+        );
+    std::fs::write(&manifest, format!("\u{feff}{noted}")).unwrap();
+    let noted_ds = build(d);
+    assert_eq!(noted_ds.samples, plain.samples);
+    // A field that is not a note is still refused.
+    std::fs::write(
+        &manifest,
+        text.replacen("\"runs\"", "\"remark\": 1, \"runs\"", 1),
+    )
+    .unwrap();
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--out",
+        p(&d.join("x.json")),
+    ]);
+    assert!(e.contains("unknown field `remark`"), "{e}");
+    std::fs::write(&manifest, &text).unwrap();
+    let csv = d.join("m.csv");
+    std::fs::write(
+        &csv,
+        "id,trajectory,odometry,notes,description,comment\n\
+         run001,runs/run001.trajectory.csv,runs/run001.odometry.csv,fresh battery,,x\n\
+         run002,runs/run002.trajectory.csv,runs/run002.odometry.csv,,,\n",
+    )
+    .unwrap();
+    let out = d.join("csv.json");
+    ok(&["dataset", "--manifest", p(&csv), "--out", p(&out)]);
+    let from_csv = Dataset::read(&out).unwrap();
+    assert_eq!(
+        from_csv.samples.len(),
+        2,
+        "rejected: {:?}",
+        from_csv.rejected
+    );
+}
+
+/// Keeps the data rows of the trajectory at `path` whose 1-based index passes `keep` (and its header).
+fn keep_data_rows(path: &Path, keep: &dyn Fn(usize) -> bool) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let rows: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|&(i, _)| i == 0 || keep(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(path, rows.join("\n") + "\n").unwrap();
+}
+
+/// The data row (1-based) of the trajectory at `path` where the robot moves fastest: well
+/// inside a run.
+fn fastest_row(path: &Path) -> usize {
+    let text = std::fs::read_to_string(path).unwrap();
+    let xy: Vec<(f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (f[1], f[2])
+        })
+        .collect();
+    (1..xy.len() - 1)
+        .max_by(|&a, &b| {
+            let v = |i: usize| (xy[i + 1].0 - xy[i - 1].0).hypot(xy[i + 1].1 - xy[i - 1].1);
+            v(a).total_cmp(&v(b))
+        })
+        .unwrap()
+        + 1
+}
+
+/// The gap bridged between a trajectory's rows follows its rate: a 10 Hz laser trajectory
+/// missing one scan mid-run (a 0.2 s gap) used to reject the run ("the camera's trajectory has
+/// no rows for 0.20 s"); 10 missed frames of a 30 frames/s camera still reject it.
+#[test]
+fn the_bridged_trajectory_gap_follows_its_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // One run per recording: the fastest rows are then the run's, not a carry back.
+    synth(d, 2, 3, 1);
+    let traj = d.join("runs/run001.trajectory.csv");
+    let full = std::fs::read_to_string(&traj).unwrap();
+    // 10 Hz: every 3rd row, then one scan missed where the robot moves fastest.
+    keep_data_rows(&traj, &|i| (i - 1) % 3 == 0);
+    let mid = fastest_row(&traj);
+    keep_data_rows(&traj, &|i| i != mid);
+    let ds = build(d);
+    assert_eq!(ds.samples.len(), 2, "rejected: {:?}", ds.rejected);
+    // 30 frames/s with 10 frames missing mid-run.
+    std::fs::write(&traj, &full).unwrap();
+    let mid = fastest_row(&traj);
+    keep_data_rows(&traj, &|i| !(mid - 5..mid + 5).contains(&i));
+    let ds = build(d);
+    assert_eq!((ds.samples.len(), ds.rejected.len()), (1, 1));
+    assert!(
+        ds.rejected[0]
+            .reason
+            .contains("the camera's trajectory has no rows for 0.37 s"),
+        "{:?}",
+        ds.rejected
     );
 }
 

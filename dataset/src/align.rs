@@ -34,7 +34,8 @@ use odocal_core::Trajectory;
 /// Settings of the time alignment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AlignOptions {
-    /// Longest gap between camera frames bridged by interpolation, seconds.
+    /// Longest gap between camera frames bridged by interpolation, seconds, for a camera of
+    /// 30 frames/s or faster; slower trajectories get more (see [`AlignOptions::frame_gap_s`]).
     pub max_frame_gap_s: f64,
     /// Lag grid step of the coarse cross-correlation, seconds.
     pub coarse_step_s: f64,
@@ -52,6 +53,23 @@ impl Default for AlignOptions {
             refine_half_width_s: 0.15,
             min_correlation: 0.8,
         }
+    }
+}
+
+/// A trajectory's gap bridged by interpolation, in multiples of its median row spacing.
+const FRAME_GAP_PER_SPACING: f64 = 2.5;
+
+impl AlignOptions {
+    /// Longest gap between `traj`'s rows bridged by interpolation, seconds: at least
+    /// `max_frame_gap_s`, and [`FRAME_GAP_PER_SPACING`] times its median row spacing, so that
+    /// one missed scan of a 10 Hz laser (a 0.2 s gap) or a 5 frames/s camera's every frame is
+    /// not taken for the robot leaving the camera's view.
+    pub fn frame_gap_s(&self, traj: &Trajectory) -> f64 {
+        let own = traj
+            .median_spacing_s()
+            .filter(|s| s.is_finite())
+            .map_or(0.0, |s| FRAME_GAP_PER_SPACING * s);
+        self.max_frame_gap_s.max(own)
     }
 }
 
@@ -156,6 +174,7 @@ pub fn coarse_offset(
     let mut b = Vec::with_capacity(last - first + 1);
     // The speed-profile correlation at one lag, the moving log intervals the camera sees
     // there, and those inside the trajectory's span.
+    let gap = opts.frame_gap_s(traj);
     let mut score_at = |lag: f64| -> (f64, usize, usize) {
         a.clear();
         b.clear();
@@ -166,8 +185,8 @@ pub fn coarse_offset(
         let mut moving_ok = 0;
         for k in first..=last {
             let (Some(p0), Some(p1)) = (
-                traj.position_at(t[k - 1] + lag, opts.max_frame_gap_s),
-                traj.position_at(t[k] + lag, opts.max_frame_gap_s),
+                traj.position_at(t[k - 1] + lag, gap),
+                traj.position_at(t[k] + lag, gap),
             ) else {
                 continue;
             };
@@ -261,7 +280,7 @@ fn rematch_near(
     opts: &AlignOptions,
 ) -> CoarseOffset {
     let near = 0.5 * DISTINCT_OFFSETS_S;
-    let gap = opts.max_frame_gap_s;
+    let gap = opts.frame_gap_s(traj);
     let rows: Vec<usize> = rows
         .filter(|&k| traj.covers(t[k - 1] + p.offset_s - near, t[k] + p.offset_s + near, gap))
         .collect();
@@ -555,7 +574,7 @@ pub fn refine_offset(
     opts: &AlignOptions,
 ) -> Result<Alignment, String> {
     let hw = opts.refine_half_width_s;
-    let gap = opts.max_frame_gap_s;
+    let gap = opts.frame_gap_s(traj);
     let geom = WheelGeometry::nominal(robot);
     let first = seg.start_row.saturating_sub(2).max(seg.window_first);
     let last = (seg.end_row + 2).min(seg.window_last);

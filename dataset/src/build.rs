@@ -269,6 +269,7 @@ pub(crate) fn process_recording_at(
         }
         c => c?,
     };
+    let frame_gap = opts.align.frame_gap_s(rec.camera);
     let mut out = Vec::with_capacity(segs.len());
     for (j, seg) in segs.iter().enumerate() {
         let id = name(j);
@@ -314,7 +315,7 @@ pub(crate) fn process_recording_at(
             continue;
         }
         let motion = (odo.t_b() + coarse.offset_s, odo.t_e() + coarse.offset_s);
-        if let Some(why) = unseen_reason(rec.camera, motion, opts.align.max_frame_gap_s) {
+        if let Some(why) = unseen_reason(rec.camera, motion, frame_gap) {
             out.push(reject(id, why));
             continue;
         }
@@ -388,10 +389,7 @@ pub(crate) fn process_recording_at(
         // Real path length: camera positions at the aligned log rows, rest poses at the ends.
         let mut pts = vec![start.position()];
         for k in seg.start_row + 1..seg.end_row {
-            if let Some(p) = rec
-                .camera
-                .position_at(revs.t_s[k] + d, opts.align.max_frame_gap_s)
-            {
+            if let Some(p) = rec.camera.position_at(revs.t_s[k] + d, frame_gap) {
                 pts.push(p);
             }
         }

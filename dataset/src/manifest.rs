@@ -14,9 +14,23 @@ use odocal_core::csv_table;
 /// The `format` tag of manifest JSON files.
 pub const MANIFEST_FORMAT: &str = "odocal.manifest/1";
 
+/// Free text left for people in a manifest ("comment", "notes" or "description"): read as
+/// anything and dropped. Other unknown fields are still refused; these ask for nothing.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Note;
+
+impl<'de> Deserialize<'de> for Note {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        serde::de::IgnoredAny::deserialize(d).map(|_| Note)
+    }
+}
+
+/// The fields and CSV columns of notes, ignored.
+const NOTE_FIELDS: [&str; 3] = ["comment", "notes", "description"];
+
 /// One recording: a camera source and the robot's odometry log. Fields odocal does not read
 /// (a row's own tag offset or clock offset, say) are refused rather than passed over, since
-/// whoever wrote them expects them used.
+/// whoever wrote them expects them used; notes ([`Note`]) are the exception.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ManifestRow {
@@ -33,6 +47,15 @@ pub struct ManifestRow {
     /// Commanded speed, m/s (optional: the odometry's cruise speed is used when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_mps: Option<f64>,
+    /// Notes for people, ignored.
+    #[serde(default, skip_serializing)]
+    pub comment: Note,
+    /// Notes for people, ignored.
+    #[serde(default, skip_serializing)]
+    pub notes: Note,
+    /// Notes for people, ignored.
+    #[serde(default, skip_serializing)]
+    pub description: Note,
 }
 
 /// A run manifest.
@@ -46,6 +69,15 @@ pub struct Manifest {
     /// Directory relative paths are resolved against (not serialised).
     #[serde(skip)]
     pub base_dir: PathBuf,
+    /// Notes for people, ignored.
+    #[serde(default, skip_serializing)]
+    pub comment: Note,
+    /// Notes for people, ignored.
+    #[serde(default, skip_serializing)]
+    pub notes: Note,
+    /// Notes for people, ignored.
+    #[serde(default, skip_serializing)]
+    pub description: Note,
 }
 
 impl Manifest {
@@ -55,6 +87,9 @@ impl Manifest {
             format: MANIFEST_FORMAT.to_string(),
             runs,
             base_dir: base_dir.to_path_buf(),
+            comment: Note,
+            notes: Note,
+            description: Note,
         }
     }
 
@@ -220,18 +255,17 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
     };
     let (line, header) = &table.header;
     let h: Vec<String> = header.iter().map(str::to_string).collect();
-    if let Some((i, c)) = h
-        .iter()
-        .enumerate()
-        .find(|(_, c)| !MANIFEST_COLUMNS.contains(&c.as_str()))
-    {
+    if let Some((i, c)) = h.iter().enumerate().find(|(_, c)| {
+        !MANIFEST_COLUMNS.contains(&c.as_str()) && !NOTE_FIELDS.contains(&c.as_str())
+    }) {
         return Err(DatasetError::parse(
             name,
             *line,
             i as u64 + 1,
             format!(
-                "column \"{c}\" is not one odocal reads (it reads {}); remove it, or give what it says through the options or files that carry it",
-                MANIFEST_COLUMNS.join(",")
+                "column \"{c}\" is not one odocal reads (it reads {}, and ignores notes in {}); remove it, or give what it says through the options or files that carry it",
+                MANIFEST_COLUMNS.join(","),
+                NOTE_FIELDS.join(",")
             ),
         ));
     }
@@ -283,6 +317,9 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
             trajectory: get("trajectory"),
             odometry: get("odometry").unwrap_or_default(),
             speed_mps: speed,
+            comment: Note,
+            notes: Note,
+            description: Note,
         });
         lines.push(line);
     }

@@ -298,7 +298,9 @@ impl RobotParams {
         let f: RobotFile = crate::error::parse_json_with_format(&text, &name, ROBOT_FORMAT)?;
         // A parameter odocal does not read (a gear ratio, a wheel radius) would be passed
         // over while its writer expects it used; notes are welcome.
-        if let Ok(serde_json::Value::Object(fields)) = serde_json::from_str(&text) {
+        if let Ok(serde_json::Value::Object(fields)) =
+            serde_json::from_str(crate::error::without_bom(&text))
+        {
             let known = [
                 "format",
                 "wheel_diameter_m",

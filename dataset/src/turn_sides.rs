@@ -38,8 +38,9 @@ pub fn turn_mismatch(
     let circ_l = std::f64::consts::PI * geom.left_wheel_diameter_m;
     let circ_r = std::f64::consts::PI * geom.right_wheel_diameter_m;
     let (mut cam_abs, mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0, 0.0);
+    let gap = align.frame_gap_s(camera);
     for k in 1..revs.t_s.len() {
-        let at = |i: usize| camera.pose_at(revs.t_s[i] + coarse.offset_s, align.max_frame_gap_s);
+        let at = |i: usize| camera.pose_at(revs.t_s[i] + coarse.offset_s, gap);
         let (Some(a), Some(b)) = (at(k - 1), at(k)) else {
             continue;
         };

@@ -5,8 +5,10 @@
 
 use odocal_core::Trajectory;
 
+use crate::build::DEFAULT_MIN_GAP_S;
 use crate::kinematics::{dead_reckon, WheelGeometry};
 use crate::odometry::{LogKind, OdometryLog};
+use crate::segment::split_runs;
 use crate::RobotParams;
 
 /// The largest ratio between the camera path's extent and the odometry's that can still be
@@ -32,24 +34,51 @@ fn extent_m(points: impl Iterator<Item = [f64; 2]>) -> f64 {
 }
 
 /// Why the camera trajectory and the odometry log cannot be in the same unit, when the
-/// extent of one is more than [`MAX_EXTENT_RATIO`] times the other's; `None` when they fit
-/// or either barely moves.
+/// camera's extent is more than [`MAX_EXTENT_RATIO`] times the odometry's or less than its
+/// 1/[`MAX_EXTENT_RATIO`]; `None` when they fit or either barely moves.
+///
+/// The log cannot see what happens to the robot at rest: carried back to the start between
+/// runs, it dead-reckons a path that grows with every run, while the camera sees the same
+/// 1.5 m again and again. The odometry's true extent therefore lies between that of its
+/// largest motion segment (split at rests, as runs are) and that of the whole log as one
+/// path; only a camera path beyond that range, widened by the ratio, is refused.
 pub fn unit_mismatch(
     log: &OdometryLog,
     camera: &Trajectory,
     robot: &RobotParams,
 ) -> Option<String> {
     let revs = log.wheel_revs(robot);
-    let odometry = dead_reckon(&revs.rev, &WheelGeometry::nominal(robot));
-    let odo_m = extent_m(odometry.iter().map(|p| [p.x_m, p.y_m]));
+    let geom = WheelGeometry::nominal(robot);
+    let odometry = dead_reckon(&revs.rev, &geom);
+    let whole_m = extent_m(odometry.iter().map(|p| [p.x_m, p.y_m]));
+    let run_m = split_runs(log, DEFAULT_MIN_GAP_S)
+        .iter()
+        .map(|seg| {
+            let path = dead_reckon(&seg.odometry(&revs).rev, &geom);
+            extent_m(path.iter().map(|p| [p.x_m, p.y_m]))
+        })
+        .fold(0.0f64, f64::max);
+    // No motion detected (a log of counts per period may look at rest): the whole log is
+    // the one segment.
+    let run_m = if run_m > 0.0 {
+        run_m.min(whole_m)
+    } else {
+        whole_m
+    };
     let cam_m = extent_m(camera.rows.iter().map(|r| [r.pose.x_m, r.pose.y_m]));
-    if odo_m < MIN_EXTENT_M || cam_m < MIN_EXTENT_M {
+    if whole_m < MIN_EXTENT_M || cam_m < MIN_EXTENT_M {
         return None;
     }
+    // Too large a camera path is judged against the whole log (its largest possible
+    // extent), too small a one against the largest segment (its smallest).
+    let (odo_m, of) = if cam_m > MAX_EXTENT_RATIO * whole_m {
+        (whole_m, "")
+    } else if cam_m * MAX_EXTENT_RATIO < run_m {
+        (run_m, " (its longest run between rests)")
+    } else {
+        return None;
+    };
     let ratio = cam_m / odo_m;
-    if (1.0 / MAX_EXTENT_RATIO..=MAX_EXTENT_RATIO).contains(&ratio) {
-        return None;
-    }
     let near = |r: f64, k: f64| (r / k - 1.0).abs() < 0.2;
     let hint = if near(ratio, 1000.0) {
         "1000 times: is the trajectory in millimetres? it must be in metres"
@@ -63,7 +92,7 @@ pub fn unit_mismatch(
         "is the log paired with the right trajectory, and are the robot's parameters its own?"
     };
     Some(format!(
-        "the camera's path spans {cam_m:.3} m and the odometry's {odo_m:.3} m, a ratio of {ratio:.3}; {hint}"
+        "the camera's path spans {cam_m:.3} m and the odometry's{of} {odo_m:.3} m, a ratio of {ratio:.3}; {hint}"
     ))
 }
 

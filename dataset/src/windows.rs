@@ -98,6 +98,7 @@ pub(crate) fn window_samples_at(
         }
     };
     let offset = coarse.offset_s;
+    let frame_gap = opts.align.frame_gap_s(rec.camera);
     let circ = [
         std::f64::consts::PI * geom.left_wheel_diameter_m,
         std::f64::consts::PI * geom.right_wheel_diameter_m,
@@ -155,7 +156,7 @@ pub(crate) fn window_samples_at(
             continue;
         }
         let (t0, t1) = (t[0] + offset, t[t.len() - 1] + offset);
-        let gap = opts.align.max_frame_gap_s;
+        let gap = frame_gap;
         let id = format!("{}.w{:04}", rec.id, rows.start());
         let (Some(p0), Some(p1), true) = (
             rec.camera.pose_at(t0, gap),

@@ -490,6 +490,9 @@ fn one_recording(
         } else {
             None
         },
+        comment: Default::default(),
+        notes: Default::default(),
+        description: Default::default(),
     };
     let truth = RecordingTruth {
         id,
