@@ -11,6 +11,13 @@ fn synth(dir: &Path, runs: usize, seed: u64, per: usize) {
     synth_with(dir, runs, seed, &["--runs-per-recording", &per.to_string()]);
 }
 
+/// `odocal dataset --manifest MANIFEST --out OUT` and `extra`, as arguments.
+fn dataset_args<'a>(manifest: &'a Path, out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["dataset", "--manifest", p(manifest), "--out", p(out)];
+    args.extend_from_slice(extra);
+    args
+}
+
 /// `odocal synth experiment` without video, with `extra` options.
 fn synth_with(dir: &Path, runs: usize, seed: u64, extra: &[&str]) {
     let (runs, seed) = (runs.to_string(), seed.to_string());
@@ -32,15 +39,11 @@ fn synth_with(dir: &Path, runs: usize, seed: u64, extra: &[&str]) {
 
 fn build(dir: &Path) -> Dataset {
     let out = dir.join("dataset.json");
-    ok(&[
-        "dataset",
-        "--manifest",
-        p(&dir.join("manifest.json")),
-        "--out",
-        p(&out),
-        "--csv",
-        p(&dir.join("dataset.csv")),
-    ]);
+    ok(&dataset_args(
+        &dir.join("manifest.json"),
+        &out,
+        &["--csv", p(&dir.join("dataset.csv"))],
+    ));
     Dataset::read(&out).expect("dataset.json")
 }
 
@@ -385,26 +388,10 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     std::fs::write(&m4, r#"{"format":"odocal.dataset/1","runs":[]}"#).unwrap();
     assert!(run(&m4).contains("expected \"odocal.manifest/1\""));
     // A truth file that is not the experiment's oracle: refused before any work.
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&manifest),
-        "--out",
-        p(&out),
-        "--truth",
-        p(&manifest),
-    ]);
+    let e = fails(&dataset_args(&manifest, &out, &["--truth", p(&manifest)]));
     assert!(e.contains("odocal.oracle/1"), "{e}");
     // Window options for a dataset of straight runs used to be ignored unsaid.
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&manifest),
-        "--out",
-        p(&out),
-        "--window-s",
-        "5",
-    ]);
+    let e = fails(&dataset_args(&manifest, &out, &["--window-s", "5"]));
     assert!(
         e.contains("--window-s is only used with --layout windows")
             && e.contains("add --layout windows, or leave it out"),
@@ -414,17 +401,11 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
 
     // And the intact experiment still builds; tag options given for a manifest without
     // videos are said to be unused rather than silently ignored.
-    let res = common::odocal(&[
-        "dataset",
-        "--manifest",
-        p(&manifest),
-        "--out",
-        p(&out),
-        "--tag-size",
-        "0.12",
-        "--rolling-shutter-s",
-        "0.02",
-    ]);
+    let res = common::odocal(&dataset_args(
+        &manifest,
+        &out,
+        &["--tag-size", "0.12", "--rolling-shutter-s", "0.02"],
+    ));
     common::succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(
@@ -517,15 +498,11 @@ fn a_robot_file_of_another_robot_is_refused() {
             ),
         )
         .unwrap();
-        common::odocal(&[
-            "dataset",
-            "--manifest",
-            p(&d.join("manifest.json")),
-            "--robot",
-            p(&robot),
-            "--out",
-            p(&out),
-        ])
+        common::odocal(&dataset_args(
+            &d.join("manifest.json"),
+            &out,
+            &["--robot", p(&robot)],
+        ))
     };
     let refused = |o: std::process::Output, says: &str| {
         let err = String::from_utf8_lossy(&o.stderr);
@@ -571,15 +548,11 @@ fn a_robot_file_of_another_robot_is_refused() {
     )
     .unwrap();
     refused(
-        common::odocal(&[
-            "dataset",
-            "--manifest",
-            p(&d.join("manifest.json")),
-            "--robot",
-            p(&robot),
-            "--out",
-            p(&out),
-        ]),
+        common::odocal(&dataset_args(
+            &d.join("manifest.json"),
+            &out,
+            &["--robot", p(&robot)],
+        )),
         "\"gear_ratio\" is not a robot parameter odocal reads",
     );
     std::fs::write(
@@ -587,15 +560,11 @@ fn a_robot_file_of_another_robot_is_refused() {
         text.replace("\"period_s\"", "\"name\":\"rover 2\",\"period_s\""),
     )
     .unwrap();
-    succeeded(&common::odocal(&[
-        "dataset",
-        "--manifest",
-        p(&d.join("manifest.json")),
-        "--robot",
-        p(&robot),
-        "--out",
-        p(&out),
-    ]));
+    succeeded(&common::odocal(&dataset_args(
+        &d.join("manifest.json"),
+        &out,
+        &["--robot", p(&robot)],
+    )));
     // So are manifest fields and columns it does not read.
     let manifest = std::fs::read_to_string(d.join("manifest.json")).unwrap();
     let m2 = d.join("m2.json");
@@ -604,13 +573,7 @@ fn a_robot_file_of_another_robot_is_refused() {
         manifest.replacen("\"id\"", "\"tag_offset\": \"0.05,0\", \"id\"", 1),
     )
     .unwrap();
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&m2),
-        "--out",
-        p(&d.join("x.json")),
-    ]);
+    let e = fails(&dataset_args(&m2, &d.join("x.json"), &[]));
     assert!(e.contains("unknown field `tag_offset`"), "{e}");
     let m3 = d.join("m3.csv");
     std::fs::write(
@@ -618,13 +581,7 @@ fn a_robot_file_of_another_robot_is_refused() {
         "id,odometry,trajectory,clock_offset_s\nr,a.csv,b.csv,0.1\n",
     )
     .unwrap();
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&m3),
-        "--out",
-        p(&d.join("x.json")),
-    ]);
+    let e = fails(&dataset_args(&m3, &d.join("x.json"), &[]));
     assert!(
         e.contains("column \"clock_offset_s\" is not one odocal reads"),
         "{e}"
@@ -662,13 +619,7 @@ fn manifests_take_notes_and_a_byte_order_mark() {
         text.replacen("\"runs\"", "\"remark\": 1, \"runs\"", 1),
     )
     .unwrap();
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&manifest),
-        "--out",
-        p(&d.join("x.json")),
-    ]);
+    let e = fails(&dataset_args(&manifest, &d.join("x.json"), &[]));
     assert!(e.contains("unknown field `remark`"), "{e}");
     std::fs::write(&manifest, &text).unwrap();
     let csv = d.join("m.csv");
@@ -680,7 +631,7 @@ fn manifests_take_notes_and_a_byte_order_mark() {
     )
     .unwrap();
     let out = d.join("csv.json");
-    ok(&["dataset", "--manifest", p(&csv), "--out", p(&out)]);
+    ok(&dataset_args(&csv, &out, &[]));
     let from_csv = Dataset::read(&out).unwrap();
     assert_eq!(
         from_csv.samples.len(),
@@ -766,20 +717,16 @@ fn outputs_never_replace_the_manifests_files() {
     let traj = d.join("runs/run002.trajectory.csv");
     let (log_before, traj_before) = (std::fs::read(&log).unwrap(), std::fs::read(&traj).unwrap());
     let manifest = d.join("manifest.json");
-    let e = fails(&["dataset", "--manifest", p(&manifest), "--out", p(&log)]);
+    let e = fails(&dataset_args(&manifest, &log, &[]));
     assert!(
         e.contains("run001.odometry.csv (listed in the manifest), which writing it would replace"),
         "{e}"
     );
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&manifest),
-        "--out",
-        p(&d.join("o.json")),
-        "--csv",
-        p(&traj),
-    ]);
+    let e = fails(&dataset_args(
+        &manifest,
+        &d.join("o.json"),
+        &["--csv", p(&traj)],
+    ));
     assert!(e.contains("--csv"), "{e}");
     assert_eq!(std::fs::read(&log).unwrap(), log_before);
     assert_eq!(std::fs::read(&traj).unwrap(), traj_before);
@@ -796,7 +743,7 @@ fn runs_that_are_not_straight_runs_are_named() {
     synth_with(d, 2, 1, &["--paths", "tours"]);
     let manifest = d.join("manifest.json");
     let out = d.join("dataset.json");
-    let e = fails(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    let e = fails(&dataset_args(&manifest, &out, &[]));
     assert!(
         e.contains("not a straight run: its path is") && e.contains("take --layout windows"),
         "{e}"
@@ -808,7 +755,7 @@ fn runs_that_are_not_straight_runs_are_named() {
         serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
     m["runs"][1]["speed_mps"] = serde_json::json!(500.0);
     std::fs::write(&manifest, m.to_string()).unwrap();
-    let o = common::odocal(&["dataset", "--manifest", p(&manifest), "--out", p(&out)]);
+    let o = common::odocal(&dataset_args(&manifest, &out, &[]));
     let said = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
     assert!(
@@ -851,13 +798,7 @@ fn keep_rows(path: &Path, keep: &dyn Fn(f64) -> bool) {
 /// Builds the dataset of the experiment in `dir`, expecting success; (dataset, stdout+stderr).
 fn build_said(dir: &Path) -> (Dataset, String) {
     let out = dir.join("dataset.json");
-    let o = common::odocal(&[
-        "dataset",
-        "--manifest",
-        p(&dir.join("manifest.json")),
-        "--out",
-        p(&out),
-    ]);
+    let o = common::odocal(&dataset_args(&dir.join("manifest.json"), &out, &[]));
     common::succeeded(&o);
     let said = format!(
         "{}{}",
@@ -951,13 +892,11 @@ fn a_camera_that_started_late_or_stopped_early_keeps_the_runs_it_saw() {
     // Less than half of the log's motion inside the trajectory is another recording's file.
     std::fs::write(&traj, &full).unwrap();
     keep_rows(&traj, &|t| t < 8.0);
-    let e = fails(&[
-        "dataset",
-        "--manifest",
-        p(&d.join("manifest.json")),
-        "--out",
-        p(&d.join("dataset.json")),
-    ]);
+    let e = fails(&dataset_args(
+        &d.join("manifest.json"),
+        &d.join("dataset.json"),
+        &[],
+    ));
     assert!(
         e.contains("rec001: the log moves for 23.00 s but the trajectory spans only 7.97 s")
             && e.contains("check that the manifest pairs"),
@@ -1131,15 +1070,11 @@ fn the_truth_of_another_experiment_is_named() {
     synth_with(&e1, 12, 2, &[]);
     synth_with(&e2, 12, 3, &[]);
     let run = |truth: &Path| {
-        let o = common::odocal(&[
-            "dataset",
-            "--manifest",
-            p(&e1.join("manifest.json")),
-            "--out",
-            p(&d.join("ds.json")),
-            "--truth",
-            p(truth),
-        ]);
+        let o = common::odocal(&dataset_args(
+            &e1.join("manifest.json"),
+            &d.join("ds.json"),
+            &["--truth", p(truth)],
+        ));
         succeeded(&o);
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
@@ -1168,13 +1103,11 @@ fn a_glitch_in_a_log_rejects_its_recording_naming_the_rows() {
     f[1] = (f[1].parse::<f64>().unwrap() + 40000.0).to_string();
     lines[30] = f.join(",");
     std::fs::write(&log, lines.join("\n") + "\n").unwrap();
-    let out = ok(&[
-        "dataset",
-        "--manifest",
-        p(&d.join("manifest.json")),
-        "--out",
-        p(&d.join("ds.json")),
-    ]);
+    let out = ok(&dataset_args(
+        &d.join("manifest.json"),
+        &d.join("ds.json"),
+        &[],
+    ));
     assert!(
         out.contains("5 samples from 6 runs")
             && out.contains("rejected run001: ")
