@@ -20,11 +20,30 @@ struct Staged {
 }
 
 static STAGED: Mutex<Vec<Staged>> = Mutex::new(Vec::new());
+/// Directories the command created to hold its outputs, outermost first: removed again by
+/// [`discard`] when they are still empty, so a failed command leaves no empty folder behind.
+static CREATED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 static COUNTER: AtomicUsize = AtomicUsize::new(0);
 
 fn staged() -> MutexGuard<'static, Vec<Staged>> {
     // A panic while holding the lock cannot leave the list inconsistent (pushes only).
     STAGED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn created() -> MutexGuard<'static, Vec<PathBuf>> {
+    CREATED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// `create_dir_all`, remembering which of the directories did not exist before.
+fn make_dirs(dir: &Path) -> Result<(), FileError> {
+    let missing: Vec<PathBuf> = dir
+        .ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+        .map(Path::to_path_buf)
+        .collect();
+    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    created().extend(missing.into_iter().rev());
+    Ok(())
 }
 
 fn io(path: &Path, source: std::io::Error) -> FileError {
@@ -122,10 +141,11 @@ pub fn check_output_dir(path: &Path, option: &str) -> Result<(), FileError> {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     check_output_file(path, "output")?;
     let dir = parent_of(path);
-    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
     if inside_staged_dir(path) {
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
         return std::fs::write(path, bytes).map_err(|e| io(path, e));
     }
+    make_dirs(dir)?;
     let tmp = temp_in(dir);
     if let Err(e) = std::fs::write(&tmp, bytes) {
         let _ = std::fs::remove_file(&tmp);
@@ -149,7 +169,7 @@ pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
         return Ok(target.to_path_buf());
     }
     let parent = parent_of(target);
-    std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
+    make_dirs(parent)?;
     let tmp = temp_in(parent);
     std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, e))?;
     staged().push(Staged {
@@ -163,6 +183,7 @@ pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
 /// Moves every staged output into place (files first, in the order written, then
 /// directories). Called once, when the command has succeeded.
 pub fn commit() -> Result<(), FileError> {
+    created().clear();
     let mut list = std::mem::take(&mut *staged());
     list.sort_by_key(|s| s.is_dir);
     for s in &list {
@@ -260,6 +281,10 @@ pub fn discard() {
             let _ = std::fs::remove_file(&s.tmp);
         }
     }
+    // Innermost first; `remove_dir` leaves a directory someone else has filled meanwhile.
+    for dir in std::mem::take(&mut *created()).iter().rev() {
+        let _ = std::fs::remove_dir(dir);
+    }
 }
 
 #[cfg(test)]
@@ -281,6 +306,13 @@ mod tests {
             0,
             "no temporary left"
         );
+        // Folders made for an output that never appears are removed again; a folder the
+        // user had already is kept.
+        write_atomic(&dir.join("new/deeper/b.txt"), b"one").unwrap();
+        assert!(dir.join("new/deeper").is_dir());
+        discard();
+        assert!(!dir.join("new").exists(), "no empty folder left");
+        assert!(dir.is_dir());
         write_atomic(&a, b"two").unwrap();
         let sub = staged_dir(&dir.join("sub"), "--out").unwrap();
         std::fs::write(sub.join("f"), b"x").unwrap();
