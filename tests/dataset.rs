@@ -413,6 +413,15 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         "{err}"
     );
     assert_eq!(Dataset::read(&out).unwrap().samples.len(), 2);
+    // A value that makes no sense is an error, unused or not, and no note comes before it.
+    let res = common::odocal(&dataset_args(
+        &manifest,
+        &d.join("y.json"),
+        &["--tag-yaw", "400"],
+    ));
+    assert_eq!(res.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(err.starts_with("odocal: error: --tag-yaw 400"), "{err}");
 }
 
 /// Wheels that turn the robot the other way from the camera: the log's left and right columns

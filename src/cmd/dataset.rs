@@ -150,6 +150,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(csv) = &args.csv {
         check_output_not_input(csv, "--csv", &inputs, "listed in the manifest")?;
     }
+    // The tag's options are checked before any video is opened, and before a note says
+    // they are not used: a value that makes no sense is an error either way.
+    let track_options = args.tag.apply(TrackOptions::default())?;
     let has_videos = manifest.runs.iter().any(|r| r.video.is_some());
     if !has_videos {
         let unused = args.tag.given();
@@ -159,8 +162,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 what.insert(0, "--camera".into());
             }
             tell!(
-                "note: {} not used: they track the manifest's videos, and it lists trajectories only",
-                what.join(", ")
+                "note: {} not used: {} the manifest's videos, and it lists trajectories only",
+                what.join(", "),
+                if what.len() == 1 {
+                    "it is for tracking"
+                } else {
+                    "they are for tracking"
+                }
             );
         }
     }
@@ -177,8 +185,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => Some(CameraFile::load(p)?),
         None => None,
     };
-    // The tag's options are checked before any video is opened.
-    let track_options = args.tag.apply(TrackOptions::default())?;
     if let Some(c) = &camera {
         track_options.check(c.floor.as_ref().map(|f| f.camera_height_m))?;
     }
