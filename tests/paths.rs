@@ -130,6 +130,29 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     ]);
     assert!(same.status.success());
     assert!(String::from_utf8_lossy(&same.stderr).contains("is the manifest being evaluated"));
+    // A calibration square with two rows lost would give E_d and E_b from a misread step.
+    let (gapped, _, row) = recording_with_gap(
+        &dir.path().join("squares-cal"),
+        "run001",
+        &dir.path().join("cal-gap"),
+    );
+    let e = fails(&[
+        "evaluate",
+        &d("squares/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+        "--umbmark-m",
+        "4",
+        "--umbmark-calibration",
+        gapped.to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "run001: rows {row} and {} are 0.600 s apart, but the robot logs every 0.200 s",
+            row + 1
+        )),
+        "{e}"
+    );
 
     ok(&[
         "evaluate",
@@ -609,7 +632,7 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
     let (model, tours) = small_path_model(dir.path());
     let (manifest, odo, row) = recording_with_gap(&tours, "run001", &dir.path().join("gap"));
     let gap = format!(
-        "rows {row} and {} are 0.600 s apart, but the model corrects steps of 0.200 s (a dropped or extra row?); record the run again, or leave it out",
+        "rows {row} and {} are 0.600 s apart, but the robot logs every 0.200 s (a dropped or extra row?); record the run again, or leave it out",
         row + 1
     );
     let out = dir.path().join("ev.json");

@@ -195,6 +195,17 @@ fn train_then_correct_a_log() {
     let track = std::fs::read_to_string(&csv).expect("csv");
     assert!(track.starts_with("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected"));
     assert!(track.lines().count() > 5);
+    // Two rows lost: the run's speeds would be read off a 0.6 s step as one 0.2 s step.
+    let text = std::fs::read_to_string(&log).expect("log");
+    let lines: Vec<&str> = text.lines().collect();
+    let gapped: Vec<&str> = lines[..6].iter().chain(&lines[8..]).copied().collect();
+    let gap = dir.path().join("gap.odometry.csv");
+    std::fs::write(&gap, gapped.join("\n") + "\n").expect("write");
+    let e = fails(&["correct", "--model", p(&model), p(&gap)]);
+    assert!(
+        e.contains("rows 6 and 7 are 0.600 s apart, but the robot logs every 0.200 s"),
+        "{e}"
+    );
 
     // A model of another version, a log of another robot, a missing --out.
     let text = std::fs::read_to_string(&model).expect("model");

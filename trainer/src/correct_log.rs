@@ -44,6 +44,7 @@ impl ModelFile {
                 "{name}: {why}; is this log of the model's robot and logger?"
             )));
         }
+        crate::path_model_file::check_period(log, robot, name)?;
         let f = features_from_log(log, robot)
             .map_err(|e| TrainError::Dataset(format!("{name}: {e}")))?;
         let nominal = WheelGeometry::nominal(robot);

@@ -167,6 +167,8 @@ pub fn evaluate_paths(
                 r.id
             )));
         }
+        // Every method dead-reckons step by step; a lost row would be one step of three.
+        crate::path_model_file::check_period(&r.log, robot, &r.id)?;
         let align = odocal_dataset::align::AlignOptions::default();
         if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot)
             .or_else(|| odocal_dataset::trajectory_mismatch(&r.log, &r.camera, robot, &align))

@@ -99,16 +99,19 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
     Ok(())
 }
 
-/// Refuses a log with a step off the robot's period (`name` names the log): the model takes
-/// every step for one period, so a gap (two rows lost) reads as one step three times as fast
-/// and would be judged, corrected and scored as such.
-fn check_period(log: &OdometryLog, robot: &RobotParams, name: &str) -> Result<(), TrainError> {
+/// Refuses a log with a step off the robot's period (`name` names the log): a model takes
+/// every step for one period (a path model each step, a straight-run model the run's
+/// per-step speeds), and its training had none off it, so a gap (two rows lost) would read as
+/// one step three times as fast and be judged, corrected and scored as such.
+pub(crate) fn check_period(
+    log: &OdometryLog,
+    robot: &RobotParams,
+    name: &str,
+) -> Result<(), TrainError> {
     match log.off_period_step(0, log.len(), robot.period_s, 0.05) {
         Some((k, dt)) => Err(TrainError::Model(format!(
-            "{name}: rows {} and {} are {dt:.3} s apart, but the model corrects steps of {:.3} s (a dropped or extra row?); record the run again, or leave it out",
-            k + 1,
-            k + 2,
-            robot.period_s
+            "{name}: {}; record the run again, or leave it out",
+            OdometryLog::step_message(k, dt, robot.period_s)
         ))),
         None => Ok(()),
     }
