@@ -33,8 +33,19 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
         .iter()
         .map(|p| Ok((p, read_scans_csv(p)?)))
         .collect::<Result<_, LrfError>>()?;
+    // Files of timed scans go in the order of their times, whatever order a shell glob gave
+    // them in (scan10.csv before scan2.csv); untimed ones in natural name order. Files whose
+    // times interleave are refused below.
     if files.iter().all(|(_, s)| s.iter().all(|s| s.t_s.is_none())) {
         files.sort_by(|(a, _), (b, _)| odocal_core::natural_path_cmp(a, b));
+    } else if files
+        .iter()
+        .all(|(_, s)| s.first().is_some_and(|s| s.t_s.is_some()))
+    {
+        files.sort_by(|(_, a), (_, b)| {
+            let first = |s: &[Scan]| s.first().and_then(|s| s.t_s).unwrap_or(0.0);
+            first(a).total_cmp(&first(b))
+        });
     }
     let mut scans: Vec<Scan> = Vec::new();
     let mut step: Option<(f64, String)> = None;
@@ -65,6 +76,15 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
             None => step = Some((this, p.display().to_string())),
         }
         scans.extend(s);
+    }
+    // One scan per file without a `scan` column gives every scan the id 0: number them in
+    // the order read, so the poses' `scan` column tells them apart.
+    let mut ids: Vec<u64> = scans.iter().map(|s| s.id).collect();
+    ids.sort_unstable();
+    if ids.windows(2).any(|w| w[0] == w[1]) {
+        for (k, s) in scans.iter_mut().enumerate() {
+            s.id = k as u64;
+        }
     }
     Ok((scans, step.map(|s| s.0)))
 }

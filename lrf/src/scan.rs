@@ -94,7 +94,8 @@ impl Default for SensorConfig {
 /// One sweep of the scanner, beams ordered right to left (increasing angle).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scan {
-    /// Scan id (from the `scan` column, else the file's index).
+    /// Scan id: from the `scan` column, else 0 (one scan per file); scans read from several
+    /// files that repeat ids are numbered in the order read.
     pub id: u64,
     /// Time stamp, seconds (from the `t` column if present).
     pub t_s: Option<f64>,

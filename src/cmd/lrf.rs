@@ -43,7 +43,7 @@ pub struct LocalizeArgs {
     /// The landmark map (JSON, "format": "odocal.lrf-map/1").
     #[arg(long)]
     pub map: PathBuf,
-    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`): with t, in time order;
+    /// Scan CSV files (`angle,range,intensity`, optionally `scan,t`): with t, taken in time order;
     /// without, taken in natural name order (scan2.csv before scan10.csv).
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
