@@ -1070,6 +1070,40 @@ fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
         ),
     );
     assert!(!poses.exists() && !traj.exists(), "nothing written");
+    // One landmark of a pair left out of the map: the scans that see its partner are told
+    // apart (and tracked on), the others stay ambiguous, and the poses written leave them
+    // out. That is said, not left to be found in the poses' status column.
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&map).expect("map")).expect("json");
+    m["landmarks"]
+        .as_array_mut()
+        .expect("landmarks")
+        .retain(|l| l["id"] != 10);
+    let broken = d.join("map2.json");
+    std::fs::write(&broken, m.to_string()).expect("write");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&broken),
+        s(&scans),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&truth),
+    ]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stderr}");
+    assert!(stdout.contains("22 ok, 8 ambiguous, 0 lost"), "{stdout}");
+    assert!(stdout.contains("confident wrong poses: 0;"), "{stdout}");
+    assert!(
+        stderr.contains("warning: 8 of 30 scans fit the map in several places and have no pose")
+            && stderr.contains("(a symmetric layout)"),
+        "{stderr}"
+    );
 }
 
 /// Scan files are one recording: timed files are taken in the order of their times, whatever

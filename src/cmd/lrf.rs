@@ -256,6 +256,24 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             why_lost()
         );
     }
+    // A quarter of the scans or more without a pose they could tell from another: the
+    // written poses leave out much of the recording, for a reason the user can act on.
+    if count(Status::Ambiguous) * 4 >= log.rows.len() {
+        tell!(
+            "warning: {} of {} scans fit the map in several places and have no pose: {}",
+            count(Status::Ambiguous),
+            log.rows.len(),
+            if layout_repeats(&loc.map, a.max_range_m) {
+                format!(
+                    "the landmarks of {} repeat themselves (a symmetric layout) where the scanner went; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
+                    a.map.display(),
+                    a.map.display()
+                )
+            } else {
+                why_lost()
+            }
+        );
+    }
     if let Some((tp, e)) = &against {
         // An error over a few scans reads like the error of them all: say how few they are.
         if e.n_ok * 2 < n_ok {
