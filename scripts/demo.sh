@@ -67,7 +67,7 @@ echo "dataset from $runs tracked videos (targets: real end points from the camer
 pick dataset "^dataset:|rejected|raw odometry|against the truth" 8
 echo "corrector and baselines (cross-validated on the samples of dataset.json):"
 echo "  Table 2 (cross-validated, 5 folds): method | MSE m² | MSE cm² | relative error % | RMS end error cm | samples | distance m"
-grep -h -E "^\| (raw odometry|kinematic calibration|linear regression|kernel ridge|perceptron|oracle)" "$out/train/report.md" | head -n 6 | sed 's/^/  /'
+grep -h -E "^\| (raw odometry|mean end point|kinematic calibration|linear regression|kernel ridge|perceptron|oracle)" "$out/train/report.md" | head -n 7 | sed 's/^/  /'
 grep -h "Verdict" "$out/train/report.md" | sed 's/^/  /'
 echo "a held-out log, corrected:"
 pick correct "corrected|raw" 2

@@ -78,6 +78,52 @@ fn corrector_beats_raw_odometry_and_nears_the_oracle() {
     assert!(std::fs::read_to_string(rep.join("report.md"))
         .expect("md")
         .contains("Verdict"));
+    // Straight runs of one length end alike: the training runs' mean end point, which
+    // ignores the log, sits at the oracle's floor too, and a corrector no better than it is
+    // said to have learned the mean bias only.
+    let mean = rel(&r, "mean end point (ignores the log)");
+    eprintln!("mean end point {mean:.4}");
+    assert!(mean <= 1.1 * orc, "mean end {mean:.4} vs oracle {orc:.4}");
+    let warned = r["warnings"].as_array().expect("warnings").iter().any(|w| {
+        w.as_str()
+            .is_some_and(|w| w.contains("does no better than the training runs' mean end point"))
+    });
+    assert_eq!(warned, net > 0.9 * mean, "net {net:.4} mean {mean:.4}");
+}
+
+/// A net whose early stopping kept no training step is its random starting weights, which
+/// put every end near the mean whatever the log says: `train` says so.
+#[test]
+fn a_net_left_at_its_starting_weights_is_warned() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = experiment(dir.path(), 18, 1);
+    let model = dir.path().join("model.json");
+    let mut epochs = Vec::new();
+    for seed in ["1", "2", "3", "4"] {
+        let res = common::odocal(&[
+            "train",
+            p(&ds),
+            "--out",
+            p(&model),
+            "--hidden",
+            "3",
+            "--no-cv",
+            "--seed",
+            seed,
+        ]);
+        assert!(res.status.success());
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&model).expect("model")).expect("json");
+        let epoch = m["best_epoch"].as_u64().expect("best_epoch");
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(
+            stderr.contains("the model is its random initialisation"),
+            epoch == 0,
+            "seed {seed}, epoch {epoch}: {stderr}"
+        );
+        epochs.push(epoch);
+    }
+    assert!(epochs.contains(&0), "{epochs:?}");
 }
 
 /// `train --sweep` over several sizes: Table 2's perceptron row has k chosen per outer fold

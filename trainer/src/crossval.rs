@@ -323,6 +323,9 @@ pub const NESTED_NET: &str = "perceptron 18-k-2, k by nested CV";
 pub const KERNEL_RIDGE: &str = "kernel ridge regression (RBF)";
 /// Name of the raw odometry row.
 pub const RAW: &str = "raw odometry";
+/// Name of the row that predicts every run's end as the mean end of the training runs: a
+/// corrector that does no better has learned the odometry's mean bias, nothing from the log.
+pub const MEAN_END: &str = "mean end point (ignores the log)";
 /// Name of the kinematic calibration row.
 pub const KINEMATIC: &str = "kinematic calibration";
 /// Name of the linear regression row.
@@ -399,12 +402,15 @@ pub fn sweep(
     let mut raw = vec![[0.0; 2]; n];
     let mut kin = vec![[0.0; 2]; n];
     let mut lin = vec![[0.0; 2]; n];
+    let mut mean = vec![[0.0; 2]; n];
     for (fit, test) in &fold_sets {
         let fit_s: Vec<&Sample> = fit.iter().map(|&i| &samples[i]).collect();
         let kc = KinematicCalibration::fit(&fit_s, &ds.robot)?;
         let lr = LinearRegression::fit(&fit_s)?;
+        let mean_end = mean_target(&fit_s);
         for &i in test {
             raw[i] = raw_predict(&samples[i]);
+            mean[i] = mean_end;
             kin[i] = kc.predict(&samples[i]);
             lin[i] = lr.predict(&samples[i]);
         }
@@ -659,6 +665,7 @@ pub fn sweep(
     };
     let mut table2 = vec![
         method_row(RAW, samples, &[raw]),
+        method_row(MEAN_END, samples, &[mean]),
         method_row(KINEMATIC, samples, &[kin]),
         method_row(LINEAR, samples, &[lin]),
     ];
@@ -667,6 +674,7 @@ pub fn sweep(
     if let Some(o) = oracle_preds {
         table2.push(method_row(ORACLE, samples, &[o]));
     }
+    warnings.extend(no_better_than_the_mean(&table2, &net_name));
     let verdict = verdict(&table2, &net_name);
     Ok(SweepReport {
         format: REPORT_FORMAT.to_string(),
@@ -759,6 +767,35 @@ pub fn inner_splits(fold: &[usize], folds: usize, outer: usize) -> Vec<InnerSpli
         .collect()
 }
 
+/// The mean end point of `samples`' targets, metres.
+fn mean_target(samples: &[&Sample]) -> [f64; 2] {
+    let n = samples.len().max(1) as f64;
+    let sum = samples.iter().fold([0.0; 2], |a, s| {
+        [a[0] + s.target_m[0], a[1] + s.target_m[1]]
+    });
+    [sum[0] / n, sum[1] / n]
+}
+
+/// How much better than the mean end point a corrector must be to have learned something
+/// from the log: 10 %, about twice the restart-to-restart spread of the reference
+/// experiment's perceptron.
+const MEAN_MARGIN: f64 = 0.9;
+
+/// A warning when the corrector `name` is not clearly better than predicting every run's
+/// end as the training runs' mean end: its figures then show the odometry's mean bias
+/// removed, which says nothing of how it corrects a run unlike the training's.
+pub fn no_better_than_the_mean(t: &[MethodRow], name: &str) -> Option<String> {
+    let (mean, net) = (row(t, MEAN_END)?, row(t, name)?);
+    (net.rel_error.mean > MEAN_MARGIN * mean.rel_error.mean).then(|| {
+        format!(
+            "the {name} ({:.2} % cross-validated) does no better than the training runs' mean end point ({:.2} %), which ignores the log: the runs end too alike (mean distance {:.3} m) for the odometry to tell them apart, so the figures show the mean bias removed, not the log corrected; record runs of several lengths and speeds for a corrector that uses the log",
+            100.0 * net.rel_error.mean,
+            100.0 * mean.rel_error.mean,
+            mean.mean_distance_m
+        )
+    })
+}
+
 /// Row of Table 2 by method name.
 pub fn row<'a>(table2: &'a [MethodRow], name: &str) -> Option<&'a MethodRow> {
     table2.iter().find(|r| r.method == name)
@@ -780,6 +817,17 @@ fn verdict(t: &[MethodRow], name: &str) -> String {
         pct(net),
         100.0 * net.rel_error.mean / raw.rel_error.mean
     );
+    if let Some(m) = row(t, MEAN_END) {
+        s += &format!(
+            "The training runs' mean end point, which ignores the log, reaches {:.2} %{}. ",
+            pct(m),
+            if net.rel_error.mean > MEAN_MARGIN * m.rel_error.mean {
+                ": the runs end too alike to show what the perceptron learns from the log"
+            } else {
+                ""
+            }
+        );
+    }
     let margin = (net.rel_error.mean - kin.rel_error.mean).abs();
     let tie = margin <= net.rel_error.sd.max(0.02 * kin.rel_error.mean);
     if net.rel_error.mean < kin.rel_error.mean {
@@ -833,6 +881,48 @@ fn verdict(t: &[MethodRow], name: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn method(name: &str, rel_error: f64) -> MethodRow {
+        let m = MeanSd {
+            mean: rel_error,
+            sd: 0.0,
+        };
+        MethodRow {
+            method: name.into(),
+            mse_m2: m,
+            rel_error: m,
+            rms_end_error_m: 0.0,
+            n_samples: 10,
+            mean_distance_m: 1.5,
+            per_speed: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_corrector_no_better_than_the_mean_end_is_warned() {
+        let net = "perceptron 18-8-2";
+        let rows = |net_error| vec![method(MEAN_END, 0.0434), method(net, net_error)];
+        // 4.54 % against the mean's 4.34 % (the reference experiment's figures).
+        let w = no_better_than_the_mean(&rows(0.0454), net).expect("warned");
+        assert!(
+            w.starts_with("the perceptron 18-8-2 (4.54 % cross-validated) does no better than the training runs' mean end point (4.34 %)"),
+            "{w}"
+        );
+        // Within 10 % of it is no better either; clearly below it is.
+        assert!(no_better_than_the_mean(&rows(0.040), net).is_some());
+        assert!(no_better_than_the_mean(&rows(0.038), net).is_none());
+        assert!(no_better_than_the_mean(&[method(net, 0.05)], net).is_none());
+        assert!(verdict(
+            &[
+                method(RAW, 0.09),
+                method(MEAN_END, 0.0434),
+                method(KINEMATIC, 0.0458),
+                method(net, 0.0454)
+            ],
+            net
+        )
+        .contains("The training runs' mean end point, which ignores the log, reaches 4.34 %: the runs end too alike"));
+    }
 
     #[test]
     fn a_sweep_gets_one_capacity_warning() {

@@ -69,6 +69,14 @@ pub fn fit_model(
     let inputs: Vec<Vec<f64>> = ds.samples.iter().map(|s| s.inputs.clone()).collect();
     let targets: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.target_m).collect();
     let net = train(&inputs, &targets, ts, seed)?;
+    if net.best_epoch == 0 && !net.validation_indices.is_empty() {
+        // The starting weights are random: they put every end near the targets' mean, give
+        // or take a random function of the log.
+        warnings.push(format!(
+            "no training step improved the early-stopping split's error over the starting weights (kept epoch 0, {}): the model is its random initialisation, which puts every run's end near the training runs' mean whatever the log says; try other seeds (--seed), or `--sweep` with --restarts to see how the net does across them",
+            net.stop_reason
+        ));
+    }
     let all: Vec<&Sample> = ds.samples.iter().collect();
     let pred: Vec<[f64; 2]> = inputs.iter().map(|x| net.predict(x)).collect();
     let raw: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.raw_end_m).collect();
@@ -94,6 +102,10 @@ pub fn fit_model(
             };
             let rep = sweep(ds, sha, &s, oracle, on_fold)?;
             table2_markdown = Some(report::table2_markdown(&rep));
+            warnings.extend(crate::crossval::no_better_than_the_mean(
+                &rep.table2,
+                &net_method_name(ts.hidden),
+            ));
             let r = row(&rep.table2, &net_method_name(ts.hidden))
                 .ok_or_else(|| TrainError::Numerical("cross-validation lost its row".into()))?;
             Some(Metrics {
