@@ -26,6 +26,12 @@ pub const FLOOR_BOUND_MM: f64 = 2.0;
 /// ... held at this many standard deviations of [`FloorUncertaintyMap`]'s σ.
 pub const FLOOR_BOUND_SIGMAS: f64 = 3.0;
 
+/// The share of the bound that lens models fitting the views alike may differ by where the
+/// floor is vouched for: their difference shows how far the lens is unknown there, but the
+/// true lens may lie beyond either model (on a 150° fisheye, 2.15 mm from the truth where
+/// the models differed by at most 2 mm), so they must agree within half the bound.
+pub const MODEL_SPREAD_SHARE: f64 = 0.5;
+
 /// The floor around the point under the camera that a calibration maps within a given
 /// uncertainty ([`FloorUncertaintyMap::reach`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -38,6 +44,10 @@ pub struct FloorReach {
     pub whole: bool,
     /// The largest σ over the mapped floor, millimetres.
     pub worst_sigma_mm: f64,
+    /// When the disc ends where lens models the views could not tell apart map the floor
+    /// too far apart ([`MODEL_SPREAD_SHARE`] of the bound; rather than where σ grows): the
+    /// largest such difference over the floor, millimetres.
+    pub model_spread_mm: Option<f64>,
 }
 
 impl FloorReach {
@@ -49,6 +59,11 @@ impl FloorReach {
         if self.whole {
             format!(
                 "the whole floor the image sees is mapped {bound}: out to {:.2} m from the point under the camera ({:.0}° off the nadir)",
+                self.radius_m, self.off_nadir_deg
+            )
+        } else if let Some(spread) = self.model_spread_mm {
+            format!(
+                "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out the lens models that fit the views equally well map the floor up to {spread:.1} mm apart, so none can be vouched for there: add hand-held views reaching the image's corners and edges, or give the lens model (--model)",
                 self.radius_m, self.off_nadir_deg
             )
         } else {
@@ -75,6 +90,13 @@ pub struct FloorUncertaintyMap {
     pub sigma_mm: Vec<Option<f64>>,
     /// Each floor board's detected corners, pixels: where the floor plane was measured.
     pub floor_boards_px: Vec<Vec<[f64; 2]>>,
+    /// Per cell, how far apart the chosen lens model and the others the held-out views
+    /// could not tell from it map the floor, millimetres ([`Self::add_model_spread`]); empty
+    /// when no other model fitted as well. The covariance says how well one model's
+    /// parameters are known, not whether the model is the lens: where the views leave the
+    /// image empty, models alike on the views part ways.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub model_spread_mm: Vec<Option<f64>>,
 }
 
 impl FloorUncertaintyMap {
@@ -230,6 +252,7 @@ impl FloorUncertaintyMap {
                 .iter()
                 .map(|v| v.corners.iter().map(|p| [p.x, p.y]).collect())
                 .collect(),
+            model_spread_mm: Vec::new(),
         })
     }
 
@@ -249,10 +272,45 @@ impl FloorUncertaintyMap {
             .flatten()
     }
 
+    /// Records, per cell that sees the floor, the largest distance between the floor point
+    /// `camera` with `floor` maps it to and the one each of `others` (another lens model's
+    /// calibration of the same views, with its own floor) maps it to, millimetres.
+    pub fn add_model_spread(
+        &mut self,
+        camera: &CameraModel,
+        floor: &FloorToCamera,
+        others: &[(CameraModel, FloorToCamera)],
+    ) {
+        if others.is_empty() {
+            return;
+        }
+        let mut spread = vec![None; self.sigma_mm.len()];
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                let k = (r * self.cols + c) as usize;
+                if !matches!(self.sigma_mm.get(k), Some(Some(_))) {
+                    continue;
+                }
+                let pix = UncertaintyMap::centre(camera, self.cell_px, c, r);
+                let worst = others
+                    .iter()
+                    .map(|(cam, fl)| {
+                        difference(camera, floor, cam, fl, &pix).map_or(f64::INFINITY, |d| d.norm())
+                    })
+                    .fold(0.0f64, f64::max);
+                spread[k] = Some(1000.0 * worst);
+            }
+        }
+        self.model_spread_mm = spread;
+    }
+
     /// How far out from the point under the camera the floor is mapped with at most
     /// `sigma_mm` of uncertainty (1σ): the disc around that point in which every mapped cell
     /// stays within it, up to the nearest cell that does not (or, when none exceeds it, out
-    /// to the farthest mapped cell). `camera` and `floor` are the calibration's own.
+    /// to the farthest mapped cell). A cell where lens models that fit the views alike map
+    /// the floor more than [`MODEL_SPREAD_SHARE`] of [`FLOOR_BOUND_SIGMAS`] σ apart counts as
+    /// over it too. `camera`
+    /// and `floor` are the calibration's own.
     pub fn reach(
         &self,
         camera: &CameraModel,
@@ -263,6 +321,8 @@ impl FloorUncertaintyMap {
         let under = Point2::new(above.x, above.y);
         let (mut nearest_over, mut farthest) = (f64::INFINITY, 0.0f64);
         let mut worst_mm: f64 = 0.0;
+        // The nearest cell over by σ, and by the models' spread, with the largest spread.
+        let (mut nearest_sigma_over, mut worst_spread) = (f64::INFINITY, 0.0f64);
         for r in 0..self.rows {
             for c in 0..self.cols {
                 let Some(Some(s)) = self.sigma_mm.get((r * self.cols + c) as usize) else {
@@ -277,6 +337,17 @@ impl FloorUncertaintyMap {
                 worst_mm = worst_mm.max(*s);
                 if *s > sigma_mm {
                     nearest_over = nearest_over.min(d);
+                    nearest_sigma_over = nearest_sigma_over.min(d);
+                }
+                let spread = self
+                    .model_spread_mm
+                    .get((r * self.cols + c) as usize)
+                    .copied()
+                    .flatten()
+                    .unwrap_or(0.0);
+                worst_spread = worst_spread.max(spread);
+                if spread > MODEL_SPREAD_SHARE * FLOOR_BOUND_SIGMAS * sigma_mm {
+                    nearest_over = nearest_over.min(d);
                 }
             }
         }
@@ -290,6 +361,7 @@ impl FloorUncertaintyMap {
             off_nadir_deg: radius_m.atan2(above.z.abs()).to_degrees(),
             whole,
             worst_sigma_mm: worst_mm,
+            model_spread_mm: (nearest_over < nearest_sigma_over).then_some(worst_spread),
         })
     }
 

@@ -40,6 +40,10 @@ pub struct ModelScore {
     pub failure: Option<String>,
     /// Whether this model was chosen.
     pub chosen: bool,
+    /// The model's calibration on all views (not kept in files: the chosen one is the
+    /// file's camera).
+    #[serde(skip)]
+    pub camera: Option<crate::CameraModel>,
 }
 
 /// The held-out reprojection error of `model` on `views`: per view, pixels.
@@ -116,6 +120,7 @@ pub fn compare_models(
             ModelScore {
                 model,
                 parameters: n_params,
+                camera: fit.as_ref().ok().map(|c| c.camera),
                 fit_rms_px: fit.ok().map(|c| c.rms_px),
                 held_out_rms_px,
                 view_held_out_rms_px,
@@ -137,11 +142,17 @@ pub fn compare_models(
             .unwrap_or_else(|| "no lens model could be calibrated from these views".into());
         return Err(CalibError::Input(why));
     }
-    if let Some(s) = scores.iter_mut().find(|s| {
-        s.held_out_rms_px
-            .is_some_and(|e| e <= best * (1.0 + SIMPLER_WITHIN))
-    }) {
+    if let Some(s) = scores.iter_mut().find(|s| s.fits_as_well(best)) {
         s.chosen = true;
     }
     Ok(scores)
+}
+
+impl ModelScore {
+    /// Whether the held-out views cannot tell this model from the best one (`best_px`, the
+    /// lowest held-out RMS): its error is within [`SIMPLER_WITHIN`] of it.
+    pub fn fits_as_well(&self, best_px: f64) -> bool {
+        self.held_out_rms_px
+            .is_some_and(|e| e <= best_px * (1.0 + SIMPLER_WITHIN))
+    }
 }

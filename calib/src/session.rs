@@ -363,13 +363,31 @@ pub fn calibrate_session(
                 only.image
             ));
         }
-        floor_uncertainty = Some(FloorUncertaintyMap::from_fit(
+        let mut map = FloorUncertaintyMap::from_fit(
             &cal.camera,
             &cal.covariance,
             &boards,
             &fitted,
             (cal.camera.width / 32).max(8),
-        )?);
+        )?;
+        // The other lens models the held-out views could not tell from the chosen one, each
+        // with the floor its own calibration locates: where they part, no model is known.
+        let best = model_comparison
+            .iter()
+            .filter_map(|s| s.held_out_rms_px)
+            .fold(f64::INFINITY, f64::min);
+        let others: Vec<(crate::CameraModel, crate::FloorToCamera)> = model_comparison
+            .iter()
+            .filter(|s| !s.chosen && s.fits_as_well(best))
+            .filter_map(|s| s.camera)
+            .filter_map(|cam| {
+                let b = FloorBoards::locate(&cam, &fviews, board, corner_sigma_px).ok()?;
+                let f = b.fit_parameters(&cam);
+                Some((cam, b.floor(&f)))
+            })
+            .collect();
+        map.add_model_spread(&cal.camera, &boards.floor(&fitted), &others);
+        floor_uncertainty = Some(map);
         Some(plane)
     };
     let file = CameraFile {
