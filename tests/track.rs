@@ -1148,3 +1148,61 @@ fn a_motion_capture_truth_judges_the_fixes_between_its_samples() {
     fails_with(&res, "--mocap-hz 0: a motion-capture rate is 1 to 10000 Hz");
     assert!(!d.join("zero").exists());
 }
+
+/// Zeroes most of the JPEG data of frame `k` of an MJPG AVI (its `00dc` chunk), keeping the
+/// data's first quarter and its end marker: a frame damaged on its way to the disk.
+fn damage_avi_frame(video: &std::path::Path, k: usize) {
+    let mut bytes = std::fs::read(video).unwrap();
+    let chunks: Vec<usize> = bytes
+        .windows(4)
+        .enumerate()
+        .filter(|(_, w)| *w == b"00dc")
+        .map(|(i, _)| i)
+        .collect();
+    // The first `00dc` may be the stream header's; frames are the chunks with a JPEG in them.
+    let frames: Vec<usize> = chunks
+        .into_iter()
+        .filter(|&i| bytes.get(i + 8..i + 10) == Some(&[0xFF, 0xD8][..]))
+        .collect();
+    let at = frames[k];
+    let size = u32::from_le_bytes(bytes[at + 4..at + 8].try_into().unwrap()) as usize;
+    let data = at + 8;
+    for b in &mut bytes[data + size / 4..data + size - 16] {
+        *b = 0;
+    }
+    std::fs::write(video, bytes).unwrap();
+}
+
+/// A frame damaged in the file: FFmpeg's decoder completes it from the frame before, whose
+/// tag gave the previous pose under this frame's time (11 mm off, exit 0, no word). The
+/// repeated pose is a gap now, and said.
+#[test]
+fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 40, 2, &["--video", "avi"]);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    damage_avi_frame(&video, 20);
+    let res = odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--truth",
+        p(&d.join("truth.csv")),
+    ]);
+    succeeded(&res);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&res.stdout),
+        String::from_utf8_lossy(&res.stderr),
+    );
+    assert!(stderr.contains("in 39/40 frames"), "{stderr}");
+    assert!(
+        stderr.contains("1 frame repeats the previous frame's image"),
+        "{stderr}"
+    );
+    let max = number_after(&stdout, "(max ");
+    assert!(max < 1.0, "largest error {max} mm: {stdout}");
+}

@@ -37,6 +37,9 @@ pub struct TimingReport {
     pub duplicate_times: usize,
     /// Frames identical to the previous one (not tracked).
     pub repeated_images: usize,
+    /// Frames of the file that could not be decoded whole (damaged JPEG data), left out: they
+    /// are among the dropped frames.
+    pub corrupt_frames: Vec<usize>,
     /// Frames without a container timestamp, timed one step after the previous.
     pub extrapolated_times: usize,
     /// Frames the container announces beyond those read and those dropped: the file ends early.
@@ -108,6 +111,7 @@ impl TimingReport {
             dropped_frames,
             duplicate_times: count(GapReason::DuplicateTime),
             repeated_images: count(GapReason::RepeatedImage),
+            corrupt_frames: r.source.corrupt_frames.clone(),
             extrapolated_times: r.source.extrapolated_times,
             missing_at_end,
             overridden_fps: r.source.overridden_fps,
@@ -155,6 +159,23 @@ impl TimingReport {
                 w.push("frames are timed by counting: dropped frames shift every later time; give a video with timestamps or an image folder with --timestamps".into());
             }
         }
+        if !self.corrupt_frames.is_empty() {
+            let list: Vec<String> = self
+                .corrupt_frames
+                .iter()
+                .take(5)
+                .map(|i| i.to_string())
+                .collect();
+            w.push(format!(
+                "{} {} of the file could not be decoded whole (damaged JPEG data: frame {}{}) and {} left out as {}; a damaged frame decodes as leftover memory, often the frame before, whose tag would be an earlier pose under a later time",
+                self.corrupt_frames.len(),
+                if self.corrupt_frames.len() == 1 { "frame" } else { "frames" },
+                list.join(", "),
+                if self.corrupt_frames.len() > 5 { ", …" } else { "" },
+                if self.corrupt_frames.len() == 1 { "was" } else { "were" },
+                if self.corrupt_frames.len() == 1 { "a gap" } else { "gaps" },
+            ));
+        }
         if self.duplicate_times > 0 {
             w.push(format!(
                 "{} frames have a timestamp that is not after the previous frame's; they were not tracked",
@@ -163,8 +184,13 @@ impl TimingReport {
         }
         if self.repeated_images > 0 {
             w.push(format!(
-                "{} frames repeat the previous image byte for byte (a camera repeating a frame it missed); they were not tracked",
-                self.repeated_images
+                "{} the previous frame's image, byte for byte or where the tag is (giving its very pose: a camera repeating a frame it missed, or a damaged frame the decoder completed from the one before); {} not tracked",
+                if self.repeated_images == 1 {
+                    "1 frame repeats".to_string()
+                } else {
+                    format!("{} frames repeat", self.repeated_images)
+                },
+                if self.repeated_images == 1 { "it was" } else { "they were" }
             ));
         }
         if self.missing_at_end > 0 {

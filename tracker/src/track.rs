@@ -195,8 +195,10 @@ pub enum GapReason {
     /// The frame's timestamp is not after the previous frame's (a duplicate or a step back in
     /// the container): a pose there would have no time of its own.
     DuplicateTime,
-    /// The image is identical to the previous frame's, byte for byte: a camera that repeats a
-    /// frame when it misses one. A pose from it would belong to an earlier time.
+    /// The image is identical to the previous frame's, byte for byte (a camera that repeats a
+    /// frame when it misses one), or its tag's pixels are, giving the very same pose (a
+    /// damaged frame the decoder completed from the one before). A pose from it would belong
+    /// to an earlier time.
     RepeatedImage,
 }
 
@@ -1086,9 +1088,17 @@ pub fn track_source(
                 }
             };
             let mut previous: Option<Frame> = None;
+            let mut last_fix: Option<Pose2> = None;
             for batch in rx {
                 let out = batch.and_then(|batch| {
-                    track_batch(&mut tracker, camera, &path, batch, &mut previous)
+                    track_batch(
+                        &mut tracker,
+                        camera,
+                        &path,
+                        batch,
+                        &mut previous,
+                        &mut last_fix,
+                    )
                 });
                 let stop = !matches!(&out, Ok(b) if !b.is_empty());
                 if done_tx.send(out).is_err() || stop {
@@ -1144,6 +1154,7 @@ fn track_batch(
     path: &std::path::Path,
     batch: Vec<Frame>,
     previous: &mut Option<Frame>,
+    last_fix: &mut Option<Pose2>,
 ) -> Result<Vec<(Frame, FrameRecord)>, TrackError> {
     let mut out: Vec<(Frame, FrameRecord)> = Vec::with_capacity(batch.len());
     for frame in batch {
@@ -1164,7 +1175,7 @@ fn track_batch(
             Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
             _ => None,
         };
-        let rec = match unusable {
+        let mut rec = match unusable {
             Some(reason) => FrameRecord {
                 index: frame.index,
                 t_s: frame.t_s,
@@ -1173,12 +1184,34 @@ fn track_batch(
             },
             None => tracker.process(&frame)?,
         };
+        if let (Outcome::Fix(fix), Some(last)) = (&rec.outcome, last_fix.as_ref()) {
+            if same_pose(&fix.pose, last) {
+                rec.outcome = Outcome::Gap(GapReason::RepeatedImage);
+            }
+        }
+        if let Outcome::Fix(fix) = &rec.outcome {
+            *last_fix = Some(fix.pose);
+        } else if !matches!(rec.outcome, Outcome::Gap(GapReason::RepeatedImage)) {
+            *last_fix = None;
+        }
         out.push((frame, rec));
     }
     if let Some((last, _)) = out.last() {
         *previous = Some(last.clone());
     }
     Ok(out)
+}
+
+/// Whether a fix repeats the previous frame's to rounding (1 nm, 1 nrad). The tag's pixels
+/// of two real frames always differ by the sensor's noise, which moves a fix by micrometres
+/// even when the robot stands still; an equal fix comes from the previous frame's pixels: a
+/// damaged frame that FFmpeg's decoder completed from the frame before, or a camera that
+/// repeated part of an image.
+fn same_pose(a: &Pose2, b: &Pose2) -> bool {
+    const SAME: f64 = 1e-9;
+    (a.x_m - b.x_m).abs() < SAME
+        && (a.y_m - b.y_m).abs() < SAME
+        && odocal_core::wrap_angle(a.theta_rad - b.theta_rad).abs() < SAME
 }
 
 /// The median of `v` (none when empty).

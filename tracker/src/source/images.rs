@@ -72,6 +72,7 @@ impl FolderSource {
                 timing,
                 extrapolated_times: 0,
                 overridden_fps: None,
+                corrupt_frames: Vec::new(),
             },
             files: files.into_iter().zip(times).collect(),
             next: 0,
@@ -92,7 +93,19 @@ impl FrameSource for FolderSource {
                 .into_par_iter()
                 .map(|index| {
                     let (path, t_s) = &self.files[index];
-                    let mat = imgcodecs::imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
+                    let bytes = std::fs::read(path)
+                        .map_err(|e| TrackError::bad_input(path, format!("cannot read it: {e}")))?;
+                    let is_jpeg = bytes.starts_with(&[0xFF, 0xD8]);
+                    if is_jpeg && !super::jpeg_is_whole(&bytes) {
+                        return Err(TrackError::bad_input(
+                            path,
+                            "is not a whole JPEG image (cut short or damaged; OpenCV would decode its missing rows as leftover memory): copy it again, or delete it from the folder (with its row in timestamps.csv) to leave a gap",
+                        ));
+                    }
+                    let mat = imgcodecs::imdecode(
+                        &opencv::core::Vector::<u8>::from_slice(&bytes),
+                        imgcodecs::IMREAD_GRAYSCALE,
+                    )?;
                     if mat.empty() {
                         return Err(TrackError::bad_input(path, "cannot decode this image"));
                     }

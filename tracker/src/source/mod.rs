@@ -17,7 +17,7 @@ pub use video::VideoSource;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use opencv::core::{Mat, Vector};
+use opencv::core::Mat;
 use opencv::prelude::*;
 use opencv::{imgcodecs, imgproc, videoio};
 use rayon::prelude::*;
@@ -115,6 +115,61 @@ pub struct SourceInfo {
     pub extrapolated_times: usize,
     /// The video's own frame rate when `--fps` overrode it with another, frames/s.
     pub overridden_fps: Option<f64>,
+    /// Frames of the file that could not be decoded whole (their JPEG data is cut or
+    /// damaged), by index: left out, so the timeline has a gap there.
+    pub corrupt_frames: Vec<usize>,
+}
+
+/// Whether `bytes` hold a whole JPEG image: its start-of-image marker first and its
+/// end-of-image marker last (after any zero padding). A JPEG cut or overwritten on its way
+/// decodes without an error in OpenCV, the rows after the damage left as whatever the
+/// memory held, often the previous frame's: the tag found there is an earlier frame's pose
+/// under this frame's time.
+pub fn jpeg_is_whole(bytes: &[u8]) -> bool {
+    let end = bytes.len() - bytes.iter().rev().take_while(|b| **b == 0).count();
+    bytes.starts_with(&[0xFF, 0xD8]) && bytes[..end].ends_with(&[0xFF, 0xD9])
+}
+
+/// Decodes a JPEG `bytes` to grey levels, or None when it cannot be decoded whole: cut
+/// short ([`jpeg_is_whole`]), or damaged inside so that the decoder stops early. OpenCV does
+/// not report the latter; it leaves the rows after the damage as the buffer held them. So
+/// the image is decoded into a buffer of `width`×`height` filled with a marker value, and a
+/// last row still all of that value was not written (the rare image whose last row really is
+/// that flat grey is decoded again over another value).
+pub fn decode_jpeg_whole(
+    bytes: &[u8],
+    width: u32,
+    height: u32,
+) -> Result<Option<opencv::core::Mat>, opencv::Error> {
+    use opencv::core::{Mat, MatTraitConst, Scalar, Vector, CV_8UC1};
+    use opencv::imgcodecs;
+    if !jpeg_is_whole(bytes) {
+        return Ok(None);
+    }
+    let buf = Vector::<u8>::from_slice(bytes);
+    let last_row_is = |m: &Mat, v: u8| -> Result<bool, opencv::Error> {
+        let rows = m.rows();
+        if rows == 0 {
+            return Ok(false);
+        }
+        Ok(m.row(rows - 1)?.data_bytes()?.iter().all(|p| *p == v))
+    };
+    for marker in [91u8, 164] {
+        let mut dst = Mat::new_rows_cols_with_default(
+            height as i32,
+            width as i32,
+            CV_8UC1,
+            Scalar::all(f64::from(marker)),
+        )?;
+        let mat = imgcodecs::imdecode_to(&buf, imgcodecs::IMREAD_GRAYSCALE, &mut dst)?;
+        if mat.empty() {
+            return Ok(None);
+        }
+        if !last_row_is(&mat, marker)? {
+            return Ok(Some(mat));
+        }
+    }
+    Ok(None)
 }
 
 /// A stream of frames, read in batches.
@@ -219,6 +274,7 @@ impl MemorySource {
                 timing: "given with the frames".into(),
                 extrapolated_times: 0,
                 overridden_fps: None,
+                corrupt_frames: Vec::new(),
             },
             frames: frames.into(),
         }

@@ -120,6 +120,7 @@ impl VideoSource {
                 frame_count: (count > 0.0).then_some(count as usize),
                 kind: format!("video {fourcc}"),
                 extrapolated_times: 0,
+                corrupt_frames: Vec::new(),
                 overridden_fps: opts
                     .fps
                     .filter(|f| {
@@ -185,40 +186,50 @@ impl VideoSource {
     }
 
     fn read_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
-        let path = self.info.path.clone();
         if self.raw_jpeg {
-            let mut packets = Vec::with_capacity(n);
-            let mut m = Mat::default();
-            while packets.len() < n && self.cap.0.read(&mut m)? {
-                let bytes = if m.is_continuous() {
-                    m.data_bytes()?.to_vec()
-                } else {
-                    Vec::new()
-                };
-                let t_s = self.frame_time()?;
-                packets.push((self.next_index, t_s, bytes));
-                self.next_index += 1;
-            }
-            decode_pool().install(|| {
-                packets
-                    .into_par_iter()
-                    .map(|(index, t_s, bytes)| {
-                        let buf = Vector::<u8>::from_slice(&bytes);
-                        let mat = imgcodecs::imdecode(&buf, imgcodecs::IMREAD_GRAYSCALE)?;
-                        if mat.empty() {
-                            return Err(TrackError::bad_input(
-                                &path,
-                                format!("frame {index} is corrupt (JPEG cannot be decoded)"),
-                            ));
-                        }
-                        Ok(Frame {
-                            index,
-                            t_s,
-                            image: GrayFrame::from_mat(&mat)?,
+            let (width, height) = (self.info.width, self.info.height);
+            // A batch of damaged frames only is no end of the video: read on.
+            loop {
+                let mut packets = Vec::with_capacity(n);
+                let mut m = Mat::default();
+                while packets.len() < n && self.cap.0.read(&mut m)? {
+                    let bytes = if m.is_continuous() {
+                        m.data_bytes()?.to_vec()
+                    } else {
+                        Vec::new()
+                    };
+                    let t_s = self.frame_time()?;
+                    packets.push((self.next_index, t_s, bytes));
+                    self.next_index += 1;
+                }
+                if packets.is_empty() {
+                    return Ok(Vec::new());
+                }
+                // A damaged frame is left out, a gap in the timeline, and counted: a camera's
+                // stream loses a frame now and then, which is no reason to lose the recording.
+                let decoded: Vec<(usize, Option<Frame>)> = decode_pool().install(|| {
+                    packets
+                        .into_par_iter()
+                        .map(|(index, t_s, bytes)| {
+                            let Some(mat) = super::decode_jpeg_whole(&bytes, width, height)? else {
+                                return Ok((index, None));
+                            };
+                            let image = GrayFrame::from_mat(&mat)?;
+                            Ok((index, Some(Frame { index, t_s, image })))
                         })
-                    })
-                    .collect()
-            })
+                        .collect::<Result<_, TrackError>>()
+                })?;
+                let mut frames = Vec::with_capacity(decoded.len());
+                for (index, frame) in decoded {
+                    match frame {
+                        Some(f) => frames.push(f),
+                        None => self.info.corrupt_frames.push(index),
+                    }
+                }
+                if !frames.is_empty() {
+                    return Ok(frames);
+                }
+            }
         } else {
             let mut out = Vec::with_capacity(n);
             let mut m = Mat::default();
