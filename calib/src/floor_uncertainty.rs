@@ -272,6 +272,24 @@ impl FloorUncertaintyMap {
             .flatten()
     }
 
+    /// Whether lens models that fit the views alike map the floor at `pixel` too far apart
+    /// for the bound odocal vouches for ([`MODEL_SPREAD_SHARE`] of [`FLOOR_BOUND_MM`]).
+    pub fn models_part_at(&self, pixel: &Point2<f64>) -> bool {
+        if pixel.x < 0.0 || pixel.y < 0.0 {
+            return false;
+        }
+        let c = (pixel.x / self.cell_px as f64) as u32;
+        let r = (pixel.y / self.cell_px as f64) as u32;
+        if c >= self.cols || r >= self.rows {
+            return false;
+        }
+        self.model_spread_mm
+            .get((r * self.cols + c) as usize)
+            .copied()
+            .flatten()
+            .is_some_and(|d| d > MODEL_SPREAD_SHARE * FLOOR_BOUND_MM)
+    }
+
     /// Records, per cell that sees the floor, the largest distance between the floor point
     /// `camera` with `floor` maps it to and the one each of `others` (another lens model's
     /// calibration of the same views, with its own floor) maps it to, millimetres.

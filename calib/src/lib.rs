@@ -25,7 +25,9 @@ pub use charuco::ArucoDictionary;
 pub use detect::{detect_file, BoardView, Detection};
 pub use error::CalibError;
 pub use floor::{board_pose, fit_floor};
-pub use floor_uncertainty::{FloorReach, FloorUncertaintyMap, FLOOR_BOUND_MM, FLOOR_BOUND_SIGMAS};
+pub use floor_uncertainty::{
+    FloorReach, FloorUncertaintyMap, FLOOR_BOUND_MM, FLOOR_BOUND_SIGMAS, MODEL_SPREAD_SHARE,
+};
 pub use model::{
     intersect_plane_z, BoardToCamera, CameraModel, Distortion, FloorToCamera, Intrinsics, LensModel,
 };

@@ -7,7 +7,8 @@
 
 use nalgebra::Point2;
 use odocal_calib::{
-    CameraModel, FloorReach, FloorToCamera, FloorUncertaintyMap, FLOOR_BOUND_MM, FLOOR_BOUND_SIGMAS,
+    CameraModel, FloorReach, FloorToCamera, FloorUncertaintyMap, FLOOR_BOUND_MM,
+    FLOOR_BOUND_SIGMAS, MODEL_SPREAD_SHARE,
 };
 
 use crate::detect::quad_centre;
@@ -19,6 +20,9 @@ pub struct UnvouchedFixes {
     /// Fixes whose tag centre is seen where the floor map's 1σ, times [`FLOOR_BOUND_SIGMAS`],
     /// exceeds [`FLOOR_BOUND_MM`], or where the map sees no floor at all.
     pub outside: usize,
+    /// Of those, fixes where the σ is within the bound but lens models that fit the
+    /// calibration's views alike map the floor too far apart.
+    pub by_models: usize,
     /// All fixes of the run.
     pub fixes: usize,
     /// The largest floor-map 1σ under those fixes, millimetres (None when every one of them
@@ -39,11 +43,15 @@ impl UnvouchedFixes {
         floor: &FloorToCamera,
     ) -> Option<Self> {
         let bound_mm = FLOOR_BOUND_MM / FLOOR_BOUND_SIGMAS;
-        let (mut outside, mut fixes) = (0usize, 0usize);
+        let (mut outside, mut fixes, mut by_models) = (0usize, 0usize, 0usize);
         let mut worst_sigma_mm: Option<f64> = None;
         for c in centres_px {
             fixes += 1;
             match map.at(&c) {
+                Some(_) if map.models_part_at(&c) => {
+                    outside += 1;
+                    by_models += 1;
+                }
                 Some(s) if s <= bound_mm => {}
                 Some(s) => {
                     outside += 1;
@@ -54,6 +62,7 @@ impl UnvouchedFixes {
         }
         (outside > 0).then(|| Self {
             outside,
+            by_models,
             fixes,
             worst_sigma_mm,
             reach: map.vouched_reach(camera, floor),
@@ -80,6 +89,15 @@ impl UnvouchedFixes {
                 "the calibration alone puts their 1σ up to {s:.1} mm (in each row's sigma_x, sigma_y)"
             ),
             None => "the calibration's floor map does not reach them".to_string(),
+        };
+        let sigma = if self.by_models > 0 {
+            format!(
+                "{sigma}; under {} of them the lens models that fit the calibration's views equally well map the floor more than {} mm apart",
+                self.by_models,
+                MODEL_SPREAD_SHARE * FLOOR_BOUND_MM
+            )
+        } else {
+            sigma
         };
         let reach = match &self.reach {
             Some(r) => format!(
@@ -130,6 +148,7 @@ mod tests {
             rows: 2,
             sigma_mm: vec![Some(0.5), Some(1.0), Some(0.5), None],
             floor_boards_px: vec![],
+            model_spread_mm: vec![],
         }
     }
 
@@ -157,5 +176,17 @@ mod tests {
         let r = u.reach.expect("a reach");
         assert!(!r.whole);
         assert!((r.radius_m - 2.0 * 2f64.sqrt() / 3.0).abs() < 1e-9, "{r:?}");
+        // Lens models that part by 1.5 mm at the bottom left (σ 0.5 mm there): not vouched
+        // for.
+        let mut parted = map();
+        parted.model_spread_mm = vec![Some(0.2), Some(0.3), Some(1.5), None];
+        let u = UnvouchedFixes::count(inside, &parted, &camera, &floor).expect("one outside");
+        assert_eq!((u.outside, u.by_models, u.fixes), (1, 1, 2));
+        assert!(
+            u.warning()
+                .contains("under 1 of them the lens models that fit the calibration's views equally well map the floor more than 1 mm apart"),
+            "{}",
+            u.warning()
+        );
     }
 }
