@@ -662,3 +662,49 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
     let e = fails(&["correct", "--model", &model, p(&odo)]);
     assert!(e.contains(&format!(": {gap}")), "{e}");
 }
+
+#[test]
+fn evaluate_refuses_an_out_that_is_a_file_either_manifest_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let manifest = tours.join("manifest.json");
+    let log = tours.join("runs/run001.odometry.csv");
+    let before = std::fs::read(&log).unwrap();
+    let e = fails(&[
+        "evaluate",
+        p(&manifest),
+        "--model",
+        &model,
+        "--out",
+        p(&log),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "(listed in the manifest {}), which writing it would replace; give --out another path",
+            p(&manifest)
+        )),
+        "{e}"
+    );
+    // The calibration squares' files are inputs too, though no argument names them.
+    let held_out = reversed_recording(&tours, "run002", &dir.path().join("back"));
+    let e = fails(&[
+        "evaluate",
+        p(&held_out),
+        "--model",
+        &model,
+        "--umbmark-m",
+        "1",
+        "--umbmark-calibration",
+        p(&manifest),
+        "--out",
+        p(&log),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "(listed in the --umbmark-calibration manifest {}), which writing it would replace",
+            p(&manifest)
+        )),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&log).unwrap(), before, "the log is untouched");
+}
