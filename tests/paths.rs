@@ -661,6 +661,23 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
     }
     let e = fails(&["correct", "--model", &model, p(&odo)]);
     assert!(e.contains(&format!(": {gap}")), "{e}");
+    // A log timed in milliseconds is off at every step: the unit is named, not a dropped row
+    // between its first two rows.
+    let log = std::fs::read_to_string(tours.join("runs/run001.odometry.csv")).unwrap();
+    let mut lines = log.lines();
+    let mut ms = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let (t, rest) = l.split_once(',').unwrap();
+        ms += &format!("{},{rest}\n", t.parse::<f64>().unwrap() * 1000.0);
+    }
+    let ms_log = dir.path().join("ms.odometry.csv");
+    std::fs::write(&ms_log, ms).unwrap();
+    let e = fails(&["correct", "--model", &model, p(&ms_log)]);
+    assert!(
+        e.contains("rows are 200.000 s apart, but the robot logs every 0.200 s (1000 times that: are the times in milliseconds? they must be in seconds); is this log of the model's robot and logger?"),
+        "{e}"
+    );
+    assert!(!e.contains("dropped or extra row"), "{e}");
 }
 
 #[test]
