@@ -524,8 +524,17 @@ fn a_robot_file_of_another_robot_is_refused() {
         "distances are 0.258 times the camera's (median over 6 samples) with this robot file; a factor of 4 is a quadrature encoder's",
     );
     refused(
+        with(0.043, 48.0, 0.1),
+        "ticks_per_rev = 48 the count of the log's ticks per wheel turn (12 would fit)?",
+    );
+    refused(
         with(0.0215, 12.0, 0.1),
-        "a factor of 2 is a radius for a diameter",
+        "a factor of 2 is a radius for a diameter or an encoder counting twice or half the edges (quadrature decoding x2, x4): is wheel_diameter_m = 0.0215 the wheels' diameter (0.043 would fit), and ticks_per_rev = 12 the count of the log's ticks per wheel turn (6 would fit)?",
+    );
+    // An encoder read on both edges: the same factor, the ticks named with the value.
+    refused(
+        with(0.043, 24.0, 0.1),
+        "is wheel_diameter_m = 0.043 the wheels' diameter (0.086 would fit), and ticks_per_rev = 24 the count of the log's ticks per wheel turn (12 would fit)?",
     );
     refused(
         with(43.0, 12.0, 0.1),

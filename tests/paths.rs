@@ -530,6 +530,24 @@ fn evaluate_refuses_another_robot_as_correct_does_naming_what_differs() {
         what,
     );
     assert!(!e.contains("RobotParams"), "{e}");
+    // A fractional count differs in its decimals: printed with them, not "12 vs 12".
+    let fractional = dir.path().join("robot-12.5.json");
+    std::fs::write(
+        &fractional,
+        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":12.5,"wheel_base_m":0.1,"period_s":0.2}"#,
+    )
+    .unwrap();
+    fails_with(
+        &odocal(&[
+            "correct",
+            "--model",
+            &model,
+            p(&tours.join("runs/run001.odometry.csv")),
+            "--robot",
+            p(&fractional),
+        ]),
+        "encoder counts per revolution 12.0 in the model vs 12.5 given;",
+    );
     fails_with(
         &odocal(&[
             "correct",
