@@ -604,6 +604,31 @@ fn a_robot_file_of_another_robot_is_refused() {
         e.contains("column \"clock_offset_s\" is not one odocal reads"),
         "{e}"
     );
+    // A spreadsheet's semicolons read as one column named "id;odometry;…" to be removed.
+    let m4 = d.join("m4.csv");
+    std::fs::write(&m4, "id;odometry;trajectory\nr;a.csv;b.csv\n").unwrap();
+    let e = fails(&dataset_args(&m4, &d.join("x.json"), &[]));
+    assert!(
+        e.contains(&format!("{}:1:1: the header \"id;odometry;trajectory\" is separated by semicolons, but odocal reads comma-separated CSV; separate the columns with commas", p(&m4))),
+        "{e}"
+    );
+    // So do the logs and trajectories it lists.
+    for kind in ["odometry", "trajectory"] {
+        let file = d.join(format!("runs/run001.{kind}.csv"));
+        let text = std::fs::read_to_string(&file).unwrap();
+        std::fs::write(&file, text.replace(',', ";")).unwrap();
+        let e = fails(&dataset_args(
+            &d.join("manifest.json"),
+            &d.join("x.json"),
+            &[],
+        ));
+        assert!(
+            e.contains("is separated by semicolons, but odocal reads comma-separated CSV")
+                && e.contains(&format!("run001.{kind}.csv")),
+            "{kind}: {e}"
+        );
+        std::fs::write(&file, text).unwrap();
+    }
 }
 
 /// Notes for people are not fields odocal must use: "comment", "notes" and "description"
