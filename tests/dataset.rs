@@ -524,8 +524,17 @@ fn a_robot_file_of_another_robot_is_refused() {
         "distances are 0.258 times the camera's (median over 6 samples) with this robot file; a factor of 4 is a quadrature encoder's",
     );
     refused(
+        with(0.043, 48.0, 0.1),
+        "ticks_per_rev = 48 the count of the log's ticks per wheel turn (12 would fit)?",
+    );
+    refused(
         with(0.0215, 12.0, 0.1),
-        "a factor of 2 is a radius for a diameter",
+        "a factor of 2 is a radius for a diameter or an encoder counting twice or half the edges (quadrature decoding x2, x4): is wheel_diameter_m = 0.0215 the wheels' diameter (0.043 would fit), and ticks_per_rev = 12 the count of the log's ticks per wheel turn (6 would fit)?",
+    );
+    // An encoder read on both edges: the same factor, the ticks named with the value.
+    refused(
+        with(0.043, 24.0, 0.1),
+        "is wheel_diameter_m = 0.043 the wheels' diameter (0.086 would fit), and ticks_per_rev = 24 the count of the log's ticks per wheel turn (12 would fit)?",
     );
     refused(
         with(43.0, 12.0, 0.1),
@@ -595,6 +604,31 @@ fn a_robot_file_of_another_robot_is_refused() {
         e.contains("column \"clock_offset_s\" is not one odocal reads"),
         "{e}"
     );
+    // A spreadsheet's semicolons read as one column named "id;odometry;…" to be removed.
+    let m4 = d.join("m4.csv");
+    std::fs::write(&m4, "id;odometry;trajectory\nr;a.csv;b.csv\n").unwrap();
+    let e = fails(&dataset_args(&m4, &d.join("x.json"), &[]));
+    assert!(
+        e.contains(&format!("{}:1:1: the header \"id;odometry;trajectory\" is separated by semicolons, but odocal reads comma-separated CSV; separate the columns with commas", p(&m4))),
+        "{e}"
+    );
+    // So do the logs and trajectories it lists.
+    for kind in ["odometry", "trajectory"] {
+        let file = d.join(format!("runs/run001.{kind}.csv"));
+        let text = std::fs::read_to_string(&file).unwrap();
+        std::fs::write(&file, text.replace(',', ";")).unwrap();
+        let e = fails(&dataset_args(
+            &d.join("manifest.json"),
+            &d.join("x.json"),
+            &[],
+        ));
+        assert!(
+            e.contains("is separated by semicolons, but odocal reads comma-separated CSV")
+                && e.contains(&format!("run001.{kind}.csv")),
+            "{kind}: {e}"
+        );
+        std::fs::write(&file, text).unwrap();
+    }
 }
 
 /// Notes for people are not fields odocal must use: "comment", "notes" and "description"

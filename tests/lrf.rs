@@ -1187,12 +1187,17 @@ fn cli_untimed_scan_files_are_taken_in_number_order() {
     let per_scan = d.join("per_scan");
     std::fs::create_dir(&per_scan).expect("mkdir");
     let mut files: Vec<Vec<String>> = Vec::new();
+    // The first scan with its times, to mix with the untimed ones.
+    let mut timed = vec!["t,angle,range,intensity".to_string()];
     for r in rows {
         let k: usize = r[0].parse().expect("scan id");
         if files.len() <= k {
             files.push(vec!["angle,range,intensity".to_string()]);
         }
         files[k].push(r[2..].join(","));
+        if k == 0 {
+            timed.push(r[1..].join(","));
+        }
     }
     let mut paths: Vec<String> = (0..files.len())
         .map(|k| {
@@ -1234,6 +1239,28 @@ fn cli_untimed_scan_files_are_taken_in_number_order() {
         .collect();
     let expected: Vec<String> = (0..30).map(|k| k.to_string()).collect();
     assert_eq!(ids, expected);
+    // Timed and untimed files mixed have no order: the poses' times went backwards.
+    let timed_file = per_scan.join("timed0.csv");
+    std::fs::write(&timed_file, timed.join("\n") + "\n").expect("write");
+    let mixed = d.join("mixed.csv");
+    expect_error(
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            "--out",
+            s(&mixed),
+            s(&per_scan.join("scan1.csv")),
+            s(&timed_file),
+        ],
+        &format!(
+            "{} has scan times (a t column) but {} has none; give all the scan files times, or none",
+            s(&timed_file),
+            s(&per_scan.join("scan1.csv"))
+        ),
+    );
+    assert!(!mixed.exists());
 }
 
 /// Scans of another room against a map with no congruent configuration: every scan is lost
@@ -1326,6 +1353,23 @@ fn cli_scan_times_in_milliseconds_are_refused() {
         "the scans' median time between scans is 100 s, 1000 times the scanner's period of 0.1 s at --rate-hz 10: are the times in milliseconds?",
     );
     assert!(!poses.exists(), "nothing written");
+    // Scans in seconds from a slower scanner than --rate-hz says: the times' float noise
+    // printed as 0.10000000000000009.
+    let e = expect_error(
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(&d.join("scans.csv")),
+            "--out",
+            s(&poses),
+            "--rate-hz",
+            "1000",
+        ],
+        "the scans' median time between scans is 0.1 s, 100 times the scanner's period of 0.001 s at --rate-hz 1000: are the times in milliseconds? Give t in seconds (if these are milliseconds, 0.1 ms is 0.0001 s)",
+    );
+    assert!(!e.contains("0000000"), "{e}");
     // A truth whose clock runs 50 ms apart from the scans' after its fifth row.
     let shifted = rewrite("truth.csv", "shifted.csv", 0, &|i, t| {
         if i >= 5 {

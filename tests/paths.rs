@@ -530,6 +530,24 @@ fn evaluate_refuses_another_robot_as_correct_does_naming_what_differs() {
         what,
     );
     assert!(!e.contains("RobotParams"), "{e}");
+    // A fractional count differs in its decimals: printed with them, not "12 vs 12".
+    let fractional = dir.path().join("robot-12.5.json");
+    std::fs::write(
+        &fractional,
+        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":12.5,"wheel_base_m":0.1,"period_s":0.2}"#,
+    )
+    .unwrap();
+    fails_with(
+        &odocal(&[
+            "correct",
+            "--model",
+            &model,
+            p(&tours.join("runs/run001.odometry.csv")),
+            "--robot",
+            p(&fractional),
+        ]),
+        "encoder counts per revolution 12.0 in the model vs 12.5 given;",
+    );
     fails_with(
         &odocal(&[
             "correct",
@@ -661,4 +679,67 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
     }
     let e = fails(&["correct", "--model", &model, p(&odo)]);
     assert!(e.contains(&format!(": {gap}")), "{e}");
+    // A log timed in milliseconds is off at every step: the unit is named, not a dropped row
+    // between its first two rows.
+    let log = std::fs::read_to_string(tours.join("runs/run001.odometry.csv")).unwrap();
+    let mut lines = log.lines();
+    let mut ms = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let (t, rest) = l.split_once(',').unwrap();
+        ms += &format!("{},{rest}\n", t.parse::<f64>().unwrap() * 1000.0);
+    }
+    let ms_log = dir.path().join("ms.odometry.csv");
+    std::fs::write(&ms_log, ms).unwrap();
+    let e = fails(&["correct", "--model", &model, p(&ms_log)]);
+    assert!(
+        e.contains("rows are 200.000 s apart, but the robot logs every 0.200 s (1000 times that: are the times in milliseconds? they must be in seconds); is this log of the model's robot and logger?"),
+        "{e}"
+    );
+    assert!(!e.contains("dropped or extra row"), "{e}");
+}
+
+#[test]
+fn evaluate_refuses_an_out_that_is_a_file_either_manifest_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let manifest = tours.join("manifest.json");
+    let log = tours.join("runs/run001.odometry.csv");
+    let before = std::fs::read(&log).unwrap();
+    let e = fails(&[
+        "evaluate",
+        p(&manifest),
+        "--model",
+        &model,
+        "--out",
+        p(&log),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "(listed in the manifest {}), which writing it would replace; give --out another path",
+            p(&manifest)
+        )),
+        "{e}"
+    );
+    // The calibration squares' files are inputs too, though no argument names them.
+    let held_out = reversed_recording(&tours, "run002", &dir.path().join("back"));
+    let e = fails(&[
+        "evaluate",
+        p(&held_out),
+        "--model",
+        &model,
+        "--umbmark-m",
+        "1",
+        "--umbmark-calibration",
+        p(&manifest),
+        "--out",
+        p(&log),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "(listed in the --umbmark-calibration manifest {}), which writing it would replace",
+            p(&manifest)
+        )),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&log).unwrap(), before, "the log is untouched");
 }

@@ -420,6 +420,17 @@ fn missing_inputs_are_left_out_with_a_note() {
     let lrf = d.join("lrf");
     laser_poses(&lrf, "20");
     let poses = lrf.join("poses.csv");
+    // The demo folder's files are inputs though no argument names them.
+    let before = std::fs::read(&poses).unwrap();
+    let e = fails(&["report", "--demo-dir", p(d), "--out", p(&poses)]);
+    assert!(
+        e.contains(&format!(
+            "(read from --demo-dir {}), which writing it would replace; give --out another path",
+            p(d)
+        )),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&poses).unwrap(), before);
     let out = ok(&["report", "--lrf-poses", p(&poses), "--out", p(&html)]);
     assert!(out.contains("report: 1 sections"), "{out}");
     for t in [

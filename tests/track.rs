@@ -978,6 +978,23 @@ fn outputs_stay_out_of_the_frame_folder_and_timestamps_are_for_folders() {
         let e = common::fails(&args);
         assert!(e.contains(says) && e.contains(opt), "{e}");
     }
+    // Several tags write a file per id next to --out: inside the folder all the same.
+    for tags in ["0", "0,3", "all"] {
+        let e = common::fails(&[
+            "track",
+            p(&frames),
+            "--camera",
+            p(&camera),
+            "--tags",
+            tags,
+            "--out",
+            p(&frames.join("t.csv")),
+        ]);
+        assert!(
+            e.contains("lies inside") && e.contains("(a frame folder tracked)"),
+            "{tags}: {e}"
+        );
+    }
     assert_eq!(listing(), before);
     synth_track(d, 6, 1);
     let e = common::fails(&[

@@ -45,6 +45,20 @@ pub fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, FileError> 
         return Ok(None);
     }
     let header = rows.remove(0);
+    // A spreadsheet set to a decimal comma writes `;` between columns: the whole header is
+    // then one column, which each reader would name as a column it does not know.
+    if let (1, Some(h)) = (header.1.len(), header.1.get(0)) {
+        if h.contains(';') {
+            return Err(FileError::parse(
+                name,
+                header.0,
+                1,
+                format!(
+                    "the header \"{h}\" is separated by semicolons, but odocal reads comma-separated CSV; separate the columns with commas (and write decimals with a point)"
+                ),
+            ));
+        }
+    }
     Ok(Some(CsvTable { header, rows }))
 }
 

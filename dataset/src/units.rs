@@ -165,15 +165,22 @@ pub fn robot_scale_mismatch(
         return Ok(None);
     };
     let near = |k: f64| (scale / k - 1.0).abs() < 0.1;
-    let hint = if near(4.0) || near(0.25) {
+    // The odometry's distances scale with the diameter and inversely with the ticks per
+    // turn: the value of either that would remove the factor `k`.
+    let fits = |k: f64| (robot.wheel_diameter_m / k, robot.ticks_per_rev * k);
+    let hint = if let Some(k) = [4.0, 0.25].into_iter().find(|&k| near(k)) {
         format!(
-            "a factor of 4 is a quadrature encoder's four edges per line: is ticks_per_rev = {} the count the log's ticks use?",
-            robot.ticks_per_rev
+            "a factor of 4 is a quadrature encoder's four edges per line: is ticks_per_rev = {} the count of the log's ticks per wheel turn ({} would fit)?",
+            robot.ticks_per_rev,
+            fits(k).1
         )
-    } else if near(2.0) || near(0.5) {
+    } else if let Some(k) = [2.0, 0.5].into_iter().find(|&k| near(k)) {
+        // Both are common: a radius written for the diameter, and an encoder decoded on both
+        // edges of its lines (quadrature x2) or on one of them.
+        let (diameter, ticks) = fits(k);
         format!(
-            "a factor of 2 is a radius for a diameter: is wheel_diameter_m = {} the wheels' diameter?",
-            robot.wheel_diameter_m
+            "a factor of 2 is a radius for a diameter or an encoder counting twice or half the edges (quadrature decoding x2, x4): is wheel_diameter_m = {} the wheels' diameter ({diameter} would fit), and ticks_per_rev = {} the count of the log's ticks per wheel turn ({ticks} would fit)?",
+            robot.wheel_diameter_m, robot.ticks_per_rev
         )
     } else {
         format!(

@@ -33,6 +33,21 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
         .iter()
         .map(|p| Ok((p, read_scans_csv(p)?)))
         .collect::<Result<_, LrfError>>()?;
+    // Timed and untimed files have no common order: the untimed ones' poses would be put
+    // among the timed ones' wherever they were given, times going backwards.
+    let timed = files
+        .iter()
+        .find(|(_, s)| s.first().is_some_and(|s| s.t_s.is_some()));
+    let untimed = files
+        .iter()
+        .find(|(_, s)| s.first().is_some_and(|s| s.t_s.is_none()));
+    if let (Some((t, _)), Some((u, _))) = (timed, untimed) {
+        return Err(LrfError::Config(format!(
+            "{} has scan times (a t column) but {} has none; give all the scan files times, or none",
+            t.display(),
+            u.display()
+        )));
+    }
     // Files of timed scans go in the order of their times, whatever order a shell glob gave
     // them in (scan10.csv before scan2.csv); untimed ones in natural name order. Files whose
     // times interleave are refused below.
@@ -106,13 +121,24 @@ pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
     let median = dt[dt.len() / 2];
     let period = 1.0 / rate_hz;
     if median > MAX_INTERVAL_PERIODS * period {
+        let (m, p) = (six_digits(median), six_digits(period));
         return Err(LrfError::Config(format!(
-            "the scans' median time between scans is {median} s, {:.0} times the scanner's period of {period} s at --rate-hz {rate_hz}: are the times in milliseconds? Give t in seconds (if these are milliseconds, {median} ms is {:.4} s), or the scanner's --rate-hz",
+            "the scans' median time between scans is {m} s, {:.0} times the scanner's period of {p} s at --rate-hz {rate_hz}: are the times in milliseconds? Give t in seconds (if these are milliseconds, {m} ms is {} s), or the scanner's --rate-hz",
             median / period,
-            median / 1000.0
+            six_digits(median / 1000.0)
         )));
     }
     Ok(())
+}
+
+/// `x` rounded to six significant digits, shortest form: a difference of two times carries
+/// the float's noise in its last digits (0.10000000000000009 for 0.1).
+fn six_digits(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return x.to_string();
+    }
+    let scale = 10f64.powi(5 - x.abs().log10().floor() as i32);
+    ((x * scale).round() / scale).to_string()
 }
 
 /// True if `a` and `b` name one file (the same path, or two paths to it).

@@ -10,7 +10,7 @@ use odocal_trainer::evaluate::{evaluate_paths, PathRecording, Reckoner};
 use odocal_trainer::umbmark::{SquareError, Umbmark};
 use odocal_trainer::PathModelFile;
 
-use crate::output::{check_output_file, write_json};
+use crate::output::{check_output_file, check_output_not_input, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -113,6 +113,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     } else if args.umbmark_calibration.is_some() {
         bail!("--umbmark-calibration needs --umbmark-m (the squares' side, metres)");
+    }
+    // The logs and trajectories the manifests list are not arguments, so the check of
+    // --out against the arguments cannot see them.
+    if let Some(out) = &args.out {
+        let manifests = std::iter::once(("the manifest", &args.manifest)).chain(
+            args.umbmark_calibration
+                .iter()
+                .map(|c| ("the --umbmark-calibration manifest", c)),
+        );
+        for (which, path) in manifests {
+            let inputs = Manifest::read(path)?.files();
+            let whose = format!("listed in {which} {}", path.display());
+            check_output_not_input(out, "--out", &inputs, &whose)?;
+        }
     }
     let model = PathModelFile::read(&args.model)?;
     if let Some(w) = model.unrecorded_directions(&args.model.display().to_string()) {

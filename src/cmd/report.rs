@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::bail;
 use odocal_report::{assemble, ReportInputs};
 
-use crate::output::{check_output_dir, check_output_file, write_atomic};
+use crate::output::{check_output_dir, check_output_file, check_output_not_input, write_atomic};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -129,6 +129,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let lrf_map = input(&a.lrf_map, demo, "lrf/map.json")?;
 
     check_output_file(&a.out, "--out")?;
+    // The files found in --demo-dir are not arguments, so the check of --out against the
+    // arguments cannot see them (`--demo-dir d --out d/model.json`).
+    if let Some(d) = demo {
+        let read: Vec<PathBuf> = [
+            &camera,
+            &calib_truth,
+            &dataset,
+            &model,
+            &train_report,
+            &lrf_poses,
+            &lrf_truth,
+            &lrf_map,
+        ]
+        .into_iter()
+        .flatten()
+        .cloned()
+        .chain(input(&None, demo, "track/report.json")?)
+        .collect();
+        let whose = format!("read from --demo-dir {}", d.display());
+        check_output_not_input(&a.out, "--out", &read, &whose)?;
+    }
     if let Some(d) = &a.svg_dir {
         check_output_dir(d, "--svg-dir")?;
     }

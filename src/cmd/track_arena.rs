@@ -16,7 +16,9 @@ use odocal_tracker::{
     TrackOptions, TrackResult,
 };
 
-use crate::output::{check_output_file, progress, write_atomic, write_json};
+use crate::output::{
+    check_output_file, check_output_not_input, progress, write_atomic, write_json,
+};
 
 /// The options of `odocal track` for several robots and several cameras.
 #[derive(clap::Args)]
@@ -77,6 +79,29 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
     if let TagSelection::Ids(ids) = &selection {
         for id in ids {
             check_output_file(&out_path(&args.out, *id, single), "--out")?;
+        }
+    }
+    // A frame folder is read whole: an output inside it would be read as a frame next time,
+    // as with one tag in one video.
+    let folders: Vec<PathBuf> = std::iter::once(&args.video)
+        .chain(&m.more_videos)
+        .filter(|v| v.is_dir())
+        .cloned()
+        .collect();
+    if !folders.is_empty() {
+        let mut outputs: Vec<(PathBuf, &str)> = match &selection {
+            TagSelection::Ids(ids) => ids
+                .iter()
+                .map(|id| (out_path(&args.out, *id, single), "--out"))
+                .collect(),
+            // Every id's file lands next to --out.
+            _ => vec![(args.out.clone(), "--out")],
+        };
+        if let Some(r) = &m.arena_report {
+            outputs.push((r.clone(), "--arena-report"));
+        }
+        for (path, option) in &outputs {
+            check_output_not_input(path, option, &folders, "a frame folder tracked")?;
         }
     }
     for (flag, given) in [

@@ -39,11 +39,6 @@ impl ModelFile {
         allow_extrapolation: bool,
     ) -> Result<CorrectedRun, TrainError> {
         self.check_compatible(FEATURE_RULE, robot)?;
-        if let Some(why) = log.period_mismatch(robot.period_s) {
-            return Err(TrainError::Model(format!(
-                "{name}: {why}; is this log of the model's robot and logger?"
-            )));
-        }
         crate::path_model_file::check_period(log, robot, name)?;
         let f = features_from_log(log, robot)
             .map_err(|e| TrainError::Dataset(format!("{name}: {e}")))?;

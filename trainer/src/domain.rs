@@ -295,12 +295,13 @@ pub fn check_same_robot(
         .iter()
         .filter(|(_, m, g, ..)| !close(*m, *g))
         .map(|(name, m, g, scale, unit, digits)| {
-            format!(
-                "{name} {:.d$}{unit} in the model vs {:.d$}{unit} given",
-                m * scale,
-                g * scale,
-                d = digits
-            )
+            let (m, g) = (m * scale, g * scale);
+            // Values that differ are printed so that they do (12.5 is not "12").
+            let mut d = *digits;
+            while d < 9 && format!("{m:.d$}") == format!("{g:.d$}") {
+                d += 1;
+            }
+            format!("{name} {m:.d$}{unit} in the model vs {g:.d$}{unit} given")
         })
         .collect();
     if differ.is_empty() {

@@ -102,12 +102,20 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
 /// Refuses a log with a step off the robot's period (`name` names the log): a model takes
 /// every step for one period (a path model each step, a straight-run model the run's
 /// per-step speeds), and its training had none off it, so a gap (two rows lost) would read as
-/// one step three times as fast and be judged, corrected and scored as such.
+/// one step three times as fast and be judged, corrected and scored as such. A log off the
+/// period throughout is named as such first.
 pub(crate) fn check_period(
     log: &OdometryLog,
     robot: &RobotParams,
     name: &str,
 ) -> Result<(), TrainError> {
+    // A log whose every step is off (times in milliseconds, another logger) is that, not a
+    // dropped row at its first step.
+    if let Some(why) = log.period_mismatch(robot.period_s) {
+        return Err(TrainError::Model(format!(
+            "{name}: {why}; is this log of the model's robot and logger?"
+        )));
+    }
     match log.off_period_step(0, log.len(), robot.period_s, 0.05) {
         Some((k, dt)) => Err(TrainError::Model(format!(
             "{name}: {}; record the run again, or leave it out",
