@@ -348,7 +348,7 @@ pub fn mount_warnings(
     mount: &odocal_core::TagToRobot,
 ) -> Vec<String> {
     use odocal_core::{wrap_angle, MotionAgainstHeading, MountFit};
-    use std::f64::consts::{FRAC_PI_2, PI};
+    use std::f64::consts::PI;
     let subject = if mount.is_identity() {
         "the tag"
     } else {
@@ -375,21 +375,17 @@ pub fn mount_warnings(
         return Vec::new();
     };
     let mut warnings = Vec::new();
-    if let Some(mut yaw) = fit.named_yaw_rad() {
-        // The line of motion says nothing of which way along it is forwards: a robot that
-        // also reversed is taken to have a tag turned less than 90°.
-        if yaw.abs() > FRAC_PI_2 {
-            yaw = wrap_angle(yaw + PI);
-        }
-        if yaw.abs() > MountFit::NAMED_YAW_RAD {
-            warnings.push(format!(
-                "{subject} is turned {:+.1}° (± {:.1}°, 1σ, over {} steps) from the direction the robot drives, where a wheeled robot drives along its heading: {}",
-                yaw.to_degrees(),
-                fit.yaw_sigma_rad.to_degrees(),
-                fit.steps,
-                yaw_fix(mount.0.theta_rad + yaw)
-            ));
-        }
+    // The fit already takes the robot to have driven forwards more than backwards, as the
+    // check above does; folding its yaw into ±90° turned a tag at +90.1° into "-89.9°".
+    let yaw = fit.named_yaw_rad();
+    if let Some(yaw) = yaw {
+        warnings.push(format!(
+            "{subject} is turned {:+.1}° (± {:.1}°, 1σ, over {} steps) from the direction the robot drives, where a wheeled robot drives along its heading: {}",
+            yaw.to_degrees(),
+            fit.yaw_sigma_rad.to_degrees(),
+            fit.steps,
+            yaw_fix(mount.0.theta_rad + yaw)
+        ));
     }
     if let Some(ahead) = fit.named_ahead_m() {
         warnings.push(format!(
