@@ -944,6 +944,133 @@ fn a_tag_off_the_axle_is_named_and_taken_off() {
     }
 }
 
+/// Tracks `dir`'s PNG frames with `extra` options: the warnings, and the position and heading
+/// RMS against its truth.
+fn track_png(dir: &std::path::Path, extra: &[&str]) -> (String, f64, f64) {
+    let (frames, camera, out) = (
+        dir.join("frames"),
+        dir.join("camera.json"),
+        dir.join("out.csv"),
+    );
+    let mut args = vec![
+        "track",
+        p(&frames),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+    ];
+    args.extend(extra);
+    let res = odocal(&args);
+    succeeded(&res);
+    let est = Trajectory::read_csv(&out).unwrap();
+    let truth = Trajectory::read_csv(&dir.join("truth.csv")).unwrap();
+    let (pos_rms, head_rms, n) = errors(&est, &truth);
+    assert!(n >= 55, "{n} fixes");
+    (
+        String::from_utf8_lossy(&res.stderr).into_owned(),
+        pos_rms,
+        head_rms,
+    )
+}
+
+/// The --tag-yaw the motion names is the one that turns the heading back, for a tag turned
+/// either way: a tag at +90° was told "give --tag-yaw -90.0", and following that put every
+/// heading 180° off. Given a wrong yaw, the advice is the right one in full.
+#[test]
+fn the_tag_yaw_advised_turns_the_heading_back() {
+    for yaw in ["90", "-90", "30", "-30", "180"] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        synth_track_with(d, 60, 2, &["--video", "png", "--tag-yaw", yaw]);
+        let truth_deg: f64 = yaw.parse().unwrap();
+        let (err, _, _) = track_png(d, &[]);
+        let advised = number_after(&err, "give --tag-yaw ");
+        assert!(
+            wrap_angle((advised - truth_deg).to_radians()).abs() < 1f64.to_radians(),
+            "{yaw}: {err}"
+        );
+        let given = format!("--tag-yaw={advised}");
+        let (err, _, head_rms) = track_png(d, &[&given]);
+        println!(
+            "tag at {yaw}°: advised --tag-yaw {advised}, following it: heading RMS {:.3}°",
+            head_rms.to_degrees()
+        );
+        assert!(
+            head_rms < 0.5f64.to_radians(),
+            "{yaw}: {head_rms} rad\n{err}"
+        );
+        assert!(!err.contains("give --tag-yaw"), "{yaw}: {err}");
+        let wrong = format!("--tag-yaw={}", truth_deg - 180.0);
+        let (err, _, _) = track_png(d, &[&wrong]);
+        let again = number_after(&err, "give --tag-yaw ");
+        assert!(
+            wrap_angle((again - truth_deg).to_radians()).abs() < 1f64.to_radians(),
+            "{yaw} given {wrong}: {err}"
+        );
+    }
+}
+
+/// A tag both off the axle and turned: the yaw and the distance ahead are both named, the
+/// latter along the robot's axes also when an offset was given under the wrong yaw (a 90°
+/// tag given 0.1,0 and no yaw was told "0.200"), and following both, with the sideways
+/// offset measured, gives the axle's trajectory.
+#[test]
+fn a_tag_off_the_axle_and_turned_is_named_in_the_robots_frame() {
+    for (yaw, yaw_deg) in [("90", 90.0), ("30", 30.0)] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        synth_track_with(
+            d,
+            60,
+            2,
+            &[
+                "--video",
+                "png",
+                "--tag-offset",
+                "0.1,0.03",
+                "--tag-yaw",
+                yaw,
+            ],
+        );
+        let (err, _, _) = track_png(d, &[]);
+        let advised_yaw = number_after(&err, "give --tag-yaw ");
+        let advised_ahead = number_after(&err, "give --tag-offset ");
+        assert!((advised_yaw - yaw_deg).abs() < 1.0, "{yaw}: {err}");
+        assert!((advised_ahead - 0.1).abs() < 0.01, "{yaw}: {err}");
+        // The offset alone given first: the rest is still the true mount.
+        let (err, _, _) = track_png(d, &["--tag-offset", "0.1,0.0"]);
+        let again_yaw = number_after(&err, "give --tag-yaw ");
+        // The yaw advised explains the sideways swing: the offset given stands, or if named
+        // is still the one along the robot's axes.
+        let again_ahead = if err.contains("give --tag-offset ") {
+            number_after(&err, "give --tag-offset ")
+        } else {
+            0.1
+        };
+        assert!(
+            (again_yaw - yaw_deg).abs() < 1.0,
+            "{yaw} given 0.1,0: {err}"
+        );
+        assert!((again_ahead - 0.1).abs() < 0.01, "{yaw} given 0.1,0: {err}");
+        let (offset, turn) = (
+            format!("{advised_ahead},0.03"),
+            format!("--tag-yaw={advised_yaw}"),
+        );
+        let (err, pos_rms, head_rms) = track_png(d, &["--tag-offset", &offset, &turn]);
+        println!(
+            "tag at 0.1,0.03, {yaw}°: advised --tag-yaw {advised_yaw} --tag-offset {advised_ahead}; given 0.1,0 first: {again_yaw}°, {again_ahead} m; following with 0.03 sideways: position RMS {:.3} mm, heading RMS {:.3}°",
+            pos_rms * 1e3,
+            head_rms.to_degrees()
+        );
+        assert!(pos_rms < 2e-3, "{yaw}: position RMS {pos_rms} m\n{err}");
+        assert!(
+            head_rms < 0.5f64.to_radians(),
+            "{yaw}: {head_rms} rad\n{err}"
+        );
+    }
+}
+
 /// A frame folder is read whole, so no output goes into it (an overlay written there used to
 /// break the next run: "has no timestamp for image overlay_000000.png"), and a timestamps file
 /// is refused for a video, which carries its own times, rather than ignored.

@@ -348,7 +348,7 @@ pub fn mount_warnings(
     mount: &odocal_core::TagToRobot,
 ) -> Vec<String> {
     use odocal_core::{wrap_angle, MotionAgainstHeading, MountFit};
-    use std::f64::consts::{FRAC_PI_2, PI};
+    use std::f64::consts::PI;
     let subject = if mount.is_identity() {
         "the tag"
     } else {
@@ -375,30 +375,39 @@ pub fn mount_warnings(
         return Vec::new();
     };
     let mut warnings = Vec::new();
-    if let Some(mut yaw) = fit.named_yaw_rad() {
-        // The line of motion says nothing of which way along it is forwards: a robot that
-        // also reversed is taken to have a tag turned less than 90°.
-        if yaw.abs() > FRAC_PI_2 {
-            yaw = wrap_angle(yaw + PI);
-        }
-        if yaw.abs() > MountFit::NAMED_YAW_RAD {
-            warnings.push(format!(
-                "{subject} is turned {:+.1}° (± {:.1}°, 1σ, over {} steps) from the direction the robot drives, where a wheeled robot drives along its heading: {}",
-                yaw.to_degrees(),
-                fit.yaw_sigma_rad.to_degrees(),
-                fit.steps,
-                yaw_fix(mount.0.theta_rad + yaw)
-            ));
-        }
+    // The fit already takes the robot to have driven forwards more than backwards, as the
+    // check above does; folding its yaw into ±90° turned a tag at +90.1° into "-89.9°".
+    let yaw = fit.named_yaw_rad();
+    if let Some(yaw) = yaw {
+        warnings.push(format!(
+            "{subject} is turned {:+.1}° (± {:.1}°, 1σ, over {} steps) from the direction the robot drives, where a wheeled robot drives along its heading: {}",
+            yaw.to_degrees(),
+            fit.yaw_sigma_rad.to_degrees(),
+            fit.steps,
+            yaw_fix(mount.0.theta_rad + yaw)
+        ));
     }
-    if let Some(ahead) = fit.named_ahead_m() {
+    if let Some(ahead) = fit.ahead_m {
+        // The trajectory's point is the true mount after the given one was taken off along
+        // the tag's axes as the given yaw has them: with the rest of the yaw put on, the
+        // offset given turns by it before the fitted distance ahead adds to it (a 90° tag
+        // given 0.1,0 read "0.200" where 0.100 was right). The path cannot show the sideways
+        // offset, so the one given is kept. A swing that the yaw advised explains leaves the
+        // offset given as it is, and is not named.
+        let (s, c) = yaw.unwrap_or(0.0).sin_cos();
+        let advised_ahead_m = ahead + c * mount.0.x_m - s * mount.0.y_m;
+        let change_m = (advised_ahead_m - mount.0.x_m).abs();
+        let named_change = change_m > MountFit::NAMED_AHEAD_M && change_m > 5.0 * fit.ahead_sigma_m;
+        if !named_change {
+            return warnings;
+        }
         warnings.push(format!(
             "{subject} slips sideways on turns as a point {:.1} cm {} the wheel axle does (± {:.1} cm, 1σ, from {:.0}° of turning), where the midpoint of a differential drive's axle never slips: if that is where the tag sits, give --tag-offset {:.3},{:.3} (metres ahead of and to the left of the axle midpoint; the path shows only the distance ahead, so measure the sideways one) so the trajectory is the axle's, as the odometry is; until then positions on turns are off by up to {:.1} cm. Skid-steered robots slip on every turn and may show this too",
             100.0 * ahead.abs(),
             if ahead > 0.0 { "ahead of" } else { "behind" },
             100.0 * fit.ahead_sigma_m,
             fit.turned_rad.to_degrees(),
-            mount.0.x_m + ahead,
+            advised_ahead_m,
             mount.0.y_m,
             100.0 * ahead.abs(),
         ));
