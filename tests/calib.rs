@@ -425,6 +425,43 @@ fn views_from_two_cameras_are_flagged() {
         err.contains("warning: the views do not fit one camera") && err.contains("Worst views:"),
         "{err}"
     );
+    // The two folders given as they are: their views share file names, so the worst views
+    // are named by path, not as a `view_03.png` that could be either camera's.
+    let both: Vec<String> = [images(&a, "view_"), images(&b, "view_")].concat();
+    let mut args = vec!["calibrate", "--board", "9x6", "--square", "0.05", "--out"];
+    let out2 = dir.path().join("both.json");
+    args.push(out2.to_str().unwrap());
+    args.extend(both.iter().map(String::as_str));
+    let res = odocal(&args);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&res.stdout),
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let worst = text
+        .lines()
+        .find(|l| l.contains("worst views (RMS reprojection)"))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(
+        worst.contains(&format!("{}/view_", a.display()))
+            || worst.contains(&format!("{}/view_", b.display())),
+        "{worst}"
+    );
+    // A folder given where its images belong is named as a folder, not as missing.
+    let res = odocal(&[
+        "calibrate",
+        a.to_str().unwrap(),
+        "--square",
+        "0.05",
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert_eq!(res.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("is a folder, not an image: pass the images in it"),
+        "{err}"
+    );
     // Either camera alone says nothing of the kind.
     let res = calibrate(&b, &dir.path().join("b.json"), "9x6", "0.05");
     succeeded(&res);

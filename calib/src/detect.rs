@@ -101,6 +101,15 @@ pub fn check_image_file(path: &Path) -> Result<(), CalibError> {
 /// Reads an image as 8-bit grey, with a clear error for unreadable files.
 pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
     let name = path.display().to_string();
+    if path.is_dir() {
+        return Err(CalibError::BadFile {
+            reason: format!(
+                "is a folder, not an image: pass the images in it ({}/*.png)",
+                name.trim_end_matches('/')
+            ),
+            path: name,
+        });
+    }
     if !path.is_file() {
         return Err(CalibError::BadFile {
             path: name,

@@ -213,7 +213,7 @@ fn worst_views(views: &[crate::ViewResidual], n: usize) -> Vec<String> {
     worst
         .iter()
         .take(n)
-        .map(|v| format!("{} {:.3} px", short(&v.image), error(v)))
+        .map(|v| format!("{} {:.3} px", name_among(views, &v.image), error(v)))
         .collect()
 }
 
@@ -703,7 +703,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
     let list: Vec<String> = worst
         .iter()
         .take(3)
-        .map(|v| format!("{} {:.3} px", short(&v.image), v.rms_px))
+        .map(|v| format!("{} {:.3} px", name_among(&f.views, &v.image), v.rms_px))
         .collect();
     out.push(format!(
         "  worst views (RMS reprojection): {}",
@@ -754,6 +754,17 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
         );
     }
     out
+}
+
+/// A view's image by its file name, or by its whole path when another view's file has the
+/// same name (views from two folders, the very case the worst-views lists warn of).
+fn name_among(views: &[crate::ViewResidual], image: &str) -> String {
+    let name = short(image);
+    if views.iter().filter(|v| short(&v.image) == name).count() > 1 {
+        image.to_string()
+    } else {
+        name
+    }
 }
 
 fn short(p: &str) -> String {
