@@ -300,4 +300,41 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("in the order of the arena's cameras"), "{e}");
     assert!(!d.join("swapped_tag0.csv").exists());
+    // A camera started 0.1 s late (its timestamps shifted): beyond a search of ±0.05 s it is
+    // named with the search's width and the option that widens it; within ±0.2 s it fuses.
+    let late = d.join("late_c3");
+    std::fs::create_dir_all(&late).unwrap();
+    for e in std::fs::read_dir(&videos[3]).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), late.join(e.file_name())).unwrap();
+    }
+    let stamps = std::fs::read_to_string(late.join("timestamps.csv")).unwrap();
+    let shifted: Vec<String> = stamps
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match (i, l.split_once(',')) {
+            (0, _) | (_, None) => l.to_string(),
+            (_, Some((f, t))) => format!("{f},{}", t.parse::<f64>().unwrap() + 0.1),
+        })
+        .collect();
+    std::fs::write(late.join("timestamps.csv"), shifted.join("\n") + "\n").unwrap();
+    let with_late = |search: &str| {
+        let mut a = vec!["track", "--arena", p(&arena)];
+        a.extend(videos[..3].iter().map(String::as_str));
+        a.push(p(&late));
+        let out3 = d.join(format!("late{search}.csv"));
+        a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out3)]);
+        a.extend(["--max-clock-offset-s", search]);
+        odocal(&a)
+    };
+    let o = with_late("0.05");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("clock offsets within ±0.05 s searched") && e.contains("--max-clock-offset-s"),
+        "{e}"
+    );
+    succeeded(&with_late("0.2"));
+    let e = String::from_utf8_lossy(&with_late("-1").stderr).into_owned();
+    assert!(e.contains("--max-clock-offset-s -1"), "{e}");
 }

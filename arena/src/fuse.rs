@@ -296,9 +296,16 @@ pub fn estimate_clock_offsets(
         .collect();
     if !missing.is_empty() {
         return Err(ArenaError::Refused(format!(
-            "camera {} never saw a robot at the same time as a camera tied to the first (at least {} simultaneous fixes needed): its clock offset is unknown; drive a robot through its overlap with another camera, and give the videos in the order of the arena's cameras (a video given in another camera's place is mapped through that camera's calibration, so no robot lines up)",
+            "{} {} never saw a robot at the same time as a camera tied to the first (at least {} simultaneous fixes needed, clock offsets within ±{} s searched): {} unknown; drive a robot through its overlap with another camera, give the videos in the order of the arena's cameras (a video given in another camera's place is mapped through that camera's calibration, so no robot lines up), and if the cameras were started further apart, widen the search (--max-clock-offset-s)",
+            if missing.len() == 1 { "camera" } else { "cameras" },
             missing.join(", "),
-            opts.min_matches
+            opts.min_matches,
+            opts.max_offset_s,
+            if missing.len() == 1 {
+                "its clock offset is"
+            } else {
+                "their clock offsets are"
+            }
         )));
     }
     // The fitted offsets: every camera but the first that has a first guess.

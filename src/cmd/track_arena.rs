@@ -45,6 +45,11 @@ pub struct MultiArgs {
     /// against its true path and the clock offsets against the true ones.
     #[arg(long, requires = "arena")]
     pub arena_truth: Option<PathBuf>,
+    /// With --arena: the largest clock offset between two cameras searched, seconds (either
+    /// way). Cameras started together are milliseconds apart; cameras started by hand can be
+    /// seconds apart (the search takes longer the wider it is).
+    #[arg(long, requires = "arena", default_value_t = 1.0)]
+    pub max_clock_offset_s: f64,
 }
 
 impl MultiArgs {
@@ -53,6 +58,10 @@ impl MultiArgs {
         self.tags.is_some() || self.arena.is_some()
     }
 }
+
+/// The widest clock search `--max-clock-offset-s` takes, seconds: a minute covers cameras
+/// started by hand one after another; wider, trim the videos to a common start.
+const MAX_CLOCK_OFFSET_S: f64 = 60.0;
 
 /// The trajectory file of tag `id`: `--out` itself for a single id, else `STEM_tagID.EXT`.
 fn out_path(out: &Path, id: u32, single: bool) -> PathBuf {
@@ -244,6 +253,14 @@ fn track_arena(
     if args.fps.is_some() || args.timestamps.is_some() {
         bail!("--fps and --timestamps are for one video; arena videos carry their own timestamps (a frame folder its timestamps.csv)");
     }
+    if !(m.max_clock_offset_s.is_finite()
+        && (0.0..=MAX_CLOCK_OFFSET_S).contains(&m.max_clock_offset_s))
+    {
+        bail!(
+            "--max-clock-offset-s {}: the cameras' clocks are searched 0 to {MAX_CLOCK_OFFSET_S} s apart; give the seconds between the cameras' starts, or less",
+            m.max_clock_offset_s
+        );
+    }
     let arena = ArenaFile::load(arena_path)?;
     let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
         .chain(m.more_videos.iter().cloned())
@@ -264,7 +281,10 @@ fn track_arena(
         }
     }
     let fps = frame_rate(&results, &videos)?;
-    let fuse = FuseOptions::for_fps(fps);
+    let fuse = FuseOptions {
+        max_offset_s: m.max_clock_offset_s,
+        ..FuseOptions::for_fps(fps)
+    };
     let mut tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
     // The cameras fuse the tags' positions; the robots' are taken off the mount after.
     for r in &mut tracking.robots {
