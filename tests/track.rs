@@ -606,6 +606,33 @@ fn tag_ids_outside_the_family_are_refused_at_once() {
     fails_with(&track(&["--tag-id", "586"]), "ids seen: 0 (");
 }
 
+/// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
+/// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
+/// camera file. The family is named, and the ids listed are the most seen few.
+#[test]
+fn the_wrong_family_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 20, 1, &["--video", "png"]);
+    let res = odocal(&[
+        "track",
+        p(&d.join("frames")),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+        "--family",
+        "tag16h5",
+    ]);
+    assert_eq!(res.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        e.contains("none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family"),
+        "{e}"
+    );
+    assert!(e.contains(" more;"), "{e}");
+}
+
 /// --tag-yaw is checked on its own: NaN and infinity were blamed on "--tag-offset 0,0", and
 /// 1e300 degrees was taken (wrapped to some angle).
 #[test]

@@ -1009,8 +1009,22 @@ impl TrackResult {
                 format!("{} {}{figures}", frames.len(), reason.as_str())
             })
             .collect();
+        // One robot carries one tag: many ids, none with a tag's shape, are another family's
+        // tags (or the floor's texture) read as this one's small codes.
+        let family_hint = if self.seen_ids.len() >= FALSE_FAMILY_IDS
+            && reasons
+                .first()
+                .is_some_and(|(r, _)| *r == GapReason::BadGeometry)
+        {
+            format!(
+                "; {} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family (tag36h11 unless the tag says otherwise)",
+                self.seen_ids.len()
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "tag {} ({}) was detected but never accepted in {n} frames of {}: {}; {}",
+            "tag {} ({}) was detected but never accepted in {n} frames of {}: {}; {}{family_hint}",
             opts.tag_id,
             opts.family,
             path.display(),
@@ -1024,14 +1038,28 @@ impl TrackResult {
         if self.seen_ids.is_empty() {
             return "no tag of this family was seen at all".into();
         }
-        let list: Vec<String> = self
-            .seen_ids
+        // The most seen first when there are many (false readings of another family give
+        // dozens).
+        let mut ids: Vec<(&u32, &usize)> = self.seen_ids.iter().collect();
+        const SHOWN: usize = 8;
+        if ids.len() > SHOWN {
+            ids.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+        }
+        let list: Vec<String> = ids
             .iter()
+            .take(SHOWN)
             .map(|(id, n)| format!("{id} ({n} frames)"))
             .collect();
-        format!("ids seen: {}", list.join(", "))
+        let more = match ids.len().saturating_sub(SHOWN) {
+            0 => String::new(),
+            k => format!(" and {k} more"),
+        };
+        format!("ids seen: {}{more}", list.join(", "))
     }
 }
+
+/// Distinct ids seen in a video of one robot, none accepted, that point at the wrong family.
+const FALSE_FAMILY_IDS: usize = 4;
 
 /// The video's frames must be the size the camera was calibrated at.
 pub(crate) fn check_frame_size(info: &SourceInfo, camera: &CameraModel) -> Result<(), TrackError> {
