@@ -259,6 +259,17 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     args.extend(cameras.iter().map(String::as_str));
     let shared = d.join("shared");
     args.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    // A square ten times the board's: the failure names --square beside its other causes.
+    let mut wrong = args.clone();
+    wrong.extend(["--square", "0.7"]);
+    let e = fails(&wrong);
+    assert!(
+        e.contains(
+            "--square 0.7 m is not the 0.07 m of the board the cameras were calibrated with"
+        ),
+        "{e}"
+    );
+    assert!(!arena.exists());
     ok(&args);
     let videos: Vec<String> = (0..4)
         .map(|k| p(&d.join(format!("video_c{k}"))).to_string())

@@ -73,7 +73,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tell!("{n}");
     }
     let paths: Vec<&Path> = args.camera.iter().map(|p| p.as_path()).collect();
-    let (arena, _) = build_arena(&files, &paths, &shared, &board)?;
+    // A board side other than the one the cameras were calibrated with scales every shared
+    // board's distance: the failure reads as cameras or views out of place, so the side is
+    // named with it.
+    let calibrated = files[0].board.map(|b| b.square_m);
+    let (arena, _) = build_arena(&files, &paths, &shared, &board).map_err(|e| {
+        match (args.square, calibrated) {
+            (Some(s), Some(c)) if (s / c - 1.0).abs() > 1e-6 => anyhow::anyhow!(
+                "{e}; --square {s} m is not the {c} m of the board the cameras were calibrated with: if the shared views show that board, leave --square out"
+            ),
+            _ => e.into(),
+        }
+    })?;
     write_json(&args.out, &arena)?;
     for (k, c) in arena.cameras.iter().enumerate() {
         let at = c.arena_to_camera.0.inverse().translation.vector;
