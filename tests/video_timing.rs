@@ -159,6 +159,18 @@ fn dropped_frames_leave_a_gap_in_time_not_a_shift() {
         assert_eq!(timing["dropped"][0]["after_frame"], 7, "{name}: {timing}");
         assert_eq!(timing["missing_at_end"], 0, "{name}: {timing}");
 
+        if name == "gap.mp4" {
+            // MP4 states the average rate of what it holds (21 frames over 24 frames' time):
+            // --fps 30 beside it was said to make every time 0.875 times the video's, where
+            // the frames after the drop are what shifts.
+            let (_, err, _) = track(d, &video, &["--fps", "30"]);
+            assert!(
+                err.contains(
+                    "--fps 30 replaces the timestamps of a video whose container averages"
+                ) && err.contains("counting frames shifts every frame after such a drop"),
+                "{err}"
+            );
+        }
         if name == "gap.mkv" {
             // Timed by counting (what odocal did before), the poses after the drop shift by
             // three frames: the test above would fail.
@@ -191,7 +203,10 @@ fn a_repeated_image_is_not_tracked_and_a_cut_file_is_named() {
         est.rows.iter().all(|r| (r.t_s - 6.0 / 30.0).abs() > 1e-9),
         "the repeated frame has no pose"
     );
-    assert!(err.contains("1 frames repeat the previous image"), "{err}");
+    assert!(
+        err.contains("1 frame repeats the previous frame's image"),
+        "{err}"
+    );
     assert_eq!(report["timing"]["repeated_images"], 1);
     assert_eq!(report["per_frame"][6]["reason"], "repeated image");
 
@@ -202,9 +217,16 @@ fn a_repeated_image_is_not_tracked_and_a_cut_file_is_named() {
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let (est, err, report) = track(d, &cut, &[]);
     let read = report["timing"]["frames_read"].as_u64().unwrap() as usize;
+    // The cut goes through the last frame read: FFmpeg completes it from the frame before,
+    // whose pose it would repeat, so it is a gap.
     assert!(
-        read < FRAMES && est.rows.len() == read,
-        "{read} frames read"
+        read < FRAMES && est.rows.len() + 1 == read,
+        "{read} frames read, {} poses: {err}",
+        est.rows.len()
+    );
+    assert!(
+        err.contains("1 frame repeats the previous frame's image"),
+        "{err}"
     );
     assert!(
         err.contains(&format!(
@@ -215,5 +237,36 @@ fn a_repeated_image_is_not_tracked_and_a_cut_file_is_named() {
     assert_eq!(
         report["timing"]["missing_at_end"].as_u64(),
         Some((FRAMES - read) as u64)
+    );
+}
+
+/// A 30 fps recording kept in a 60 fps AVI (FFmpeg writes each frame twice, the repeat as an
+/// empty chunk): the container announces twice the frames read, which was reported as a file
+/// cut short with half its frames missing ("(0 dropped)"). The frames span the container's
+/// whole duration, so nothing is missing, and nothing is said.
+#[test]
+fn a_container_counting_repeats_is_not_cut_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    let doubled = d.join("doubled.avi");
+    ffmpeg(&[
+        "-i",
+        p(&d.join("video.avi")),
+        "-r",
+        "60",
+        "-c:v",
+        "mjpeg",
+        "-q:v",
+        "2",
+        p(&doubled),
+    ]);
+    let (est, err, report) = track(d, &doubled, &[]);
+    assert_eq!(est.rows.len(), FRAMES, "{err}");
+    assert!(!err.contains("cut short"), "{err}");
+    assert_eq!(report["timing"]["missing_at_end"].as_u64(), Some(0));
+    assert!(
+        report["timing"]["frames_announced"].as_u64().unwrap_or(0) > FRAMES as u64 + 10,
+        "{report}"
     );
 }

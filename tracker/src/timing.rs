@@ -94,8 +94,25 @@ impl TimingReport {
         let frames_read = r.records.len();
         let announced = r.source.frame_count;
         // Some containers only estimate their frame count: a few frames either way are normal.
+        // Where the container states its rate, the frames missing are those its duration holds
+        // beyond the last frame read: a container counting frames at twice the rate the
+        // frames come at (an AVI of repeated frames written as empty chunks) is not cut short.
+        let span = match (times.first(), times.last(), step) {
+            (Some(a), Some(b), Some(s)) => Some((b.1 - a.1 + s, s)),
+            _ => None,
+        };
         let missing_at_end = announced.map_or(0, |a| {
-            let missing = a.saturating_sub(frames_read + dropped_frames);
+            let missing = match (r.source.container_fps, span) {
+                (Some(fps), Some((covered, s))) if fps > 0.0 => {
+                    let beyond = (a as f64 / fps - covered) / s;
+                    if beyond > 0.0 {
+                        beyond.round() as usize
+                    } else {
+                        0
+                    }
+                }
+                _ => a.saturating_sub(frames_read + dropped_frames),
+            };
             if missing > 2.max(a / 50) {
                 missing
             } else {
@@ -125,12 +142,21 @@ impl TimingReport {
         let mut w = Vec::new();
         if let (Some(own), Some(step)) = (self.overridden_fps, self.frame_step_s) {
             let given = (1e3 / step).round() / 1e3;
-            w.push(format!(
+            // Some percent off is as likely a video of that rate whose container averaged in
+            // dropped or doubled frames: counting frames then shifts every frame after one.
+            if (own * step - 1.0).abs() < 0.15 {
+                w.push(format!(
+                    "--fps {given} replaces the timestamps of a video whose container averages {} fps, as a {given} fps recording with dropped or repeated frames does: counting frames shifts every frame after such a drop by a frame or more; leave --fps out to time the frames by their timestamps",
+                    (own * 1e3).round() / 1e3
+                ));
+            } else {
+                w.push(format!(
                 "--fps {given} overrides the video's own {} fps: every time is {:.3} times what the video says, and every speed {:.3} times; leave --fps out for a video that states its rate",
                 (own * 1e3).round() / 1e3,
                 own * step,
                 1.0 / (own * step)
             ));
+            }
         }
         if self.dropped_frames > 0 {
             let runs: Vec<String> = self

@@ -73,6 +73,7 @@ impl FolderSource {
                 extrapolated_times: 0,
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
+                container_fps: None,
             },
             files: files.into_iter().zip(times).collect(),
             next: 0,

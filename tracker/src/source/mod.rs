@@ -115,6 +115,8 @@ pub struct SourceInfo {
     pub extrapolated_times: usize,
     /// The video's own frame rate when `--fps` overrode it with another, frames/s.
     pub overridden_fps: Option<f64>,
+    /// The frame rate the video's container states, frames/s (None for image folders).
+    pub container_fps: Option<f64>,
     /// Frames of the file that could not be decoded whole (their JPEG data is cut or
     /// damaged), by index: left out, so the timeline has a gap there.
     pub corrupt_frames: Vec<usize>,
@@ -275,6 +277,7 @@ impl MemorySource {
                 extrapolated_times: 0,
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
+                container_fps: None,
             },
             frames: frames.into(),
         }

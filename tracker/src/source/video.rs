@@ -121,6 +121,7 @@ impl VideoSource {
                 kind: format!("video {fourcc}"),
                 extrapolated_times: 0,
                 corrupt_frames: Vec::new(),
+                container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
                 overridden_fps: opts
                     .fps
                     .filter(|f| {
