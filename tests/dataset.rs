@@ -1124,7 +1124,7 @@ fn the_truth_of_another_experiment_is_named() {
     let err = run(&e2.join("truth/oracle.json"));
     assert!(
         err.contains("warning: the dataset is ")
-            && err.contains("is that the truth of the experiment the manifest lists?"),
+            && err.contains("is that the truth of the experiment the dataset was built from?"),
         "{err}"
     );
     let err = run(&e1.join("truth/oracle.json"));

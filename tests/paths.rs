@@ -130,6 +130,27 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     ]);
     assert!(same.status.success());
     assert!(String::from_utf8_lossy(&same.stderr).contains("is the manifest being evaluated"));
+    // The truth of other squares (the calibration set's, same run ids): its oracle row would
+    // judge another robot's run, and is warned; the squares' own truth is not.
+    let with_truth = |truth: &str| {
+        let res = common::odocal(&[
+            "evaluate",
+            &d("squares/manifest.json"),
+            "--model",
+            &d("path-model.json"),
+            "--truth",
+            &d(truth),
+        ]);
+        assert!(res.status.success());
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    let e = with_truth("squares-cal/truth/oracle.json");
+    assert!(
+        e.contains("warning: --truth: the recordings' camera trajectories end")
+            && e.contains("Its oracle row would judge another robot"),
+        "{e}"
+    );
+    assert!(!with_truth("squares/truth/oracle.json").contains("--truth"));
     // A calibration square with two rows lost would give E_d and E_b from a misread step.
     let (gapped, _, row) = recording_with_gap(
         &dir.path().join("squares-cal"),

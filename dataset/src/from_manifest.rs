@@ -243,6 +243,35 @@ pub struct TruthErrors {
     pub n: usize,
 }
 
+/// End points (metres) and clock offsets (seconds) this far from a synthetic experiment's
+/// truth (RMS) are judged against another experiment's truth: a dataset's own errors are a
+/// millimetre and a few milliseconds.
+pub const TRUTH_MISMATCH_M: f64 = 0.05;
+/// See [`TRUTH_MISMATCH_M`].
+pub const TRUTH_MISMATCH_S: f64 = 0.05;
+
+impl TruthErrors {
+    /// The warning for a truth (`name`) far from the dataset it is compared with: another
+    /// experiment's truth with the same run ids. None when it fits.
+    pub fn mismatch_warning(&self, name: &str) -> Option<String> {
+        let far_target = self.target_rms_m > TRUTH_MISMATCH_M;
+        (far_target || self.offset_rms_s > TRUTH_MISMATCH_S).then(|| {
+            let what = if self.target_rms_m.is_nan() {
+                format!("{:.0} ms RMS", 1e3 * self.offset_rms_s)
+            } else {
+                format!(
+                    "{:.0} mm and {:.0} ms RMS",
+                    1e3 * self.target_rms_m,
+                    1e3 * self.offset_rms_s
+                )
+            };
+            format!(
+                "the dataset is {what} from {name}: is that the truth of the experiment the dataset was built from?"
+            )
+        })
+    }
+}
+
 /// Compares every sample's target and clock offset with the truth (`name` is the truth
 /// file, for the message when a run is missing). None when the dataset has no samples.
 pub fn errors_against_truth(

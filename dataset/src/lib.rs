@@ -24,6 +24,7 @@ pub use build::{
 pub use error::DatasetError;
 pub use from_manifest::{
     build_from_manifest, errors_against_truth, trajectory_mismatch, TruthErrors, VideoTracker,
+    TRUTH_MISMATCH_M, TRUTH_MISMATCH_S,
 };
 pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
 pub use manifest::{Manifest, ManifestRow};

@@ -332,27 +332,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 1e3 * e.offset_max_s,
                 e.n
             );
-            // The dataset's own errors are a millimetre and a few milliseconds: far more is
-            // another experiment's truth with the same run ids.
-            if e.target_rms_m > TRUTH_MISMATCH_M || e.offset_rms_s > TRUTH_MISMATCH_S {
-                if let Some(path) = &args.truth {
-                    tell!(
-                        "warning: the dataset is {:.0} mm and {:.0} ms RMS from {}: is that the truth of the experiment the manifest lists?",
-                        1e3 * e.target_rms_m,
-                        1e3 * e.offset_rms_s,
-                        path.display()
-                    );
+            if let Some(path) = &args.truth {
+                if let Some(w) = e.mismatch_warning(&path.display().to_string()) {
+                    tell!("warning: {w}");
                 }
             }
         }
     }
     Ok(())
 }
-
-/// End points (metres) and clock offsets (seconds) this far from a synthetic experiment's
-/// truth (RMS) are judged against another experiment's truth.
-const TRUTH_MISMATCH_M: f64 = 0.05;
-const TRUTH_MISMATCH_S: f64 = 0.05;
 
 /// Tracking warnings of the same kind (the same words, other numbers) from many runs: a
 /// camera's rolling shutter or a wrong marker height shows in every run, and 131 copies would

@@ -102,6 +102,9 @@ fn outside_domain(
     Ok(why)
 }
 
+/// A synthetic truth's ends this far (RMS) from the camera's are another experiment's.
+const TRUTH_MISMATCH_M: f64 = odocal_dataset::TRUTH_MISMATCH_M;
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
@@ -140,11 +143,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .check_robot(&robot, &args.manifest.display().to_string())
         .with_context(|| format!("{}", args.model.display()))?;
     let corrector = model.corrector()?;
-    let truth = match &args.truth {
-        Some(p) => Some(OracleFile::read(p)?.kinematics.with_context(|| {
+    let truth_file = args.truth.as_deref().map(OracleFile::read).transpose()?;
+    let truth = match (&args.truth, &truth_file) {
+        (Some(p), Some(f)) => Some(f.kinematics.with_context(|| {
             format!("{}: holds no true kinematics (only `odocal synth experiment --paths tours|umbmark` writes them)", p.display())
         })?),
-        None => None,
+        _ => None,
     };
     let nominal = WheelGeometry::nominal(&robot);
     let mut methods: Vec<(String, Reckoner)> =
@@ -197,6 +201,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         methods.push(("oracle (true kinematics)".into(), Reckoner::Truth(k)));
     }
     let recs = read_recordings(&args.manifest)?;
+    if let (Some(p), Some(f)) = (&args.truth, &truth_file) {
+        match odocal_trainer::evaluate::truth_distance(&recs, f) {
+            (Some(rms), _) if rms > TRUTH_MISMATCH_M => tell!(
+                "odocal: warning: --truth: the recordings' camera trajectories end {:.0} mm RMS from the true ends in {}: is that the truth of the experiment {} lists? Its oracle row would judge another robot",
+                1e3 * rms,
+                p.display(),
+                args.manifest.display()
+            ),
+            (_, missing) if missing > 0 => tell!(
+                "odocal: warning: --truth: {} has no truth for {missing} of the {} recordings of {}: is that the truth of this experiment?",
+                p.display(),
+                recs.len(),
+                args.manifest.display()
+            ),
+            _ => {}
+        }
+    }
     // Judged before any evaluation: a log with a gap or outside the domain is refused whole.
     let domains = recs
         .iter()

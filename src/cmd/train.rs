@@ -288,11 +288,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let oracle = match &args.oracle {
-        Some(p) => Some(oracle_ends(
-            &ds,
-            &OracleFile::read(p)?,
-            &p.display().to_string(),
-        )?),
+        Some(p) => {
+            let file = OracleFile::read(p)?;
+            let name = p.display().to_string();
+            // Another experiment's truth with the same run ids puts an oracle row in Table 2
+            // that judges the corrector against the wrong robot.
+            if let Some(w) = odocal_dataset::errors_against_truth(&ds, &file, &name)?
+                .and_then(|e| e.mismatch_warning(&name))
+            {
+                tell!("odocal: warning: --oracle: {w}");
+            }
+            Some(oracle_ends(&ds, &file, &name)?)
+        }
         None => None,
     };
     if let Some(range) = &args.sweep {

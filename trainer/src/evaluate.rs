@@ -142,6 +142,31 @@ fn rest_pose(
     Ok(p)
 }
 
+/// How far the recordings' camera trajectories end from `oracle`'s true ends (each in its
+/// start frame): the RMS over the recordings the truth has, metres, and how many it lacks.
+/// A synthetic truth fits its own experiment's cameras to millimetres; another experiment's
+/// truth with the same run ids does not, and its oracle row would judge another robot.
+pub fn truth_distance(
+    recordings: &[PathRecording],
+    oracle: &odocal_dataset::OracleFile,
+) -> (Option<f64>, usize) {
+    let (mut sum, mut n, mut missing) = (0.0, 0usize, 0usize);
+    for r in recordings {
+        let (Some(first), Some(last), Some(t)) = (
+            r.camera.rows.first(),
+            r.camera.rows.last(),
+            oracle.get(&r.id),
+        ) else {
+            missing += 1;
+            continue;
+        };
+        let end = last.pose.relative_to(&first.pose);
+        sum += (end.x_m - t.true_end_m[0]).powi(2) + (end.y_m - t.true_end_m[1]).powi(2);
+        n += 1;
+    }
+    ((n > 0).then(|| (sum / n as f64).sqrt()), missing)
+}
+
 /// Judges `methods` (name, reckoner) on `recordings` of `robot`. With `squares`, the
 /// recordings are UMBMark squares (each must turn by one full turn one way or the other) and
 /// every method gets Borenstein's figures.
