@@ -32,6 +32,7 @@ pub use check::{
 pub use error::LrfError;
 pub use eval::{
     evaluate, read_truth_csv, EstimatedPose, Evaluation, LaserTruth, TruthAt, TruthPose,
+    CORRECT_POS_M,
 };
 pub use localize::{
     check_intensity_scale, check_range_unit, check_scan_times, localize_scans, read_scan_files,

@@ -210,6 +210,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     let n_ok = count(Status::Ok);
     let refused = against.as_ref().and_then(|(tp, e)| {
         (n_ok > 0 && e.n_wrong_ok * 2 > n_ok).then(|| {
+            // Positions that agree with headings that do not: the truth's theta, not the poses.
+            if e.n_accuracy > 0 && e.position_rms_m <= odocal_lrf::CORRECT_POS_M {
+                return format!(
+                    "{} of {} confident poses are wrong against {} in heading only (position RMS {:.1} mm, heading RMS {:.1}°), so nothing was written: is its theta in radians (not degrees), counter-clockwise, and the heading of the scanner rather than of the robot it rides on?",
+                    e.n_wrong_ok,
+                    n_ok,
+                    tp.display(),
+                    e.position_rms_m * 1e3,
+                    e.heading_rms_rad.to_degrees()
+                );
+            }
             format!(
                 "{} of {} confident poses are wrong against {} (position RMS {:.1} mm), so nothing was written: is it the truth of these scans, and {} the map of this room?",
                 e.n_wrong_ok,

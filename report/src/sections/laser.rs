@@ -13,6 +13,10 @@ pub struct LaserInput {
     pub landmarks_m: Vec<(f64, f64)>,
 }
 
+/// A heading RMS against the truth beyond this (5°) beside positions within a few
+/// centimetres: a correct pose is within 1°, so the truth's headings are suspect.
+const TRUTH_HEADING_SUSPECT_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
+
 /// Laser positioning: estimated sensor poses against the truth.
 pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     let mut s = Section::new("laser", "Laser positioning against the truth");
@@ -41,6 +45,18 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         1000.0 * pos_err.iter().fold(0.0f64, |m, e| m.max(*e)),
         rms(&head_err).to_degrees()
     )));
+    // Positions that agree with headings that do not: the truth's theta is in another unit
+    // or convention, and the heading figure above judges the truth, not the poses.
+    if !pos_err.is_empty()
+        && rms(&pos_err) <= odocal_lrf::CORRECT_POS_M
+        && rms(&head_err) > TRUTH_HEADING_SUSPECT_RAD
+    {
+        s.blocks.push(Block::Note(format!(
+            "WARNING: the positions agree with the truth ({:.1} mm RMS) but the headings are {:.1}° RMS apart: is the truth's theta in radians (not degrees), counter-clockwise, and the scanner's own heading? The heading figure above is then no judgement of the poses.",
+            1000.0 * rms(&pos_err),
+            rms(&head_err).to_degrees()
+        )));
+    }
     let mut ch = Chart::new(
         "Laser sensor positions: estimate vs truth",
         "x, map frame (m)",
