@@ -797,14 +797,29 @@ fn runs_that_are_not_straight_runs_are_named() {
     let mut m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
     m["runs"][1]["speed_mps"] = serde_json::json!(500.0);
+    // Another run's label: no unit is a factor of three or four off.
+    let third = m["runs"][2]["speed_mps"].as_f64().unwrap();
+    m["runs"][2]["speed_mps"] = serde_json::json!(if third > 0.4 { 0.2 } else { 0.7 });
     std::fs::write(&manifest, m.to_string()).unwrap();
     let o = common::odocal(&dataset_args(&manifest, &out, &[]));
     let said = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
     assert!(
         said.contains("rejected run002: the manifest's speed_mps 500 is")
-            && said.contains("is it in mm/s or cm/s?"),
+            && said.contains("is it in mm/s? It must be"),
         "{said}"
+    );
+    assert!(
+        said.contains("rejected run003: the manifest's speed_mps")
+            && said.contains("is it another run's label (rows of the manifest mixed up)?"),
+        "{said}"
+    );
+    // Two of three runs gone: said as a warning, not only listed.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("warning: 2 of 3 runs rejected (2 like run002: the manifest's speed_mps")
+            && err.contains("the dataset holds a minority of the experiment"),
+        "{err}"
     );
     // Recordings shorter than a window used to vanish from a windows dataset unsaid, and a
     // window longer than all of them read "all 0 rejected ()".

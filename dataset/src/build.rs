@@ -425,10 +425,18 @@ pub(crate) fn process_recording_at(
         if let Some(v) = rec.speed_mps {
             let ratio = v / real_speed;
             if real_speed > 0.0 && !(0.5..=2.0).contains(&ratio) {
+                // A unit is named only where the ratio is near one's (the camera's average
+                // lies below a commanded cruise speed by the run's starting and stopping);
+                // otherwise the label is another run's (rows mixed up) or not a speed.
+                let why = match ratio {
+                    r if (400.0..=2500.0).contains(&r) => "is it in mm/s?",
+                    r if (40.0..=250.0).contains(&r) => "is it in cm/s?",
+                    _ => "is it another run's label (rows of the manifest mixed up)?",
+                };
                 out.push(reject(
                     id,
                     format!(
-                        "the manifest's speed_mps {v} is {ratio:.3} times the {real_speed:.3} m/s the camera saw the run average: is it in mm/s or cm/s? it must be in m/s (or leave it out to use the odometry's)"
+                        "the manifest's speed_mps {v} is {ratio:.3} times the {real_speed:.3} m/s the camera saw the run average: {why} It must be the run's speed in m/s (or leave it out to use the odometry's)"
                     ),
                 ));
                 continue;

@@ -288,6 +288,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ds.rejected.len()
         };
         tell!("warning: {rejected} of {total} {unit} rejected{hint}");
+    } else if !ds.is_windows() && ds.rejected.len() > ds.samples.len() {
+        // Most of the experiment gone is no dataset of it, however good the rest: said where
+        // it is seen, not left in the list of rejections above.
+        let mut reasons: Vec<(String, usize)> = Vec::new();
+        for r in &ds.rejected {
+            // The kind of reason: its words before the first number.
+            let kind: String = r
+                .reason
+                .split(|c: char| c.is_ascii_digit())
+                .next()
+                .unwrap_or("")
+                .trim()
+                .to_string();
+            match reasons.iter_mut().find(|(k, _)| *k == kind) {
+                Some((_, n)) => *n += 1,
+                None => reasons.push((kind, 1)),
+            }
+        }
+        reasons.sort_by_key(|r| std::cmp::Reverse(r.1));
+        let (example, n) = reasons
+            .first()
+            .and_then(|(k, n)| {
+                ds.rejected
+                    .iter()
+                    .find(|r| r.reason.starts_with(k.as_str()))
+                    .map(|r| (r, *n))
+            })
+            .map_or((String::new(), 0), |(r, n)| {
+                (format!("{}: {}", r.run_id, r.reason), n)
+            });
+        tell!(
+            "warning: {} of {} runs rejected ({n} like {example}): the dataset holds a minority of the experiment; mend what the reasons name before training on it",
+            ds.rejected.len(),
+            ds.rejected.len() + ds.samples.len()
+        );
     }
     for n in &ds.notes {
         tell!("note: {n}");
