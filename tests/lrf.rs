@@ -1030,7 +1030,8 @@ fn cli_beams_without_a_return_keep_the_fix() {
 /// A symmetric layout where every scan fits two places: not one scan is `ok`, so there is no
 /// result to write and no error to report. Refused like scans that find no pose at all, with
 /// the layout named as the cause and what to do, rather than a header-only trajectory and a
-/// "position RMS 0.0 mm over 0 ok scans".
+/// "position RMS 0.0 mm over 0 ok scans". (16 landmarks: 8 pairs leave every scan of this
+/// path two places to be.)
 #[test]
 fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1041,6 +1042,8 @@ fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
         "--out",
         s(d),
         "--symmetric",
+        "--landmarks",
+        "16",
         "--scans",
         "30"
     ])
@@ -1491,5 +1494,44 @@ fn cli_a_truth_with_headings_in_degrees_is_named() {
     assert!(
         page.contains("but the headings are") && page.contains("radians (not degrees)"),
         "no warning in the report"
+    );
+}
+
+/// `synth lrf --symmetric` placed half the landmarks asked for (30 gave 16, 8 gave 4), unsaid;
+/// it places them all, refuses an odd count (pairs), and a room too crowded is named.
+#[test]
+fn cli_a_symmetric_layout_has_the_landmarks_asked_for() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    for n in [8usize, 30] {
+        let out = d.join(format!("s{n}"));
+        let res = odocal(&[
+            "synth",
+            "lrf",
+            "--out",
+            s(&out),
+            "--symmetric",
+            "--landmarks",
+            &n.to_string(),
+            "--scans",
+            "2",
+        ]);
+        assert!(res.status.success());
+        let map: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("map.json")).expect("map"))
+                .expect("json");
+        assert_eq!(map["landmarks"].as_array().map(Vec::len), Some(n));
+    }
+    expect_error(
+        &[
+            "synth",
+            "lrf",
+            "--out",
+            s(&d.join("odd")),
+            "--symmetric",
+            "--landmarks",
+            "31",
+        ],
+        "places landmarks in pairs; give an even number",
     );
 }

@@ -34,16 +34,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.scans == 0 {
         anyhow::bail!("--scans must be at least 1");
     }
+    if args.symmetric && args.landmarks % 2 == 1 {
+        anyhow::bail!(
+            "--landmarks {} with --symmetric: a symmetric layout places landmarks in pairs; give an even number",
+            args.landmarks
+        );
+    }
     let cfg = LrfSimConfig {
         symmetric: args.symmetric,
         n_scans: args.scans,
         ..LrfSimConfig::scaled(args.landmarks, args.seed)
     };
     let sim = simulate(&cfg);
-    if sim.world.landmarks.len() < 3 {
+    // The room keeps free space for the path and between landmarks: a crowded one fills up.
+    if sim.world.landmarks.len() < args.landmarks {
         anyhow::bail!(
-            "could only place {} landmarks; use fewer landmarks",
-            sim.world.landmarks.len()
+            "could only place {} of the {} landmarks in the {:.1} m x {:.1} m room (they keep apart and off the path); ask for fewer",
+            sim.world.landmarks.len(),
+            args.landmarks,
+            cfg.room_w_m,
+            cfg.room_h_m
         );
     }
     let map = args.out.join("map.json");
