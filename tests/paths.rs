@@ -365,6 +365,12 @@ fn a_path_model_trained_on_forward_tours_refuses_a_log_driven_backwards() {
         err.contains("EXTRAPOLATED") && err.contains("drives backwards"),
         "{err}"
     );
+    // The file says so on every row, not only the terminal.
+    let track = std::fs::read_to_string(&out_csv).unwrap();
+    assert!(track.starts_with(
+        "t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected,extrapolated\n"
+    ));
+    assert!(track.lines().skip(1).all(|l| l.ends_with(",1")), "{track}");
     // The forward log itself is inside.
     ok(&[
         "correct",

@@ -239,7 +239,9 @@ fn train_then_correct_a_log() {
     let out = ok(&["correct", "--model", p(&model), p(&log), "--out", p(&csv)]);
     assert!(out.contains("corrected end"), "{out}");
     let track = std::fs::read_to_string(&csv).expect("csv");
-    assert!(track.starts_with("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected"));
+    assert!(track.starts_with("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,extrapolated\n"));
+    // A log inside the training domain is no guess.
+    assert!(track.lines().skip(1).all(|l| l.ends_with(",0")), "{track}");
     assert!(track.lines().count() > 5);
     // Two rows lost: the run's speeds would be read off a 0.6 s step as one 0.2 s step.
     let text = std::fs::read_to_string(&log).expect("log");

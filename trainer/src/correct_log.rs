@@ -91,13 +91,18 @@ impl ModelFile {
 }
 
 impl CorrectedRun {
-    /// The corrected track as CSV, `t,x_raw,y_raw,theta_raw,x_corrected,y_corrected`.
+    /// The corrected track as CSV,
+    /// `t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,extrapolated` (`extrapolated` 1 on
+    /// every row when the log lies outside the training domain: the file says its correction
+    /// is a guess, not only the terminal that printed the warning).
     pub fn to_csv(&self) -> String {
-        let mut csv = String::from("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected\n");
+        let mut csv =
+            String::from("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,extrapolated\n");
+        let flag = u8::from(!self.outside_domain.is_empty());
         for (t, p, c) in &self.track {
             let _ = writeln!(
                 csv,
-                "{t:.3},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                "{t:.3},{:.6},{:.6},{:.6},{:.6},{:.6},{flag}",
                 p.x_m, p.y_m, p.theta_rad, c[0], c[1]
             );
         }

@@ -353,15 +353,19 @@ impl CorrectedPath {
             .unwrap_or_default()
     }
 
-    /// The track as CSV: `t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected`
-    /// (robot clock seconds, metres, radians; start frame).
+    /// The track as CSV:
+    /// `t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected,extrapolated` (robot
+    /// clock seconds, metres, radians; start frame; `extrapolated` 1 on every row when the log
+    /// lies outside the training domain, so the file itself says its correction is a guess).
     pub fn to_csv(&self) -> String {
-        let mut csv =
-            String::from("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected\n");
+        let mut csv = String::from(
+            "t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,theta_corrected,extrapolated\n",
+        );
+        let flag = u8::from(!self.outside_domain.is_empty());
         for (t, r, c) in &self.track {
             let _ = writeln!(
                 csv,
-                "{t:.3},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                "{t:.3},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{flag}",
                 r.x_m, r.y_m, r.theta_rad, c.x_m, c.y_m, c.theta_rad
             );
         }
