@@ -841,6 +841,39 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
     assert!((readout - 0.030).abs() <= 0.003, "{line}");
     let err = run(&d.join("rolling.avi"), &["--rolling-shutter-s", "0.03"]);
     assert!(!err.contains("sheared"), "{err}");
+    // A readout longer than a frame (milliseconds read as tenths of a second) retimed every
+    // fix by up to 0.2 s, or turned the frames into "bad geometry": refused, for a video by
+    // its stated rate and for a frame folder by its timestamps.
+    let res = odocal(&[
+        "track",
+        p(&d.join("rolling.avi")),
+        "--camera",
+        p(&camera),
+        "--out",
+        p(&out),
+        "--rolling-shutter-s",
+        "0.2",
+    ]);
+    fails_with(
+        &res,
+        "--rolling-shutter-s 0.2: a sensor reads its rows within one frame, and these frames come every 33.3 ms (30.00 fps)",
+    );
+    synth_track_with(&d.join("png"), 12, 4, &["--video", "png"]);
+    let res = odocal(&[
+        "track",
+        p(&d.join("png/frames")),
+        "--camera",
+        p(&d.join("png/camera.json")),
+        "--out",
+        p(&d.join("png.csv")),
+        "--rolling-shutter-s",
+        "0.05",
+    ]);
+    fails_with(
+        &res,
+        "--rolling-shutter-s 0.05: a sensor reads its rows within one frame",
+    );
+    assert!(!d.join("png.csv").exists());
     synth_track(d, 40, 4);
     let err = run(&d.join("video.avi"), &[]);
     assert!(!err.contains("sheared"), "{err}");

@@ -246,6 +246,20 @@ fn write_report(
     write_json(path, &report)
 }
 
+/// Refuses a rolling-shutter readout longer than a frame period (`period_s`): a sensor
+/// reads its rows within one frame, so such a value is another unit (milliseconds given as
+/// seconds) and would time every fix by up to that much.
+fn check_readout(readout_s: f64, period_s: f64) -> anyhow::Result<()> {
+    if readout_s > period_s * (1.0 + 1e-6) {
+        anyhow::bail!(
+            "--rolling-shutter-s {readout_s}: a sensor reads its rows within one frame, and these frames come every {:.1} ms ({:.2} fps); give the readout time in seconds (20 ms is 0.02), at most the frame period",
+            period_s * 1e3,
+            1.0 / period_s
+        );
+    }
+    Ok(())
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.multi.wanted() {
@@ -288,6 +302,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(&args.video, &source_options)?;
+    if let Some(fps) = args.fps.or(source.info().container_fps) {
+        check_readout(args.tag.rolling_shutter_s, 1.0 / fps)?;
+    }
     let overlay_dir = match &args.overlay {
         Some(dir) => Some(staged_dir(dir, "--overlay")?),
         None => None,
@@ -327,6 +344,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Err(TrackError::NoFix { result, .. }) => Some(result.as_ref()),
         Err(_) => None,
     };
+    // A frame folder's period is known once its frames are timed.
+    if let Some(step) = timeline.and_then(|r| TimingReport::of(r).frame_step_s) {
+        check_readout(args.tag.rolling_shutter_s, step)?;
+    }
     // Every warning is printed as it is found and kept in --report.
     let mut warnings = timeline
         .map(|r| TimingReport::of(r).warnings())
