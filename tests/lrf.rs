@@ -1495,6 +1495,39 @@ fn cli_a_truth_with_headings_in_degrees_is_named() {
         page.contains("but the headings are") && page.contains("radians (not degrees)"),
         "no warning in the report"
     );
+    // Another recording's truth (same times, another path: here the path moved 1 m) was
+    // drawn as "position RMS 9.7 m against the truth"; refused as `lrf localize --truth`
+    // refuses it.
+    let xcol = header.split(',').position(|h| h == "x").expect("x column");
+    let moved: Vec<String> = truth
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                return l.to_string();
+            }
+            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+            f[xcol] = format!("{}", f[xcol].parse::<f64>().expect("x") + 1.0);
+            f.join(",")
+        })
+        .collect();
+    let other = d.join("other");
+    std::fs::create_dir_all(&other).expect("mkdir");
+    std::fs::write(other.join("truth.csv"), moved.join("\n") + "\n").expect("write");
+    let html2 = d.join("r2.html");
+    expect_error(
+        &[
+            "report",
+            "--out",
+            s(&html2),
+            "--lrf-poses",
+            s(&poses),
+            "--lrf-truth",
+            s(&other.join("truth.csv")),
+        ],
+        "confident laser poses it has a time for are wrong against it",
+    );
+    assert!(!html2.exists());
 }
 
 /// `synth lrf --symmetric` placed half the landmarks asked for (30 gave 16, 8 gave 4), unsaid;

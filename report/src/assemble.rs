@@ -216,11 +216,17 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     // Laser.
     match (&inp.lrf_poses, &inp.lrf_truth) {
         (Some(pp), tp) => {
-            let poses = odocal_lrf::PoseLog::read(pp)?.rows;
+            let log = odocal_lrf::PoseLog::read(pp)?;
             let truth = match tp {
-                Some(t) => odocal_lrf::read_truth_csv(t)?,
+                Some(t) => {
+                    let truth = odocal_lrf::read_truth_csv(t)?;
+                    check_laser_truth(&log, &truth, t)?;
+                    used.push(format!("laser truth {}", t.display()));
+                    truth
+                }
                 None => odocal_lrf::LaserTruth::default(),
             };
+            let poses = log.rows;
             let landmarks_m = match &inp.lrf_map {
                 Some(m) => odocal_lrf::Map::read(m)?
                     .landmarks
@@ -487,4 +493,34 @@ fn find_track(
         }
     }
     Ok(None)
+}
+
+/// Refuses a laser truth that is not the truth of the poses, as `lrf localize --truth` does:
+/// one with no row at (or around) any scan's time, or against which most confident poses
+/// are wrong. Drawn, it would read as the poses' accuracy.
+fn check_laser_truth(
+    log: &odocal_lrf::PoseLog,
+    truth: &odocal_lrf::LaserTruth,
+    path: &Path,
+) -> Result<(), ReportError> {
+    let e = odocal_lrf::evaluate(&log.for_evaluation(), truth);
+    if e.n_scans == 0 {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-truth {}: no row has the time of a laser pose, nor are two rows around one: give the truth of these scans (on the scans' clock, in seconds)",
+            path.display()
+        )));
+    }
+    // Positions that agree with headings that do not are the truth's headings, said in the
+    // laser section; most poses far off is another recording's truth.
+    let headings_only = e.n_accuracy > 0 && e.position_rms_m <= odocal_lrf::CORRECT_POS_M;
+    if e.n_ok > 0 && e.n_wrong_ok * 2 > e.n_ok && !headings_only {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-truth {}: {} of the {} confident laser poses it has a time for are wrong against it (position RMS {:.1} mm): is it the truth of these scans?",
+            path.display(),
+            e.n_wrong_ok,
+            e.n_ok,
+            e.position_rms_m * 1e3
+        )));
+    }
+    Ok(())
 }
