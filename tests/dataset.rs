@@ -839,6 +839,25 @@ fn runs_that_are_not_straight_runs_are_named() {
             && e.contains("fewer than one window of 5000 (--window-s 1000.0 s)"),
         "{e}"
     );
+    // Windows a stride apart longer than every recording: the only window of each lies at
+    // its start, where the robot stands still. It read "all 0 rejected ()".
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&manifest),
+        "--layout",
+        "windows",
+        "--window-s",
+        "0.4",
+        "--window-stride-s",
+        "100",
+        "--out",
+        p(&out),
+    ]);
+    assert!(
+        e.contains("every window lay where the robot stood still (windows of 0.4 s every 100.0 s)"),
+        "{e}"
+    );
 }
 
 /// Keeps the header and the rows of a CSV file whose first column `keep` accepts.

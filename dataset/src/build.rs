@@ -277,7 +277,7 @@ pub(crate) fn process_recording_at(
             out.push(reject(
                 id,
                 format!(
-                    "clock offset not found: speed-profile correlation {:.2} < {:.2}",
+                    "clock offset not found: speed-profile correlation {:.3}, below the {:.2} needed",
                     coarse.correlation, opts.align.min_correlation
                 ),
             ));

@@ -264,6 +264,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         String::new()
     };
+    if ds.samples.is_empty() && ds.rejected.is_empty() && args.layout == LayoutArg::Windows {
+        // Windows where the robot stands still are no samples and no rejections either.
+        bail!(
+            "no window gave a sample, so nothing was written: every window lay where the robot stood still (windows of {:.1} s every {:.1} s); take windows that cover the motion: a --window-stride-s shorter than the recordings, and a --window-s of several seconds",
+            args.window_s.unwrap_or(10.0),
+            args.window_stride_s.unwrap_or(5.0)
+        );
+    }
     if ds.samples.is_empty() {
         let mut why: Vec<String> = ds
             .rejected
