@@ -130,6 +130,25 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     ]);
     assert!(same.status.success());
     assert!(String::from_utf8_lossy(&same.stderr).contains("is the manifest being evaluated"));
+    // Another manifest of the same logs is the same squares: warned as well.
+    std::fs::copy(d("squares/manifest.json"), d("squares/manifest-copy.json")).unwrap();
+    let copy = common::odocal(&[
+        "evaluate",
+        &d("squares/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+        "--umbmark-m",
+        "4",
+        "--umbmark-calibration",
+        &d("squares/manifest-copy.json"),
+    ]);
+    assert!(copy.status.success());
+    let e = String::from_utf8_lossy(&copy.stderr);
+    assert!(
+        e.contains("lists 20 of the files the evaluated")
+            && e.contains("calibrate on other squares"),
+        "{e}"
+    );
     // The truth of other squares (the calibration set's, same run ids): its oracle row would
     // judge another robot's run, and is warned; the squares' own truth is not.
     let with_truth = |truth: &str| {
@@ -769,4 +788,77 @@ fn evaluate_refuses_an_out_that_is_a_file_either_manifest_lists() {
         "{e}"
     );
     assert_eq!(std::fs::read(&log).unwrap(), before, "the log is untouched");
+}
+
+/// A held-out log cut after its start (the logger started late): the camera's rest poses
+/// judged every method on a path the log did not hold, and the perceptron came out worse
+/// than raw odometry (16.6 % against 14.3 %, 2.1 % on the whole log), unsaid. Refused.
+#[test]
+fn evaluate_refuses_a_held_out_log_that_starts_in_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let cut = dir.path().join("cut");
+    std::fs::create_dir_all(&cut).unwrap();
+    let log = std::fs::read_to_string(tours.join("runs/run001.odometry.csv")).unwrap();
+    let lines: Vec<&str> = log.lines().collect();
+    // Cut where the wheels are turning: from a row whose next row has other counts.
+    let ticks = |l: &str| l.split(',').skip(1).collect::<Vec<_>>().join(",");
+    let from = (40..lines.len() - 1)
+        .find(|&k| ticks(lines[k]) != ticks(lines[k + 1]))
+        .expect("a moving row");
+    let kept: Vec<&str> = std::iter::once(lines[0])
+        .chain(lines[from..].iter().copied())
+        .collect();
+    std::fs::write(cut.join("run001.odometry.csv"), kept.join("\n") + "\n").unwrap();
+    std::fs::copy(
+        tours.join("runs/run001.trajectory.csv"),
+        cut.join("run001.trajectory.csv"),
+    )
+    .unwrap();
+    let manifest = cut.join("manifest.json");
+    std::fs::write(
+        &manifest,
+        r#"{"format":"odocal.manifest/1","runs":[{"id":"run001","trajectory":"run001.trajectory.csv","odometry":"run001.odometry.csv"}]}"#,
+    )
+    .unwrap();
+    let e = fails(&["evaluate", p(&manifest), "--model", &model]);
+    assert!(
+        e.contains("run001: the log starts during the robot's motion (its first rows already move the wheels)"),
+        "{e}"
+    );
+}
+
+/// An encoder counter reset to 0 mid-log: `correct` called it a wheel too fast for the
+/// training and, with --allow-extrapolation, integrated the reset as 13 m/s of motion; the
+/// error was put on the model file. It is the log's glitch, named as `dataset` names it.
+#[test]
+fn correct_refuses_a_counter_reset_as_the_logs_glitch() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    let log = std::fs::read_to_string(tours.join("runs/run001.odometry.csv")).unwrap();
+    let mut rows: Vec<Vec<String>> = log
+        .lines()
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    let at = rows.len() / 2;
+    let base: Vec<f64> = rows[at][1..3].iter().map(|v| v.parse().unwrap()).collect();
+    for r in rows.iter_mut().skip(at) {
+        for (c, b) in base.iter().enumerate() {
+            let v: f64 = r[c + 1].parse().unwrap();
+            r[c + 1] = format!("{}", v - b);
+        }
+    }
+    let reset = dir.path().join("reset.csv");
+    let text: Vec<String> = rows.iter().map(|r| r.join(",")).collect();
+    std::fs::write(&reset, text.join("\n") + "\n").unwrap();
+    for extra in [&[][..], &["--allow-extrapolation"][..]] {
+        let mut args = vec!["correct", "--model", &model, p(&reset)];
+        args.extend(extra);
+        let e = fails(&args);
+        assert!(
+            e.starts_with(&format!("odocal: error: {}: rows ", p(&reset)))
+                && e.contains("a reset counter in the log"),
+            "{e}"
+        );
+    }
 }

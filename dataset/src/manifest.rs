@@ -327,6 +327,26 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
 }
 
 /// Whether two files hold the same bytes (false when either cannot be read).
+impl Manifest {
+    /// The files this manifest lists that `other` lists too: the same file by any path, or
+    /// a copy with the same bytes (a calibration set that holds the very recordings it is
+    /// judged on).
+    pub fn shared_files(&self, other: &Manifest) -> Vec<PathBuf> {
+        let theirs = other.files();
+        let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).ok();
+        self.files()
+            .into_iter()
+            .filter(|mine| {
+                let canon = std::fs::canonicalize(mine).ok();
+                theirs.iter().any(|t| {
+                    (canon.is_some() && std::fs::canonicalize(t).ok() == canon)
+                        || (size(mine).is_some() && size(mine) == size(t) && same_bytes(mine, t))
+                })
+            })
+            .collect()
+    }
+}
+
 fn same_bytes(a: &Path, b: &Path) -> bool {
     use std::io::Read;
     let (Ok(fa), Ok(fb)) = (std::fs::File::open(a), std::fs::File::open(b)) else {

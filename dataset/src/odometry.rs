@@ -351,8 +351,14 @@ impl OdometryLog {
                         ),
                         LogKind::Speeds => format!("reads {} m/s", column[k]),
                     };
+                    // A speed log's speeds use neither robot parameter: its unit is the
+                    // suspect, not the robot file.
+                    let suspects = match self.kind {
+                        LogKind::Ticks => "a glitch or a reset counter in the log, or ticks_per_rev and wheel_diameter_m not the robot's?",
+                        LogKind::Speeds => "a glitch in the log, or speeds not in m/s? mm/s read 1000 times too fast",
+                    };
                     format!(
-                        "rows {} and {}: the {side} wheel {what}, {:.1} m/s over {dt:.3} s with this robot file, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most (a glitch in the log, or ticks_per_rev and wheel_diameter_m not the robot's?)",
+                        "rows {} and {}: the {side} wheel {what}, {:.1} m/s over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
                         k + 1,
                         k + 2,
                         v.abs()

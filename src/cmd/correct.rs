@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use odocal_dataset::{OdometryLog, RobotParams};
 use odocal_trainer::{ModelFile, PathModelFile, PATH_MODEL_FORMAT};
 
@@ -45,6 +44,22 @@ fn robot_and_log(
     Ok((robot, log))
 }
 
+/// The error of correcting the log: one that names the log (its gaps, glitches, period,
+/// motion) is the log's, and is not put on the model file; the rest (a model of another
+/// robot, a damaged model) is the model's.
+fn blame(e: odocal_trainer::TrainError, args: &Args) -> anyhow::Error {
+    let log = args.log.display().to_string();
+    let text = match &e {
+        odocal_trainer::TrainError::Dataset(m) | odocal_trainer::TrainError::Model(m) => m,
+        _ => return anyhow::Error::new(e).context(args.model.display().to_string()),
+    };
+    if text.starts_with(&format!("{log}:")) {
+        anyhow::anyhow!("{text}")
+    } else {
+        anyhow::Error::new(e).context(args.model.display().to_string())
+    }
+}
+
 /// Warns of each way the log lies outside the training domain (a flagged guess, not an error
 /// with `--allow-extrapolation`).
 fn warn_outside_domain(outside_domain: &[String]) {
@@ -76,7 +91,7 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
             &args.log.display().to_string(),
             args.allow_extrapolation,
         )
-        .with_context(|| format!("{}", args.model.display()))?;
+        .map_err(|e| blame(e, args))?;
     warn_outside_domain(&run.outside_domain);
     let (raw, corrected) = run.ends();
     say!(
@@ -114,7 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &args.log.display().to_string(),
             args.allow_extrapolation,
         )
-        .with_context(|| format!("{}", args.model.display()))?;
+        .map_err(|e| blame(e, &args))?;
     let (raw, corrected) = (run.raw_end_m, run.corrected_end_m);
     warn_outside_domain(&run.outside_domain);
     say!(

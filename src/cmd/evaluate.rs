@@ -168,6 +168,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "warning: --umbmark-calibration {} is the manifest being evaluated: UMBMark's correction is then judged on the squares it was fitted to; calibrate on other squares",
                 cal.display()
             );
+        } else {
+            // Another manifest listing the same logs (or copies) is the same squares.
+            let shared = Manifest::read(cal)?.shared_files(&Manifest::read(&args.manifest)?);
+            if let Some(first) = shared.first() {
+                tell!(
+                    "warning: --umbmark-calibration {} lists {} of the files the evaluated {} lists (the same file or the same bytes; {} is one): UMBMark's correction is then judged on the squares it was fitted to; calibrate on other squares",
+                    cal.display(),
+                    shared.len(),
+                    args.manifest.display(),
+                    first.display()
+                );
+            }
         }
         let errors: Vec<SquareError> = ev
             .runs

@@ -194,13 +194,29 @@ pub fn evaluate_paths(
         }
         // Every method dead-reckons step by step; a lost row would be one step of three.
         crate::path_model_file::check_period(&r.log, robot, &r.id)?;
+        // The camera's rest poses at both ends are the truth: a log cut after the start (or
+        // before the end) misses motion the camera saw, and every method would be judged on
+        // a path it was not given.
+        let revs = r.log.wheel_revs(robot);
+        let moves = |a: usize, b: usize| match (revs.rev.get(a), revs.rev.get(b)) {
+            (Some(p), Some(q)) => p != q,
+            _ => false,
+        };
+        let n = revs.rev.len();
+        if moves(0, 1) || (n >= 2 && moves(n - 2, n - 1)) {
+            return Err(TrainError::Dataset(format!(
+                "{}: the log {} during the robot's motion (its {} rows already move the wheels): a held-out recording starts and ends at rest, in the log as in the camera's trajectory; give the whole log",
+                r.id,
+                if moves(0, 1) { "starts" } else { "ends" },
+                if moves(0, 1) { "first" } else { "last" }
+            )));
+        }
         let align = odocal_dataset::align::AlignOptions::default();
         if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot)
             .or_else(|| odocal_dataset::trajectory_mismatch(&r.log, &r.camera, robot, &align))
         {
             return Err(TrainError::Dataset(format!("{}: {why}", r.id)));
         }
-        let revs = r.log.wheel_revs(robot);
         let nominal = WheelGeometry::nominal(robot);
         let raw = odocal_dataset::dead_reckon(&revs.rev, &nominal);
         let turned = raw.last().map_or(0.0, |p| p.theta_rad);

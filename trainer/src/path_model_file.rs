@@ -103,7 +103,7 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
 /// every step for one period (a path model each step, a straight-run model the run's
 /// per-step speeds), and its training had none off it, so a gap (two rows lost) would read as
 /// one step three times as fast and be judged, corrected and scored as such. A log off the
-/// period throughout is named as such first.
+/// period throughout is named as such first; a step no wheel can take is refused too.
 pub(crate) fn check_period(
     log: &OdometryLog,
     robot: &RobotParams,
@@ -116,10 +116,18 @@ pub(crate) fn check_period(
             "{name}: {why}; is this log of the model's robot and logger?"
         )));
     }
-    match log.off_period_step(0, log.len(), robot.period_s, 0.05) {
-        Some((k, dt)) => Err(TrainError::Model(format!(
+    if let Some((k, dt)) = log.off_period_step(0, log.len(), robot.period_s, 0.05) {
+        return Err(TrainError::Model(format!(
             "{name}: {}; record the run again, or leave it out",
             OdometryLog::step_message(k, dt, robot.period_s)
+        )));
+    }
+    // A step no wheel can take (a glitch, a counter reset to 0) would be corrected, or
+    // refused as outside the training's speeds, as motion; `dataset` rejects it by the same
+    // check.
+    match log.implausible_step(robot) {
+        Some(why) => Err(TrainError::Model(format!(
+            "{name}: {why}; mend or leave out the log"
         ))),
         None => Ok(()),
     }
