@@ -1192,4 +1192,34 @@ fn a_glitch_in_a_log_rejects_its_recording_naming_the_rows() {
             && out.contains("where a small robot's wheels turn at 5 m/s at most"),
         "{out}"
     );
+    // A log of wheel speeds in mm/s: the speeds use no robot parameter, so their unit is
+    // named, not ticks_per_rev and wheel_diameter_m.
+    let log2 = d.join("runs/run002.odometry.csv");
+    let text = std::fs::read_to_string(&log2).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let metres_per_tick = std::f64::consts::PI * 0.043 / 12.0;
+    let mut speeds = vec![
+        "t,v_left,v_right".to_string(),
+        format!("{},0,0", rows[0][0]),
+    ];
+    for w in rows.windows(2) {
+        let dt = w[1][0] - w[0][0];
+        let v = |c: usize| 1000.0 * (w[1][c] - w[0][c]) * metres_per_tick / dt;
+        speeds.push(format!("{},{},{}", w[1][0], v(1), v(2)));
+    }
+    std::fs::write(&log2, speeds.join("\n") + "\n").unwrap();
+    let out = ok(&dataset_args(
+        &d.join("manifest.json"),
+        &d.join("ds2.json"),
+        &[],
+    ));
+    assert!(
+        out.contains("rejected run002: ")
+            && out.contains("speeds not in m/s? mm/s read 1000 times too fast"),
+        "{out}"
+    );
 }
