@@ -933,3 +933,33 @@ fn floor_plane_alone_maps_the_wide_lenses_floor() {
         );
     }
 }
+
+/// A square ten times too large with two floor boards a few millimetres apart in height: the
+/// boards, 10 times too far, looked 62 mm apart and were refused as not on one floor ("lay
+/// the board flat"), --square never named. The camera's height (22 m) names it.
+#[test]
+fn a_square_ten_times_too_large_is_named_before_the_floor_boards() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(
+        dir.path(),
+        1,
+        &[
+            "--views",
+            "8",
+            "--floor-views",
+            "2",
+            "--width",
+            "640",
+            "--height",
+            "480",
+        ],
+    );
+    let out = dir.path().join("camera.json");
+    let res = calibrate(dir.path(), &out, "9x6", "0.5");
+    assert_fails(&res, "by these boards the camera is 22.", &out);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("is --square the side of one square in metres?"),
+        "{err}"
+    );
+}

@@ -137,6 +137,19 @@ fn check_on_one_plane(pnp: &[BoardToCamera], views: &[BoardView]) -> Result<(), 
         if height_m > 0.0 { "above" } else { "below" },
         OFF_PLANE_M * 1e3,
     );
+    // A square given 10 times too large puts every board 10 times too far, and their
+    // millimetres of offset read as centimetres: the camera's height says so first.
+    let height = pnp[reference].0.inverse().translation.vector.z.abs();
+    let ceiling = &crate::session::CEILING_HEIGHT_M;
+    if !ceiling.contains(&height) {
+        return Err(CalibError::Input(format!(
+            "floor views {} and {}: by these boards the camera is {height:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots, and the boards look {offset}: is --square the side of one square in metres? (a square 10 times too large puts every board 10 times too far, and their small offsets 10 times larger)",
+            views[suspect].image,
+            views[reference].image,
+            ceiling.start(),
+            ceiling.end()
+        )));
+    }
     let advice = "if it is a hand-held view, pass it before --floor; otherwise lay the board flat on the floor and photograph it again";
     Err(CalibError::Input(if n == 2 {
         format!(

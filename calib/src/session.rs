@@ -124,7 +124,7 @@ impl ModelChoice {
 
 /// Heights above the floor a ceiling camera over small robots can plausibly have, metres;
 /// outside them the board's square size is more likely wrong than the camera.
-const CEILING_HEIGHT_M: std::ops::RangeInclusive<f64> = 0.5..=10.0;
+pub(crate) const CEILING_HEIGHT_M: std::ops::RangeInclusive<f64> = 0.5..=10.0;
 
 /// Sharp views of a flat board through one camera fit within this RMS, pixels (OpenCV's
 /// sample photographs: 0.25 px; odocal's synthetic views: 0.05 px).
