@@ -170,6 +170,28 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
         "{e}"
     );
     assert!(!with_truth("squares/truth/oracle.json").contains("--truth"));
+    // The model's own training recordings were reported as "held-out" figures; they are
+    // named. Held-out recordings are not.
+    let own = common::odocal(&[
+        "evaluate",
+        &d("train/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+    ]);
+    assert!(own.status.success());
+    let e = String::from_utf8_lossy(&own.stderr);
+    assert!(
+        e.contains("warning: 40 of the 40 recordings of")
+            && e.contains("their figures are the training's fit, not held-out"),
+        "{e}"
+    );
+    let held = common::odocal(&[
+        "evaluate",
+        &d("tours/manifest.json"),
+        "--model",
+        &d("path-model.json"),
+    ]);
+    assert!(!String::from_utf8_lossy(&held.stderr).contains("the training's fit"));
     // A calibration square with two rows lost would give E_d and E_b from a misread step.
     let (gapped, _, row) = recording_with_gap(
         &dir.path().join("squares-cal"),

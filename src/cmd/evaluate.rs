@@ -230,6 +230,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => {}
         }
     }
+    // A recording the model was fitted on is no held-out recording: its figures are the
+    // training's fit.
+    let trained: Vec<(String, String)> = recs
+        .iter()
+        .filter_map(|r| {
+            model
+                .trained_on(&r.log)
+                .map(|t| (r.id.clone(), t.to_string()))
+        })
+        .collect();
+    if let Some((id, t)) = trained.first() {
+        tell!(
+            "odocal: warning: {} of the {} recordings of {} are recordings {} was trained on (run \"{id}\" holds training recording \"{t}\"'s steps): their figures are the training's fit, not held-out; evaluate on recordings the training did not see",
+            trained.len(),
+            recs.len(),
+            args.manifest.display(),
+            args.model.display()
+        );
+    }
     // Judged before any evaluation: a log with a gap or outside the domain is refused whole.
     let domains = recs
         .iter()

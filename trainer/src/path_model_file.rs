@@ -53,6 +53,64 @@ pub struct PathModelFile {
     /// written before it was recorded, which are then not checked for it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub step_directions: Option<StepDirections>,
+    /// The first moving window of each training recording, by its steps: a log holding one
+    /// is that recording, whose figures are no held-out figures ([`Self::trained_on`]).
+    /// Absent from models written before it was recorded.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub training_prints: Vec<RecordingPrint>,
+}
+
+/// Steps of a recording's first moving window that identify the recording: its start time on
+/// the robot clock and the wheel revolutions of its first steps.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordingPrint {
+    /// The training recording's id.
+    pub recording_id: String,
+    /// Robot-clock time of the window's first row, seconds.
+    pub t_s: f64,
+    /// Wheel revolutions [left, right] of each of the window's first steps.
+    pub steps_rev: Vec<[f64; 2]>,
+}
+
+/// Steps a [`RecordingPrint`] holds: ten steps of two encoders leave no two recordings alike.
+const PRINT_STEPS: usize = 10;
+
+impl RecordingPrint {
+    /// The prints of a window dataset: each recording's earliest window.
+    fn of(samples: &[&odocal_dataset::Sample]) -> Vec<Self> {
+        let mut first: std::collections::BTreeMap<&str, &odocal_dataset::Sample> =
+            std::collections::BTreeMap::new();
+        for s in samples {
+            let e = first.entry(s.recording_id.as_str()).or_insert(s);
+            if s.odometry.t_b() < e.odometry.t_b() {
+                *e = s;
+            }
+        }
+        first
+            .into_iter()
+            .filter(|(_, s)| s.odometry.rev.len() > PRINT_STEPS)
+            .map(|(id, s)| Self {
+                recording_id: id.to_string(),
+                t_s: s.odometry.t_b(),
+                steps_rev: s.odometry.rev[..=PRINT_STEPS]
+                    .windows(2)
+                    .map(|w| [w[1][0] - w[0][0], w[1][1] - w[0][1]])
+                    .collect(),
+            })
+            .collect()
+    }
+
+    /// Whether `revs` (a log's wheel revolutions) holds this print's steps at its time.
+    fn found_in(&self, revs: &odocal_dataset::odometry::WheelRevs) -> bool {
+        let Some(k) = revs.t_s.iter().position(|t| (t - self.t_s).abs() < 1e-6) else {
+            return false;
+        };
+        revs.rev.len() > k + self.steps_rev.len()
+            && self.steps_rev.iter().enumerate().all(|(j, s)| {
+                let (a, b) = (revs.rev[k + j], revs.rev[k + j + 1]);
+                (b[0] - a[0] - s[0]).abs() < 1e-9 && (b[1] - a[1] - s[1]).abs() < 1e-9
+            })
+    }
 }
 
 /// A log corrected by a path model.
@@ -186,7 +244,21 @@ impl PathModelFile {
             ],
             max_wheel_speed_mps,
             step_directions: Some(step_directions),
+            training_prints: RecordingPrint::of(&samples),
         })
+    }
+
+    /// The training recording `log` is, if it holds one's first moving window: evaluated, its
+    /// figures would be the training's fit, not a held-out judgement.
+    pub fn trained_on(&self, log: &OdometryLog) -> Option<&str> {
+        if self.training_prints.is_empty() {
+            return None;
+        }
+        let revs = log.wheel_revs(&self.robot);
+        self.training_prints
+            .iter()
+            .find(|p| p.found_in(&revs))
+            .map(|p| p.recording_id.as_str())
     }
 
     /// Reads a path model file, rejecting other formats, sizes and non-finite numbers.
