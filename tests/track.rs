@@ -1410,3 +1410,51 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
     let max = number_after(&stdout, "(max ");
     assert!(max < 1.0, "largest error {max} mm: {stdout}");
 }
+
+/// A camera clock that jumps 5 s mid-recording (a clock set by the network): the step was
+/// reported as 150 frames dropped, "gaps there, not shifts", where every later time is 5 s
+/// off. The robot moved as far as in one frame across it: named as the clock's jump.
+#[test]
+fn a_jump_of_the_cameras_clock_is_not_called_dropped_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 40, 2, &["--video", "png"]);
+    let frames = d.join("jumped");
+    std::fs::create_dir_all(&frames).unwrap();
+    let stamps = std::fs::read_to_string(d.join("frames/timestamps.csv")).unwrap();
+    let mut lines = stamps.lines();
+    let mut out = vec![lines.next().unwrap().to_string()];
+    for (i, l) in lines.enumerate() {
+        let (file, t) = l.split_once(',').unwrap();
+        std::fs::copy(d.join("frames").join(file), frames.join(file)).unwrap();
+        let t: f64 = t.parse().unwrap();
+        out.push(format!("{file},{}", if i >= 20 { t + 5.0 } else { t }));
+    }
+    let ts = d.join("ts.csv");
+    std::fs::write(&ts, out.join("\n") + "\n").unwrap();
+    let report = d.join("report.json");
+    let res = odocal(&[
+        "track",
+        p(&frames),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--timestamps",
+        p(&ts),
+        "--out",
+        p(&d.join("t.csv")),
+        "--report",
+        p(&report),
+    ]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("the timestamps jump 5.033 s after frame 19")
+            && err.contains("the camera's clock jumped, no frame was lost"),
+        "{err}"
+    );
+    assert!(!err.contains("frames dropped"), "{err}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["timing"]["dropped_frames"], 0);
+    assert_eq!(r["timing"]["clock_jumps"].as_array().map(Vec::len), Some(1));
+}

@@ -33,6 +33,9 @@ pub struct TimingReport {
     pub dropped: Vec<DroppedFrames>,
     /// Dropped frames in all.
     pub dropped_frames: usize,
+    /// Steps in time of several frames across which the robot moved as far as in one frame:
+    /// the camera's clock jumped (every later time is off by the jump), no frame was lost.
+    pub clock_jumps: Vec<DroppedFrames>,
     /// Frames whose timestamp is not after the previous one (not tracked).
     pub duplicate_times: usize,
     /// Frames identical to the previous one (not tracked).
@@ -47,6 +50,37 @@ pub struct TimingReport {
     /// The video's own frame rate when `--fps` overrode it with another, frames/s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub overridden_fps: Option<f64>,
+}
+
+/// Whether the robot's fixes on both sides of the time step `d` lie as close as one frame
+/// apart, where its fixes elsewhere show it moving: then the step is the clock's, not lost
+/// frames'. Needs fixes at both frames and a robot moving at least 0.5 mm a frame around.
+fn is_clock_jump(r: &TrackResult, d: &DroppedFrames) -> bool {
+    const MIN_FRAMES: usize = 3;
+    if d.missing < MIN_FRAMES {
+        return false;
+    }
+    let fix_at = |index: usize| {
+        r.records
+            .iter()
+            .find(|x| x.index == index)
+            .and_then(|x| match &x.outcome {
+                Outcome::Fix(f) => Some(f.pose.position()),
+                _ => None,
+            })
+    };
+    let (Some(a), Some(b)) = (fix_at(d.after_frame), fix_at(d.after_frame + 1)) else {
+        return false;
+    };
+    // The robot's motion per frame over the few frames before the step.
+    let before: Vec<f64> = (d.after_frame.saturating_sub(5)..d.after_frame)
+        .filter_map(|k| Some((fix_at(k + 1)? - fix_at(k)?).norm()))
+        .collect();
+    if before.is_empty() {
+        return false;
+    }
+    let per_frame = before.iter().sum::<f64>() / before.len() as f64;
+    per_frame >= 0.0005 && (b - a).norm() <= 2.0 * per_frame
 }
 
 /// A step longer than this many usual steps means frames were dropped.
@@ -84,6 +118,10 @@ impl TimingReport {
                 last = Some((index, t));
             }
         }
+        // A time step of many frames across which the robot moved as far as in one frame is
+        // the camera's clock jumping, not frames lost: told apart where the robot moves.
+        let (clock_jumps, dropped): (Vec<DroppedFrames>, Vec<DroppedFrames>) =
+            dropped.into_iter().partition(|d| is_clock_jump(r, d));
         let count = |reason| {
             r.records
                 .iter()
@@ -126,6 +164,7 @@ impl TimingReport {
             frame_step_s: step,
             dropped,
             dropped_frames,
+            clock_jumps,
             duplicate_times: count(GapReason::DuplicateTime),
             repeated_images: count(GapReason::RepeatedImage),
             corrupt_frames: r.source.corrupt_frames.clone(),
@@ -184,6 +223,15 @@ impl TimingReport {
             if self.timing.starts_with("frame count") {
                 w.push("frames are timed by counting: dropped frames shift every later time; give a video with timestamps or an image folder with --timestamps".into());
             }
+        }
+        for j in &self.clock_jumps {
+            w.push(format!(
+                "the timestamps jump {:.3} s after frame {} ({:.3} s), yet the robot moved there as far as in one frame: the camera's clock jumped, no frame was lost, and every later time is about {:.3} s off; mend the timestamps (or time the frames by counting, --fps)",
+                j.next_s - j.after_s,
+                j.after_frame,
+                j.after_s,
+                j.next_s - j.after_s - self.frame_step_s.unwrap_or(0.0)
+            ));
         }
         if !self.corrupt_frames.is_empty() {
             let list: Vec<String> = self
