@@ -14,7 +14,7 @@ pub struct Args {
     /// end point of one run; a path model (trained on windows) corrects a log of any path.
     #[arg(long)]
     pub model: PathBuf,
-    /// The raw odometry log (for a straight-run model: of one run) (`t,left_ticks,right_ticks` or `t,v_left,v_right`).
+    /// The raw odometry log (for a straight-run model: of one run) (`t,left_ticks,right_ticks`: cumulative encoder counts; or `t,v_left,v_right`: wheel speeds in m/s; t in seconds).
     pub log: PathBuf,
     /// Robot parameters of the log (robot.json, "format": "odocal.robot/1"); default: the model's robot.
     #[arg(long)]

@@ -20,7 +20,7 @@ use crate::output::{
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Run manifest (JSON "odocal.manifest/1" or CSV id,video,trajectory,odometry,speed_mps).
+    /// Run manifest (JSON "odocal.manifest/1" or CSV id,video,trajectory,odometry,speed_mps); each odometry log is `t,left_ticks,right_ticks` (cumulative encoder counts) or `t,v_left,v_right` (wheel speeds, m/s), t in seconds on the robot clock.
     #[arg(long)]
     pub manifest: PathBuf,
     /// Camera calibration (camera.json), needed for rows with a video.
@@ -259,7 +259,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // When the logs' speed never follows the camera's, the logs are read wrongly, not the runs.
     let hint = if unmatched * 2 >= ds.rejected.len().max(1) && unmatched > 0 {
         format!(
-            "; the log's speed never followed the camera's in {unmatched} of the {total} {unit}: are the ticks cumulative counts (not counts per period), the times in seconds, and each log paired with its own run?"
+            "; the log's speed never followed the camera's in {unmatched} of the {total} {unit}: are the ticks cumulative counts (not counts per period) with both encoders counting up when the robot drives forward, the times in seconds, and each log paired with its own run?"
         )
     } else {
         String::new()
