@@ -256,37 +256,26 @@ impl FloorUncertaintyMap {
         })
     }
 
-    /// The σ of the cell holding `pixel`, millimetres (None off the map or off the floor).
-    pub fn at(&self, pixel: &Point2<f64>) -> Option<f64> {
+    /// The index of the cell holding `pixel` (None off the map).
+    fn cell_of(&self, pixel: &Point2<f64>) -> Option<usize> {
         if pixel.x < 0.0 || pixel.y < 0.0 {
             return None;
         }
         let c = (pixel.x / self.cell_px as f64) as u32;
         let r = (pixel.y / self.cell_px as f64) as u32;
-        if c >= self.cols || r >= self.rows {
-            return None;
-        }
-        self.sigma_mm
-            .get((r * self.cols + c) as usize)
-            .copied()
-            .flatten()
+        (c < self.cols && r < self.rows).then_some((r * self.cols + c) as usize)
+    }
+
+    /// The σ of the cell holding `pixel`, millimetres (None off the map or off the floor).
+    pub fn at(&self, pixel: &Point2<f64>) -> Option<f64> {
+        self.sigma_mm.get(self.cell_of(pixel)?).copied().flatten()
     }
 
     /// Whether lens models that fit the views alike map the floor at `pixel` too far apart
     /// for the bound odocal vouches for ([`MODEL_SPREAD_SHARE`] of [`FLOOR_BOUND_MM`]).
     pub fn models_part_at(&self, pixel: &Point2<f64>) -> bool {
-        if pixel.x < 0.0 || pixel.y < 0.0 {
-            return false;
-        }
-        let c = (pixel.x / self.cell_px as f64) as u32;
-        let r = (pixel.y / self.cell_px as f64) as u32;
-        if c >= self.cols || r >= self.rows {
-            return false;
-        }
-        self.model_spread_mm
-            .get((r * self.cols + c) as usize)
-            .copied()
-            .flatten()
+        self.cell_of(pixel)
+            .and_then(|k| self.model_spread_mm.get(k).copied().flatten())
             .is_some_and(|d| d > MODEL_SPREAD_SHARE * FLOOR_BOUND_MM)
     }
 
