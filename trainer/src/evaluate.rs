@@ -167,6 +167,10 @@ pub fn truth_distance(
     ((n > 0).then(|| (sum / n as f64).sqrt()), missing)
 }
 
+/// A wheel faster than this in a log's first or last step, m/s, means the log starts or ends
+/// during the motion (two 12-count ticks a 200 ms step are 0.11 m/s on a 4.3 cm wheel).
+const BOUNDARY_MOTION_MPS: f64 = 0.1;
+
 /// Judges `methods` (name, reckoner) on `recordings` of `robot`. With `squares`, the
 /// recordings are UMBMark squares (each must turn by one full turn one way or the other) and
 /// every method gets Borenstein's figures.
@@ -197,9 +201,15 @@ pub fn evaluate_paths(
         // The camera's rest poses at both ends are the truth: a log cut after the start (or
         // before the end) misses motion the camera saw, and every method would be judged on
         // a path it was not given.
+        // A tick or two of creep at either end is a logger started or stopped as the robot
+        // did; cruising speed there is motion the log does not hold.
         let revs = r.log.wheel_revs(robot);
+        let circ = std::f64::consts::PI * robot.wheel_diameter_m;
         let moves = |a: usize, b: usize| match (revs.rev.get(a), revs.rev.get(b)) {
-            (Some(p), Some(q)) => p != q,
+            (Some(p), Some(q)) => {
+                let dt = revs.t_s[b] - revs.t_s[a];
+                (0..2).any(|w| (q[w] - p[w]).abs() * circ / dt > BOUNDARY_MOTION_MPS)
+            }
             _ => false,
         };
         let n = revs.rev.len();
