@@ -230,6 +230,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => {}
         }
     }
+    // Judged before any evaluation: a log with a gap or outside the domain is refused whole.
+    let domains = recs
+        .iter()
+        .map(|rec| outside_domain(&model, rec, &robot, &args))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
+        .with_context(|| format!("{}", args.manifest.display()))?;
     // A recording the model was fitted on is no held-out recording: its figures are the
     // training's fit.
     let trained: Vec<(String, String)> = recs
@@ -249,13 +256,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.model.display()
         );
     }
-    // Judged before any evaluation: a log with a gap or outside the domain is refused whole.
-    let domains = recs
-        .iter()
-        .map(|rec| outside_domain(&model, rec, &robot, &args))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let mut ev = evaluate_paths(&recs, &robot, &methods, args.umbmark_m.is_some())
-        .with_context(|| format!("{}", args.manifest.display()))?;
     for (run, why) in ev.runs.iter_mut().zip(domains) {
         run.outside_domain = why;
     }
