@@ -1458,3 +1458,40 @@ fn a_jump_of_the_cameras_clock_is_not_called_dropped_frames() {
     assert_eq!(r["timing"]["dropped_frames"], 0);
     assert_eq!(r["timing"]["clock_jumps"].as_array().map(Vec::len), Some(1));
 }
+
+/// A JPEG frame file cut short (a copy interrupted): OpenCV decodes it without an error, the
+/// missing rows left as whatever memory held. Refused, naming the file and what to do.
+#[test]
+fn a_jpeg_frame_cut_short_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 8, 2, &["--video", "png"]);
+    let jpegs = d.join("jpegs");
+    std::fs::create_dir_all(&jpegs).unwrap();
+    let made = std::process::Command::new("ffmpeg")
+        .args(["-loglevel", "error", "-y", "-i"])
+        .arg(d.join("frames/frame_%06d.png"))
+        .args(["-q:v", "2"])
+        .arg(jpegs.join("frame_%06d.jpg"))
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let cut = jpegs.join("frame_000004.jpg");
+    let bytes = std::fs::read(&cut).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let res = odocal(&[
+        "track",
+        p(&jpegs),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+        "--fps",
+        "30",
+    ]);
+    fails_with(
+        &res,
+        "frame_000004.jpg: is not a whole JPEG image (cut short or damaged",
+    );
+    assert!(!d.join("t.csv").exists());
+}
