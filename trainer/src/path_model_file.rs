@@ -60,13 +60,13 @@ pub struct PathModelFile {
     pub training_prints: Vec<RecordingPrint>,
 }
 
-/// Steps of a recording's first moving window that identify the recording: its start time on
-/// the robot clock and the wheel revolutions of its first steps.
+/// Steps of a recording's first moving window that identify the recording: the robot-clock
+/// time of its first moving step and the wheel revolutions of the steps from there.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordingPrint {
     /// The training recording's id.
     pub recording_id: String,
-    /// Robot-clock time of the window's first row, seconds.
+    /// Robot-clock time of the row the window's first moving step starts at, seconds.
     pub t_s: f64,
     /// Wheel revolutions [left, right] of each of the window's first steps.
     pub steps_rev: Vec<[f64; 2]>,
@@ -86,16 +86,21 @@ impl RecordingPrint {
                 *e = s;
             }
         }
+        // From the window's first moving step: steps at rest are alike in every recording
+        // that starts at the same time.
         first
             .into_iter()
-            .filter(|(_, s)| s.odometry.rev.len() > PRINT_STEPS)
-            .map(|(id, s)| Self {
-                recording_id: id.to_string(),
-                t_s: s.odometry.t_b(),
-                steps_rev: s.odometry.rev[..=PRINT_STEPS]
-                    .windows(2)
-                    .map(|w| [w[1][0] - w[0][0], w[1][1] - w[0][1]])
-                    .collect(),
+            .filter_map(|(id, s)| {
+                let (t, rev) = (&s.odometry.t_s, &s.odometry.rev);
+                let j = (0..rev.len().saturating_sub(1)).find(|&j| rev[j + 1] != rev[j])?;
+                (rev.len() > j + PRINT_STEPS).then(|| Self {
+                    recording_id: id.to_string(),
+                    t_s: t[j],
+                    steps_rev: rev[j..=j + PRINT_STEPS]
+                        .windows(2)
+                        .map(|w| [w[1][0] - w[0][0], w[1][1] - w[0][1]])
+                        .collect(),
+                })
             })
             .collect()
     }
