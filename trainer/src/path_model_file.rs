@@ -167,7 +167,7 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
 /// per-step speeds), and its training had none off it, so a gap (two rows lost) would read as
 /// one step three times as fast and be judged, corrected and scored as such. A log off the
 /// period throughout is named as such first; a step no wheel can take is refused too.
-pub(crate) fn check_period(
+pub(crate) fn check_log_steps(
     log: &OdometryLog,
     robot: &RobotParams,
     name: &str,
@@ -348,7 +348,7 @@ impl PathModelFile {
         name: &str,
         allow_extrapolation: bool,
     ) -> Result<Vec<String>, TrainError> {
-        check_period(log, robot, name)?;
+        check_log_steps(log, robot, name)?;
         let steps = nominal_travels(&log.wheel_revs(robot).rev, robot);
         self.check_steps_domain(&steps, robot, name, allow_extrapolation)
     }
@@ -410,7 +410,7 @@ impl PathModelFile {
         self.check_robot(robot, name)?;
         let revs = log.wheel_revs(robot);
         let steps = nominal_travels(&revs.rev, robot);
-        check_period(log, robot, name)?;
+        check_log_steps(log, robot, name)?;
         let outside_domain = self.check_steps_domain(&steps, robot, name, allow_extrapolation)?;
         let c = self.corrector()?;
         let corrected = c.dead_reckon_travels(&steps);
