@@ -1409,6 +1409,25 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
     );
     let max = number_after(&stdout, "(max ");
     assert!(max < 1.0, "largest error {max} mm: {stdout}");
+    // Tracking several robots (`--tags`, and the arena's cameras) screens fixes alike.
+    let res = odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&camera),
+        "--tags",
+        "0",
+        "--out",
+        p(&out),
+    ]);
+    succeeded(&res);
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        stderr.contains("1 frame repeats the previous frame's image"),
+        "--tags: {stderr}"
+    );
+    let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
+    assert_eq!(rows, 39, "--tags: the damaged frame's fix is left out");
 }
 
 /// A camera clock that jumps 5 s mid-recording (a clock set by the network): the step was

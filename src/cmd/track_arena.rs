@@ -13,7 +13,7 @@ use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
     fix_warnings, mount_warnings, open_source, quiet_video_logs, tag_shape_warnings, SourceOptions,
-    TrackOptions, TrackResult,
+    TimingReport, TrackOptions, TrackResult,
 };
 
 use crate::output::{
@@ -152,6 +152,28 @@ fn fixes_to_trajectories(
     Ok(out)
 }
 
+/// What the frames' timing says about one video (dropped or repeated frames, a clock that
+/// jumps, a file cut short): once for the video, or for the tags it concerns where it
+/// differs between them (a fix repeated in one tag's frames).
+fn say_timing(video: &Path, per_tag: &BTreeMap<u32, TrackResult>) {
+    let mut said: Vec<(String, Vec<String>)> = Vec::new();
+    for (id, r) in per_tag {
+        for w in TimingReport::of(r).warnings() {
+            match said.iter_mut().find(|(s, _)| *s == w) {
+                Some((_, ids)) => ids.push(id.to_string()),
+                None => said.push((w, vec![id.to_string()])),
+            }
+        }
+    }
+    for (w, ids) in said {
+        if ids.len() == per_tag.len() {
+            tell!("warning: {}: {w}", video.display());
+        } else {
+            tell!("warning: {}: tag {}: {w}", video.display(), ids.join(", "));
+        }
+    }
+}
+
 fn track_one_video(
     args: &super::track::Args,
     opts: &TrackOptions,
@@ -179,6 +201,7 @@ fn track_one_video(
     );
     bar.finish_and_clear();
     let results = results?;
+    say_timing(&args.video, &results);
     for (id, r) in &results {
         for w in fix_warnings(r, &camera_file, &floor, opts) {
             tell!("warning: {}: tag {id}: {w}", args.video.display());
@@ -274,6 +297,7 @@ fn track_arena(
     tell!("tracking {} videos in parallel", videos.len());
     let results = track_cameras(&arena, &videos, opts, selection, true)?;
     for ((cam, per_tag), video) in arena.cameras.iter().zip(&results).zip(&videos) {
+        say_timing(video, per_tag);
         for (id, r) in per_tag {
             for w in tag_shape_warnings(r, &cam.calibration, &cam.arena_to_camera, opts) {
                 tell!("warning: {}: tag {id}: {w}", video.display());

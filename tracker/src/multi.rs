@@ -17,7 +17,8 @@ use odocal_calib::{CameraModel, FloorToCamera};
 use crate::detect::TagDetector;
 use crate::source::{Frame, FrameSource};
 use crate::track::{
-    check_frame_size, FrameRecord, GapReason, Outcome, TrackOptions, TrackResult, Tracker,
+    check_frame_size, unusable_frame, FrameRecord, GapReason, Outcome, RepeatedFixes, TrackOptions,
+    TrackResult, Tracker,
 };
 use crate::TrackError;
 
@@ -75,6 +76,7 @@ struct IdState {
     tracker: Tracker,
     records: Vec<FrameRecord>,
     last_fix: Option<usize>,
+    repeated: RepeatedFixes,
 }
 
 /// Tracks every selected tag through a source in one pass; one [`TrackResult`] per id
@@ -102,6 +104,7 @@ pub fn track_source_multi(
             )?,
             records: Vec::new(),
             last_fix: None,
+            repeated: RepeatedFixes::default(),
         })
     };
     let mut states: BTreeMap<u32, IdState> = BTreeMap::new();
@@ -136,27 +139,12 @@ pub fn track_source_multi(
             }
             for k in 0..batch.len() {
                 let frame = &batch[k];
-                if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
-                    return Err(TrackError::Mismatch(format!(
-                        "frame {} of {} is {}×{}, the camera file describes {}×{} images",
-                        frame.index,
-                        info.path.display(),
-                        frame.image.width,
-                        frame.image.height,
-                        camera.width,
-                        camera.height
-                    )));
-                }
                 let before = if k > 0 {
                     batch.get(k - 1)
                 } else {
                     previous.as_ref()
                 };
-                let unusable = match before {
-                    Some(b) if frame.t_s <= b.t_s => Some(GapReason::DuplicateTime),
-                    Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
-                    _ => None,
-                };
+                let unusable = unusable_frame(frame, before, camera, &info.path)?;
                 let following = |s: &IdState| {
                     s.last_fix
                         .is_some_and(|i| frame.index.saturating_sub(i) <= FOLLOW_FRAMES)
@@ -194,11 +182,12 @@ pub fn track_source_multi(
                     }
                 }
                 for (id, s) in states.iter_mut() {
-                    let rec = match unusable {
+                    let mut rec = match unusable {
                         Some(reason) => gap(frame, reason),
                         None if following(s) || found.contains(id) => s.tracker.process(frame)?,
                         None => gap(frame, GapReason::NotDetected),
                     };
+                    s.repeated.screen(&mut rec);
                     if matches!(rec.outcome, Outcome::Fix(_)) {
                         s.last_fix = Some(frame.index);
                     }

@@ -1116,7 +1116,7 @@ pub fn track_source(
                 }
             };
             let mut previous: Option<Frame> = None;
-            let mut last_fix: Option<Pose2> = None;
+            let mut repeated = RepeatedFixes::default();
             for batch in rx {
                 let out = batch.and_then(|batch| {
                     track_batch(
@@ -1125,7 +1125,7 @@ pub fn track_source(
                         &path,
                         batch,
                         &mut previous,
-                        &mut last_fix,
+                        &mut repeated,
                     )
                 });
                 let stop = !matches!(&out, Ok(b) if !b.is_empty());
@@ -1182,27 +1182,12 @@ fn track_batch(
     path: &std::path::Path,
     batch: Vec<Frame>,
     previous: &mut Option<Frame>,
-    last_fix: &mut Option<Pose2>,
+    repeated: &mut RepeatedFixes,
 ) -> Result<Vec<(Frame, FrameRecord)>, TrackError> {
     let mut out: Vec<(Frame, FrameRecord)> = Vec::with_capacity(batch.len());
     for frame in batch {
-        if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
-            return Err(TrackError::Mismatch(format!(
-                "frame {} of {} is {}×{}, the camera file describes {}×{} images",
-                frame.index,
-                path.display(),
-                frame.image.width,
-                frame.image.height,
-                camera.width,
-                camera.height
-            )));
-        }
         let before = out.last().map(|(f, _)| f).or(previous.as_ref());
-        let unusable = match before {
-            Some(b) if frame.t_s <= b.t_s => Some(GapReason::DuplicateTime),
-            Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
-            _ => None,
-        };
+        let unusable = unusable_frame(&frame, before, camera, path)?;
         let mut rec = match unusable {
             Some(reason) => FrameRecord {
                 index: frame.index,
@@ -1212,22 +1197,63 @@ fn track_batch(
             },
             None => tracker.process(&frame)?,
         };
-        if let (Outcome::Fix(fix), Some(last)) = (&rec.outcome, last_fix.as_ref()) {
-            if same_pose(&fix.pose, last) {
-                rec.outcome = Outcome::Gap(GapReason::RepeatedImage);
-            }
-        }
-        if let Outcome::Fix(fix) = &rec.outcome {
-            *last_fix = Some(fix.pose);
-        } else if !matches!(rec.outcome, Outcome::Gap(GapReason::RepeatedImage)) {
-            *last_fix = None;
-        }
+        repeated.screen(&mut rec);
         out.push((frame, rec));
     }
     if let Some((last, _)) = out.last() {
         *previous = Some(last.clone());
     }
     Ok(out)
+}
+
+/// Why `frame` cannot be tracked whatever its pixels show: its time repeats or goes back
+/// from the frame `before` it, or its pixels repeat that frame's. A frame of another size
+/// than the camera's is an error.
+pub(crate) fn unusable_frame(
+    frame: &Frame,
+    before: Option<&Frame>,
+    camera: &CameraModel,
+    path: &std::path::Path,
+) -> Result<Option<GapReason>, TrackError> {
+    if (frame.image.width, frame.image.height) != (camera.width, camera.height) {
+        return Err(TrackError::Mismatch(format!(
+            "frame {} of {} is {}×{}, the camera file describes {}×{} images",
+            frame.index,
+            path.display(),
+            frame.image.width,
+            frame.image.height,
+            camera.width,
+            camera.height
+        )));
+    }
+    Ok(match before {
+        Some(b) if frame.t_s <= b.t_s => Some(GapReason::DuplicateTime),
+        Some(b) if b.image.data == frame.image.data => Some(GapReason::RepeatedImage),
+        _ => None,
+    })
+}
+
+/// The last fix of a tag, to find a fix that repeats it (see [`same_pose`]).
+#[derive(Debug, Default)]
+pub(crate) struct RepeatedFixes {
+    last: Option<Pose2>,
+}
+
+impl RepeatedFixes {
+    /// Turns `rec` into a repeated-image gap when its fix equals the last fix before it (a
+    /// run of repeated frames compares with the fix they repeat).
+    pub(crate) fn screen(&mut self, rec: &mut FrameRecord) {
+        if let (Outcome::Fix(fix), Some(last)) = (&rec.outcome, self.last.as_ref()) {
+            if same_pose(&fix.pose, last) {
+                rec.outcome = Outcome::Gap(GapReason::RepeatedImage);
+            }
+        }
+        match &rec.outcome {
+            Outcome::Fix(fix) => self.last = Some(fix.pose),
+            Outcome::Gap(GapReason::RepeatedImage) => {}
+            _ => self.last = None,
+        }
+    }
 }
 
 /// Whether a fix repeats the previous frame's to rounding (1 nm, 1 nrad). The tag's pixels
