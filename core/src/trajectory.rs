@@ -1,5 +1,6 @@
 //! Trajectory files: CSV `t,x,y,theta,quality`, floor frame, metres and radians, one row per
-//! frame with a detection; missed frames are absent. Written by the tracker (or the simulator
+//! frame with a detection; missed frames are absent, and rows of quality 0 (samples a motion
+//! capture lost) are read as absent too. Written by the tracker (or the simulator
 //! with `--frames none`), read by the dataset builder; see ARCHITECTURE.md for the conventions.
 //!
 //! The tracker adds three columns, `sigma_x,sigma_y,sigma_theta` (metres, metres, radians): the
@@ -124,6 +125,13 @@ impl Trajectory {
         let mut rows = Vec::new();
         let mut lines = Vec::new();
         for &(line, ref rec) in &table.rows {
+            // Quality 0 marks a sample the source lost (a motion capture writes its last
+            // pose, the origin or NaN): no pose at all, as a frame the tracker missed.
+            let lost = !without_quality
+                && rec.get(4).and_then(|q| q.trim().parse::<f64>().ok()) == Some(0.0);
+            if lost {
+                continue;
+            }
             let row = if with_sigma {
                 let v: [f64; 8] = numeric_row(name, line, rec)?;
                 if let Some(c) = v[5..].iter().position(|s| *s <= 0.0) {
@@ -166,6 +174,12 @@ impl Trajectory {
             };
             rows.push(row);
             lines.push(line);
+        }
+        if rows.is_empty() && !table.rows.is_empty() {
+            return Err(FileError::content(
+                name,
+                "every row has quality 0, which marks a sample the source lost: there is no pose in it (write 1 for a sure pose when the source gives no quality)",
+            ));
         }
         let t = Self { rows };
         t.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
@@ -473,6 +487,15 @@ mod tests {
                 .starts_with("tr.csv:2:5: quality 5 is outside 0 to 1"),
             "{e}"
         );
+        // Quality 0 is a sample the source lost: no pose, whatever the row holds.
+        let t = Trajectory::parse_csv(
+            "t,x,y,theta,quality\n0,1,2,0,1\n0.1,0,0,0,0\n0.2,NaN,NaN,NaN,0\n0.3,1.2,2,0,0.5\n",
+            "m.csv",
+        )
+        .unwrap();
+        assert_eq!(t.rows.iter().map(|r| r.t_s).collect::<Vec<_>>(), [0.0, 0.3]);
+        let e = Trajectory::parse_csv("t,x,y,theta,quality\n0,0,0,0,0\n", "m.csv").unwrap_err();
+        assert!(e.to_string().contains("every row has quality 0"), "{e}");
         // Without quality every row is a sure pose.
         let t = Trajectory::parse_csv("t,x,y,theta\n0,1,2,0.5\n", "tr.csv").unwrap();
         assert_eq!((t.rows[0].pose.y_m, t.rows[0].quality), (2.0, 1.0));

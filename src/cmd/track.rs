@@ -95,10 +95,8 @@ fn read_truth(path: &Path) -> anyhow::Result<(Trajectory, Option<usize>)> {
         let frames = FramesTruth::parse(&text, &path.display().to_string())?;
         return Ok((frames.trajectory()?, Some(frames.frames_in_file())));
     }
-    // A motion-capture export marks the frames it lost with quality 0: they are no truth.
-    let mut truth = Trajectory::read_csv(path)?;
-    truth.rows.retain(|r| r.quality > 0.0);
-    Ok((truth, None))
+    // Rows of quality 0 (samples a motion capture lost) are read as absent.
+    Ok((Trajectory::read_csv(path)?, None))
 }
 
 /// The trajectory against the truth.
