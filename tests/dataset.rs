@@ -126,9 +126,11 @@ fn recordings_of_many_runs_are_not_refused_as_mispaired() {
 
 /// A robot's 16-bit encoder counters wrap (unsigned from 65 535 to 0, signed from 32 767 to
 /// −32 768) within its logs: the dataset is the same as from the unwrapped logs, and says
-/// where it unwrapped them.
+/// where it unwrapped them. A count that flickers by a tick at rest (a wheel on a tick's
+/// edge) before the first run made its log "start during the run's motion", and one a row
+/// later moved t_b 0.4 s early (every input shifted): both are rest, and said.
 #[test]
-fn wrapped_encoder_counters_give_the_same_dataset() {
+fn wrapped_encoder_counters_and_twitches_give_the_same_dataset() {
     let dir = tempfile::tempdir().unwrap();
     synth(dir.path(), 6, 5, 3);
     let plain = build(dir.path());
@@ -166,6 +168,27 @@ fn wrapped_encoder_counters_give_the_same_dataset() {
             n.contains(&format!("{rec}.odometry.csv: encoder counts unwrapped: left_ticks wraps as a 16-bit counter at line")),
             "{n}"
         );
+    }
+    // One tick more on the left wheel at rest, on the log's second row (line 3) or third.
+    for line in [3, 4] {
+        let path = dir.path().join("runs/rec002.odometry.csv");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let mut f: Vec<String> = lines[line - 1].split(',').map(String::from).collect();
+        f[1] = (f[1].parse::<i64>().unwrap() + 1).to_string();
+        lines[line - 1] = f.join(",");
+        let flickered = lines.join("\n") + "\n";
+        std::fs::write(&path, &flickered).unwrap();
+        let ds = build(dir.path());
+        assert_eq!(ds.samples, plain.samples, "a flicker on line {line}");
+        assert!(
+            ds.notes[1].contains(&format!(
+                "encoder counts flickering by a tick at rest read as rest: line {line}"
+            )),
+            "{:?}",
+            ds.notes
+        );
+        std::fs::write(&path, &text).unwrap();
     }
 }
 

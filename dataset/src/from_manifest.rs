@@ -34,7 +34,7 @@ fn one_row(
     let log_path = m.resolve(&row.odometry);
     let log = OdometryLog::read_csv(&log_path)?;
     let note = log
-        .wrap_note()
+        .count_note()
         .map(|n| format!("{}: {n}", log_path.display()));
     if let Some(why) = log.period_mismatch(opts.robot.period_s) {
         return Err(DatasetError::Mismatch(format!(

@@ -14,6 +14,7 @@ pub mod oracle;
 pub mod sample;
 pub mod segment;
 pub mod turn_sides;
+pub mod twitch;
 pub mod units;
 pub mod windows;
 

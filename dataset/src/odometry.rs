@@ -7,6 +7,7 @@ use odocal_core::{csv_table, numeric_row};
 
 use crate::counter_wrap::{unwrap_counts, CounterWrap};
 use crate::error::{read_text, DatasetError};
+use crate::twitch::{remove_twitches, Twitch};
 use crate::RobotParams;
 
 /// Header of a tick log.
@@ -49,6 +50,9 @@ pub struct OdometryLog {
     /// The encoder-counter wraps taken out of the counts as read (`left`, `right` hold the
     /// unwrapped counts).
     pub counter_wraps: Vec<CounterWrap>,
+    /// The encoder twitches at rest set back to the count around them (see
+    /// [`crate::twitch`]).
+    pub twitches: Vec<Twitch>,
 }
 
 /// Cumulative wheel revolutions at the log's times, relative to the first row.
@@ -73,6 +77,7 @@ impl OdometryLog {
             left: left.into_iter().map(|v| v as f64).collect(),
             right: right.into_iter().map(|v| v as f64).collect(),
             counter_wraps: Vec::new(),
+            twitches: Vec::new(),
         };
         log.validate("<ticks>", |i| i as u64 + 2)?;
         Ok(log)
@@ -90,6 +95,7 @@ impl OdometryLog {
             left: v_left,
             right: v_right,
             counter_wraps: Vec::new(),
+            twitches: Vec::new(),
         };
         log.validate("<speeds>", |i| i as u64 + 2)?;
         Ok(log)
@@ -163,17 +169,30 @@ impl OdometryLog {
     }
 
     /// What reading the log took out of its counts, for the user: the encoder-counter wraps
-    /// unwrapped (None when there were none).
-    pub fn wrap_note(&self) -> Option<String> {
-        let first = self.counter_wraps.first()?;
-        let more = match self.counter_wraps.len() {
-            1 => String::new(),
-            n => format!(" and {} more wrap{}", n - 1, if n == 2 { "" } else { "s" }),
+    /// unwrapped and the twitches at rest set back (None when there were none).
+    pub fn count_note(&self) -> Option<String> {
+        let more = |n: usize, one: &str, many: &str| match n {
+            0 | 1 => String::new(),
+            2 => format!(" and 1 more {one}"),
+            n => format!(" and {} more {many}", n - 1),
         };
-        Some(format!(
-            "encoder counts unwrapped: {first}{more}; check that the robot's counter is {} bits wide",
-            first.bits
-        ))
+        let wraps = self.counter_wraps.first().map(|first| {
+            format!(
+                "encoder counts unwrapped: {first}{}; check that the robot's counter is {} bits wide",
+                more(self.counter_wraps.len(), "wrap", "wraps"),
+                first.bits
+            )
+        });
+        let twitches = self.twitches.first().map(|first| {
+            format!(
+                "encoder counts flickering by a tick at rest read as rest: {first}{}",
+                more(self.twitches.len(), "twitch", "twitches"),
+            )
+        });
+        match (wraps, twitches) {
+            (Some(w), Some(t)) => Some(format!("{w}; {t}")),
+            (w, t) => w.or(t),
+        }
     }
 
     /// Reads a log CSV; the header decides the kind.
@@ -229,9 +248,11 @@ impl OdometryLog {
             lines.push(line);
         }
         let mut counter_wraps = Vec::new();
+        let mut twitches = Vec::new();
         if kind == LogKind::Ticks {
             counter_wraps.extend(unwrap_counts(&mut left, TICKS_HEADER[1], &lines));
             counter_wraps.extend(unwrap_counts(&mut right, TICKS_HEADER[2], &lines));
+            twitches = remove_twitches(&mut left, &mut right, &lines);
         }
         let log = Self {
             kind,
@@ -239,6 +260,7 @@ impl OdometryLog {
             left,
             right,
             counter_wraps,
+            twitches,
         };
         log.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
         Ok(log)
@@ -421,7 +443,7 @@ mod tests {
         assert!((r.rev[1][0] - 0.1 / (std::f64::consts::PI * 0.043)).abs() < 1e-12);
         let back = OdometryLog::parse_csv(&log.to_csv(), "c").unwrap();
         assert_eq!(back, log);
-        assert_eq!(log.wrap_note(), None);
+        assert_eq!(log.count_note(), None);
     }
 
     #[test]
@@ -434,7 +456,7 @@ mod tests {
         assert_eq!(log.left, vec![65530.0, 65535.0, 65540.0]);
         assert_eq!(log.right, vec![65531.0, 65536.0, 65542.0]);
         assert_eq!(
-            log.wrap_note().unwrap(),
+            log.count_note().unwrap(),
             "encoder counts unwrapped: left_ticks wraps as a 16-bit counter at line 4 (65535 → 4) and 1 more wrap; check that the robot's counter is 16 bits wide"
         );
     }

@@ -122,7 +122,7 @@ pub struct Dataset {
     #[serde(default)]
     pub summary: DatasetSummary,
     /// What was done to the inputs that their owner should know (encoder-counter wraps
-    /// unwrapped), one line each naming the file.
+    /// unwrapped, twitches at rest set back), one line each naming the file.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
 }

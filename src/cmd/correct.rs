@@ -38,7 +38,7 @@ fn robot_and_log(
         None => model_robot,
     };
     let log = OdometryLog::read_csv(&args.log)?;
-    if let Some(n) = log.wrap_note() {
+    if let Some(n) = log.count_note() {
         tell!("note: {}: {n}", args.log.display());
     }
     Ok((robot, log))

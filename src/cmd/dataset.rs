@@ -332,8 +332,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ds.rejected.len() + ds.samples.len()
         );
     }
-    for n in &ds.notes {
+    // Every note is in the dataset file; a few name the kind on the terminal.
+    const NOTES_SHOWN: usize = 3;
+    for n in ds.notes.iter().take(NOTES_SHOWN) {
         tell!("note: {n}");
+    }
+    if ds.notes.len() > NOTES_SHOWN {
+        tell!(
+            "note: and {} more, on other logs (every note is in {}'s \"notes\")",
+            ds.notes.len() - NOTES_SHOWN,
+            args.out.display()
+        );
     }
     let robot_file = match &args.robot {
         Some(p) => p.display().to_string(),

@@ -49,7 +49,7 @@ pub struct Args {
 fn read_recordings(manifest: &std::path::Path) -> anyhow::Result<Vec<PathRecording>> {
     let recs = PathRecording::read_manifest(&Manifest::read(manifest)?)?;
     for r in &recs {
-        if let Some(n) = r.log.wrap_note() {
+        if let Some(n) = r.log.count_note() {
             tell!("note: run \"{}\": {n}", r.id);
         }
     }
