@@ -385,6 +385,19 @@ fn sweep_ranges_and_folds_are_checked_as_options() {
         "{e}"
     );
     assert!(!m.exists());
+    // Three samples: no count of folds would do, and the advice is not another count.
+    let mut few: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&ds).unwrap()).unwrap();
+    few["samples"].as_array_mut().unwrap().truncate(3);
+    let few_path = dir.path().join("few.json");
+    std::fs::write(&few_path, few.to_string()).unwrap();
+    for folds in ["2", "10"] {
+        let e = fails(&["train", p(&few_path), "--out", p(&m), "--folds", folds]);
+        assert!(
+            e.contains("few.json has 3 samples, too few to cross-validate (2 folds of 2 need 4) or to train at all"),
+            "--folds {folds}: {e}"
+        );
+    }
     let e = fails(&["train", p(&ds), "--out", p(&m), "--restarts", "3"]);
     assert!(e.contains("--restarts is used by --sweep only"), "{e}");
     // Within the limit the estimate is made; with --no-cv the folds are not used.

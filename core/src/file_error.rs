@@ -15,6 +15,15 @@ pub enum FileError {
         #[source]
         source: std::io::Error,
     },
+    /// An output could not be written (its folder made, its file written or moved into place).
+    #[error("cannot write {path}")]
+    Write {
+        /// The file or folder.
+        path: String,
+        /// The operating system's reason.
+        #[source]
+        source: std::io::Error,
+    },
     /// A malformed value, with its position (1-based line and column).
     #[error("{path}:{line}:{column}: {message}")]
     Parse {

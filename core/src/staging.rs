@@ -47,7 +47,7 @@ fn make_dirs(dir: &Path) -> Result<(), FileError> {
 }
 
 fn io(path: &Path, source: std::io::Error) -> FileError {
-    FileError::Io {
+    FileError::Write {
         path: path.display().to_string(),
         source,
     }
@@ -321,6 +321,9 @@ mod tests {
         assert!(dir.join("sub/f").exists());
         assert!(check_output_file(&dir, "--out").is_err());
         assert!(check_output_file(Path::new("/dev/null"), "--out").is_err());
+        // A folder that cannot be made is a write that failed, not a read.
+        let e = write_atomic(&a.join("under/a/file.txt"), b"x").unwrap_err();
+        assert!(e.to_string().starts_with("cannot write "), "{e}");
         // A smaller set over a larger one: the new series replaces the old one whole, and
         // files of no series written now stay.
         let set = dir.join("set");
