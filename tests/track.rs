@@ -1514,3 +1514,39 @@ fn a_jpeg_frame_cut_short_is_named() {
     );
     assert!(!d.join("t.csv").exists());
 }
+
+/// A tag printed 1 % larger than `--tag-size` says (a print scaled to the page): positions
+/// are right, but the planar fit held the square at the size given and every fix's σ took
+/// the misfit for noise (error/σ 0.19 where 1 is right, with no word). The square's side
+/// on the marker plane names it; the right size says nothing.
+#[test]
+fn a_tag_size_a_percent_off_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 30, 4, &["--video", "avi"]);
+    let track = |size: &str| {
+        let res = odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--tag-size",
+            size,
+            "--out",
+            p(&d.join("t.csv")),
+        ]);
+        succeeded(&res);
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    let said = track("0.0808");
+    assert!(
+        said.contains("the tag's black square spans 80.0")
+            && said.contains("-1.0 % from --tag-size 80.80 mm")
+            && said.contains("give --tag-size 0.0800"),
+        "{said}"
+    );
+    for size in ["0.08", "0.0801"] {
+        let said = track(size);
+        assert!(!said.contains("black square"), "--tag-size {size}: {said}");
+    }
+}

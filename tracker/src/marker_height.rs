@@ -9,7 +9,7 @@
 use nalgebra::Point2;
 use odocal_calib::{CameraModel, FloorToCamera};
 
-use crate::pose::pnp_tag_to_floor;
+use crate::pose::{planar_pose, pnp_tag_to_floor};
 use crate::TrackResult;
 
 /// Fixes sampled, evenly over the run: the median settles long before.
@@ -86,6 +86,79 @@ impl MarkerHeight {
             self.fixes,
             self.shift_m(given_m) * 1e3,
             0.01 * (self.camera_height_m - self.height_m) * 1e3
+        ))
+    }
+}
+
+/// A tag side this far (as a share) from `--tag-size` is flagged: what a marker height
+/// 7 mm off gives under a 2.2 m ceiling, several times a good calibration's focal-length
+/// error, and a third of the 1 % of a print scaled to fit the page (which makes every σ
+/// five times too large; 0.3 % makes it about twice).
+pub const TAG_SIDE_TOLERANCE: f64 = 0.003;
+
+/// The side of the tag's black square on the marker plane, as the fixes' corners span it.
+/// The planar fit holds the square at `--tag-size` and takes the height from
+/// `--marker-height`, so a size or height a percent off leaves the positions alone but
+/// shows in every fix's misfit, which the fixes' σ take for noise (a 1 % error makes every
+/// σ five times too large, with no word).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TagSide {
+    /// Median over the fixes of the square's side on the marker plane, metres.
+    pub side_m: f64,
+    /// Fixes the median is taken over.
+    pub fixes: usize,
+    /// The camera's height above the marker plane, metres.
+    pub camera_above_marker_m: f64,
+}
+
+impl TagSide {
+    /// The side of `result`'s tags, read through `camera` over `floor` at `marker_height_m`
+    /// (None without a fix).
+    pub fn of(
+        result: &TrackResult,
+        camera: &CameraModel,
+        floor: &FloorToCamera,
+        tag_size_m: f64,
+        marker_height_m: f64,
+    ) -> Option<Self> {
+        let fixes: Vec<_> = result.fixes().map(|(_, f)| f).collect();
+        let step = fixes.len().div_ceil(MAX_SAMPLES).max(1);
+        let mut sides: Vec<f64> = fixes
+            .iter()
+            .step_by(step)
+            .filter_map(|f| planar_pose(camera, floor, &f.corners_px, tag_size_m, marker_height_m))
+            .map(|p| p.size_m)
+            .filter(|s| s.is_finite())
+            .collect();
+        if sides.is_empty() {
+            return None;
+        }
+        sides.sort_by(f64::total_cmp);
+        Some(Self {
+            side_m: sides[sides.len() / 2],
+            fixes: sides.len(),
+            camera_above_marker_m: floor.0.inverse().translation.vector.z - marker_height_m,
+        })
+    }
+
+    /// A warning when the side is not `tag_size_m`: either the size or the marker height
+    /// `marker_height_m` is off, by what each would have to be.
+    pub fn warning(&self, tag_size_m: f64, marker_height_m: f64) -> Option<String> {
+        let ratio = self.side_m / tag_size_m;
+        if (ratio - 1.0).abs() <= TAG_SIDE_TOLERANCE {
+            return None;
+        }
+        // The side scales with the distance from the camera: a marker higher by δ is seen
+        // (D − δ)/D as large at the height given.
+        let height_m = marker_height_m + self.camera_above_marker_m * (1.0 - 1.0 / ratio);
+        Some(format!(
+            "the tag's black square spans {:.2} mm on the marker plane (median of {} fixes), {:+.1} % from --tag-size {:.2} mm: either the size is off (a print scaled to fit the page; measure the square and give --tag-size {:.4}) or the marker sits at {:.3} m, not --marker-height {marker_height_m:.3} m. Positions are not moved by it, but every fix's σ takes the misfit for noise and is too large",
+            self.side_m * 1e3,
+            self.fixes,
+            (ratio - 1.0) * 100.0,
+            tag_size_m * 1e3,
+            self.side_m,
+            height_m,
         ))
     }
 }
