@@ -386,8 +386,16 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     .unwrap();
     let e = run(&m5);
     assert!(
-        e.contains("runs \"run001\" and \"run002\" list files with the same bytes")
+        e.contains("runs \"run001\" and \"run002\" list files holding the same recording")
             && e.contains("copy.odometry.csv (odometry log)"),
+        "{e}"
+    );
+    // Saved again with Windows line ends, it is still that recording.
+    let log = std::fs::read_to_string(runs.join("run001.odometry.csv")).unwrap();
+    std::fs::write(runs.join("copy.odometry.csv"), log.replace('\n', "\r\n")).unwrap();
+    let e = run(&m5);
+    assert!(
+        e.contains("list files holding the same recording") && e.contains("copy.odometry.csv"),
         "{e}"
     );
     std::fs::remove_file(runs.join("copy.odometry.csv")).unwrap();

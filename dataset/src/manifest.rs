@@ -211,16 +211,16 @@ impl Manifest {
             }
         }
         // A copy under another name is the same recording too (a video exported twice, a
-        // log saved again): only files of one size can hold the same bytes.
+        // log saved again, with Windows line ends or not).
         let sized: Vec<_> = seen
             .iter()
             .filter_map(|(f, id, role)| Some((std::fs::metadata(f).ok()?.len(), f, *id, *role)))
             .collect();
         for (i, (size, a, first, first_role)) in sized.iter().enumerate() {
             for (size_b, b, id, role) in &sized[i + 1..] {
-                if size == size_b && *size > 0 && same_bytes(a, b) {
+                if same_recording(a, *size, b, *size_b) {
                     return Err(DatasetError::Mismatch(format!(
-                        "runs \"{first}\" and \"{id}\" list files with the same bytes, {} ({first_role}) and {} ({role}): one recording copied under two names is counted twice; give each run its own recording",
+                        "runs \"{first}\" and \"{id}\" list files holding the same recording, {} ({first_role}) and {} ({role}): one recording copied under two names is counted twice; give each run its own recording",
                         a.display(),
                         b.display()
                     )));
@@ -326,11 +326,10 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
     Ok((Manifest::new(runs, Path::new("")), lines))
 }
 
-/// Whether two files hold the same bytes (false when either cannot be read).
 impl Manifest {
     /// The files this manifest lists that `other` lists too: the same file by any path, or
-    /// a copy with the same bytes (a calibration set that holds the very recordings it is
-    /// judged on).
+    /// a copy (the same bytes, or the same CSV text with other line ends): a calibration set
+    /// that holds the very recordings it is judged on.
     pub fn shared_files(&self, other: &Manifest) -> Vec<PathBuf> {
         let theirs = other.files();
         let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).ok();
@@ -340,13 +339,42 @@ impl Manifest {
                 let canon = std::fs::canonicalize(mine).ok();
                 theirs.iter().any(|t| {
                     (canon.is_some() && std::fs::canonicalize(t).ok() == canon)
-                        || (size(mine).is_some() && size(mine) == size(t) && same_bytes(mine, t))
+                        || match (size(mine), size(t)) {
+                            (Some(a), Some(b)) => same_recording(mine, a, t, b),
+                            _ => false,
+                        }
                 })
             })
             .collect()
     }
 }
 
+/// Whether two files of `size_a` and `size_b` bytes hold one recording: the same bytes, or
+/// CSV text that differs only in its line ends (a log saved again on Windows). Only CSVs of
+/// at most [`MAX_TEXT_COMPARED`] bytes are read as text.
+fn same_recording(a: &Path, size_a: u64, b: &Path, size_b: u64) -> bool {
+    if size_a == 0 || size_b == 0 {
+        return false;
+    }
+    if size_a == size_b {
+        return same_bytes(a, b);
+    }
+    let csv = |p: &Path| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    if !(csv(a) && csv(b)) || size_a.max(size_b) > MAX_TEXT_COMPARED {
+        return false;
+    }
+    let text = |p: &Path| {
+        std::fs::read_to_string(p)
+            .ok()
+            .map(|t| t.replace("\r\n", "\n").trim_end().to_string())
+    };
+    matches!((text(a), text(b)), (Some(x), Some(y)) if x == y)
+}
+
+/// The largest CSV compared as text, bytes (a 200 ms log of a day is about 2 MB).
+const MAX_TEXT_COMPARED: u64 = 64 << 20;
+
+/// Whether two files hold the same bytes (false when either cannot be read).
 fn same_bytes(a: &Path, b: &Path) -> bool {
     use std::io::Read;
     let (Ok(fa), Ok(fb)) = (std::fs::File::open(a), std::fs::File::open(b)) else {
