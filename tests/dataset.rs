@@ -1093,7 +1093,7 @@ fn the_warning_on_logs_that_never_follow_counts_runs() {
 /// speed (0.79 without), so `correct` accepted logs far too fast. The windows spanning the gap
 /// are rejected naming its rows, as `correct` names them; a straight run spanning one too.
 #[test]
-fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected() {
+fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected_and_jitter_is_not() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     synth_with(d, 3, 1, &["--paths", "tours"]);
@@ -1156,8 +1156,17 @@ fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected() {
         .map(|(_, l)| l)
         .collect();
     std::fs::write(&log, cut.join("\n") + "\n").unwrap();
+    // The other run's log stamps a row 120 ms late and the next on time (a logger's jitter,
+    // counts read as stamped): that run is kept.
+    let log = straight.join("runs/run001.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let (t, counts) = lines[15].split_once(',').unwrap();
+    lines[15] = format!("{:.3},{counts}", t.parse::<f64>().unwrap() + 0.12);
+    std::fs::write(&log, lines.join("\n") + "\n").unwrap();
     let (ds, _) = build_said(&straight);
     assert_eq!(ds.samples.len(), 1);
+    assert_eq!(ds.samples[0].run_id, "run001");
     let why = rejection(&ds, "run002");
     assert!(
         why.contains(

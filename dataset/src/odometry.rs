@@ -144,7 +144,9 @@ impl OdometryLog {
     /// `period_s` by more than `tolerance` periods, as the row it ends at and its interval:
     /// every per-step input and correction takes a step for one period, so a lost row (a
     /// 1.4 s step counted as one 200 ms step reads as seven times the speed) or an extra
-    /// one would pass for a step of the robot's.
+    /// one would pass for a step of the robot's. A row logged late or early whose next row is
+    /// back on time (steps of 1.6 and 0.4 periods: a logger's jitter, its counts read when
+    /// it was stamped) is no such step: the two steps span two periods, as they should.
     pub fn off_period_step(
         &self,
         first: usize,
@@ -153,9 +155,20 @@ impl OdometryLog {
         tolerance: f64,
     ) -> Option<(usize, f64)> {
         let last = last.min(self.t_s.len().saturating_sub(1));
-        (first + 1..=last)
-            .map(|k| (k, self.t_s[k] - self.t_s[k - 1]))
-            .find(|(_, dt)| (dt - period_s).abs() > tolerance * period_s)
+        let step = |k: usize| self.t_s[k] - self.t_s[k - 1];
+        let off = |dt: f64, periods: f64| (dt - periods * period_s).abs() > tolerance * period_s;
+        let mut k = first + 1;
+        while k <= last {
+            if off(step(k), 1.0) {
+                if k + 1 < self.t_s.len() && !off(step(k) + step(k + 1), 2.0) {
+                    k += 2;
+                    continue;
+                }
+                return Some((k, step(k)));
+            }
+            k += 1;
+        }
+        None
     }
 
     /// What is wrong with the step of [`Self::off_period_step`] ending at row `k` (0-based),
@@ -444,6 +457,24 @@ mod tests {
         let back = OdometryLog::parse_csv(&log.to_csv(), "c").unwrap();
         assert_eq!(back, log);
         assert_eq!(log.count_note(), None);
+    }
+
+    #[test]
+    fn a_late_row_back_on_time_is_jitter_not_a_lost_row() {
+        let log = |t: &[f64]| {
+            let n = t.len();
+            OdometryLog::from_ticks(t.to_vec(), vec![0; n], vec![0; n]).unwrap()
+        };
+        let step = |t: &[f64]| log(t).off_period_step(0, t.len(), 0.2, STEP_TOLERANCE_PERIODS);
+        // 120 ms late, then back on time; 150 ms early likewise.
+        assert_eq!(step(&[0.0, 0.2, 0.52, 0.6, 0.8]), None);
+        assert_eq!(step(&[0.0, 0.2, 0.25, 0.6, 0.8]), None);
+        // A lost row stays off: its next step does not take the grid back.
+        assert_eq!(step(&[0.0, 0.2, 0.6, 0.8]).map(|s| s.0), Some(2));
+        // An extra row: two half steps span one period, not two.
+        assert_eq!(step(&[0.0, 0.2, 0.3, 0.4, 0.6]).map(|s| s.0), Some(2));
+        // Late on the last row, with no row to take it back.
+        assert_eq!(step(&[0.0, 0.2, 0.52]).map(|s| s.0), Some(2));
     }
 
     #[test]

@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 
 use nalgebra::{DMatrix, DVector};
 use odocal_core::Pose2;
+use odocal_dataset::odometry::STEP_TOLERANCE_PERIODS;
 use odocal_dataset::{Dataset, OdometryLog, RobotParams, WheelGeometry, WINDOW_RULE};
 use serde::{Deserialize, Serialize};
 
@@ -162,10 +163,11 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
     Ok(())
 }
 
-/// Refuses a log with a step off the robot's period (`name` names the log): a model takes
-/// every step for one period (a path model each step, a straight-run model the run's
-/// per-step speeds), and its training had none off it, so a gap (two rows lost) would read as
-/// one step three times as fast and be judged, corrected and scored as such. A log off the
+/// Refuses a log with a step off the robot's period by more than `dataset` lets a training
+/// step be (`name` names the log): a model takes every step for one period (a path model
+/// each step, a straight-run model the run's per-step speeds), so a gap (two rows lost)
+/// would read as one step three times as fast and be judged, corrected and scored as such;
+/// a logger's jitter is taken as `dataset` takes it. A log off the
 /// period throughout is named as such first; a step no wheel can take is refused too.
 pub(crate) fn check_log_steps(
     log: &OdometryLog,
@@ -179,7 +181,8 @@ pub(crate) fn check_log_steps(
             "{name}: {why}; is this log of the model's robot and logger?"
         )));
     }
-    if let Some((k, dt)) = log.off_period_step(0, log.len(), robot.period_s, 0.05) {
+    if let Some((k, dt)) = log.off_period_step(0, log.len(), robot.period_s, STEP_TOLERANCE_PERIODS)
+    {
         return Err(TrainError::Model(format!(
             "{name}: {}; record the run again, or leave it out",
             OdometryLog::step_message(k, dt, robot.period_s)
