@@ -122,6 +122,23 @@ fn recordings_of_many_runs_are_not_refused_as_mispaired() {
         assert_eq!(ds.summary.recordings, 1);
         assert_eq!(ds.samples.len(), per, "rejected: {:?}", ds.rejected);
     }
+    // A --min-gap-s longer than the pauses joins the runs: rejected as missed frames (the
+    // robot carried back out of view), which it names now.
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), 3, 5, 3);
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&dir.path().join("manifest.json")),
+        "--out",
+        p(&dir.path().join("ds.json")),
+        "--min-gap-s",
+        "8",
+    ]);
+    assert!(
+        e.contains("--min-gap-s 8 joined 3 runs that pauses of 1 s or more keep apart"),
+        "{e}"
+    );
 }
 
 /// A robot's 16-bit encoder counters wrap (unsigned from 65 535 to 0, signed from 32 767 to

@@ -463,6 +463,29 @@ pub(crate) fn process_recording_at(
             odometry: odo,
         })));
     }
+    // A run --min-gap-s joined from runs the default gap keeps apart spans the robot's
+    // return between them, which reads as missed frames or a run that is not straight:
+    // its rejection names the joining too.
+    if opts.min_gap_s > DEFAULT_MIN_GAP_S {
+        let apart = split_runs(rec.log, DEFAULT_MIN_GAP_S);
+        for o in &mut out {
+            let RunOutcome::Rejected(r) = o else { continue };
+            let Some(j) = (0..segs.len()).find(|&j| name(j) == r.run_id) else {
+                continue;
+            };
+            let (a, b) = (segs[j].start_row, segs[j].end_row);
+            let inside = apart
+                .iter()
+                .filter(|s| (a..=b).contains(&s.start_row))
+                .count();
+            if inside > 1 {
+                r.reason.push_str(&format!(
+                    "; --min-gap-s {} joined {inside} runs that pauses of {DEFAULT_MIN_GAP_S} s or more keep apart: give it less than the pauses between the runs",
+                    opts.min_gap_s
+                ));
+            }
+        }
+    }
     Ok(out)
 }
 
