@@ -39,7 +39,7 @@ impl ModelFile {
         allow_extrapolation: bool,
     ) -> Result<CorrectedRun, TrainError> {
         self.check_compatible(FEATURE_RULE, robot)?;
-        crate::path_model_file::check_log_steps(log, robot, name)?;
+        crate::log_steps::check_log_steps(log, robot, name)?;
         let f = features_from_log(log, robot)
             .map_err(|e| TrainError::Dataset(format!("{name}: {e}")))?;
         let nominal = WheelGeometry::nominal(robot);

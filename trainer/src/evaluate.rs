@@ -197,7 +197,7 @@ pub fn evaluate_paths(
             )));
         }
         // Every method dead-reckons step by step; a lost row would be one step of three.
-        crate::path_model_file::check_log_steps(&r.log, robot, &r.id)?;
+        crate::log_steps::check_log_steps(&r.log, robot, &r.id)?;
         // The camera's rest poses at both ends are the truth: a log cut after the start (or
         // before the end) misses motion the camera saw, and every method would be judged on
         // a path it was not given.
