@@ -1518,12 +1518,13 @@ fn a_jpeg_frame_cut_short_is_named() {
 /// A tag printed 1 % larger than `--tag-size` says (a print scaled to the page): positions
 /// are right, but the planar fit held the square at the size given and every fix's σ took
 /// the misfit for noise (error/σ 0.19 where 1 is right, with no word). The square's side
-/// on the marker plane names it; the right size says nothing.
+/// on the marker plane names it; the right size says nothing. A side that shrinks towards
+/// the image's edge names the camera file.
 #[test]
 fn a_tag_size_a_percent_off_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    synth_track_with(d, 30, 4, &["--video", "avi"]);
+    synth_track_with(d, 40, 4, &["--video", "avi"]);
     let track = |size: &str| {
         let res = odocal(&[
             "track",
@@ -1549,4 +1550,19 @@ fn a_tag_size_a_percent_off_is_named() {
         let said = track(size);
         assert!(!said.contains("black square"), "--tag-size {size}: {said}");
     }
+    // The camera file without its lens distortion (given a calibration made without it, 8 mm
+    // RMS off): the square shrinks towards the image's edge, which names the camera file.
+    let cam = d.join("camera.json");
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+    for k in ["k1", "k2", "k3", "p1", "p2"] {
+        file["camera"]["distortion"][k] = 0.0.into();
+    }
+    std::fs::write(&cam, file.to_string()).unwrap();
+    let said = track("0.08");
+    assert!(
+        said.contains("nearer the image's centre")
+            && said.contains("the camera file does not map this camera's image onto the floor"),
+        "{said}"
+    );
 }

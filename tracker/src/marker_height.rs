@@ -100,7 +100,9 @@ pub const TAG_SIDE_TOLERANCE: f64 = 0.003;
 /// The planar fit holds the square at `--tag-size` and takes the height from
 /// `--marker-height`, so a size or height a percent off leaves the positions alone but
 /// shows in every fix's misfit, which the fixes' σ take for noise (a 1 % error makes every
-/// σ five times too large, with no word).
+/// σ five times too large, with no word). Those scale the square alike all over the image;
+/// a lens distortion that is not the lens's (another camera's calibration, or one without
+/// its distortion) scales it more towards the image's edge, and moves the fixes there.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TagSide {
     /// Median over the fixes of the square's side on the marker plane, metres.
@@ -109,6 +111,11 @@ pub struct TagSide {
     pub fixes: usize,
     /// The camera's height above the marker plane, metres.
     pub camera_above_marker_m: f64,
+    /// Median side over the third of the fixes nearest the image centre, metres, and their
+    /// median distance from it, pixels.
+    pub inner: (f64, f64),
+    /// The same over the third farthest from the image centre.
+    pub outer: (f64, f64),
 }
 
 impl TagSide {
@@ -123,27 +130,62 @@ impl TagSide {
     ) -> Option<Self> {
         let fixes: Vec<_> = result.fixes().map(|(_, f)| f).collect();
         let step = fixes.len().div_ceil(MAX_SAMPLES).max(1);
-        let mut sides: Vec<f64> = fixes
+        let centre = Point2::new(camera.width as f64 / 2.0, camera.height as f64 / 2.0);
+        // (distance of the tag from the image centre in pixels, side in metres)
+        let mut by_radius: Vec<(f64, f64)> = fixes
             .iter()
             .step_by(step)
-            .filter_map(|f| planar_pose(camera, floor, &f.corners_px, tag_size_m, marker_height_m))
-            .map(|p| p.size_m)
-            .filter(|s| s.is_finite())
+            .filter_map(|f| {
+                let p = planar_pose(camera, floor, &f.corners_px, tag_size_m, marker_height_m)?;
+                let c = f
+                    .corners_px
+                    .iter()
+                    .fold(Point2::origin(), |s, q| s + q.coords / 4.0);
+                Some(((c - centre).norm(), p.size_m))
+            })
+            .filter(|(_, s)| s.is_finite())
             .collect();
-        if sides.is_empty() {
+        if by_radius.is_empty() {
             return None;
         }
-        sides.sort_by(f64::total_cmp);
+        by_radius.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let third = (by_radius.len() / 3).max(1);
+        let medians = |part: &[(f64, f64)]| {
+            let mut r: Vec<f64> = part.iter().map(|x| x.0).collect();
+            let mut s: Vec<f64> = part.iter().map(|x| x.1).collect();
+            (median(&mut s), median(&mut r))
+        };
+        let n = by_radius.len();
+        let inner = medians(&by_radius[..third]);
+        let outer = medians(&by_radius[n - third..]);
+        let mut sides: Vec<f64> = by_radius.iter().map(|x| x.1).collect();
         Some(Self {
-            side_m: sides[sides.len() / 2],
-            fixes: sides.len(),
+            side_m: median(&mut sides),
+            fixes: n,
             camera_above_marker_m: floor.0.inverse().translation.vector.z - marker_height_m,
+            inner,
+            outer,
         })
     }
 
-    /// A warning when the side is not `tag_size_m`: either the size or the marker height
-    /// `marker_height_m` is off, by what each would have to be.
+    /// A warning when the side is not `tag_size_m`: the lens distortion when the side
+    /// changes from the image's centre to its edge, else the size or the marker height
+    /// `marker_height_m`, by what each would have to be.
     pub fn warning(&self, tag_size_m: f64, marker_height_m: f64) -> Option<String> {
+        // A size, height or focal length off scales every square alike: a change of the
+        // side over 50 px or more from the centre outwards is the mapping's.
+        let spread = (self.outer.0 - self.inner.0) / tag_size_m;
+        if self.outer.1 - self.inner.1 > 50.0 && spread.abs() > TAG_SIDE_TOLERANCE {
+            return Some(format!(
+                "the tag's black square spans {:.2} mm on the marker plane nearer the image's centre (about {:.0} px from it) but {:.2} mm farther out (about {:.0} px; medians of a third of {} fixes each): the camera file does not map this camera's image onto the floor (another camera's calibration, or one without its lens distortion), and the fixes are off by about {:.1} % of their distance from the point under the camera; give the camera.json calibrated for this camera",
+                self.inner.0 * 1e3,
+                self.inner.1,
+                self.outer.0 * 1e3,
+                self.outer.1,
+                self.fixes,
+                100.0 * (self.side_m / tag_size_m - 1.0).abs().max(spread.abs()),
+            ));
+        }
         let ratio = self.side_m / tag_size_m;
         if (ratio - 1.0).abs() <= TAG_SIDE_TOLERANCE {
             return None;
@@ -152,7 +194,7 @@ impl TagSide {
         // (D − δ)/D as large at the height given.
         let height_m = marker_height_m + self.camera_above_marker_m * (1.0 - 1.0 / ratio);
         Some(format!(
-            "the tag's black square spans {:.2} mm on the marker plane (median of {} fixes), {:+.1} % from --tag-size {:.2} mm: either the size is off (a print scaled to fit the page; measure the square and give --tag-size {:.4}) or the marker sits at {:.3} m, not --marker-height {marker_height_m:.3} m. Positions are not moved by it, but every fix's σ takes the misfit for noise and is too large",
+            "the tag's black square spans {:.2} mm on the marker plane (median of {} fixes), {:+.1} % from --tag-size {:.2} mm: either the size is off (a print scaled to fit the page; measure the square and give --tag-size {:.4}), or the marker sits at {:.3} m, not --marker-height {marker_height_m:.3} m, or the camera file is not this camera's (its focal length scales the square as the size does). Positions are not moved by a size or height off, but every fix's σ takes the misfit for noise and is too large",
             self.side_m * 1e3,
             self.fixes,
             (ratio - 1.0) * 100.0,
@@ -161,4 +203,10 @@ impl TagSide {
             height_m,
         ))
     }
+}
+
+/// The median of `v` (sorted in place); `v` is not empty.
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
