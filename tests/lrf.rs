@@ -6,8 +6,8 @@ use std::process::Command;
 
 use nalgebra::Matrix2;
 use odocal_lrf::{
-    evaluate, EstimatedPose, Evaluation, LaserTruth, Localizer, LocalizerConfig, Map, Scan,
-    ScanTracker, Status, TruthPose,
+    check_beam_step, evaluate, EstimatedPose, Evaluation, LaserTruth, Localizer, LocalizerConfig,
+    Map, Scan, ScanTracker, Status, TruthPose,
 };
 use odocal_synth::lrf_sim::{simulate, LrfSim, LrfSimConfig};
 
@@ -250,6 +250,73 @@ fn poses_reach_the_cramer_rao_bound() {
             head <= 1.1 * head_crb,
             "N = {n}: heading {head} rad, bound {head_crb} rad"
         );
+    }
+}
+
+/// A scanner logged at every 4th beam (1.4°; seed 3, the user's case) or every 3rd (1.05°;
+/// seed 4) hits most reflectors with one beam, which places a detection along its strip only
+/// within a beam spacing (7 cm at 3 m). A glint beside a landmark then fitted the rigid fit's
+/// loose gates: seed 3's scan 190 was `ok` with 5 landmarks, 140 mm off with a σ of 9 mm
+/// (error/σ 15.7), and seed 4's scan 287 was 97 mm off (14.6). Now every `ok` pose is right or
+/// its σ covers the error, and the step is called too coarse; at the full step it is not.
+#[test]
+fn coarse_beam_steps_give_no_confident_wrong_pose() {
+    for (seed, every) in [(3, 4), (4, 3)] {
+        let sim = simulate(&LrfSimConfig {
+            seed,
+            ..LrfSimConfig::default()
+        });
+        let map = Map::parse(&sim.map_json(), "sim").expect("simulated map is valid");
+        let full = scans_of(&sim);
+        let coarse: Vec<Scan> = full
+            .iter()
+            .map(|s| {
+                let keep = |v: &[f64]| v.iter().step_by(every).copied().collect::<Vec<f64>>();
+                Scan {
+                    angles_rad: keep(&s.angles_rad),
+                    ranges_m: keep(&s.ranges_m),
+                    intensities: keep(&s.intensities),
+                    ..s.clone()
+                }
+            })
+            .collect();
+        let mut cfg = LocalizerConfig::default();
+        let fine = Localizer::new(map.clone(), cfg);
+        assert_eq!(check_beam_step(&fine, &full), None);
+        cfg.sensor.step_rad = coarse[0].step_rad();
+        let loc = Localizer::new(map, cfg);
+        let warning = check_beam_step(&loc, &coarse).expect("the step is called too coarse");
+        assert!(warning.contains("record every beam"), "{warning}");
+        let poses = track(&loc, &coarse);
+        let truth = truth_of(&sim);
+        let e = evaluate(&poses, &truth);
+        let (mut z2, mut z_max, mut n) = (0.0, 0.0f64, 0usize);
+        for p in poses.iter().filter(|p| p.status == Status::Ok) {
+            let (Some(pose), Some(cov), Some(t)) = (p.pose, p.cov, truth.at(p.t_s)) else {
+                panic!("an ok pose at {} s without its σ or truth", p.t_s);
+            };
+            for (err, var) in [
+                (pose.x_m - t.pose.x_m, cov[(0, 0)]),
+                (pose.y_m - t.pose.y_m, cov[(1, 1)]),
+            ] {
+                let z = err / var.sqrt();
+                z2 += z * z;
+                z_max = z_max.max(z.abs());
+                n += 1;
+            }
+        }
+        let z_rms = (z2 / n as f64).sqrt();
+        println!(
+            "seed {seed}, 1 beam in {every}: {} ok, position RMS {:.1} mm, max {:.1} mm; error/σ RMS {z_rms:.2}, max {z_max:.1}; confident wrong {}",
+            e.n_ok,
+            e.position_rms_m * 1e3,
+            e.position_max_m * 1e3,
+            e.n_wrong_ok
+        );
+        assert!(e.n_ok >= 240, "{} ok", e.n_ok);
+        assert_eq!(e.n_wrong_ok, 0, "confident wrong poses");
+        assert!(z_max <= 5.0, "error/σ up to {z_max}");
+        assert!((0.8..=1.2).contains(&z_rms), "error/σ RMS {z_rms}");
     }
 }
 
@@ -657,8 +724,10 @@ fn cli_bad_input_exits_with_code_2() {
 /// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
 /// three happen to fit three other landmarks 1.77 m away. Neither mode may call that pose `ok`:
 /// a lone match of three detections in a 200-landmark map is not proof (the odds of such a
-/// coincidence are checked), and in tracking mode a global pose far from the confirmed track is
-/// a jump that the next scans must confirm (checked on its own with the odds check off).
+/// coincidence are checked), the three do not fit those landmarks within their own
+/// covariances (the weighted fit's residuals are checked; each check refutes the pose on its
+/// own), and in tracking mode a global pose far from the confirmed track is a jump that the
+/// next scans must confirm (checked on its own with both other checks off).
 #[test]
 fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
     let sim = simulate(&LrfSimConfig::scaled(200, 2));
@@ -674,17 +743,26 @@ fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
     assert_eq!(d.len(), 3, "the scan of the glint case");
     let g = strict.global(&scans[272], &d);
     assert_ne!(g.status, Status::Ok, "global: {:?}", g.best());
-    let lax = Localizer::new(
-        map,
-        LocalizerConfig {
-            max_chance_ok: f64::INFINITY,
-            ..LocalizerConfig::default()
-        },
-    );
+    let with = |max_chance_ok: f64, max_residual_sigmas: f64| {
+        Localizer::new(
+            map.clone(),
+            LocalizerConfig {
+                max_chance_ok,
+                max_residual_sigmas,
+                ..LocalizerConfig::default()
+            },
+        )
+    };
+    let inf = f64::INFINITY;
+    for (one_check, on) in [(with(inf, 4.0), "residuals"), (with(1.0, inf), "odds")] {
+        let g = one_check.global(&scans[272], &d);
+        assert_ne!(g.status, Status::Ok, "{on} check alone: {:?}", g.best());
+    }
+    let lax = with(inf, inf);
     let g = lax.global(&scans[272], &d);
     assert!(
         is_wrong_ok(g.status, g.best().map(|h| h.pose), 272),
-        "without the odds check the glint case is a confident wrong pose (so the test bites)"
+        "without the odds and residual checks the glint case is a confident wrong pose (so the test bites)"
     );
     for loc in [&strict, &lax] {
         let rows = track(loc, &scans);
