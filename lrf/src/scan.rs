@@ -119,6 +119,18 @@ impl Scan {
         }
     }
 
+    /// The first and last beams with a return (range at least `min_range_m`): the scanner sees
+    /// between them. Beyond them is a sector without a single return, which is no view of
+    /// empty space but one the scanner does not have (the rear of a 360° scanner masked by
+    /// the robot's body, say). None when no beam returned.
+    pub fn returning_span(&self, min_range_m: f64) -> Option<(usize, usize)> {
+        let returns = |r: &f64| *r >= min_range_m;
+        Some((
+            self.ranges_m.iter().position(returns)?,
+            self.ranges_m.iter().rposition(returns)?,
+        ))
+    }
+
     /// The index of the beam nearest to `angle_rad`, if inside the scan.
     pub fn beam_at(&self, angle_rad: f64) -> Option<usize> {
         let n = self.angles_rad.len();
@@ -158,7 +170,8 @@ pub struct Detection {
     pub step_rad: f64,
     /// Ranges of the beams just before the first and just after the last beam of the cluster,
     /// metres (0 = no return). None when that beam tells nothing about where the strip ends:
-    /// it lies outside the scan, or its return is reflective (the strip went on but its range
+    /// it lies outside the scan or beyond its first or last return ([`Scan::returning_span`]),
+    /// or its return is reflective (the strip went on but its range
     /// jumped, as at grazing incidence) or beyond the maximum range.
     pub neighbour_ranges_m: [Option<f64>; 2],
 }
@@ -275,6 +288,9 @@ pub fn extract_detections(
     let step = scan.step_rad().abs().max(1e-6);
     let mut out = Vec::new();
     let n = scan.ranges_m.len();
+    // A beam in a sector without returns tells no more about where a strip ends than one
+    // outside the scan: the strip may go on into the masked sector.
+    let span = scan.returning_span(cfg.min_range_m).unwrap_or((0, 0));
     let ok = |i: usize| {
         let r = scan.ranges_m[i];
         r >= cfg.min_range_m && r <= cfg.max_range_m && scan.intensities[i] >= cfg.intensity_min
@@ -302,7 +318,7 @@ pub fn extract_detections(
         let chord = (pts[pts.len() - 1] - pts[0]).norm();
         let neighbour = |k: Option<usize>| {
             k.filter(|&k| {
-                k < n
+                (span.0..=span.1).contains(&k)
                     && scan.ranges_m[k] <= cfg.max_range_m
                     && !(scan.ranges_m[k] >= cfg.min_range_m
                         && scan.intensities[k] >= cfg.intensity_min)
