@@ -1446,7 +1446,11 @@ fn cli_scans_of_another_map_are_not_blamed_on_its_layout() {
 
 /// Scan times in milliseconds are refused with the unit named (a truth in seconds matched one
 /// scan of 30, and its error passed for the recording's), and a truth that has the time of
-/// few of the `ok` scans is called out beside the figures it gives.
+/// few of the `ok` scans is called out beside the figures it gives. Epoch seconds (ROS
+/// exports; "time 1700000000 s is not a scan time (0 to 3000000 s)" before) give the poses
+/// of the same scans timed from 0, against an epoch truth, with every time written in full;
+/// nanoseconds are refused as nanoseconds (their spacing names them; epoch nanoseconds are
+/// past any time in seconds).
 #[test]
 fn cli_scan_times_in_milliseconds_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1459,7 +1463,7 @@ fn cli_scan_times_in_milliseconds_are_refused() {
         let mut out = vec![lines.next().expect("header").to_string()];
         for (i, l) in lines.enumerate() {
             let mut r: Vec<String> = l.split(',').map(str::to_string).collect();
-            r[col] = format!("{:.3}", f(i, r[col].parse().expect("number")));
+            r[col] = format!("{:.6}", f(i, r[col].parse().expect("number")));
             out.push(r.join(","));
         }
         let p = d.join(name);
@@ -1522,6 +1526,73 @@ fn cli_scan_times_in_milliseconds_are_refused() {
     // The truth of every scan: no such warning.
     let out = localize(d, &["--truth", s(&truth)]);
     assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+    let from_zero = String::from_utf8_lossy(&out.stdout).into_owned();
+    // Stamps to the microsecond, as ROS writes them.
+    let epoch = 1_700_000_000.000_123;
+    let scans_epoch = rewrite("scans.csv", "epoch.csv", 1, &|_, t| t + epoch);
+    let truth_epoch = rewrite("truth.csv", "truth_epoch.csv", 0, &|_, t| t + epoch);
+    let traj = d.join("traj.csv");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&scans_epoch),
+        "--out",
+        s(&poses),
+        "--trajectory",
+        s(&traj),
+        "--truth",
+        s(&truth_epoch),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let figures = |o: &str| o.split("vs truth:").nth(1).map(str::to_string);
+    assert_eq!(figures(&stdout), figures(&from_zero), "{stdout}");
+    assert!(stdout.contains("30 ok"), "{stdout}");
+    // Every scan's time and every trajectory row's is the scan's own, to the microsecond.
+    for (file, n) in [(&poses, 30), (&traj, 30)] {
+        let text = std::fs::read_to_string(file).expect("written");
+        let times: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().and_then(|t| t.parse().ok()).expect("t"))
+            .collect();
+        assert_eq!(times.len(), n, "{text}");
+        for (k, t) in times.iter().enumerate() {
+            assert!(
+                (t - epoch - k as f64 * 0.1).abs() < 1e-6,
+                "{}: {t}",
+                s(file)
+            );
+        }
+    }
+    let ns = rewrite("scans.csv", "ns.csv", 1, &|_, t| t * 1e9);
+    expect_error(
+        &["lrf", "localize", "--map", s(&map), s(&ns), "--out", s(&poses)],
+        "are the times in nanoseconds? Give t in seconds (if these are nanoseconds, 100000000 ns is 0.1 s)",
+    );
+    let epoch_ns = rewrite("scans.csv", "epoch_ns.csv", 1, &|_, t| (t + epoch) * 1e9);
+    let e = expect_error(
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(&epoch_ns),
+            "--out",
+            s(&poses),
+        ],
+        "epoch_ns.csv, line 2, column t: time 1700000000000123",
+    );
+    assert!(
+        e.contains("s is not a scan time (0 to 1e10 s, the year 2286 counted from 1970); give t in seconds, from the recording's start or the epoch (epoch milliseconds / 1000, nanoseconds / 1e9)"),
+        "{e}"
+    );
 }
 
 /// Map values no room has: a reflector width in millimetres is refused, and a landmark 50 m

@@ -121,11 +121,24 @@ pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
     let median = dt[dt.len() / 2];
     let period = 1.0 / rate_hz;
     if median > MAX_INTERVAL_PERIODS * period {
+        // The unit that brings the spacing nearest the scanner's period is the likely one:
+        // ROS exports stamps in nanoseconds as often as in seconds.
+        let (unit, abbr, per_s) = [
+            ("milliseconds", "ms", 1e3),
+            ("microseconds", "µs", 1e6),
+            ("nanoseconds", "ns", 1e9),
+        ]
+        .into_iter()
+        .min_by(|a, b| {
+            let off = |per_s: f64| (median / per_s / period).ln().abs();
+            off(a.2).total_cmp(&off(b.2))
+        })
+        .unwrap_or(("milliseconds", "ms", 1e3));
         let (m, p) = (six_digits(median), six_digits(period));
         return Err(LrfError::Config(format!(
-            "the scans' median time between scans is {m} s, {:.0} times the scanner's period of {p} s at --rate-hz {rate_hz}: are the times in milliseconds? Give t in seconds (if these are milliseconds, {m} ms is {} s), or the scanner's --rate-hz",
+            "the scans' median time between scans is {m} s, {:.0} times the scanner's period of {p} s at --rate-hz {rate_hz}: are the times in {unit}? Give t in seconds (if these are {unit}, {m} {abbr} is {} s), or the scanner's --rate-hz",
             median / period,
-            six_digits(median / 1000.0)
+            six_digits(median / per_s)
         )));
     }
     Ok(())

@@ -7,6 +7,12 @@ use nalgebra::{Matrix2, Point2, Vector2};
 
 use crate::LrfError;
 
+/// The latest scan time accepted, seconds. Any clock in seconds will do: from the recording's
+/// start, or the epoch as ROS exports write it (1.7e9 s, kept to 0.3 µs by a double); a time
+/// later than this is in a finer unit since the epoch (milliseconds give 1.7e12). Times in a
+/// finer unit from the start are caught by their spacing (`check_scan_times`).
+pub const MAX_SCAN_TIME_S: f64 = 1e10;
+
 /// Sensor model: Hokuyo URG-like defaults (240°, 0.352° steps, 20 mm–5.6 m, 10 Hz).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorConfig {
@@ -27,9 +33,6 @@ pub struct SensorConfig {
     /// Returns at or above this intensity are reflector candidates.
     pub intensity_min: f64,
 }
-
-/// The latest scan time accepted, seconds from the start of the recording (a month).
-pub const MAX_SCAN_TIME_S: f64 = 3.0e6;
 
 impl SensorConfig {
     /// Checks every setting for physical sense; the message names the option to fix.
@@ -461,7 +464,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
                     return Err(err(
                         line,
                         "t",
-                        format!("time {t} s is not a scan time (0 to {MAX_SCAN_TIME_S:.0} s)"),
+                        format!("time {t} s is not a scan time (0 to {MAX_SCAN_TIME_S:e} s, the year 2286 counted from 1970); give t in seconds, from the recording's start or the epoch (epoch milliseconds / 1000, nanoseconds / 1e9)"),
                     ));
                 }
                 Some(t)
