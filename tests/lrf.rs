@@ -6,8 +6,8 @@ use std::process::Command;
 
 use nalgebra::Matrix2;
 use odocal_lrf::{
-    evaluate, EstimatedPose, Evaluation, LaserTruth, Localizer, LocalizerConfig, Map, Scan,
-    ScanTracker, Status, TruthPose,
+    check_beam_step, evaluate, EstimatedPose, Evaluation, LaserTruth, Localizer, LocalizerConfig,
+    Map, Scan, ScanTracker, Status, TruthPose,
 };
 use odocal_synth::lrf_sim::{simulate, LrfSim, LrfSimConfig};
 
@@ -250,6 +250,73 @@ fn poses_reach_the_cramer_rao_bound() {
             head <= 1.1 * head_crb,
             "N = {n}: heading {head} rad, bound {head_crb} rad"
         );
+    }
+}
+
+/// A scanner logged at every 4th beam (1.4°; seed 3, the user's case) or every 3rd (1.05°;
+/// seed 4) hits most reflectors with one beam, which places a detection along its strip only
+/// within a beam spacing (7 cm at 3 m). A glint beside a landmark then fitted the rigid fit's
+/// loose gates: seed 3's scan 190 was `ok` with 5 landmarks, 140 mm off with a σ of 9 mm
+/// (error/σ 15.7), and seed 4's scan 287 was 97 mm off (14.6). Now every `ok` pose is right or
+/// its σ covers the error, and the step is called too coarse; at the full step it is not.
+#[test]
+fn coarse_beam_steps_give_no_confident_wrong_pose() {
+    for (seed, every) in [(3, 4), (4, 3)] {
+        let sim = simulate(&LrfSimConfig {
+            seed,
+            ..LrfSimConfig::default()
+        });
+        let map = Map::parse(&sim.map_json(), "sim").expect("simulated map is valid");
+        let full = scans_of(&sim);
+        let coarse: Vec<Scan> = full
+            .iter()
+            .map(|s| {
+                let keep = |v: &[f64]| v.iter().step_by(every).copied().collect::<Vec<f64>>();
+                Scan {
+                    angles_rad: keep(&s.angles_rad),
+                    ranges_m: keep(&s.ranges_m),
+                    intensities: keep(&s.intensities),
+                    ..s.clone()
+                }
+            })
+            .collect();
+        let mut cfg = LocalizerConfig::default();
+        let fine = Localizer::new(map.clone(), cfg);
+        assert_eq!(check_beam_step(&fine, &full), None);
+        cfg.sensor.step_rad = coarse[0].step_rad();
+        let loc = Localizer::new(map, cfg);
+        let warning = check_beam_step(&loc, &coarse).expect("the step is called too coarse");
+        assert!(warning.contains("record every beam"), "{warning}");
+        let poses = track(&loc, &coarse);
+        let truth = truth_of(&sim);
+        let e = evaluate(&poses, &truth);
+        let (mut z2, mut z_max, mut n) = (0.0, 0.0f64, 0usize);
+        for p in poses.iter().filter(|p| p.status == Status::Ok) {
+            let (Some(pose), Some(cov), Some(t)) = (p.pose, p.cov, truth.at(p.t_s)) else {
+                panic!("an ok pose at {} s without its σ or truth", p.t_s);
+            };
+            for (err, var) in [
+                (pose.x_m - t.pose.x_m, cov[(0, 0)]),
+                (pose.y_m - t.pose.y_m, cov[(1, 1)]),
+            ] {
+                let z = err / var.sqrt();
+                z2 += z * z;
+                z_max = z_max.max(z.abs());
+                n += 1;
+            }
+        }
+        let z_rms = (z2 / n as f64).sqrt();
+        println!(
+            "seed {seed}, 1 beam in {every}: {} ok, position RMS {:.1} mm, max {:.1} mm; error/σ RMS {z_rms:.2}, max {z_max:.1}; confident wrong {}",
+            e.n_ok,
+            e.position_rms_m * 1e3,
+            e.position_max_m * 1e3,
+            e.n_wrong_ok
+        );
+        assert!(e.n_ok >= 240, "{} ok", e.n_ok);
+        assert_eq!(e.n_wrong_ok, 0, "confident wrong poses");
+        assert!(z_max <= 5.0, "error/σ up to {z_max}");
+        assert!((0.8..=1.2).contains(&z_rms), "error/σ RMS {z_rms}");
     }
 }
 
@@ -657,8 +724,10 @@ fn cli_bad_input_exits_with_code_2() {
 /// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
 /// three happen to fit three other landmarks 1.77 m away. Neither mode may call that pose `ok`:
 /// a lone match of three detections in a 200-landmark map is not proof (the odds of such a
-/// coincidence are checked), and in tracking mode a global pose far from the confirmed track is
-/// a jump that the next scans must confirm (checked on its own with the odds check off).
+/// coincidence are checked), the three do not fit those landmarks within their own
+/// covariances (the weighted fit's residuals are checked; each check refutes the pose on its
+/// own), and in tracking mode a global pose far from the confirmed track is a jump that the
+/// next scans must confirm (checked on its own with both other checks off).
 #[test]
 fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
     let sim = simulate(&LrfSimConfig::scaled(200, 2));
@@ -674,17 +743,26 @@ fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
     assert_eq!(d.len(), 3, "the scan of the glint case");
     let g = strict.global(&scans[272], &d);
     assert_ne!(g.status, Status::Ok, "global: {:?}", g.best());
-    let lax = Localizer::new(
-        map,
-        LocalizerConfig {
-            max_chance_ok: f64::INFINITY,
-            ..LocalizerConfig::default()
-        },
-    );
+    let with = |max_chance_ok: f64, max_residual_sigmas: f64| {
+        Localizer::new(
+            map.clone(),
+            LocalizerConfig {
+                max_chance_ok,
+                max_residual_sigmas,
+                ..LocalizerConfig::default()
+            },
+        )
+    };
+    let inf = f64::INFINITY;
+    for (one_check, on) in [(with(inf, 4.0), "residuals"), (with(1.0, inf), "odds")] {
+        let g = one_check.global(&scans[272], &d);
+        assert_ne!(g.status, Status::Ok, "{on} check alone: {:?}", g.best());
+    }
+    let lax = with(inf, inf);
     let g = lax.global(&scans[272], &d);
     assert!(
         is_wrong_ok(g.status, g.best().map(|h| h.pose), 272),
-        "without the odds check the glint case is a confident wrong pose (so the test bites)"
+        "without the odds and residual checks the glint case is a confident wrong pose (so the test bites)"
     );
     for loc in [&strict, &lax] {
         let rows = track(loc, &scans);
@@ -954,7 +1032,11 @@ fn ok_and_rms(out: &std::process::Output) -> (usize, f64) {
 /// Wall beams without a return (range 0, or inf as ROS drivers write it), scattered or over a
 /// whole sector as a glass door or a black cabinet leaves them, do not cost a scan its fix:
 /// the reflectors are all still there. Every scan stays `ok`, as accurate as before, and no
-/// warning blames the map.
+/// warning blames the map. A scanner of a wider view whose outer beams return nothing (the
+/// rear of a 360° scanner masked by the robot: the same scans padded with `inf` beams, 15°
+/// or 59° each side) gives the very same poses. The landmarks behind the mask used to count
+/// as missed (scan 1 here scored 5 instead of 6; `synth lrf --scans 100` padded by 59° gave 58
+/// ok and 42 ambiguous scans against 99 and 1).
 #[test]
 fn cli_beams_without_a_return_keep_the_fix() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -989,10 +1071,32 @@ fn cli_beams_without_a_return_keep_the_fix() {
         (sector.0..sector.1).contains(&a).then_some("0")
     });
     assert!(n_zero > 1500 && n_dark > 1000, "{n_zero} {n_dark}");
+    let pad = |name: &str, deg: f64| {
+        let mut out = vec![header.to_string()];
+        let mut start = 0;
+        while start < rows.len() {
+            let end = (start..rows.len())
+                .find(|&i| rows[i][0] != rows[start][0])
+                .unwrap_or(rows.len());
+            let scan = &rows[start..end];
+            let (a0, a1) = (num(&scan[0][2]), num(&scan[end - start - 1][2]));
+            let step = num(&scan[1][2]) - a0;
+            let n = (deg.to_radians() / step) as i32;
+            let blank = |a: f64| format!("{},{},{a:.7},inf,0", scan[0][0], scan[0][1]);
+            out.extend((1..=n).rev().map(|i| blank(a0 - step * i as f64)));
+            out.extend(scan.iter().map(|r| r.join(",")));
+            out.extend((1..=n).map(|i| blank(a1 + step * i as f64)));
+            start = end;
+        }
+        let p = d.join(name);
+        std::fs::write(&p, out.join("\n") + "\n").expect("write");
+        p
+    };
+    let (pad15, pad59) = (pad("pad15.csv", 15.0), pad("pad59.csv", 59.0));
     let truth = d.join("truth.csv");
     let map = d.join("map.json");
     let poses = d.join("poses.csv");
-    let run = |scans: &Path| {
+    let run = |scans: &Path, fov_deg: &str| {
         let out = odocal(&[
             "lrf",
             "localize",
@@ -1003,17 +1107,41 @@ fn cli_beams_without_a_return_keep_the_fix() {
             s(&poses),
             "--truth",
             s(&truth),
+            "--fov-deg",
+            fov_deg,
         ]);
         let err = String::from_utf8_lossy(&out.stderr).into_owned();
         assert!(out.status.success(), "{}: {err}", s(scans));
         assert!(!err.contains("warning"), "{}: {err}", s(scans));
+        let written = std::fs::read_to_string(&poses).expect("poses written");
         std::fs::remove_file(&poses).expect("poses written");
-        ok_and_rms(&out)
+        (ok_and_rms(&out), written)
     };
-    let (ok0, rms0) = run(&d.join("scans.csv"));
+    let ((ok0, rms0), poses0) = run(&d.join("scans.csv"), "240");
     assert_eq!(ok0, 30);
+    for (scans, fov_deg) in [(&pad15, "270"), (&pad59, "358")] {
+        let ((ok, rms), written) = run(scans, fov_deg);
+        println!(
+            "{} (--fov-deg {fov_deg}): {ok}/30 ok, position RMS {rms:.1} mm",
+            s(scans)
+        );
+        // The same rows; the poses within 0.1 mm and 0.0001 rad (the padded scans' step,
+        // from angles written to 7 decimals, differs in its last digits).
+        let (a, b): (Vec<&str>, Vec<&str>) = (written.lines().collect(), poses0.lines().collect());
+        assert_eq!((a.len(), a[0]), (b.len(), b[0]), "{}", s(scans));
+        for (ra, rb) in a.iter().zip(&b).skip(1) {
+            let (fa, fb): (Vec<&str>, Vec<&str>) =
+                (ra.split(',').collect(), rb.split(',').collect());
+            let near = (1..4).all(|k| (num(fa[k]) - num(fb[k])).abs() <= 1.5e-5);
+            assert!(
+                near && fa[4..] == fb[4..],
+                "{}: {ra} where the unpadded scans give {rb}",
+                s(scans)
+            );
+        }
+    }
     for scans in [&zero, &inf, &dark] {
-        let (ok, rms) = run(scans);
+        let ((ok, rms), _) = run(scans, "240");
         println!(
             "{}: {ok}/30 ok, position RMS {rms:.1} mm (unmodified: {ok0}/30 ok, {rms0:.1} mm)",
             s(scans)
@@ -1318,7 +1446,11 @@ fn cli_scans_of_another_map_are_not_blamed_on_its_layout() {
 
 /// Scan times in milliseconds are refused with the unit named (a truth in seconds matched one
 /// scan of 30, and its error passed for the recording's), and a truth that has the time of
-/// few of the `ok` scans is called out beside the figures it gives.
+/// few of the `ok` scans is called out beside the figures it gives. Epoch seconds (ROS
+/// exports; "time 1700000000 s is not a scan time (0 to 3000000 s)" before) give the poses
+/// of the same scans timed from 0, against an epoch truth, with every time written in full;
+/// nanoseconds are refused as nanoseconds (their spacing names them; epoch nanoseconds are
+/// past any time in seconds).
 #[test]
 fn cli_scan_times_in_milliseconds_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1331,7 +1463,7 @@ fn cli_scan_times_in_milliseconds_are_refused() {
         let mut out = vec![lines.next().expect("header").to_string()];
         for (i, l) in lines.enumerate() {
             let mut r: Vec<String> = l.split(',').map(str::to_string).collect();
-            r[col] = format!("{:.3}", f(i, r[col].parse().expect("number")));
+            r[col] = format!("{:.6}", f(i, r[col].parse().expect("number")));
             out.push(r.join(","));
         }
         let p = d.join(name);
@@ -1394,6 +1526,73 @@ fn cli_scan_times_in_milliseconds_are_refused() {
     // The truth of every scan: no such warning.
     let out = localize(d, &["--truth", s(&truth)]);
     assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+    let from_zero = String::from_utf8_lossy(&out.stdout).into_owned();
+    // Stamps to the microsecond, as ROS writes them.
+    let epoch = 1_700_000_000.000_123;
+    let scans_epoch = rewrite("scans.csv", "epoch.csv", 1, &|_, t| t + epoch);
+    let truth_epoch = rewrite("truth.csv", "truth_epoch.csv", 0, &|_, t| t + epoch);
+    let traj = d.join("traj.csv");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&scans_epoch),
+        "--out",
+        s(&poses),
+        "--trajectory",
+        s(&traj),
+        "--truth",
+        s(&truth_epoch),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let figures = |o: &str| o.split("vs truth:").nth(1).map(str::to_string);
+    assert_eq!(figures(&stdout), figures(&from_zero), "{stdout}");
+    assert!(stdout.contains("30 ok"), "{stdout}");
+    // Every scan's time and every trajectory row's is the scan's own, to the microsecond.
+    for (file, n) in [(&poses, 30), (&traj, 30)] {
+        let text = std::fs::read_to_string(file).expect("written");
+        let times: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().and_then(|t| t.parse().ok()).expect("t"))
+            .collect();
+        assert_eq!(times.len(), n, "{text}");
+        for (k, t) in times.iter().enumerate() {
+            assert!(
+                (t - epoch - k as f64 * 0.1).abs() < 1e-6,
+                "{}: {t}",
+                s(file)
+            );
+        }
+    }
+    let ns = rewrite("scans.csv", "ns.csv", 1, &|_, t| t * 1e9);
+    expect_error(
+        &["lrf", "localize", "--map", s(&map), s(&ns), "--out", s(&poses)],
+        "are the times in nanoseconds? Give t in seconds (if these are nanoseconds, 100000000 ns is 0.1 s)",
+    );
+    let epoch_ns = rewrite("scans.csv", "epoch_ns.csv", 1, &|_, t| (t + epoch) * 1e9);
+    let e = expect_error(
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(&epoch_ns),
+            "--out",
+            s(&poses),
+        ],
+        "epoch_ns.csv, line 2, column t: time 1700000000000123",
+    );
+    assert!(
+        e.contains("s is not a scan time (0 to 1e10 s, the year 2286 counted from 1970); give t in seconds, from the recording's start or the epoch (epoch milliseconds / 1000, nanoseconds / 1e9)"),
+        "{e}"
+    );
 }
 
 /// Map values no room has: a reflector width in millimetres is refused, and a landmark 50 m

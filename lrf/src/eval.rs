@@ -158,7 +158,8 @@ pub struct Evaluation {
     pub heading_rms_rad: f64,
     /// Largest position error over the accuracy set, metres.
     pub position_max_m: f64,
-    /// `ok` scans whose pose is wrong (> 0.05 m or > 1° from the truth): confident wrong poses.
+    /// `ok` scans whose pose is wrong (> 0.05 m or > 1° from the truth) by more than its own
+    /// σ allows (3σ: [`COVERED_SIGMAS`]): confident wrong poses.
     pub n_wrong_ok: usize,
     /// Scans whose truth says ≥ 3 landmarks were detected.
     pub n_eligible: usize,
@@ -193,6 +194,12 @@ pub const CORRECT_POS_M: f64 = 0.05;
 /// Heading error bound of a correct pose, radians (1°).
 pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
 
+/// A wrong pose whose error is within this many of its own standard deviations (position:
+/// the root of its x, y variances' sum; heading) said how far off it may be: it is imprecise,
+/// not confidently wrong. A pose from three reflectors each hit by one beam can have a σ of
+/// 3 cm, and 6 cm off is then what it says.
+pub const COVERED_SIGMAS: f64 = 3.0;
+
 /// Compares estimated poses with the truth at their times.
 pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
     let mut e = Evaluation::default();
@@ -219,8 +226,12 @@ pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
         let dp = (p.position() - tp.pose.position()).norm();
         let dh = wrap_angle(p.theta_rad - tp.pose.theta_rad).abs();
         let correct = dp <= CORRECT_POS_M && dh <= CORRECT_HEADING_RAD;
+        let covered = r.cov.is_some_and(|c| {
+            dp <= COVERED_SIGMAS * (c[(0, 0)] + c[(1, 1)]).sqrt()
+                && dh <= COVERED_SIGMAS * c[(2, 2)].sqrt()
+        });
         if !correct {
-            e.n_wrong_ok += 1;
+            e.n_wrong_ok += usize::from(!covered);
         } else if eligible {
             e.n_correct_eligible += 1;
         }
@@ -287,6 +298,32 @@ mod tests {
         // The row at 0.05 s says 2 landmarks were detected: not eligible.
         assert_eq!((e.n_eligible, e.n_correct_eligible), (1, 1));
         assert!((e.position_max_m - 0.001).abs() < 1e-9);
+    }
+
+    /// A pose 62 mm off is a confident wrong pose with a σ of 9 mm per axis (seed 3's scan 190
+    /// at a 1.4° step said so of a pose 140 mm off), or without a σ, but not with the σ of
+    /// 34 mm and 14 mm a pose from three one-beam detections has: its σ covers the error.
+    #[test]
+    fn a_wrong_pose_is_confident_unless_its_sigma_covers_the_error() {
+        let truth = LaserTruth::new(vec![TruthPose {
+            t_s: 0.0,
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            n_detected: None,
+        }])
+        .expect("one row");
+        let wrong = |sx: Option<f64>, sy: f64| EstimatedPose {
+            t_s: 0.0,
+            status: Status::Ok,
+            pose: Some(Pose2::new(0.062, 0.0, 0.0)),
+            n_landmarks: 3,
+            cov: sx
+                .map(|sx| Matrix3::from_diagonal(&nalgebra::Vector3::new(sx * sx, sy * sy, 1e-6))),
+        };
+        let n_wrong = |p| evaluate(&[p], &truth).n_wrong_ok;
+        assert_eq!(n_wrong(wrong(Some(0.009), 0.009)), 1);
+        assert_eq!(n_wrong(wrong(None, 0.0)), 1);
+        let covered = evaluate(&[wrong(Some(0.034), 0.014)], &truth);
+        assert_eq!((covered.n_wrong_ok, covered.n_correct_eligible), (0, 0));
     }
 
     #[test]

@@ -121,11 +121,24 @@ pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
     let median = dt[dt.len() / 2];
     let period = 1.0 / rate_hz;
     if median > MAX_INTERVAL_PERIODS * period {
+        // The unit that brings the spacing nearest the scanner's period is the likely one:
+        // ROS exports stamps in nanoseconds as often as in seconds.
+        let (unit, abbr, per_s) = [
+            ("milliseconds", "ms", 1e3),
+            ("microseconds", "µs", 1e6),
+            ("nanoseconds", "ns", 1e9),
+        ]
+        .into_iter()
+        .min_by(|a, b| {
+            let off = |per_s: f64| (median / per_s / period).ln().abs();
+            off(a.2).total_cmp(&off(b.2))
+        })
+        .unwrap_or(("milliseconds", "ms", 1e3));
         let (m, p) = (six_digits(median), six_digits(period));
         return Err(LrfError::Config(format!(
-            "the scans' median time between scans is {m} s, {:.0} times the scanner's period of {p} s at --rate-hz {rate_hz}: are the times in milliseconds? Give t in seconds (if these are milliseconds, {m} ms is {} s), or the scanner's --rate-hz",
+            "the scans' median time between scans is {m} s, {:.0} times the scanner's period of {p} s at --rate-hz {rate_hz}: are the times in {unit}? Give t in seconds (if these are {unit}, {m} {abbr} is {} s), or the scanner's --rate-hz",
             median / period,
-            six_digits(median / 1000.0)
+            six_digits(median / per_s)
         )));
     }
     Ok(())
@@ -213,6 +226,41 @@ pub fn check_intensity_scale(scans: &[Scan], sensor: &SensorConfig) -> Result<()
         sensor.intensity_min,
         (median + top) / 2.0
     )))
+}
+
+/// A reflector hit by fewer beams than this (head-on, at the median range of the detections)
+/// is placed along its strip only within a beam spacing, and a glint beside a landmark fits
+/// in that slack: with every 4th beam of the default scanner (1.4°, 1.1 beams at 3 m), a
+/// glint matched to a landmark 18 cm off gave a pose 14 cm off with a σ of 9 mm.
+const MIN_BEAMS_PER_REFLECTOR: f64 = 2.0;
+
+/// A warning when the scans' angle step is too coarse for the map's reflectors at the ranges
+/// they are detected at (fewer than [`MIN_BEAMS_PER_REFLECTOR`] beams across one), saying
+/// what step or reflector width would do; None when it is fine or nothing was detected.
+pub fn check_beam_step(loc: &Localizer, scans: &[Scan]) -> Option<String> {
+    let mut ranges: Vec<f64> = scans
+        .iter()
+        .flat_map(|s| loc.detections(s))
+        .map(|d| d.range_m)
+        .collect();
+    if ranges.is_empty() {
+        return None;
+    }
+    ranges.sort_by(f64::total_cmp);
+    let range_m = ranges[ranges.len() / 2];
+    let step_rad = loc.cfg.sensor.step_rad;
+    let width_m = loc.map.reflector_width_m;
+    let beams = width_m / (range_m * step_rad);
+    (beams < MIN_BEAMS_PER_REFLECTOR).then(|| {
+        format!(
+            "the scans' angle step of {:.2}° puts beams {:.0} mm apart at the reflectors' median range of {range_m:.1} m, so a {:.0} mm reflector is hit by {beams:.1} beams: each is placed along its strip only within a beam spacing, so poses are less precise (their σ says by how much) and more scans are ambiguous or lost; record every beam the scanner has (an angle step of at most {:.2}° for these ranges), or use reflectors at least {:.0} mm wide",
+            step_rad.to_degrees(),
+            range_m * step_rad * 1e3,
+            width_m * 1e3,
+            (width_m / (MIN_BEAMS_PER_REFLECTOR * range_m)).to_degrees(),
+            MIN_BEAMS_PER_REFLECTOR * range_m * step_rad * 1e3
+        )
+    })
 }
 
 /// Localises every scan: with the tracker (prediction from the previous poses, global search

@@ -47,6 +47,14 @@ pub(crate) fn pose_information(pose: &Pose2, obs: &[Observation]) -> Option<Matr
     Some(info)
 }
 
+/// The squared Mahalanobis distance of `o`'s residual at `pose` under its own covariance: about
+/// 2 (its degrees of freedom) for a right match, far more for a detection matched to the wrong
+/// landmark.
+pub(crate) fn mahalanobis2(pose: &Pose2, o: &Observation) -> Option<f64> {
+    let (r, _, w) = linearise(pose, o)?;
+    Some(r.dot(&(w * r)))
+}
+
 /// Iterations of the Gauss–Newton fit; from a rigid fit a few millimetres off it converges in
 /// two or three.
 const MAX_ITERATIONS: usize = 8;

@@ -64,7 +64,7 @@ impl PoseLog {
             };
             let _ = writeln!(
                 csv,
-                "{:.4},{x},{y},{th},{},{},{},{},{:.1},{},{}",
+                "{},{x},{y},{th},{},{},{},{},{:.1},{},{}",
                 r.t_s,
                 r.status,
                 r.n_landmarks,

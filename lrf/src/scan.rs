@@ -7,6 +7,12 @@ use nalgebra::{Matrix2, Point2, Vector2};
 
 use crate::LrfError;
 
+/// The latest scan time accepted, seconds. Any clock in seconds will do: from the recording's
+/// start, or the epoch as ROS exports write it (1.7e9 s, kept to 0.3 µs by a double); a time
+/// later than this is in a finer unit since the epoch (milliseconds give 1.7e12). Times in a
+/// finer unit from the start are caught by their spacing (`check_scan_times`).
+pub const MAX_SCAN_TIME_S: f64 = 1e10;
+
 /// Sensor model: Hokuyo URG-like defaults (240°, 0.352° steps, 20 mm–5.6 m, 10 Hz).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorConfig {
@@ -27,9 +33,6 @@ pub struct SensorConfig {
     /// Returns at or above this intensity are reflector candidates.
     pub intensity_min: f64,
 }
-
-/// The latest scan time accepted, seconds from the start of the recording (a month).
-pub const MAX_SCAN_TIME_S: f64 = 3.0e6;
 
 impl SensorConfig {
     /// Checks every setting for physical sense; the message names the option to fix.
@@ -119,6 +122,18 @@ impl Scan {
         }
     }
 
+    /// The first and last beams with a return (range at least `min_range_m`): the scanner sees
+    /// between them. Beyond them is a sector without a single return, which is no view of
+    /// empty space but one the scanner does not have (the rear of a 360° scanner masked by
+    /// the robot's body, say). None when no beam returned.
+    pub fn returning_span(&self, min_range_m: f64) -> Option<(usize, usize)> {
+        let returns = |r: &f64| *r >= min_range_m;
+        Some((
+            self.ranges_m.iter().position(returns)?,
+            self.ranges_m.iter().rposition(returns)?,
+        ))
+    }
+
     /// The index of the beam nearest to `angle_rad`, if inside the scan.
     pub fn beam_at(&self, angle_rad: f64) -> Option<usize> {
         let n = self.angles_rad.len();
@@ -158,7 +173,8 @@ pub struct Detection {
     pub step_rad: f64,
     /// Ranges of the beams just before the first and just after the last beam of the cluster,
     /// metres (0 = no return). None when that beam tells nothing about where the strip ends:
-    /// it lies outside the scan, or its return is reflective (the strip went on but its range
+    /// it lies outside the scan or beyond its first or last return ([`Scan::returning_span`]),
+    /// or its return is reflective (the strip went on but its range
     /// jumped, as at grazing incidence) or beyond the maximum range.
     pub neighbour_ranges_m: [Option<f64>; 2],
 }
@@ -275,6 +291,9 @@ pub fn extract_detections(
     let step = scan.step_rad().abs().max(1e-6);
     let mut out = Vec::new();
     let n = scan.ranges_m.len();
+    // A beam in a sector without returns tells no more about where a strip ends than one
+    // outside the scan: the strip may go on into the masked sector.
+    let span = scan.returning_span(cfg.min_range_m).unwrap_or((0, 0));
     let ok = |i: usize| {
         let r = scan.ranges_m[i];
         r >= cfg.min_range_m && r <= cfg.max_range_m && scan.intensities[i] >= cfg.intensity_min
@@ -302,7 +321,7 @@ pub fn extract_detections(
         let chord = (pts[pts.len() - 1] - pts[0]).norm();
         let neighbour = |k: Option<usize>| {
             k.filter(|&k| {
-                k < n
+                (span.0..=span.1).contains(&k)
                     && scan.ranges_m[k] <= cfg.max_range_m
                     && !(scan.ranges_m[k] >= cfg.min_range_m
                         && scan.intensities[k] >= cfg.intensity_min)
@@ -445,7 +464,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
                     return Err(err(
                         line,
                         "t",
-                        format!("time {t} s is not a scan time (0 to {MAX_SCAN_TIME_S:.0} s)"),
+                        format!("time {t} s is not a scan time (0 to {MAX_SCAN_TIME_S:e} s, the year 2286 counted from 1970); give t in seconds, from the recording's start or the epoch (epoch milliseconds / 1000, nanoseconds / 1e9)"),
                     ));
                 }
                 Some(t)

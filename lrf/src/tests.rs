@@ -40,7 +40,9 @@ fn scan_of(map: &Map, pose: &Pose2, skip: &[usize], extra: &[Point2<f64>]) -> Sc
     let n = (cfg.fov_rad / cfg.step_rad) as usize + 1;
     let a0 = -0.5 * (n - 1) as f64 * cfg.step_rad;
     let angles: Vec<f64> = (0..n).map(|k| a0 + k as f64 * cfg.step_rad).collect();
-    let mut ranges = vec![0.0; n];
+    // Every beam that misses the reflectors returns from a dark wall at the range limit, as in
+    // a room: only a return from beyond a landmark shows it missed.
+    let mut ranges = vec![cfg.max_range_m; n];
     let mut inten = vec![0.0; n];
     let inv = pose.inverse();
     let mut pts: Vec<Point2<f64>> = (0..map.len())
@@ -234,7 +236,12 @@ fn beams_without_a_return_are_not_free_space() {
     let truth = Pose2::new(1.4, 0.6, 0.7);
     // Only the reflectors return; every other beam, all of them aimed at a wall within
     // range, has none.
-    let zero = scan_of(&loc.map, &truth, &[], &[]);
+    let mut zero = scan_of(&loc.map, &truth, &[], &[]);
+    for (r, i) in zero.ranges_m.iter_mut().zip(&zero.intensities) {
+        if *i == 0.0 {
+            *r = 0.0;
+        }
+    }
     let mut inf = zero.clone();
     for r in inf.ranges_m.iter_mut().filter(|r| **r == 0.0) {
         *r = f64::INFINITY;

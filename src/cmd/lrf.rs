@@ -5,9 +5,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    check_intensity_scale, check_map_report, check_range_unit, check_scan_times, evaluate,
-    layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localizer, LocalizerConfig,
-    Map, SensorConfig, Status, DEFAULT_TOLERANCE_M,
+    check_beam_step, check_intensity_scale, check_map_report, check_range_unit, check_scan_times,
+    evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localizer,
+    LocalizerConfig, Map, SensorConfig, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -137,6 +137,9 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     cfg.sensor.check()?;
     check_intensity_scale(&scans, &cfg.sensor)?;
     let loc = Localizer::new(map, cfg);
+    if let Some(w) = check_beam_step(&loc, &scans) {
+        tell!("warning: {w}");
+    }
     let bar = progress(scans.len() as u64, "localize");
     let start = Instant::now();
     let log = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
