@@ -455,7 +455,7 @@ fn bad_inputs_fail_clearly_without_output() {
     succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(
-        err.contains("--fps 60 overrides the video's own 30 fps: every time is 0.500 times"),
+        err.contains("--fps 60 overrides the video's own rate (its timestamps step at 30 fps): every time is 0.500 times"),
         "{err}"
     );
 }

@@ -159,28 +159,47 @@ fn dropped_frames_leave_a_gap_in_time_not_a_shift() {
         assert_eq!(timing["dropped"][0]["after_frame"], 7, "{name}: {timing}");
         assert_eq!(timing["missing_at_end"], 0, "{name}: {timing}");
 
-        if name == "gap.mp4" {
-            // MP4 states the average rate of what it holds (21 frames over 24 frames' time):
-            // --fps 30 beside it was said to make every time 0.875 times the video's, where
-            // the frames after the drop are what shifts.
-            let (_, err, _) = track(d, &video, &["--fps", "30"]);
-            assert!(
-                err.contains(
-                    "--fps 30 replaces the timestamps of a video whose container averages"
-                ) && err.contains("counting frames shifts every frame after such a drop"),
-                "{err}"
-            );
-        }
-        if name == "gap.mkv" {
-            // Timed by counting (what odocal did before), the poses after the drop shift by
-            // three frames: the test above would fail.
-            let (counted, err, _) = track(d, &video, &["--fps", "30"]);
+        // Timed by counting at --fps, the frames after the drop shift by three frames, whatever
+        // the rate given: at the container's step (30), and at the average rate an MP4 states
+        // for what it holds (21 frames over 24 frames' time), which was said nothing of.
+        let average = if name == "gap.mp4" {
+            let probe = Command::new("ffprobe")
+                .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+                .args(["stream=avg_frame_rate", "-of", "csv=p=0", p(&video)])
+                .output()
+                .expect("ffprobe comes with ffmpeg");
+            let text = String::from_utf8_lossy(&probe.stdout).trim().to_string();
+            let (a, b) = text.split_once('/').expect("a rate a/b");
+            let fps = a.parse::<f64>().unwrap() / b.parse::<f64>().unwrap();
+            assert!((fps - 26.25).abs() < 0.01, "{text}");
+            Some(format!("{fps}"))
+        } else {
+            None
+        };
+        for fps in std::iter::once("30".to_string()).chain(average) {
+            let (counted, err, report) = track(d, &video, &["--fps", &fps]);
             let (rms, _) = position_rms(&counted, &truth);
-            println!("{name} timed by counting: position RMS {:.1} mm", rms * 1e3);
-            assert!(rms > 10e-3, "counting should shift the poses: {rms} m");
+            println!(
+                "{name} timed by counting at {fps} fps: position RMS {:.1} mm",
+                rms * 1e3
+            );
             assert!(
-                err.contains("3 frames are missing") && err.contains("timed by counting"),
-                "{err}"
+                err.contains(&format!(
+                    "3 frames dropped in 1 place (3 after frame 7 (0.233 s)), as the video's timestamps show; --fps {fps} times the frames by counting"
+                )) && err.contains("leave --fps out"),
+                "{name} --fps {fps}: {err}"
+            );
+            assert_eq!(report["timing"]["dropped_frames"], 3, "{name}");
+            // Neither a rate to "correct" towards the average nor a missing-frames count that
+            // contradicts the frames read.
+            assert!(
+                !err.contains("are missing") && !err.contains("replaces the timestamps"),
+                "{name} --fps {fps}: {err}"
+            );
+            assert_eq!(
+                err.contains("overrides the video's own rate (its timestamps step at 30 fps)"),
+                fps != "30",
+                "{name} --fps {fps}: {err}"
             );
         }
     }

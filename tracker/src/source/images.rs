@@ -74,6 +74,7 @@ impl FolderSource {
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
                 container_fps: None,
+                container_times_s: None,
             },
             files: files.into_iter().zip(times).collect(),
             next: 0,

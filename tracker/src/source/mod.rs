@@ -117,6 +117,9 @@ pub struct SourceInfo {
     pub overridden_fps: Option<f64>,
     /// The frame rate the video's container states, frames/s (None for image folders).
     pub container_fps: Option<f64>,
+    /// The container's own times of the frames (seconds from the first, by frame index) when
+    /// `--fps` timed them by counting instead: they still show the frames dropped.
+    pub container_times_s: Option<Vec<f64>>,
     /// Frames of the file that could not be decoded whole (their JPEG data is cut or
     /// damaged), by index: left out, so the timeline has a gap there.
     pub corrupt_frames: Vec<usize>,
@@ -278,6 +281,7 @@ impl MemorySource {
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
                 container_fps: None,
+                container_times_s: None,
             },
             frames: frames.into(),
         }
