@@ -300,6 +300,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(&args.video, &source_options)?;
+    if let Some(turn) = &source.info().display_rotation {
+        tell!(
+            "note: {}: {turn}, which is not applied: odocal reads frames and calibration images as the sensor recorded them",
+            args.video.display()
+        );
+    }
     if let Some(fps) = args.fps.or(source.info().container_fps) {
         check_readout(args.tag.rolling_shutter_s, 1.0 / fps)?;
     }

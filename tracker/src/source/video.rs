@@ -93,6 +93,10 @@ impl VideoSource {
             ));
         }
         let mut cap = SendCapture(cap);
+        // FFmpeg's backend turns the frames by the stream's rotate tag unless told not to:
+        // the calibration describes the pixels as the sensor recorded them.
+        cap.0.set(videoio::CAP_PROP_ORIENTATION_AUTO, 0.0)?;
+        let rotate_deg = cap.0.get(videoio::CAP_PROP_ORIENTATION_META)?.round() as i64;
         let width = cap.0.get(videoio::CAP_PROP_FRAME_WIDTH)?.round() as u32;
         let height = cap.0.get(videoio::CAP_PROP_FRAME_HEIGHT)?.round() as u32;
         let count = cap.0.get(videoio::CAP_PROP_FRAME_COUNT)?;
@@ -130,6 +134,8 @@ impl VideoSource {
                 corrupt_frames: Vec::new(),
                 container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
                 container_times_s: None,
+                display_rotation: (rotate_deg.rem_euclid(360) != 0)
+                    .then(|| format!("its rotate tag asks for a turn of {rotate_deg}° on display")),
                 overridden_fps: opts
                     .fps
                     .filter(|f| {
