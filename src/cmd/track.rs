@@ -127,7 +127,7 @@ fn against_truth(
         // Under a rolling shutter each fix is timed at its tag's row: only a truth timed
         // with the same readout has rows at those times.
         let r = args.tag.rolling_shutter_s;
-        let readout = if r > 0.0 {
+        let readout = if r != 0.0 {
             format!(
                 "; with --rolling-shutter-s {r} the fixes are timed at the tag's row, which only frames.csv of a video rendered with that readout has"
             )
@@ -248,7 +248,7 @@ fn write_report(
 /// reads its rows within one frame, so such a value is another unit (milliseconds given as
 /// seconds) and would time every fix by up to that much.
 fn check_readout(readout_s: f64, period_s: f64) -> anyhow::Result<()> {
-    if readout_s > period_s * (1.0 + 1e-6) {
+    if readout_s.abs() > period_s * (1.0 + 1e-6) {
         anyhow::bail!(
             "--rolling-shutter-s {readout_s}: a sensor reads its rows within one frame, and these frames come every {:.1} ms ({:.2} fps); give the readout time in seconds (20 ms is 0.02), at most the frame period",
             period_s * 1e3,
