@@ -606,6 +606,42 @@ fn tag_ids_outside_the_family_are_refused_at_once() {
     fails_with(&track(&["--tag-id", "586"]), "ids seen: 0 (");
 }
 
+/// `--tags 0` is documented to behave as `--tag-id 0`, yet refused --report and --truth,
+/// pointing to --arena-report, which needs an arena. One id without an arena is now --tag-id,
+/// its report and truth check too; several ids name the way to one tag's: tracked alone.
+#[test]
+fn one_id_in_tags_is_tag_id_with_its_report_and_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 6, 1);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    let (report, truth) = (d.join("r.json"), d.join("truth.csv"));
+    let track = |extra: &[&str]| {
+        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
+        args.extend(extra);
+        odocal(&args)
+    };
+    let with_report = ["--report", p(&report), "--truth", p(&truth)];
+    let res = track(&[&["--tags", "0"][..], &with_report].concat());
+    succeeded(&res);
+    let said = String::from_utf8_lossy(&res.stdout);
+    assert!(number_after(&said, "position RMS ") < 0.3, "{said}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["against_truth"]["fixes"], 6, "{r}");
+    assert_eq!(Trajectory::read_csv(&out).unwrap().rows.len(), 6);
+    for tags in ["0,3", "all"] {
+        fails_with(
+            &track(&["--tags", tags, "--report", p(&report)]),
+            &format!("--report is for one tag, and --tags {tags} tracks several into trajectory files only: track a tag alone with --tag-id N for its report (--tag-id 0 --report … for tag 0)"),
+        );
+    }
+    fails_with(
+        &track(&["--tags", "3,0", "--truth", p(&truth)]),
+        "track a tag alone with --tag-id N for its truth check (--tag-id 3 --truth … for tag 3)",
+    );
+}
+
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
 /// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
 /// camera file. The family is named, and the ids listed are the most seen few.
@@ -1251,7 +1287,7 @@ fn outputs_stay_out_of_the_frame_folder_and_timestamps_are_for_folders() {
             p(&frames.join("t.csv")),
         ]);
         assert!(
-            e.contains("lies inside") && e.contains("(a frame folder tracked)"),
+            e.contains("lies inside") && e.contains("frame folder tracked)"),
             "{tags}: {e}"
         );
     }
@@ -1489,7 +1525,7 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
         "--camera",
         p(&camera),
         "--tags",
-        "0",
+        "0,3",
         "--out",
         p(&out),
     ]);
@@ -1499,7 +1535,11 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
         stderr.contains("1 frame repeats the previous frame's image"),
         "--tags: {stderr}"
     );
-    let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
+    let tag0 = out.with_file_name(format!(
+        "{}_tag0.csv",
+        out.file_stem().unwrap().to_string_lossy()
+    ));
+    let rows = std::fs::read_to_string(&tag0).unwrap().lines().count() - 1;
     assert_eq!(rows, 39, "--tags: the damaged frame's fix is left out");
 }
 
