@@ -121,7 +121,7 @@ impl TrackOptions {
                 self.max_speed_mps
             ));
         }
-        if !(self.rolling_shutter_s.abs() < 1.0) {
+        if self.rolling_shutter_s.is_nan() || self.rolling_shutter_s.abs() >= 1.0 {
             return bad(format!(
                 "--rolling-shutter-s {}: the readout time from the first row to the last is 0 (global shutter) to under 1 s (typically 0.01 to 0.04 s; negative when the rows are read from the bottom of the image up)",
                 self.rolling_shutter_s
