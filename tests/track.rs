@@ -455,7 +455,7 @@ fn bad_inputs_fail_clearly_without_output() {
     succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(
-        err.contains("--fps 60 overrides the video's own 30 fps: every time is 0.500 times"),
+        err.contains("--fps 60 overrides the video's own rate (its timestamps step at 30 fps): every time is 0.500 times"),
         "{err}"
     );
 }
@@ -604,6 +604,42 @@ fn tag_ids_outside_the_family_are_refused_at_once() {
     assert!(!out.exists());
     // The last id of the family is looked for, and named as not seen.
     fails_with(&track(&["--tag-id", "586"]), "ids seen: 0 (");
+}
+
+/// `--tags 0` is documented to behave as `--tag-id 0`, yet refused --report and --truth,
+/// pointing to --arena-report, which needs an arena. One id without an arena is now --tag-id,
+/// its report and truth check too; several ids name the way to one tag's: tracked alone.
+#[test]
+fn one_id_in_tags_is_tag_id_with_its_report_and_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 6, 1);
+    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    let (report, truth) = (d.join("r.json"), d.join("truth.csv"));
+    let track = |extra: &[&str]| {
+        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
+        args.extend(extra);
+        odocal(&args)
+    };
+    let with_report = ["--report", p(&report), "--truth", p(&truth)];
+    let res = track(&[&["--tags", "0"][..], &with_report].concat());
+    succeeded(&res);
+    let said = String::from_utf8_lossy(&res.stdout);
+    assert!(number_after(&said, "position RMS ") < 0.3, "{said}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["against_truth"]["fixes"], 6, "{r}");
+    assert_eq!(Trajectory::read_csv(&out).unwrap().rows.len(), 6);
+    for tags in ["0,3", "all"] {
+        fails_with(
+            &track(&["--tags", tags, "--report", p(&report)]),
+            &format!("--report is for one tag, and --tags {tags} tracks several into trajectory files only: track a tag alone with --tag-id N for its report (--tag-id 0 --report … for tag 0)"),
+        );
+    }
+    fails_with(
+        &track(&["--tags", "3,0", "--truth", p(&truth)]),
+        "track a tag alone with --tag-id N for its truth check (--tag-id 3 --truth … for tag 3)",
+    );
 }
 
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
@@ -841,6 +877,57 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
     assert!((readout - 0.030).abs() <= 0.003, "{line}");
     let err = run(&d.join("rolling.avi"), &["--rolling-shutter-s", "0.03"]);
     assert!(!err.contains("sheared"), "{err}");
+    // The same camera mounted upside down, its image turned after readout: the rows are read
+    // from the bottom of the image up. It went unnamed (10.9 mm RMS at 0.7 m/s on a 60-frame
+    // drive), and --rolling-shutter-s -0.03 was refused.
+    let flipped = d.join("flipped");
+    std::fs::create_dir(&flipped).unwrap();
+    let made = std::process::Command::new("ffmpeg")
+        .args([
+            "-v",
+            "error",
+            "-i",
+            p(&d.join("rolling.avi")),
+            "-vf",
+            "hflip,vflip",
+        ])
+        .args(["-c:v", "mjpeg", "-q:v", "1", p(&flipped.join("video.avi"))])
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&camera).unwrap()).unwrap();
+    std::fs::write(
+        flipped.join("camera.json"),
+        turned_half_way(cam).to_string(),
+    )
+    .unwrap();
+    let (flipped_video, flipped_camera) = (flipped.join("video.avi"), flipped.join("camera.json"));
+    let frames_truth = d.join("frames.csv");
+    let track_flipped = |extra: &[&str]| {
+        let mut args = vec!["track", p(&flipped_video), "--camera", p(&flipped_camera)];
+        args.extend(["--out", p(&out), "--truth", p(&frames_truth)]);
+        args.extend(extra);
+        let res = odocal(&args);
+        succeeded(&res);
+        let text = String::from_utf8_lossy(&res.stdout).into_owned();
+        (
+            number_after(&text, "position RMS "),
+            String::from_utf8_lossy(&res.stderr).into_owned(),
+        )
+    };
+    let (rms_mm, err) = track_flipped(&[]);
+    let readout = number_after(&err, "give --rolling-shutter-s ");
+    assert!(
+        (readout + 0.030).abs() <= 0.003 && err.contains("from the bottom row up") && rms_mm > 5.0,
+        "{rms_mm} mm: {err}"
+    );
+    let (rms_mm, err) = track_flipped(&["--rolling-shutter-s", "-0.03"]);
+    println!("turned camera, --rolling-shutter-s -0.03: position RMS {rms_mm} mm");
+    assert!(
+        rms_mm < 0.3 && !err.contains("sheared"),
+        "{rms_mm} mm: {err}"
+    );
     // A readout longer than a frame (milliseconds read as tenths of a second) retimed every
     // fix by up to 0.2 s, or turned the frames into "bad geometry": refused, for a video by
     // its stated rate and for a frame folder by its timestamps.
@@ -877,6 +964,28 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
     synth_track(d, 40, 4);
     let err = run(&d.join("video.avi"), &[]);
     assert!(!err.contains("sheared"), "{err}");
+}
+
+/// camera.json for the same camera with its image turned 180° (pixel (u, v) becomes
+/// (W−1−u, H−1−v)): the principal point mirrored, the tangential distortion negated, the
+/// camera frame turned about its optical axis.
+fn turned_half_way(mut cam: serde_json::Value) -> serde_json::Value {
+    let c = &mut cam["camera"];
+    let (w, h) = (c["width"].as_f64().unwrap(), c["height"].as_f64().unwrap());
+    let i = &mut c["intrinsics"];
+    i["cx"] = (w - 1.0 - i["cx"].as_f64().unwrap()).into();
+    i["cy"] = (h - 1.0 - i["cy"].as_f64().unwrap()).into();
+    for k in ["p1", "p2"] {
+        c["distortion"][k] = (-c["distortion"][k].as_f64().unwrap()).into();
+    }
+    let f = &mut cam["floor"]["floor_to_camera"];
+    let q: Vec<f64> = serde_json::from_value(f["rotation"].clone()).unwrap();
+    // Rz(180°) ⊗ q, quaternions as (x, y, z, w).
+    f["rotation"] = serde_json::json!([-q[1], q[0], q[3], -q[2]]);
+    for k in 0..2 {
+        f["translation"][k] = (-f["translation"][k].as_f64().unwrap()).into();
+    }
+    cam
 }
 
 /// The marker's height is the user's word; the tag's apparent size checks it. A height 80 mm
@@ -1178,7 +1287,7 @@ fn outputs_stay_out_of_the_frame_folder_and_timestamps_are_for_folders() {
             p(&frames.join("t.csv")),
         ]);
         assert!(
-            e.contains("lies inside") && e.contains("(a frame folder tracked)"),
+            e.contains("lies inside") && e.contains("frame folder tracked)"),
             "{tags}: {e}"
         );
     }
@@ -1416,7 +1525,7 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
         "--camera",
         p(&camera),
         "--tags",
-        "0",
+        "0,3",
         "--out",
         p(&out),
     ]);
@@ -1426,7 +1535,11 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
         stderr.contains("1 frame repeats the previous frame's image"),
         "--tags: {stderr}"
     );
-    let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
+    let tag0 = out.with_file_name(format!(
+        "{}_tag0.csv",
+        out.file_stem().unwrap().to_string_lossy()
+    ));
+    let rows = std::fs::read_to_string(&tag0).unwrap().lines().count() - 1;
     assert_eq!(rows, 39, "--tags: the damaged frame's fix is left out");
 }
 

@@ -98,6 +98,57 @@ pub fn check_image_file(path: &Path) -> Result<(), CalibError> {
     Ok(())
 }
 
+/// How odocal reads every image, calibration views and tracked frames alike: 8-bit grey, the
+/// pixels as the sensor recorded them. A photo's EXIF orientation only says how to show it
+/// (a camera held turned); applied, a view would describe another pixel layout than the
+/// camera's video and calibrate a principal point and distortion that fit neither.
+pub const IMREAD_SENSOR_GRAY: i32 =
+    imgcodecs::IMREAD_GRAYSCALE | imgcodecs::IMREAD_IGNORE_ORIENTATION;
+
+/// The turn an image's EXIF orientation asks for on display, which odocal does not apply
+/// ([`IMREAD_SENSOR_GRAY`]), as "EXIF orientation 3 (turn 180°)"; None when it asks for none
+/// or the file has none.
+pub fn display_rotation(path: &Path) -> Option<String> {
+    use image::{metadata::Orientation, ImageDecoder};
+    let mut decoder = image::ImageReader::open(path)
+        .ok()?
+        .with_guessed_format()
+        .ok()?
+        .into_decoder()
+        .ok()?;
+    let orientation = decoder.orientation().ok()?;
+    let turn = match orientation {
+        Orientation::NoTransforms => return None,
+        Orientation::Rotate90 => "turn 90° clockwise",
+        Orientation::Rotate180 => "turn 180°",
+        Orientation::Rotate270 => "turn 90° counter-clockwise",
+        Orientation::FlipHorizontal => "mirror left to right",
+        Orientation::FlipVertical => "mirror top to bottom",
+        Orientation::Rotate90FlipH => "turn 90° clockwise and mirror",
+        Orientation::Rotate270FlipH => "turn 90° counter-clockwise and mirror",
+    };
+    Some(format!(
+        "EXIF orientation {} ({turn})",
+        orientation.to_exif()
+    ))
+}
+
+/// One note naming the images whose display rotation odocal leaves unapplied, or None.
+pub fn display_rotation_note<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Option<String> {
+    let turned: Vec<String> = paths
+        .into_iter()
+        .filter_map(|p| Some(format!("{}: {}", p.display(), display_rotation(p)?)))
+        .collect();
+    let first = turned.first()?;
+    let more = match turned.len() {
+        1 => String::new(),
+        n => format!(" and {} more", n - 1),
+    };
+    Some(format!(
+        "note: {first}{more}: the turn is for display only and is not applied; odocal reads every image's pixels as the sensor recorded them, as it reads the frames it tracks"
+    ))
+}
+
 /// Reads an image as 8-bit grey, with a clear error for unreadable files.
 pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
     let name = path.display().to_string();
@@ -117,7 +168,7 @@ pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
         });
     }
     check_image_file(path)?;
-    let img = imgcodecs::imread(path, imgcodecs::IMREAD_GRAYSCALE)?;
+    let img = imgcodecs::imread(path, IMREAD_SENSOR_GRAY)?;
     if img.empty() {
         return Err(CalibError::BadFile {
             path: name,

@@ -22,7 +22,7 @@ pub use camera_file::{
     CAMERA_FORMAT,
 };
 pub use charuco::ArucoDictionary;
-pub use detect::{detect_file, BoardView, Detection};
+pub use detect::{detect_file, display_rotation, BoardView, Detection, IMREAD_SENSOR_GRAY};
 pub use error::CalibError;
 pub use floor::{board_pose, fit_floor};
 pub use floor_uncertainty::{

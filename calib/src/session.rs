@@ -282,6 +282,9 @@ pub fn calibrate_session(
         .iter()
         .map(|s| format!("skipped {}: {}", s.image, s.reason))
         .collect();
+    notes.extend(crate::detect::display_rotation_note(
+        images.iter().chain(floor).map(PathBuf::as_path),
+    ));
     if views.is_empty() {
         return Err(no_board_error(images, board, "calibration"));
     }

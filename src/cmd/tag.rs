@@ -52,8 +52,10 @@ pub struct TagArgs {
     #[arg(long, default_value_t = 0.08)]
     pub marker_height: f64,
     /// Rolling-shutter readout time, seconds: from reading the first row of a frame to reading
-    /// its last (0 for a global shutter; typically 0.01–0.04 s). Each fix is then timed at the
-    /// rows where the tag was read: t = frame time + tag centre row / rows × readout.
+    /// its last (0 for a global shutter; typically 0.01–0.04 s; negative for rows read from the
+    /// bottom of the image up, as by a sensor mounted upside down whose image is turned after
+    /// readout). Each fix is then timed at the rows where the tag was read: t = frame time +
+    /// tag centre row / rows × readout (rows counted from the bottom when negative).
     #[arg(long, default_value_t = 0.0)]
     pub rolling_shutter_s: f64,
     /// Where the tag's centre sits on the robot: AHEAD,LEFT in metres from the midpoint of the

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use odocal_calib::CameraFile;
 use odocal_core::{TextFormat, REFERENCE_MAX_GAP_S, SAME_TIME_S};
 use odocal_synth::scene::FramesTruth;
+use odocal_tracker::multi::TagSelection;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
     errors_against, fix_warnings, open_source, overlay, quiet_video_logs, track_report,
@@ -127,7 +128,7 @@ fn against_truth(
         // Under a rolling shutter each fix is timed at its tag's row: only a truth timed
         // with the same readout has rows at those times.
         let r = args.tag.rolling_shutter_s;
-        let readout = if r > 0.0 {
+        let readout = if r != 0.0 {
             format!(
                 "; with --rolling-shutter-s {r} the fixes are timed at the tag's row, which only frames.csv of a video rendered with that readout has"
             )
@@ -248,7 +249,7 @@ fn write_report(
 /// reads its rows within one frame, so such a value is another unit (milliseconds given as
 /// seconds) and would time every fix by up to that much.
 fn check_readout(readout_s: f64, period_s: f64) -> anyhow::Result<()> {
-    if readout_s > period_s * (1.0 + 1e-6) {
+    if readout_s.abs() > period_s * (1.0 + 1e-6) {
         anyhow::bail!(
             "--rolling-shutter-s {readout_s}: a sensor reads its rows within one frame, and these frames come every {:.1} ms ({:.2} fps); give the readout time in seconds (20 ms is 0.02), at most the frame period",
             period_s * 1e3,
@@ -258,8 +259,42 @@ fn check_readout(readout_s: f64, period_s: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--tags` naming one id without `--arena` is `--tag-id` (its report and truth check too):
+/// the id moves there. Naming several, the outputs that judge one tag are refused with the way
+/// to them: that tag tracked alone (`--arena-report` is for an arena's cameras).
+fn one_tag_of_tags(args: &mut Args) -> anyhow::Result<()> {
+    let (None, Some(tags)) = (&args.multi.arena, &args.multi.tags) else {
+        return Ok(());
+    };
+    let selection = TagSelection::parse(tags)?;
+    selection.check(&args.tag.family)?;
+    let example = match &selection {
+        TagSelection::Ids(ids) if ids.len() == 1 => {
+            args.tag.tag_id = ids[0];
+            args.multi.tags = None;
+            return Ok(());
+        }
+        TagSelection::Ids(ids) => ids[0],
+        TagSelection::All => args.tag.tag_id,
+    };
+    for (flag, what, given) in [
+        ("--report", "report", args.report.is_some()),
+        ("--truth", "truth check", args.truth.is_some()),
+        ("--tum", "TUM file", args.tum.is_some()),
+        ("--overlay", "overlay", args.overlay.is_some()),
+    ] {
+        if given {
+            anyhow::bail!(
+                "{flag} is for one tag, and --tags {tags} tracks several into trajectory files only: track a tag alone with --tag-id N for its {what} (--tag-id {example} {flag} … for tag {example})"
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Runs the subcommand.
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    one_tag_of_tags(&mut args)?;
     if args.multi.wanted() {
         return super::track_arena::run(args);
     }
@@ -300,6 +335,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
     let source = open_source(&args.video, &source_options)?;
+    if let Some(turn) = &source.info().display_rotation {
+        tell!(
+            "note: {}: {turn}, which is not applied: odocal reads frames and calibration images as the sensor recorded them",
+            args.video.display()
+        );
+    }
     if let Some(fps) = args.fps.or(source.info().container_fps) {
         check_readout(args.tag.rolling_shutter_s, 1.0 / fps)?;
     }

@@ -4,7 +4,9 @@
 //! nothing in the positions shows it. The tag's corners do: read at their own rows' times,
 //! a moving square is sheared along its motion. The readout that makes the tags square
 //! again (each fix's corners moved back along its image motion, as `--rolling-shutter-s`
-//! does) is the camera's, and when it clearly does, the run says so.
+//! does) is the camera's, and when it clearly does, the run says so. Both directions are
+//! tried: a sensor mounted upside down, its image turned after readout, reads the rows from
+//! the bottom of the image up, a negative readout.
 
 use nalgebra::Point2;
 use odocal_calib::{CameraModel, FloorToCamera};
@@ -37,7 +39,8 @@ const MIN_IMPROVEMENT: f64 = 1.2;
 /// The rolling-shutter readout a tracking run's tags show.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShutterEstimate {
-    /// The readout that fits the corners best, seconds (first row to last).
+    /// The readout that fits the corners best, seconds (first row to last; negative when read
+    /// from the bottom of the image up).
     pub readout_s: f64,
     /// RMS misfit of the corners as read, pixels.
     pub rms_as_read_px: f64,
@@ -98,8 +101,8 @@ impl ShutterEstimate {
         };
         let as_read = misfit(0.0)?;
         let (mut best_s, mut best_px) = (0.0, as_read);
-        let steps = (period_s / READOUT_STEP_S).floor() as usize;
-        for k in 1..=steps {
+        let steps = (period_s / READOUT_STEP_S).floor() as i64;
+        for k in (-steps..=steps).filter(|k| *k != 0) {
             let r = k as f64 * READOUT_STEP_S;
             if let Some(m) = misfit(r) {
                 if m < best_px {
@@ -119,7 +122,7 @@ impl ShutterEstimate {
     /// Whether the tags show a rolling shutter: a readout of at least
     /// [`MIN_REPORTED_READOUT_S`] that explains most of the corners' misfit.
     pub fn shows_rolling_shutter(&self) -> bool {
-        self.readout_s >= MIN_REPORTED_READOUT_S
+        self.readout_s.abs() >= MIN_REPORTED_READOUT_S
             && self.rms_as_read_px >= MIN_IMPROVEMENT * self.rms_unsheared_px
     }
 
@@ -127,14 +130,16 @@ impl ShutterEstimate {
     pub fn warning(&self) -> Option<String> {
         self.shows_rolling_shutter().then(|| {
             format!(
-                "the tags are sheared along their motion as a rolling shutter reading the frame over {:.1} ms would shear them (corners fit {:.3} px RMS as read, {:.3} px with that readout undone, over {} moving fixes): each fix's time is then off by up to that readout, {:.0} mm at this run's fastest {:.2} m/s; if the camera has a rolling shutter, give --rolling-shutter-s {:.4} (or its readout time from the datasheet)",
-                self.readout_s * 1e3,
+                "the tags are sheared along their motion as a rolling shutter reading the frame {} over {:.1} ms would shear them (corners fit {:.3} px RMS as read, {:.3} px with that readout undone, over {} moving fixes): each fix's time is then off by up to that readout, {:.0} mm at this run's fastest {:.2} m/s; if the camera has a rolling shutter, give --rolling-shutter-s {:.4} (or its readout time from the datasheet{})",
+                if self.readout_s < 0.0 { "from the bottom row up" } else { "from the top row down" },
+                self.readout_s.abs() * 1e3,
                 self.rms_as_read_px,
                 self.rms_unsheared_px,
                 self.fixes,
-                self.readout_s * self.fastest_mps * 1e3,
+                self.readout_s.abs() * self.fastest_mps * 1e3,
                 self.fastest_mps,
-                self.readout_s
+                self.readout_s,
+                if self.readout_s < 0.0 { ", negative: the rows are read from the bottom up" } else { "" }
             )
         })
     }

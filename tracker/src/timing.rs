@@ -47,9 +47,50 @@ pub struct TimingReport {
     pub extrapolated_times: usize,
     /// Frames the container announces beyond those read and those dropped: the file ends early.
     pub missing_at_end: usize,
-    /// The video's own frame rate when `--fps` overrode it with another, frames/s.
+    /// The video's own frame rate when `--fps` overrode it with another, frames/s: the step
+    /// between its timestamps' when it has them (an MP4 states the average rate of the frames
+    /// it holds, which drops lower), else the rate its container states.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub overridden_fps: Option<f64>,
+    /// `--fps` when it timed a video's frames by counting in the place of the container's
+    /// timestamps, frames/s; the step and the frames dropped above are then the timestamps'.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fps_over_timestamps: Option<f64>,
+}
+
+/// The usual step between `times` (their median step forward) and the runs of frames missing
+/// between them: a step longer than [`DROP_STEP_FACTOR`] usual ones. `times` are (frame index,
+/// seconds) in decode order.
+fn find_drops(times: &[(usize, f64)]) -> (Option<f64>, Vec<DroppedFrames>) {
+    let mut steps: Vec<f64> = times
+        .windows(2)
+        .map(|w| w[1].1 - w[0].1)
+        .filter(|d| *d > 0.0)
+        .collect();
+    steps.sort_by(f64::total_cmp);
+    let Some(step) = steps.get(steps.len() / 2).copied() else {
+        return (None, Vec::new());
+    };
+    let mut dropped = Vec::new();
+    let mut last = times.first().copied();
+    for &(index, t) in times.iter().skip(1) {
+        if let Some((last_index, last_t)) = last {
+            let d = t - last_t;
+            if d > DROP_STEP_FACTOR * step {
+                dropped.push(DroppedFrames {
+                    after_frame: last_index,
+                    after_s: last_t,
+                    next_s: t,
+                    missing: ((d / step).round() as usize).saturating_sub(1).max(1),
+                });
+            }
+            if d <= 0.0 {
+                continue; // a duplicate time: the next step counts from the last good one
+            }
+        }
+        last = Some((index, t));
+    }
+    (Some(step), dropped)
 }
 
 /// Whether the robot's fixes on both sides of the time step `d` lie as close as one frame
@@ -90,34 +131,26 @@ impl TimingReport {
     /// The timeline of a tracking run.
     pub fn of(r: &TrackResult) -> Self {
         let times: Vec<(usize, f64)> = r.records.iter().map(|x| (x.index, x.t_s)).collect();
-        let mut steps: Vec<f64> = times
-            .windows(2)
-            .map(|w| w[1].1 - w[0].1)
-            .filter(|d| *d > 0.0)
-            .collect();
-        steps.sort_by(f64::total_cmp);
-        let step = steps.get(steps.len() / 2).copied();
-        let mut dropped = Vec::new();
-        if let Some(step) = step {
-            let mut last = times.first().copied();
-            for &(index, t) in times.iter().skip(1) {
-                if let Some((last_index, last_t)) = last {
-                    let d = t - last_t;
-                    if d > DROP_STEP_FACTOR * step {
-                        dropped.push(DroppedFrames {
-                            after_frame: last_index,
-                            after_s: last_t,
-                            next_s: t,
-                            missing: ((d / step).round() as usize).saturating_sub(1).max(1),
-                        });
-                    }
-                    if d <= 0.0 {
-                        continue; // a duplicate time: the next step counts from the last good one
-                    }
-                }
-                last = Some((index, t));
+        // Under --fps the container's own times are what shows frames dropped: counted times
+        // never step over one.
+        let own_times: Option<Vec<(usize, f64)>> = r.source.container_times_s.as_ref().map(|c| {
+            times
+                .iter()
+                .filter_map(|&(index, _)| Some((index, *c.get(index)?)))
+                .collect()
+        });
+        let fps_over_timestamps = own_times
+            .as_ref()
+            .and_then(|_| find_drops(&times).0)
+            .map(|counted_step| 1.0 / counted_step);
+        let times = own_times.unwrap_or(times);
+        let (step, dropped) = find_drops(&times);
+        let overridden_fps = match (fps_over_timestamps, step) {
+            (Some(given), Some(own_step)) => {
+                ((given * own_step - 1.0).abs() > 0.01).then_some(1.0 / own_step)
             }
-        }
+            _ => r.source.overridden_fps,
+        };
         // A time step of many frames across which the robot moved as far as in one frame is
         // the camera's clock jumping, not frames lost: told apart where the robot moves.
         let (clock_jumps, dropped): (Vec<DroppedFrames>, Vec<DroppedFrames>) =
@@ -170,8 +203,77 @@ impl TimingReport {
             corrupt_frames: r.source.corrupt_frames.clone(),
             extrapolated_times: r.source.extrapolated_times,
             missing_at_end,
-            overridden_fps: r.source.overridden_fps,
+            overridden_fps,
+            fps_over_timestamps,
         }
+    }
+
+    /// The warning for an `--fps` that is not the video's own rate.
+    fn overridden_fps_warning(&self) -> Option<String> {
+        let own = self.overridden_fps?;
+        let given = self
+            .fps_over_timestamps
+            .or(self.frame_step_s.map(|s| 1.0 / s))?;
+        let round = |f: f64| (f * 1e3).round() / 1e3;
+        // Without timestamps to tell, some percent off is as likely a video of that rate whose
+        // container averaged in dropped or doubled frames: counting frames then shifts every
+        // frame after one.
+        if self.fps_over_timestamps.is_none() && (own / given - 1.0).abs() < 0.15 {
+            return Some(format!(
+                "--fps {} replaces the timestamps of a video whose container averages {} fps, as a {} fps recording with dropped or repeated frames does: counting frames shifts every frame after such a drop by a frame or more; leave --fps out to time the frames by their timestamps",
+                round(given),
+                round(own),
+                round(given)
+            ));
+        }
+        let source = match self.fps_over_timestamps {
+            Some(_) => "its timestamps step at",
+            None => "its container states",
+        };
+        Some(format!(
+            "--fps {} overrides the video's own rate ({source} {} fps): every time is {:.3} times what the video says, and every speed {:.3} times; leave --fps out to time the frames by the video",
+            round(given),
+            round(own),
+            own / given,
+            given / own
+        ))
+    }
+
+    /// The warning naming the frames dropped: a gap in the trajectory when the frames are timed
+    /// by their timestamps, a shift of every later frame when `--fps` counts them instead.
+    fn dropped_warning(&self) -> String {
+        let runs: Vec<String> = self
+            .dropped
+            .iter()
+            .take(5)
+            .map(|d| {
+                format!(
+                    "{} after frame {} ({:.3} s)",
+                    d.missing, d.after_frame, d.after_s
+                )
+            })
+            .collect();
+        let more = if self.dropped.len() > 5 { ", …" } else { "" };
+        let places = match self.dropped.len() {
+            1 => "1 place".to_string(),
+            n => format!("{n} places"),
+        };
+        let dropped = format!(
+            "{} frames dropped in {places} ({}{more})",
+            self.dropped_frames,
+            runs.join(", ")
+        );
+        if let Some(fps) = self.fps_over_timestamps {
+            return format!(
+                "{dropped}, as the video's timestamps show; --fps {} times the frames by counting instead, which puts every frame after a drop as many frames early as were dropped before it, so the trajectory is mistimed from frame {} on: leave --fps out to time the frames by their timestamps",
+                (fps * 1e3).round() / 1e3,
+                self.dropped[0].after_frame + 1
+            );
+        }
+        format!(
+            "{dropped}; the times of the frames after them come from the {}, so the trajectory has gaps there, not shifts",
+            self.timing
+        )
     }
 
     /// One warning line per problem with the timeline (none for a clean video). Frames timed
@@ -179,58 +281,21 @@ impl TimingReport {
     /// few frames drained from the decoder without a timestamp.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
-        if let (Some(own), Some(step)) = (self.overridden_fps, self.frame_step_s) {
-            let given = (1e3 / step).round() / 1e3;
-            // Some percent off is as likely a video of that rate whose container averaged in
-            // dropped or doubled frames: counting frames then shifts every frame after one.
-            if (own * step - 1.0).abs() < 0.15 {
-                w.push(format!(
-                    "--fps {given} replaces the timestamps of a video whose container averages {} fps, as a {given} fps recording with dropped or repeated frames does: counting frames shifts every frame after such a drop by a frame or more; leave --fps out to time the frames by their timestamps",
-                    (own * 1e3).round() / 1e3
-                ));
-            } else {
-                w.push(format!(
-                "--fps {given} overrides the video's own {} fps: every time is {:.3} times what the video says, and every speed {:.3} times; leave --fps out for a video that states its rate",
-                (own * 1e3).round() / 1e3,
-                own * step,
-                1.0 / (own * step)
-            ));
-            }
-        }
+        w.extend(self.overridden_fps_warning());
         if self.dropped_frames > 0 {
-            let runs: Vec<String> = self
-                .dropped
-                .iter()
-                .take(5)
-                .map(|d| {
-                    format!(
-                        "{} after frame {} ({:.3} s)",
-                        d.missing, d.after_frame, d.after_s
-                    )
-                })
-                .collect();
-            let more = if self.dropped.len() > 5 { ", …" } else { "" };
-            let places = match self.dropped.len() {
-                1 => "1 place".to_string(),
-                n => format!("{n} places"),
-            };
-            w.push(format!(
-                "{} frames dropped in {places} ({}{more}); the times of the frames after them come from the {}, so the trajectory has gaps there, not shifts",
-                self.dropped_frames,
-                runs.join(", "),
-                self.timing
-            ));
-            if self.timing.starts_with("frame count") {
-                w.push("frames are timed by counting: dropped frames shift every later time; give a video with timestamps or an image folder with --timestamps".into());
-            }
+            w.push(self.dropped_warning());
         }
         for j in &self.clock_jumps {
+            let off = j.next_s - j.after_s - self.frame_step_s.unwrap_or(0.0);
+            let advice = match self.fps_over_timestamps {
+                Some(_) => "--fps times the frames by counting, which leaves the jump out".to_string(),
+                None => format!("every later time is about {off:.3} s off; mend the timestamps (or time the frames by counting, --fps)"),
+            };
             w.push(format!(
-                "the timestamps jump {:.3} s after frame {} ({:.3} s), yet the robot moved there as far as in one frame: the camera's clock jumped, no frame was lost, and every later time is about {:.3} s off; mend the timestamps (or time the frames by counting, --fps)",
+                "the timestamps jump {:.3} s after frame {} ({:.3} s), yet the robot moved there as far as in one frame: the camera's clock jumped, no frame was lost; {advice}",
                 j.next_s - j.after_s,
                 j.after_frame,
                 j.after_s,
-                j.next_s - j.after_s - self.frame_step_s.unwrap_or(0.0)
             ));
         }
         if !self.corrupt_frames.is_empty() {
@@ -273,7 +338,8 @@ impl TimingReport {
                 self.frames_announced.unwrap_or(0),
                 self.frames_read
             );
-            w.push(if self.timing.starts_with("frame count") {
+            // Under --fps the timestamps' own timeline counted the drops: what is left is a cut.
+            w.push(if self.timing.starts_with("frame count") && self.fps_over_timestamps.is_none() {
                 format!(
                     "{announced}: {} frames are missing (dropped, or the file is cut short), and frames timed by counting shift after every drop: track without --fps to use the container's timestamps",
                     self.missing_at_end

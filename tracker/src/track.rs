@@ -14,7 +14,9 @@
 //! Each fix is timed where the tag was read: with a rolling shutter (`rolling_shutter_s`, the
 //! time from reading the first row to reading the last) row y of a frame stamped t is read at
 //! t + y / rows · readout, so the fix is at the frame time plus the tag centre's row over the
-//! rows times the readout. Frame times themselves are the container's (dropped frames leave
+//! rows times the readout. A negative readout is a sensor read from the bottom row up (one
+//! mounted upside down, its image turned after readout): row y is read at
+//! t + (rows − 1 − y) / rows · |readout|. Frame times themselves are the container's (dropped frames leave
 //! a gap in time).
 //!
 //! Every fix carries its σ (see `uncertainty.rs`); the corner noise behind it is pooled over
@@ -61,7 +63,8 @@ pub struct TrackOptions {
     /// `tag_size_m` (0.15 = 15 %): a larger or smaller square is another tag or a reflection.
     pub max_size_error: f64,
     /// Rolling-shutter readout time, seconds: from reading the frame's first row to its last
-    /// (0 for a global shutter). Each fix is then timed at the rows where the tag was read.
+    /// (0 for a global shutter; negative when the rows are read from the bottom of the image
+    /// up). Each fix is then timed at the rows where the tag was read.
     pub rolling_shutter_s: f64,
     /// Covariance of the camera's intrinsic parameters (camera.json's `covariance`, in the
     /// order of `CameraModel::parameters`): added to every fix's σ when given.
@@ -118,9 +121,9 @@ impl TrackOptions {
                 self.max_speed_mps
             ));
         }
-        if !(self.rolling_shutter_s >= 0.0 && self.rolling_shutter_s < 1.0) {
+        if self.rolling_shutter_s.is_nan() || self.rolling_shutter_s.abs() >= 1.0 {
             return bad(format!(
-                "--rolling-shutter-s {}: the readout time from the first row to the last is 0 (global shutter) to under 1 s (typically 0.01 to 0.04 s)",
+                "--rolling-shutter-s {}: the readout time from the first row to the last is 0 (global shutter) to under 1 s (typically 0.01 to 0.04 s; negative when the rows are read from the bottom of the image up)",
                 self.rolling_shutter_s
             ));
         }
@@ -439,10 +442,14 @@ impl Tracker {
         (s + r + PRIOR_FIXES) / (n + k + PRIOR_FIXES)
     }
 
-    /// The time the tag centred at image row `row_px` was read, for a frame stamped `t_s`.
+    /// The time the tag centred at image row `row_px` was read, for a frame stamped `t_s`
+    /// when the first row read (the top one, or the bottom one for a negative readout) was.
     fn read_time(&self, t_s: f64, row_px: f64) -> f64 {
         let rows = self.camera.height.max(1) as f64;
-        t_s + (row_px / rows).clamp(0.0, 1.0) * self.opts.rolling_shutter_s
+        let readout = self.opts.rolling_shutter_s;
+        let first_row = if readout < 0.0 { rows - 1.0 } else { 0.0 };
+        let read_fraction = ((row_px - first_row) / rows * readout.signum()).clamp(0.0, 1.0);
+        t_s + read_fraction * readout.abs()
     }
 
     /// Ids seen so far (any id of the family) and in how many frames.
@@ -667,7 +674,7 @@ impl Tracker {
     /// with the tag's motion from the last two fixes.
     fn unshear(&self, d: &mut TagDetection) {
         let readout = self.opts.rolling_shutter_s;
-        if readout <= 0.0 || self.history.len() < 2 {
+        if readout == 0.0 || self.history.len() < 2 {
             return;
         }
         let (t0, p0, _) = self.history[self.history.len() - 2];
@@ -690,7 +697,7 @@ impl Tracker {
     ) -> (Outcome, Option<Rejected>) {
         // Under a rolling shutter the first fixes of a track have no image velocity to undo
         // the shear with: their misfit is shear, not noise, and stays out of the pool.
-        let sheared = self.opts.rolling_shutter_s > 0.0 && self.history.len() < 2;
+        let sheared = self.opts.rolling_shutter_s != 0.0 && self.history.len() < 2;
         self.unshear(&mut d);
         let o = &self.opts;
         let planar = planar_pose(
@@ -841,7 +848,8 @@ impl Tracker {
 }
 
 /// Moves each corner of a tag read under a rolling shutter (`readout_s` from the first row
-/// to the last) back along the tag's image motion to where it was when the tag centre's row
+/// to the last, negative when read from the bottom up: a row below is then read earlier) back
+/// along the tag's image motion to where it was when the tag centre's row
 /// was read. The motion is that between two earlier fixes (time, pose) as a rigid image
 /// motion: the centre's velocity and the turn of a point half a tag ahead along the heading.
 /// That undoes the shear that would otherwise tilt the fitted heading, and the sideways shift

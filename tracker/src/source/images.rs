@@ -57,7 +57,7 @@ impl FolderSource {
                 ))
             }
         };
-        let first = imgcodecs::imread(&files[0], imgcodecs::IMREAD_GRAYSCALE)?;
+        let first = imgcodecs::imread(&files[0], odocal_calib::IMREAD_SENSOR_GRAY)?;
         if first.empty() {
             return Err(TrackError::bad_input(&files[0], "cannot decode this image"));
         }
@@ -74,6 +74,10 @@ impl FolderSource {
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
                 container_fps: None,
+                container_times_s: None,
+                // A folder's frames come from one camera: the first speaks for them all.
+                display_rotation: odocal_calib::display_rotation(&files[0])
+                    .map(|turn| format!("its first image carries {turn} for display")),
             },
             files: files.into_iter().zip(times).collect(),
             next: 0,
@@ -105,7 +109,7 @@ impl FrameSource for FolderSource {
                     }
                     let mat = imgcodecs::imdecode(
                         &opencv::core::Vector::<u8>::from_slice(&bytes),
-                        imgcodecs::IMREAD_GRAYSCALE,
+                        odocal_calib::IMREAD_SENSOR_GRAY,
                     )?;
                     if mat.empty() {
                         return Err(TrackError::bad_input(path, "cannot decode this image"));

@@ -117,6 +117,13 @@ pub struct SourceInfo {
     pub overridden_fps: Option<f64>,
     /// The frame rate the video's container states, frames/s (None for image folders).
     pub container_fps: Option<f64>,
+    /// The turn the source's metadata asks for on display (a video's rotate tag, the first
+    /// image's EXIF orientation), which is not applied: frames are read as the sensor
+    /// recorded them, the layout the calibration describes.
+    pub display_rotation: Option<String>,
+    /// The container's own times of the frames (seconds from the first, by frame index) when
+    /// `--fps` timed them by counting instead: they still show the frames dropped.
+    pub container_times_s: Option<Vec<f64>>,
     /// Frames of the file that could not be decoded whole (their JPEG data is cut or
     /// damaged), by index: left out, so the timeline has a gap there.
     pub corrupt_frames: Vec<usize>,
@@ -163,7 +170,7 @@ pub fn decode_jpeg_whole(
             CV_8UC1,
             Scalar::all(f64::from(marker)),
         )?;
-        let mat = imgcodecs::imdecode_to(&buf, imgcodecs::IMREAD_GRAYSCALE, &mut dst)?;
+        let mat = imgcodecs::imdecode_to(&buf, odocal_calib::IMREAD_SENSOR_GRAY, &mut dst)?;
         if mat.empty() {
             return Ok(None);
         }
@@ -278,6 +285,8 @@ impl MemorySource {
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
                 container_fps: None,
+                container_times_s: None,
+                display_rotation: None,
             },
             frames: frames.into(),
         }

@@ -16,6 +16,13 @@ pub struct VideoSource {
     /// Frames are timed by counting at `fps` (--fps given, or the container has no
     /// timestamps) instead of by the container's presentation timestamps.
     counted: bool,
+    /// --fps times the frames: the container's own times are still read, as the timeline
+    /// that shows frames dropped, which counting would shift every later frame over.
+    by_fps: bool,
+    /// The container has no presentation timestamps (found at the second frame).
+    no_timestamps: bool,
+    /// The rate the container's timestamps are put on the grid of: its own when it states one.
+    grid_fps: f64,
     /// Presentation time of the first frame, seconds (frame times start at 0).
     first_pts_s: Option<f64>,
     /// Time of the last frame and the last step forward, seconds.
@@ -56,9 +63,9 @@ impl VideoSource {
         }
         let mut src = Self::open_capture(path, opts, true)?;
         src.pending = src.read_batch(2)?;
-        if src.raw_jpeg && src.pending.len() == 2 && src.counted && opts.fps.is_none() {
+        if src.raw_jpeg && src.pending.len() == 2 && src.no_timestamps {
             // OpenCV gives no timestamps for undecoded packets of this container (AVI):
-            // decode in FFmpeg instead, which does.
+            // decode in FFmpeg instead, which does (beside --fps too: they show the drops).
             src = Self::open_capture(path, opts, false)?;
             src.pending = src.read_batch(1)?;
         }
@@ -86,6 +93,10 @@ impl VideoSource {
             ));
         }
         let mut cap = SendCapture(cap);
+        // FFmpeg's backend turns the frames by the stream's rotate tag unless told not to:
+        // the calibration describes the pixels as the sensor recorded them.
+        cap.0.set(videoio::CAP_PROP_ORIENTATION_AUTO, 0.0)?;
+        let rotate_deg = cap.0.get(videoio::CAP_PROP_ORIENTATION_META)?.round() as i64;
         let width = cap.0.get(videoio::CAP_PROP_FRAME_WIDTH)?.round() as u32;
         let height = cap.0.get(videoio::CAP_PROP_FRAME_HEIGHT)?.round() as u32;
         let count = cap.0.get(videoio::CAP_PROP_FRAME_COUNT)?;
@@ -122,6 +133,9 @@ impl VideoSource {
                 extrapolated_times: 0,
                 corrupt_frames: Vec::new(),
                 container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
+                container_times_s: None,
+                display_rotation: (rotate_deg.rem_euclid(360) != 0)
+                    .then(|| format!("its rotate tag asks for a turn of {rotate_deg}° on display")),
                 overridden_fps: opts
                     .fps
                     .filter(|f| {
@@ -140,28 +154,62 @@ impl VideoSource {
             next_index: 0,
             pending: Vec::new(),
             counted,
+            by_fps: counted,
+            no_timestamps: false,
+            grid_fps: if own_fps > 0.0 && own_fps.is_finite() {
+                own_fps
+            } else {
+                fps
+            },
             first_pts_s: None,
             last_t_s: 0.0,
             last_step_s: 1.0 / fps,
         })
     }
 
-    /// The time of the frame just read, seconds from the first frame: its presentation
-    /// timestamp, put exactly on the nominal frame grid k / fps when it lies within the
-    /// container's rounding (half a millisecond) of it, so that a clean video's times are the
-    /// same whatever the container.
+    /// The time of the frame just read, seconds from the first frame: by counting at `fps`
+    /// when the frames are counted, else its container time ([`Self::container_time`]). Under
+    /// --fps the container time is kept beside it ([`SourceInfo::container_times_s`]).
     fn frame_time(&mut self) -> Result<f64, TrackError> {
         let counted_t = self.next_index as f64 / self.fps;
-        if self.counted {
+        let own = self.container_time()?;
+        if self.by_fps {
+            if let Some(t) = own {
+                self.info
+                    .container_times_s
+                    .get_or_insert_with(Vec::new)
+                    .push(t);
+            }
             return Ok(counted_t);
+        }
+        match own {
+            Some(t) => Ok(t),
+            None => {
+                if !self.counted {
+                    self.counted = true;
+                    self.info.timing =
+                        format!("frame count at {} fps (no container timestamps)", self.fps);
+                }
+                Ok(counted_t)
+            }
+        }
+    }
+
+    /// The frame just read by the container: its presentation timestamp, put exactly on the
+    /// nominal frame grid k / fps when it lies within the container's rounding (half a
+    /// millisecond) of it, so that a clean video's times are the same whatever the container;
+    /// None when the container has no timestamps.
+    fn container_time(&mut self) -> Result<Option<f64>, TrackError> {
+        if self.no_timestamps {
+            return Ok(None);
         }
         // OpenCV reports a missing timestamp as 0.
         let pts_ms = self.cap.0.get(videoio::CAP_PROP_POS_MSEC)?;
         if self.next_index == 1 && pts_ms == 0.0 {
-            // A container without timestamps: count frames.
-            self.counted = true;
-            self.info.timing = format!("frame count at {} fps (no container timestamps)", self.fps);
-            return Ok(counted_t);
+            self.no_timestamps = true;
+            // The first frame's time was taken as 0 by both timings.
+            self.info.container_times_s = None;
+            return Ok(None);
         }
         if self.next_index > 0 && (pts_ms == 0.0 || !pts_ms.is_finite()) {
             // A frame without a timestamp (H.264 frames drained from the decoder at the end):
@@ -169,12 +217,12 @@ impl VideoSource {
             self.info.extrapolated_times += 1;
             let t = self.last_t_s + self.last_step_s;
             self.last_t_s = t;
-            return Ok(t);
+            return Ok(Some(t));
         }
         let first = *self.first_pts_s.get_or_insert(pts_ms / 1000.0);
         let t = pts_ms / 1000.0 - first;
-        let on_grid = (t * self.fps).round() / self.fps;
-        let t = if (t - on_grid).abs() <= (0.6e-3f64).min(0.25 / self.fps) {
+        let on_grid = (t * self.grid_fps).round() / self.grid_fps;
+        let t = if (t - on_grid).abs() <= (0.6e-3f64).min(0.25 / self.grid_fps) {
             on_grid
         } else {
             t
@@ -183,7 +231,7 @@ impl VideoSource {
             self.last_step_s = t - self.last_t_s;
         }
         self.last_t_s = t;
-        Ok(t)
+        Ok(Some(t))
     }
 
     fn read_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
