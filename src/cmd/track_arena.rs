@@ -120,7 +120,7 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         ("--truth", args.truth.is_some()),
     ] {
         if given {
-            bail!("{flag} is for one tag in one video; with --tags or --arena use --arena-report and --arena-truth");
+            bail!("{flag} is for one tag in one video; with --arena use --arena-report and --arena-truth");
         }
     }
     quiet_video_logs();
