@@ -53,6 +53,7 @@ fn main() {
                     arena_to_camera: c.arena_to_camera,
                     shared_views: 0,
                     rms_px: 0.0,
+                    pose_covariance: None,
                 }
             })
             .collect(),

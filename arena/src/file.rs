@@ -25,6 +25,14 @@ pub struct ArenaCamera {
     pub shared_views: usize,
     /// RMS pixel residual of this camera's shared-view corners after the fit, pixels.
     pub rms_px: f64,
+    /// Joint covariance of a small correction to `arena_to_camera` (rotation vector, then
+    /// translation, in metres and radians, applied before the pose) and of the intrinsics
+    /// (`CameraModel::parameters`): what the calibrations' uncertainty, carried through the
+    /// shared boards, leaves uncertain in where this camera's pixels land on the arena's
+    /// floor. None for the first camera (its floor uncertainty map describes it) and in
+    /// arena files written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose_covariance: Option<Vec<Vec<f64>>>,
 }
 
 /// How far apart two cameras put one floor point (a shared board's corner seen by both).

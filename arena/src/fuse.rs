@@ -14,7 +14,9 @@
 //! camera that saw the robot shortly before and after contributes its pose interpolated to
 //! that instant, weighted by [`fix_weight`]: the inverse variance of the fix, which fades to
 //! nearly nothing towards the image border, so that a camera joining or leaving the fused set
-//! moves the result by a negligible amount (the handoff has no jump).
+//! moves the result by a negligible amount (the handoff has no jump). Each row's σ keeps the
+//! fixes' calibration part whole ([`CameraFix::shared_m`]): the cameras' calibrations and
+//! arena poses are tied through the shared boards, so their errors do not average out.
 
 use std::collections::BTreeMap;
 
@@ -39,8 +41,12 @@ pub struct CameraFix {
     pub weight: f64,
     /// The tracker's quality in (0, 1].
     pub quality: f64,
-    /// The fix's standard deviations (the tracker's), when known.
+    /// The fix's standard deviations (corner noise and calibration), when known.
     pub sigma: Option<PoseSigma>,
+    /// The part of `sigma`'s position σ (per axis, metres) that the calibrations put there: the
+    /// same error in every fix of this camera nearby, and tied to the other cameras' through
+    /// the shared boards, so it averages down neither over fixes nor between cameras.
+    pub shared_m: f64,
 }
 
 /// One camera's fixes of one robot, in increasing time.
@@ -85,6 +91,7 @@ impl CameraTrack {
                 y_m: mix(p.y_m, q.y_m),
                 theta_rad: mix(p.theta_rad, q.theta_rad),
             }),
+            shared_m: mix(a.shared_m, b.shared_m),
         })
     }
 
@@ -432,10 +439,13 @@ pub struct FusedTrack {
 type Part = (usize, CameraFix);
 
 /// The weighted mean of the parts' poses (all but camera `skip`), their weighted quality, and
-/// the mean's σ when every part has one: the cameras' errors taken as independent, each
-/// axis's σ is √(Σ w² σ²) / Σ w.
+/// the mean's σ when every part has one. Each fix's corner noise is its own, so it averages
+/// down: √(Σ w² σ²) / Σ w; its calibration part (`CameraFix::shared_m`) is taken as common to
+/// all the cameras (a calibration's error reaches its neighbours through the shared boards),
+/// so it is the weighted mean Σ w s / Σ w and never shrinks with more cameras.
 fn weighted_pose(parts: &[Part], skip: Option<usize>) -> Option<(Pose2, f64, Option<PoseSigma>)> {
-    let (mut sw, mut x, mut y, mut s, mut c, mut q) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut sw, mut x, mut y, mut s, mut c, mut q, mut shared) =
+        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let mut var = Some([0.0; 3]);
     for (k, f) in parts {
         if Some(*k) == skip {
@@ -448,21 +458,24 @@ fn weighted_pose(parts: &[Part], skip: Option<usize>) -> Option<(Pose2, f64, Opt
         s += w * p.theta_rad.sin();
         c += w * p.theta_rad.cos();
         q += w * f.quality;
+        shared += w * f.shared_m;
+        let own = |sigma: f64| (sigma * sigma - f.shared_m * f.shared_m).max(0.0);
         var = var.zip(f.sigma).map(|(v, e)| {
             [
-                v[0] + (w * e.x_m).powi(2),
-                v[1] + (w * e.y_m).powi(2),
+                v[0] + w * w * own(e.x_m),
+                v[1] + w * w * own(e.y_m),
                 v[2] + (w * e.theta_rad).powi(2),
             ]
         });
     }
     (sw > 0.0).then(|| {
+        let common = (shared / sw).powi(2);
         (
             Pose2::new(x / sw, y / sw, wrap_angle(s.atan2(c))),
             q / sw,
             var.map(|v| PoseSigma {
-                x_m: v[0].sqrt() / sw,
-                y_m: v[1].sqrt() / sw,
+                x_m: (v[0] / (sw * sw) + common).sqrt(),
+                y_m: (v[1] / (sw * sw) + common).sqrt(),
                 theta_rad: v[2].sqrt() / sw,
             }),
         )
@@ -593,6 +606,7 @@ mod tests {
                             weight: (edge / 0.2).clamp(MIN_TAPER, 1.0),
                             quality: 0.9,
                             sigma: None,
+                            shared_m: 0.0,
                         })
                     })
                     .collect();
@@ -641,6 +655,50 @@ mod tests {
             .map(|h| h.disagreement_m)
             .fold(0.0, f64::max);
         assert!(worst > 0.02, "{worst}");
+    }
+
+    /// Two cameras see the robot at once, each with a calibration error tied to the other's
+    /// through the shared boards (one draw per instant, the same for both) and corner noise of
+    /// its own: the fused σ keeps the calibration's part whole (as independent errors it was
+    /// 1/√2 of it, error/σ 1.4).
+    #[test]
+    fn a_calibration_error_both_cameras_share_is_not_averaged_down() {
+        let (shared_m, corner_m): (f64, f64) = (4e-4, 5e-5);
+        let total = (shared_m * shared_m + corner_m * corner_m).sqrt();
+        let sigma = PoseSigma {
+            x_m: total,
+            y_m: total,
+            theta_rad: 1e-3,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let mut normal = || {
+            // Irwin-Hall: the sum of twelve uniforms less six has unit variance.
+            (0..12).map(|_| rng.gen::<f64>()).sum::<f64>() - 6.0
+        };
+        let mut z2 = 0.0;
+        let trials = 400;
+        for _ in 0..trials {
+            let common = shared_m * normal();
+            let parts: Vec<Part> = (0..2)
+                .map(|k| {
+                    let fix = CameraFix {
+                        t_s: 0.0,
+                        pose: Pose2::new(common + corner_m * normal(), 0.0, 0.0),
+                        weight: 1.0 / (total * total),
+                        quality: 1.0,
+                        sigma: Some(sigma),
+                        shared_m,
+                    };
+                    (k, fix)
+                })
+                .collect();
+            let (pose, _, s) = weighted_pose(&parts, None).unwrap();
+            let s = s.unwrap();
+            assert!(s.x_m >= shared_m, "{s:?}");
+            z2 += (pose.x_m / s.x_m).powi(2);
+        }
+        let z_rms = (z2 / trials as f64).sqrt();
+        assert!((0.85..=1.15).contains(&z_rms), "error/σ RMS {z_rms:.2}");
     }
 
     #[test]

@@ -16,7 +16,7 @@
 //! the vertical). Cameras mounted otherwise number them differently; the fit then cannot make
 //! them agree, and the consistency check refuses the result.
 
-use nalgebra::{Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point2, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{board_pose, BoardSpec, CameraFile, CameraModel, FloorToCamera};
 use std::path::Path;
 
@@ -57,6 +57,9 @@ pub struct ArenaSolution {
     pub consistency: Consistency,
     /// Agreement of each pair that shares a board.
     pub pairs: Vec<PairConsistency>,
+    /// Each camera's joint covariance of its pose correction and its intrinsics
+    /// ([`crate::ArenaCamera::pose_covariance`]).
+    pub pose_covariance: Vec<Option<DMatrix<f64>>>,
 }
 
 /// A board lying face up on the floor at (x, y) turned by `yaw_rad`: its z axis points into
@@ -76,7 +79,7 @@ fn floor_place(board_to_arena: &Isometry3<f64>) -> [f64; 3] {
     [t.x, t.y, x.y.atan2(x.x)]
 }
 
-fn camera_pose(init: &FloorToCamera, p: &[f64]) -> Isometry3<f64> {
+pub(crate) fn camera_pose(init: &FloorToCamera, p: &[f64]) -> Isometry3<f64> {
     let delta = Isometry3::from_parts(
         Translation3::new(p[3], p[4], p[5]),
         UnitQuaternion::from_scaled_axis(Vector3::new(p[0], p[1], p[2])),
@@ -174,23 +177,7 @@ pub fn solve_arena(
     };
     let residuals = |p: &[f64]| -> Vec<f64> {
         let (cams, boards) = unpack(p);
-        let mut r = Vec::with_capacity(n_residuals);
-        for o in &observations {
-            let to_cam = cams[o.camera] * boards[o.view];
-            for (q, seen) in o.object_points.iter().zip(&o.corners) {
-                match models[o.camera].project(&(to_cam * q)) {
-                    Some(px) => {
-                        r.push(px.x - seen.x);
-                        r.push(px.y - seen.y);
-                    }
-                    None => {
-                        r.push(1e3);
-                        r.push(1e3);
-                    }
-                }
-            }
-        }
-        r
+        pixel_residuals(&models, &cams, &boards, &observations, n_residuals)
     };
     let mut p0 = vec![0.0; n_cam];
     for b in &board_init {
@@ -215,6 +202,7 @@ pub fn solve_arena(
         .zip(&count)
         .map(|(s, c)| if *c > 0 { (s / *c as f64).sqrt() } else { 0.0 })
         .collect();
+    let pose_covariance = pose_covariances(cameras, &cams, &boards, &observations);
     let arena_to_camera: Vec<FloorToCamera> = cams.into_iter().map(FloorToCamera).collect();
     let (consistency, pairs) = consistency(&models, &arena_to_camera, &observations)?;
     if consistency.rms_mm > REFUSE_RMS_MM {
@@ -231,7 +219,157 @@ pub fn solve_arena(
         views_per_camera,
         consistency,
         pairs,
+        pose_covariance,
     })
+}
+
+/// The corners' pixel residuals of every observation with these cameras and board places.
+fn pixel_residuals(
+    models: &[CameraModel],
+    cams: &[Isometry3<f64>],
+    boards: &[Isometry3<f64>],
+    observations: &[SharedObservation],
+    n_residuals: usize,
+) -> Vec<f64> {
+    let mut r = Vec::with_capacity(n_residuals);
+    for o in observations {
+        let to_cam = cams[o.camera] * boards[o.view];
+        for (q, seen) in o.object_points.iter().zip(&o.corners) {
+            match models[o.camera].project(&(to_cam * q)) {
+                Some(px) => {
+                    r.push(px.x - seen.x);
+                    r.push(px.y - seen.y);
+                }
+                None => {
+                    r.push(1e3);
+                    r.push(1e3);
+                }
+            }
+        }
+    }
+    r
+}
+
+/// Central-difference Jacobian of `f` at `p` (steps `h[i]`), as columns.
+fn jacobian(f: &dyn Fn(&[f64]) -> Vec<f64>, p: &[f64], h: &[f64]) -> DMatrix<f64> {
+    let cols: Vec<Vec<f64>> = (0..p.len())
+        .map(|i| {
+            let (mut a, mut b) = (p.to_vec(), p.to_vec());
+            a[i] += h[i];
+            b[i] -= h[i];
+            let (ra, rb) = (f(&a), f(&b));
+            ra.iter()
+                .zip(&rb)
+                .map(|(x, y)| (x - y) / (2.0 * h[i]))
+                .collect()
+        })
+        .collect();
+    let m = cols.first().map_or(0, Vec::len);
+    DMatrix::from_fn(m, cols.len(), |r, c| cols[c][r])
+}
+
+/// For every camera but the first, the joint covariance of a small correction to its fitted
+/// pose (rotation vector and translation, applied before it as in `camera_pose`) and of its
+/// intrinsics (`CameraModel::parameters`), linearised at the fit.
+///
+/// A camera's pose is fitted with every camera's intrinsics held at their calibrated values,
+/// so each calibration's error moves the fitted poses: through the shared boards, a
+/// neighbour's error becomes this camera's, the same for every fix in a region, and this
+/// camera's own error is partly made good by its pose where the boards tie it. The
+/// covariance carries the intrinsics' covariances (camera.json's) through the fit, plus the
+/// corners' noise. The first camera's intrinsics are left out: its pose is its own floor's,
+/// located with those same intrinsics, which the fit here cannot move, and its floor
+/// uncertainty map already describes how its pixels reach the floor. None for a camera whose
+/// file has no covariance, or when the fit's normal matrix is singular.
+fn pose_covariances(
+    files: &[CameraFile],
+    cams: &[Isometry3<f64>],
+    boards: &[Isometry3<f64>],
+    observations: &[SharedObservation],
+) -> Vec<Option<DMatrix<f64>>> {
+    let n = cams.len();
+    let models: Vec<CameraModel> = files.iter().map(|c| c.camera).collect();
+    let m: usize = observations.iter().map(|o| 2 * o.corners.len()).sum();
+    let n_cam = 6 * (n - 1);
+    let places: Vec<[f64; 3]> = boards.iter().map(floor_place).collect();
+    let unpack = |p: &[f64]| -> (Vec<Isometry3<f64>>, Vec<Isometry3<f64>>) {
+        let c = (0..n)
+            .map(|k| match k {
+                0 => cams[0],
+                _ => camera_pose(&FloorToCamera(cams[k]), &p[6 * (k - 1)..6 * k]),
+            })
+            .collect();
+        let b = (0..places.len())
+            .map(|s| {
+                let (q, at) = (&p[n_cam + 3 * s..n_cam + 3 * s + 3], places[s]);
+                board_on_floor(at[0] + q[0], at[1] + q[1], at[2] + q[2])
+            })
+            .collect();
+        (c, b)
+    };
+    let np = n_cam + 3 * places.len();
+    let f = |p: &[f64]| {
+        let (c, b) = unpack(p);
+        pixel_residuals(&models, &c, &b, observations, m)
+    };
+    let j = jacobian(&f, &vec![0.0; np], &vec![1e-6; np]);
+    let Some(normal_inv) = (j.transpose() * &j).try_inverse() else {
+        return vec![None; n];
+    };
+    let r = f(&vec![0.0; np]);
+    let s2 = r.iter().map(|v| v * v).sum::<f64>() / m.saturating_sub(np).max(1) as f64;
+    let solve = &normal_inv * j.transpose();
+    // Each calibrated camera's intrinsics: how the fitted parameters move with them.
+    let moved: Vec<Option<(DMatrix<f64>, DMatrix<f64>)>> = (0..n)
+        .map(|k| {
+            let cov = files[k].covariance_matrix()?;
+            let p0 = models[k].parameters();
+            if cov.nrows() != p0.len() {
+                return None;
+            }
+            let g = |q: &[f64]| {
+                let mut ms = models.clone();
+                ms[k] = models[k].with_parameters(q);
+                pixel_residuals(&ms, cams, boards, observations, m)
+            };
+            let h: Vec<f64> = p0.iter().map(|v| 1e-6 * v.abs().max(1e-3)).collect();
+            let mut j_int = jacobian(&g, &p0, &h);
+            if k == 0 {
+                // The first camera's pose is its own floor's, located with the same
+                // intrinsics: it takes up what a rigid move can of their error.
+                let turn = |d: &[f64]| {
+                    let mut c = cams.to_vec();
+                    c[0] = camera_pose(&FloorToCamera(cams[0]), d);
+                    pixel_residuals(&models, &c, boards, observations, m)
+                };
+                let j_pose = jacobian(&turn, &[0.0; 6], &[1e-6; 6]);
+                let fit = (j_pose.transpose() * &j_pose).try_inverse()?;
+                j_int -= &j_pose * (fit * j_pose.transpose() * &j_int);
+            }
+            Some((-(&solve * j_int), cov))
+        })
+        .collect();
+    (0..n)
+        .map(|k| {
+            let (_, own) = moved.get(k)?.as_ref()?;
+            let rows = 6 * k.checked_sub(1)?..6 * k;
+            let ni = own.nrows();
+            let mut c = DMatrix::zeros(6 + ni, 6 + ni);
+            let mut pose = normal_inv.view((rows.start, rows.start), (6, 6)) * s2;
+            for (sens, cov) in moved.iter().flatten() {
+                let s = sens.rows(rows.start, 6);
+                pose += s * cov * s.transpose();
+            }
+            c.view_mut((0, 0), (6, 6)).copy_from(&pose);
+            if let Some((sens, cov)) = &moved[k] {
+                let cross = sens.rows(rows.start, 6) * cov;
+                c.view_mut((0, 6), (6, ni)).copy_from(&cross);
+                c.view_mut((6, 0), (ni, 6)).copy_from(&cross.transpose());
+            }
+            c.view_mut((6, 6), (ni, ni)).copy_from(own);
+            Some(c)
+        })
+        .collect()
 }
 
 /// A camera whose shared-view corners fit this many times worse than its own calibration's
@@ -354,6 +492,9 @@ pub fn build_arena(
                 arena_to_camera: solution.arena_to_camera[k],
                 shared_views: solution.views_per_camera[k],
                 rms_px: solution.rms_px[k],
+                pose_covariance: solution.pose_covariance[k]
+                    .as_ref()
+                    .map(|c| c.row_iter().map(|r| r.iter().copied().collect()).collect()),
             })
             .collect(),
         shared_views: shared.iter().map(|s| s.name.clone()).collect(),
@@ -479,6 +620,72 @@ mod tests {
             assert!(worst < 1e-3, "camera {k}: {worst} m");
             assert!(sol.rms_px[k] < 0.2, "{:?}", sol.rms_px);
         }
+    }
+
+    /// Camera 1 calibrated with intrinsics off by draws from its stated covariance, camera 2
+    /// almost exactly: the fitted poses make up part of camera 1's error where the boards tie
+    /// it, and pass the rest on to camera 2 through the boards they share. The arena's pose
+    /// covariance predicts both cameras' floor errors (camera 2's own calibration, or the
+    /// corners' noise, would say nearly none: without the neighbours' part error/σ is 2.4).
+    #[test]
+    fn the_pose_covariance_describes_what_the_calibrations_leave() {
+        let (cams, poses, shared) = scene();
+        let paths = [
+            Path::new("a.json"),
+            Path::new("b.json"),
+            Path::new("c.json"),
+        ];
+        let sd = [0.8, 0.8, 0.8, 0.8, 2e-3, 1e-3, 1e-4, 1e-4, 3e-4];
+        let cov = |scale: f64| -> Vec<Vec<f64>> {
+            (0..sd.len())
+                .map(|i| {
+                    (0..sd.len())
+                        .map(|j| if i == j { (scale * sd[i]).powi(2) } else { 0.0 })
+                        .collect()
+                })
+                .collect()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let (mut z2, mut count) = (0.0, 0);
+        for _ in 0..12 {
+            let mut f = files(&cams, &poses);
+            for (file, scale) in f.iter_mut().skip(1).zip([1.0, 1e-3]) {
+                let p: Vec<f64> = file
+                    .camera
+                    .parameters()
+                    .iter()
+                    .zip(&sd)
+                    .map(|(v, s)| v + scale * s * (rng.gen::<f64>() - 0.5) * 12f64.sqrt())
+                    .collect();
+                file.camera = file.camera.with_parameters(&p);
+                file.covariance = Some(cov(scale));
+            }
+            let (arena, _) = build_arena(&f, &paths, &shared, &BOARD).unwrap();
+            for k in 1..3 {
+                let cam = &arena.cameras[k];
+                for px in [
+                    (480.0, 270.0),
+                    (150.0, 100.0),
+                    (800.0, 450.0),
+                    (850.0, 90.0),
+                ] {
+                    let px = Point2::new(px.0, px.1);
+                    let est = cam
+                        .calibration
+                        .camera
+                        .pixel_to_floor(&cam.arena_to_camera, &px, 0.0)
+                        .unwrap();
+                    let tru = cams[k].pixel_to_floor(&poses[k], &px, 0.0).unwrap();
+                    let c = crate::track::calibration_covariance(cam, &px, 0.0).unwrap();
+                    let e = est - tru;
+                    z2 += e.x * e.x / c[(0, 0)] + e.y * e.y / c[(1, 1)];
+                    count += 2;
+                }
+            }
+        }
+        let z_rms = (z2 / count as f64).sqrt();
+        eprintln!("floor error / σ RMS {z_rms:.2} over {count} axes");
+        assert!((0.5..=2.0).contains(&z_rms), "error/σ RMS {z_rms:.2}");
     }
 
     #[test]

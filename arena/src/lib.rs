@@ -11,7 +11,9 @@
 //! Tracking across cameras ([`fuse`]): each camera's video is tracked on its own, already in
 //! the arena's floor frame; the cameras' clock offsets are estimated from robots seen by two
 //! cameras at once, and simultaneous fixes are fused with weights that fade out towards each
-//! image's border, so a robot handed from one view to the next does not jump.
+//! image's border, so a robot handed from one view to the next does not jump. Each fix's σ
+//! carries the calibrations' uncertainty through the arena fit (every camera's intrinsics
+//! covariance moves the fitted poses), and the fusion does not average that part down.
 
 mod error;
 mod file;

@@ -5,11 +5,18 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use nalgebra::{DMatrix, Matrix2, Point2};
+use odocal_calib::FloorToCamera;
+use odocal_core::PoseSigma;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
-use odocal_tracker::{open_source, Outcome, SourceOptions, TrackOptions, TrackResult};
+use odocal_tracker::{open_source, Fix, Outcome, SourceOptions, TrackOptions, TrackResult};
 
 use crate::fuse::{estimate_clock_offsets, fix_weight, fuse_robot};
-use crate::{ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseOptions, FusedTrack};
+use crate::graph::camera_pose;
+use crate::{
+    ArenaCamera, ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseOptions,
+    FusedTrack,
+};
 
 /// One camera's tracking: every selected tag's result.
 pub type CameraResult = BTreeMap<u32, TrackResult>;
@@ -28,7 +35,12 @@ pub fn track_camera(
         source,
         &cam.calibration.camera,
         &cam.arena_to_camera,
-        &opts.clone().with_calibration(&cam.calibration),
+        // With the arena's covariance of this camera, the calibration's part of each fix's
+        // σ is that (`camera_tracks`); the camera's own floor map is of its own floor frame.
+        &match cam.pose_covariance {
+            Some(_) => opts.clone(),
+            None => opts.clone().with_calibration(&cam.calibration),
+        },
         selection,
         &mut |_| {},
     )?)
@@ -86,23 +98,7 @@ pub fn camera_tracks(
                 .records
                 .iter()
                 .filter_map(|r| match &r.outcome {
-                    Outcome::Fix(f) => Some(CameraFix {
-                        // The time the tag's rows were read (the frame's time unless a
-                        // rolling shutter was given).
-                        t_s: f.t_s,
-                        pose: f.pose,
-                        // The fix's own position σ (detection noise and calibration), the
-                        // mean of its two axes' variances.
-                        weight: fix_weight(
-                            &cam.calibration.camera,
-                            &cam.arena_to_camera,
-                            &f.corners_px,
-                            marker_height_m,
-                            Some((0.5 * (f.sigma.x_m.powi(2) + f.sigma.y_m.powi(2))).sqrt()),
-                        ),
-                        quality: f.quality,
-                        sigma: Some(f.sigma),
-                    }),
+                    Outcome::Fix(f) => Some(camera_fix(cam, f, marker_height_m)),
                     Outcome::Gap(_) => None,
                 })
                 .collect();
@@ -116,6 +112,89 @@ pub fn camera_tracks(
         }
     }
     tracks
+}
+
+/// One fix as the fusion takes it: its σ with the calibration's part, and how much of it is
+/// shared with the camera's other fixes and the other cameras (`CameraFix::shared_m`).
+fn camera_fix(cam: &ArenaCamera, f: &Fix, marker_height_m: f64) -> CameraFix {
+    let centre = odocal_tracker::detect::quad_centre(&f.corners_px);
+    let (sigma, shared_m) = match calibration_covariance(cam, &centre, marker_height_m) {
+        // Tracked without the calibration: the fix's own σ is its corners' noise.
+        Some(c) => (
+            PoseSigma {
+                x_m: (f.sigma.x_m.powi(2) + c[(0, 0)]).sqrt(),
+                y_m: (f.sigma.y_m.powi(2) + c[(1, 1)]).sqrt(),
+                ..f.sigma
+            },
+            (0.5 * c.trace()).sqrt(),
+        ),
+        // The tracker added the camera's floor map (the first camera's floor is the arena's).
+        None => (
+            f.sigma,
+            cam.calibration
+                .floor_uncertainty
+                .as_ref()
+                .and_then(|m| m.at(&centre))
+                .map_or(0.0, |s_mm| s_mm * 1e-3),
+        ),
+    };
+    CameraFix {
+        // The time the tag's rows were read (the frame's time unless a rolling shutter was
+        // given).
+        t_s: f.t_s,
+        pose: f.pose,
+        // The fix's position σ, the mean of its two axes' variances.
+        weight: fix_weight(
+            &cam.calibration.camera,
+            &cam.arena_to_camera,
+            &f.corners_px,
+            marker_height_m,
+            Some((0.5 * (sigma.x_m.powi(2) + sigma.y_m.powi(2))).sqrt()),
+        ),
+        quality: f.quality,
+        sigma: Some(sigma),
+        shared_m,
+    }
+}
+
+/// The covariance of the floor point a pixel maps to, from the arena's joint covariance of
+/// the camera's pose and intrinsics (none without it).
+pub(crate) fn calibration_covariance(
+    cam: &ArenaCamera,
+    pixel: &Point2<f64>,
+    marker_height_m: f64,
+) -> Option<Matrix2<f64>> {
+    let rows = cam.pose_covariance.as_ref()?;
+    let n = rows.len();
+    let c = DMatrix::from_fn(n, n, |i, j| rows[i].get(j).copied().unwrap_or(0.0));
+    let p0 = cam.calibration.camera.parameters();
+    if n != 6 + p0.len() {
+        return None;
+    }
+    let at = |d: &[f64]| {
+        let q: Vec<f64> = p0.iter().zip(&d[6..]).map(|(a, b)| a + b).collect();
+        let pose = FloorToCamera(camera_pose(&cam.arena_to_camera, &d[..6]));
+        cam.calibration
+            .camera
+            .with_parameters(&q)
+            .pixel_to_floor(&pose, pixel, marker_height_m)
+    };
+    let mut jac = DMatrix::zeros(2, n);
+    for i in 0..n {
+        let h = if i < 6 {
+            1e-6
+        } else {
+            1e-6 * p0[i - 6].abs().max(1e-3)
+        };
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        a[i] = h;
+        b[i] = -h;
+        let d = (at(&a)? - at(&b)?) / (2.0 * h);
+        jac[(0, i)] = d.x;
+        jac[(1, i)] = d.y;
+    }
+    let v = &jac * c * jac.transpose();
+    Some(Matrix2::new(v[(0, 0)], v[(0, 1)], v[(1, 0)], v[(1, 1)]))
 }
 
 /// The clock offsets and every robot's fused trajectory.
