@@ -834,9 +834,7 @@ fn runs_that_are_not_straight_runs_are_named() {
     synth_with(d, 2, 1, &["--paths", "tours"]);
     let manifest = d.join("manifest.json");
     let out = d.join("dataset.json");
-    // A side of a tour between two rests of a second is a straight run; the rest are not.
-    let o = common::odocal(&dataset_args(&manifest, &out, &[]));
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = fails(&dataset_args(&manifest, &out, &[]));
     assert!(
         e.contains("not a straight run: its path is") && e.contains("take --layout windows"),
         "{e}"

@@ -287,7 +287,12 @@ fn track_arena(
     let arena = ArenaFile::load(arena_path)?;
     // Files from before the calibrations' covariance was carried through the shared boards
     // give σ that leave out what the calibrations share.
-    if arena.cameras.iter().skip(1).any(|c| c.pose_covariance.is_none()) {
+    if arena
+        .cameras
+        .iter()
+        .skip(1)
+        .any(|c| c.pose_covariance.is_none())
+    {
         tell!(
             "note: {} carries no calibration covariance for its cameras after the first (written by an older odocal, or from camera files without one): the fused σ leave out the calibrations' shared error; run `odocal arena` again to have it",
             arena_path.display()
