@@ -377,6 +377,22 @@ fn scan_rows(dir: &Path) -> (String, Vec<Vec<String>>) {
     (header, rows)
 }
 
+/// Writes `path` with `header` and, for each scan of `rows` (consecutive rows of one scan
+/// number), the lines `per_scan` makes of it.
+fn rewrite_scans(
+    path: &Path,
+    header: &str,
+    rows: &[Vec<String>],
+    per_scan: &dyn Fn(&[Vec<String>]) -> Vec<String>,
+) -> std::path::PathBuf {
+    let mut out = vec![header.to_string()];
+    for scan in rows.chunk_by(|a, b| a[0] == b[0]) {
+        out.extend(per_scan(scan));
+    }
+    std::fs::write(path, out.join("\n") + "\n").expect("write");
+    path.to_path_buf()
+}
+
 /// `odocal synth lrf` into `dir` with `seed` and `scans` scans.
 fn synth_lrf(dir: &Path, seed: u64, scans: usize) {
     let out = odocal(&[
@@ -791,22 +807,13 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     synth_lrf(d, 4, 40);
     let (header, rows) = scan_rows(d);
     let write = |name: &str, f: &dyn Fn(&[String]) -> Vec<String>, reverse: bool| {
-        let mut out = vec![header.to_string()];
-        let mut start = 0;
-        while start < rows.len() {
-            let end = (start..rows.len())
-                .find(|&i| rows[i][0] != rows[start][0])
-                .unwrap_or(rows.len());
-            let mut scan: Vec<String> = rows[start..end].iter().map(|r| f(r).join(",")).collect();
+        rewrite_scans(&d.join(name), &header, &rows, &|scan| {
+            let mut lines: Vec<String> = scan.iter().map(|r| f(r).join(",")).collect();
             if reverse {
-                scan.reverse();
+                lines.reverse();
             }
-            out.extend(scan);
-            start = end;
-        }
-        let p = d.join(name);
-        std::fs::write(&p, out.join("\n") + "\n").expect("write");
-        p
+            lines
+        })
     };
     let num = |v: &str| v.parse::<f64>().expect("number");
     let degrees = write(
@@ -1072,25 +1079,17 @@ fn cli_beams_without_a_return_keep_the_fix() {
     });
     assert!(n_zero > 1500 && n_dark > 1000, "{n_zero} {n_dark}");
     let pad = |name: &str, deg: f64| {
-        let mut out = vec![header.to_string()];
-        let mut start = 0;
-        while start < rows.len() {
-            let end = (start..rows.len())
-                .find(|&i| rows[i][0] != rows[start][0])
-                .unwrap_or(rows.len());
-            let scan = &rows[start..end];
-            let (a0, a1) = (num(&scan[0][2]), num(&scan[end - start - 1][2]));
+        rewrite_scans(&d.join(name), &header, &rows, &|scan| {
+            let (a0, a1) = (num(&scan[0][2]), num(&scan[scan.len() - 1][2]));
             let step = num(&scan[1][2]) - a0;
             let n = (deg.to_radians() / step) as i32;
             let blank = |a: f64| format!("{},{},{a:.7},inf,0", scan[0][0], scan[0][1]);
-            out.extend((1..=n).rev().map(|i| blank(a0 - step * i as f64)));
-            out.extend(scan.iter().map(|r| r.join(",")));
-            out.extend((1..=n).map(|i| blank(a1 + step * i as f64)));
-            start = end;
-        }
-        let p = d.join(name);
-        std::fs::write(&p, out.join("\n") + "\n").expect("write");
-        p
+            let mut lines: Vec<String> =
+                (1..=n).rev().map(|i| blank(a0 - step * i as f64)).collect();
+            lines.extend(scan.iter().map(|r| r.join(",")));
+            lines.extend((1..=n).map(|i| blank(a1 + step * i as f64)));
+            lines
+        })
     };
     let (pad15, pad59) = (pad("pad15.csv", 15.0), pad("pad59.csv", 59.0));
     let truth = d.join("truth.csv");
