@@ -294,7 +294,7 @@ fn track_arena(
         .any(|c| c.pose_covariance.is_none())
     {
         tell!(
-            "note: {} carries no calibration covariance for its cameras after the first (written by an older odocal, or from camera files without one): the fused σ leave out the calibrations' shared error; run `odocal arena` again to have it",
+            "note: {} carries no calibration covariance for its cameras after the first (written by an older odocal, or from camera files without one): the fused σ leave out the calibrations' shared error; run `odocal arena` again on camera files written by `odocal calibrate` (they carry it)",
             arena_path.display()
         );
     }
