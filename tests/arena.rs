@@ -287,7 +287,8 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     assert!(
         e.contains("no robot gave a confident fix in any camera")
             && e.contains("bad geometry")
-            && e.contains("check --tag-size 0.08 m"),
+            && e.contains("+100.0 % from --tag-size 80.0 mm")
+            && e.contains("give --tag-size 0.1600"),
         "{e}"
     );
     let o = track("0,9", "0.16");

@@ -31,6 +31,7 @@ use odocal_core::{wrap_angle, Pose2, PoseSigma};
 use odocal_core::{TagToRobot, Trajectory, TrajectoryRow};
 
 use crate::detect::{Roi, TagDetection, TagDetector};
+use crate::marker_height::TAG_SIDE_TOLERANCE;
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
 use crate::source::{Frame, FrameSource, SourceInfo};
 use crate::uncertainty::{
@@ -271,6 +272,8 @@ pub struct Rejected {
     /// RMS reprojection error of the corners under the planar pose, pixels (none when the
     /// corners fit no horizontal square at all).
     pub reprojection_px: Option<f64>,
+    /// Side of the square the corners span on the marker plane, metres (none as above).
+    pub side_m: Option<f64>,
 }
 
 /// One frame's record.
@@ -712,6 +715,7 @@ impl Tracker {
                 decision_margin: d.decision_margin,
                 hamming: d.hamming,
                 reprojection_px: planar.as_ref().map(|p| p.reprojection_rms_px),
+                side_m: planar.as_ref().map(|p| p.size_m),
             };
             (Outcome::Gap(reason), Some(rejected))
         };
@@ -989,13 +993,14 @@ impl TrackResult {
         let parts: Vec<String> = reasons
             .iter()
             .map(|(reason, frames)| {
-                let rej: Vec<&Rejected> = frames.iter().filter_map(|r| r.rejected.as_ref()).collect();
+                let rej: Vec<&Rejected> =
+                    frames.iter().filter_map(|r| r.rejected.as_ref()).collect();
                 let margin = median(rej.iter().map(|r| r.decision_margin as f64).collect());
                 let reproj = median(rej.iter().filter_map(|r| r.reprojection_px).collect());
                 let figures = match reason {
-                    GapReason::NotDetected | GapReason::DuplicateTime | GapReason::RepeatedImage => {
-                        String::new()
-                    }
+                    GapReason::NotDetected
+                    | GapReason::DuplicateTime
+                    | GapReason::RepeatedImage => String::new(),
                     GapReason::LowConfidence => format!(
                         " (median decision margin {}, accepted from {}; median hamming {})",
                         fmt_opt(margin, 1),
@@ -1003,11 +1008,13 @@ impl TrackResult {
                         fmt_opt(median(rej.iter().map(|r| r.hamming as f64).collect()), 0)
                     ),
                     GapReason::BadGeometry => format!(
-                        " (median corner reprojection {} px, accepted up to {} px: check --tag-size {} m, --marker-height {} m and the camera file)",
+                        " (median corner reprojection {} px, accepted up to {} px: {})",
                         fmt_opt(reproj, 2),
                         opts.max_reprojection_px,
-                        opts.tag_size_m,
-                        opts.marker_height_m
+                        bad_geometry_advice(
+                            median(rej.iter().filter_map(|r| r.side_m).collect()),
+                            opts
+                        )
                     ),
                     GapReason::Jump => format!(
                         " (faster than --max-speed {} m/s between detections)",
@@ -1280,6 +1287,26 @@ fn same_pose(a: &Pose2, b: &Pose2) -> bool {
 pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied()
+}
+
+/// What to check when the corners fit no square of the tag's size: the side they do span,
+/// when it is not `--tag-size`, names the size (or height) that would fit, since the
+/// residual gate refuses a size a few percent off before the size check's wider bound.
+fn bad_geometry_advice(side_m: Option<f64>, opts: &TrackOptions) -> String {
+    let height = format!("--marker-height {} m", opts.marker_height_m);
+    match side_m {
+        Some(side_m) if (side_m / opts.tag_size_m - 1.0).abs() > TAG_SIDE_TOLERANCE => format!(
+            "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm: if the tag's black square measures that, give --tag-size {:.4}, else check {height} and the camera file",
+            side_m * 1e3,
+            100.0 * (side_m / opts.tag_size_m - 1.0),
+            opts.tag_size_m * 1e3,
+            side_m
+        ),
+        _ => format!(
+            "check --tag-size {} m, {height} and the camera file",
+            opts.tag_size_m
+        ),
+    }
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
