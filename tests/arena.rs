@@ -270,7 +270,15 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!arena.exists());
-    ok(&args);
+    // The true camera files carry no covariance: the σ that leave it out are named.
+    let o = odocal(&args);
+    succeeded(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("camera_true.json carry no covariance of the intrinsics")
+            && e.contains("cam3/camera_true.json"),
+        "{e}"
+    );
     let videos: Vec<String> = (0..4)
         .map(|k| p(&d.join(format!("video_c{k}"))).to_string())
         .collect();

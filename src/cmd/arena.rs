@@ -85,6 +85,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => e.into(),
         }
     })?;
+    // Each calibration's error reaches every camera tied to it through the shared boards;
+    // a file without its covariance (an export, or an older odocal) drops that part of
+    // every fused σ.
+    let bare: Vec<String> = files
+        .iter()
+        .zip(&args.camera)
+        .filter(|(f, _)| f.covariance.is_none())
+        .map(|(_, p)| p.display().to_string())
+        .collect();
+    if !bare.is_empty() {
+        tell!(
+            "note: {} carr{} no covariance of the intrinsics: the σ of fixes fused through this arena will leave out {} calibration error, which reaches every camera tied to {} through the shared boards; calibrate with `odocal calibrate` (its camera files carry it) for σ that include it",
+            bare.join(", "),
+            if bare.len() == 1 { "ies" } else { "y" },
+            if bare.len() == 1 { "its" } else { "their" },
+            if bare.len() == 1 { "it" } else { "them" },
+        );
+    }
     write_json(&args.out, &arena)?;
     for (k, c) in arena.cameras.iter().enumerate() {
         let at = c.arena_to_camera.0.inverse().translation.vector;
