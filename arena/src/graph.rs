@@ -414,6 +414,35 @@ fn check_residuals(
     )))
 }
 
+/// A camera whose shared-view corners fit this many times worse than its own calibration's
+/// views (below [`SHARED_RESIDUAL_RATIO`]) is warned about: a board nudged by a few
+/// millimetres between the cameras' shots gives 2–5 times (the synthetic arena's cameras
+/// fit theirs within 1.0–1.3 times), and its misfit is not in the fused σ.
+pub const SHARED_RESIDUAL_WARN_RATIO: f64 = 3.0;
+
+/// Warnings for cameras whose shared views fit clearly worse than their calibration, short
+/// of [`check_residuals`]' refusal: the fused positions there are off by more than their σ.
+pub fn shared_residual_warnings(
+    cameras: &[CameraFile],
+    camera_paths: &[&Path],
+    rms_px: &[f64],
+) -> Vec<String> {
+    (0..rms_px.len().min(cameras.len()).min(camera_paths.len()))
+        // A camera file without a calibration's residual (a true or hand-made one) has no
+        // scale to judge by.
+        .filter(|&k| {
+            cameras[k].rms_px > 0.0 && rms_px[k] > SHARED_RESIDUAL_WARN_RATIO * cameras[k].rms_px
+        })
+        .map(|k| format!(
+            "camera {k} ({}): its shared views' corners fit {:.3} px RMS, {:.1} times the {:.3} px of its own calibration: a board moved between the cameras' shots of one view, or a view is blurred; the fused σ leave that misfit out, so fixes near this camera's overlaps may be off by more than their σ (the pairs' agreement below says by how much): take the shared views again with the board left untouched between the shots",
+            camera_paths[k].display(),
+            rms_px[k],
+            rms_px[k] / cameras[k].rms_px,
+            cameras[k].rms_px
+        ))
+        .collect()
+}
+
 fn summarise(d: &[f64]) -> Consistency {
     let rms = (d.iter().map(|v| v * v).sum::<f64>() / d.len().max(1) as f64).sqrt();
     Consistency {

@@ -29,7 +29,10 @@ pub use fuse::{
     estimate_clock_offsets, fix_weight, fuse_robot, CameraFix, CameraTrack, ClockOffsets,
     FuseOptions, FusedTrack, Handoff,
 };
-pub use graph::{build_arena, solve_arena, ArenaSolution, SharedObservation, REFUSE_RMS_MM};
+pub use graph::{
+    build_arena, shared_residual_warnings, solve_arena, ArenaSolution, SharedObservation,
+    REFUSE_RMS_MM,
+};
 pub use shared::{detect_shared, parse_shared_name, SharedView};
 pub use track::{
     camera_tracks, fuse_all, track_camera, track_cameras, ArenaTracking, CameraResult,

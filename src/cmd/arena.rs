@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use odocal_arena::{build_arena, detect_shared};
+use odocal_arena::{build_arena, detect_shared, shared_residual_warnings};
 use odocal_calib::{BoardSpec, CameraFile};
 
 use crate::output::{check_output_file, write_json};
@@ -77,7 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // board's distance: the failure reads as cameras or views out of place, so the side is
     // named with it.
     let calibrated = files[0].board.map(|b| b.square_m);
-    let (arena, _) = build_arena(&files, &paths, &shared, &board).map_err(|e| {
+    let (arena, solution) = build_arena(&files, &paths, &shared, &board).map_err(|e| {
         match (args.square, calibrated) {
             (Some(s), Some(c)) if (s / c - 1.0).abs() > 1e-6 => anyhow::anyhow!(
                 "{e}; --square {s} m is not the {c} m of the board the cameras were calibrated with: if the shared views show that board, leave --square out"
@@ -102,6 +102,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if bare.len() == 1 { "its" } else { "their" },
             if bare.len() == 1 { "it" } else { "them" },
         );
+    }
+    for w in shared_residual_warnings(&files, &paths, &solution.rms_px) {
+        tell!("warning: {w}");
     }
     write_json(&args.out, &arena)?;
     for (k, c) in arena.cameras.iter().enumerate() {
