@@ -211,6 +211,22 @@ fn camera_files_without_physical_sense_name_the_field() {
     let mut c = cam.clone();
     c["floor"]["floor_to_camera"]["translation"][2] = serde_json::json!(-2.189);
     edits.push(("below", c, "floor.floor_to_camera puts the camera"));
+    // A focal length in millimetres was blamed on --tag-size by `track` and on the file order
+    // by `arena`.
+    let mut c = cam.clone();
+    c["camera"]["intrinsics"]["fx"] = serde_json::json!(3.6);
+    edits.push(("mm", c, "focal lengths are in pixels"));
+    // A floor uncertainty map cut short, or of negative σ, changed every fix's σ with exit 0.
+    let map = |sigma: Vec<serde_json::Value>| {
+        serde_json::json!({"cell_px": 40, "cols": 32, "rows": 18, "sigma_mm": sigma,
+            "floor_boards_px": []})
+    };
+    let mut c = cam.clone();
+    c["floor_uncertainty"] = map(vec![serde_json::json!(0.2); 100]);
+    edits.push(("cut", c, "floor_uncertainty has 100 sigma_mm"));
+    let mut c = cam.clone();
+    c["floor_uncertainty"] = map(vec![serde_json::json!(-1.0); 576]);
+    edits.push(("negative", c, "not a standard deviation"));
     for (name, c, needle) in edits {
         let path = dir.join(format!("cam_{name}.json"));
         std::fs::write(&path, c.to_string()).expect("write");
@@ -220,6 +236,26 @@ fn camera_files_without_physical_sense_name_the_field() {
             &[&format!("cam_{name}.json"), needle],
         );
     }
+    // A rotation typed in with five decimals (norm 1 ± 1e-5) is a rotation: the run goes on
+    // to the (missing) video.
+    let mut c = cam.clone();
+    for v in c["floor"]["floor_to_camera"]["rotation"]
+        .as_array_mut()
+        .expect("rotation")
+    {
+        *v = serde_json::json!((v.as_f64().expect("number") * 1e5).round() / 1e5);
+    }
+    let rounded = dir.join("cam_rounded.json");
+    std::fs::write(&rounded, c.to_string()).expect("write");
+    let e = fails(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&rounded),
+        "--out",
+        p(&out),
+    ]);
+    assert!(e.contains("none.avi") && !e.contains("rotation"), "{e}");
 }
 
 #[test]

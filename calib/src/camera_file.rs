@@ -205,10 +205,15 @@ impl CameraFile {
             CAMERA_FORMAT,
             "expected a camera.json written by `odocal calibrate`",
         )?;
+        let mut file = file;
         file.check().map_err(|reason| CalibError::BadFile {
             path: name,
             reason: format!("{reason}; recalibrate with `odocal calibrate` or fix the file"),
         })?;
+        if let Some(f) = &mut file.floor {
+            let q = f.floor_to_camera.0.rotation.into_inner();
+            f.floor_to_camera.0.rotation = nalgebra::UnitQuaternion::new_normalize(q);
+        }
         Ok(file)
     }
 
@@ -228,6 +233,17 @@ impl CameraFile {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!(
                     "camera.intrinsics.{field} = {v} must be > 0 (pixels)"
+                ));
+            }
+        }
+        // Even a 220° fisheye's focal length is a fifth of its image's width; a few pixels
+        // is a focal length in millimetres typed into a pixels field.
+        let min_f = MIN_FOCAL_SHARE * c.width.max(c.height) as f64;
+        for (field, v) in [("fx", k.fx), ("fy", k.fy)] {
+            if v < min_f {
+                return Err(format!(
+                    "camera.intrinsics.{field} = {v} px is the field of view of no camera on a {}x{} px image (at least {min_f:.0} px): focal lengths are in pixels (millimetres divided by the pixel pitch), not millimetres",
+                    c.width, c.height
                 ));
             }
         }
@@ -260,7 +276,9 @@ impl CameraFile {
         if let Some(f) = &self.floor {
             let iso = &f.floor_to_camera.0;
             let norm = iso.rotation.quaternion().norm();
-            if (norm - 1.0).abs() >= 1e-6 || norm.is_nan() {
+            // Rounded to five decimals by hand the norm is 1 ± 1e-5: read as a rotation
+            // (normalised on loading); further off it is not one.
+            if (norm - 1.0).abs() >= QUATERNION_NORM_TOLERANCE || norm.is_nan() {
                 return Err(format!(
                     "floor.floor_to_camera rotation has norm {norm}, not a rotation (a unit quaternion)"
                 ));
@@ -284,6 +302,9 @@ impl CameraFile {
                     f.camera_height_m
                 ));
             }
+        }
+        if let Some(map) = &self.floor_uncertainty {
+            check_floor_uncertainty(map, c)?;
         }
         if let Some(b) = &self.board {
             if !(2..=1000).contains(&b.cols) || !(2..=1000).contains(&b.rows) {
@@ -320,4 +341,49 @@ impl CameraFile {
                 reason: "has no floor plane: calibrate again with --floor images of a board lying on the floor".into(),
             })
     }
+}
+
+/// The smallest focal length a camera file may give, as a share of the image's larger side.
+const MIN_FOCAL_SHARE: f64 = 0.05;
+
+/// How far from 1 the floor rotation's quaternion norm may be (hand-typed values rounded to
+/// five decimals are within 1e-5).
+const QUATERNION_NORM_TOLERANCE: f64 = 1e-4;
+
+/// The floor uncertainty map fits the image and holds standard deviations: `track` reads each
+/// fix's calibration σ from it, so a cut or edited map would give σ of another pixel or none.
+fn check_floor_uncertainty(
+    map: &crate::FloorUncertaintyMap,
+    camera: &crate::CameraModel,
+) -> Result<(), String> {
+    let cell = map.cell_px.max(1);
+    let (cols, rows) = (camera.width.div_ceil(cell), camera.height.div_ceil(cell));
+    if map.cell_px == 0 || map.cols != cols || map.rows != rows {
+        return Err(format!(
+            "floor_uncertainty is {}x{} cells of {} px, but a {}x{} px image takes {cols}x{rows} cells of {cell} px",
+            map.cols, map.rows, map.cell_px, camera.width, camera.height
+        ));
+    }
+    let cells = (cols * rows) as usize;
+    if map.sigma_mm.len() != cells
+        || !(map.model_spread_mm.is_empty() || map.model_spread_mm.len() == cells)
+    {
+        return Err(format!(
+            "floor_uncertainty has {} sigma_mm and {} model_spread_mm values for its {cells} cells",
+            map.sigma_mm.len(),
+            map.model_spread_mm.len()
+        ));
+    }
+    let bad = |v: &Option<f64>| v.is_some_and(|v| !(v.is_finite() && v >= 0.0));
+    if let Some(i) = map
+        .sigma_mm
+        .iter()
+        .chain(&map.model_spread_mm)
+        .position(bad)
+    {
+        return Err(format!(
+            "floor_uncertainty has a value that is not a standard deviation (a number of millimetres, 0 or more) at entry {i} (counting sigma_mm, then model_spread_mm)"
+        ));
+    }
+    Ok(())
 }
