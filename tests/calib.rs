@@ -326,6 +326,44 @@ fn repeated_floor_view_is_skipped() {
     );
     let cam = CameraFile::load(&out).unwrap();
     assert_eq!(cam.floor.expect("a floor plane").views.len(), 2);
+    // A first floor view without its board (covered, or out of frame) moved the floor frame's
+    // origin and axes to the next board's, with one "skipped" line: 1.2 m and 33° off.
+    let blank = dir.path().join("blank.png");
+    image::GrayImage::from_pixel(640, 360, image::Luma([128]))
+        .save(&blank)
+        .unwrap();
+    let none = dir.path().join("none.json");
+    let res = calibrate_floor(
+        dir.path(),
+        &none,
+        &[p(&blank), floors[0].as_str(), floors[1].as_str()],
+    );
+    assert_fails(&res, "the first floor view", &none);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("blank.png fixes the floor frame's origin and axes")
+            && err.contains("give first the floor view whose board should be the origin"),
+        "{err}"
+    );
+    // Board counts given rows first (6x9 for the 9x6 board) turn the floor frame 90°: said.
+    let turned = dir.path().join("turned.json");
+    let mut args = vec!["calibrate"];
+    let views = images(dir.path(), "view_");
+    args.extend(views.iter().map(|s| s.as_str()));
+    args.extend(["--board", "6x9", "--square", "0.05", "--out", p(&turned)]);
+    args.extend(["--floor", floors[0].as_str(), floors[1].as_str()]);
+    let res = odocal(&args);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("the floor frame's x axis runs along the board's rows of 6 corners")
+            && err.contains("give --board 9x6"),
+        "{err}"
+    );
+    let res = calibrate_floor(dir.path(), &out, &[floors[0].as_str()]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(!err.contains("floor frame's x axis"), "{err}");
 }
 
 /// A hand-held view passed among the floor views would tilt the floor plane with nothing

@@ -332,6 +332,14 @@ pub fn calibrate_session(
         None
     } else {
         let fd = detect_all(floor, board, on_image)?;
+        // The first floor view fixes the floor frame (README, ARCHITECTURE): without its board
+        // the next view's would, and every trajectory would come out moved and turned.
+        if let (Some(Detection::NotFound { image, reason, .. }), true) = (fd.first(), fd.len() > 1)
+        {
+            return Err(CalibError::Input(format!(
+                "the first floor view {image} fixes the floor frame's origin and axes, but {reason} there: the next view's board would fix them instead, elsewhere; retake that view with the whole board in sight, or give first the floor view whose board should be the origin"
+            )));
+        }
         let (fviews, mut fskipped, fsizes) = split(fd);
         // A floor photo given twice would count its board twice in the joint floor fit and
         // halve the floor's σ with no new information.
@@ -360,6 +368,7 @@ pub fn calibrate_session(
                 board.square_m
             ));
         }
+        notes.extend(turned_floor_note(&fviews[0], board));
         if let [only] = fviews.as_slice() {
             notes.push(format!(
                 "the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
@@ -420,6 +429,28 @@ pub const SAME_VIEW_RMS_PX: f64 = 0.5;
 /// Drops views that repeat an earlier one (the same photo given twice, or the board not
 /// moved between shots), noting each as skipped: they add no constraint, yet weigh their pose
 /// twice in the fit.
+/// A note when the floor frame's x axis (along the board's rows of `cols` corners) runs up or
+/// down the first floor view: a board whose counts were given rows first (6x9 for a 9x6) is
+/// found all the same, with the floor frame turned 90° from the one meant.
+fn turned_floor_note(first: &BoardView, board: &BoardSpec) -> Option<String> {
+    if board.is_charuco() || board.cols == board.rows {
+        return None;
+    }
+    let cols = board.cols as usize;
+    let x_axis = first.corners.get(cols - 1)? - first.corners.first()?;
+    (x_axis.y.abs() > x_axis.x.abs()).then(|| {
+        format!(
+            "note: the floor frame's x axis runs along the board's rows of {} corners, which run {} the image in {}: if the board's rows of {} corners were meant (counts given rows first), give --board {}x{}; the floor frame is otherwise turned 90° from the one meant",
+            board.cols,
+            if x_axis.y > 0.0 { "down" } else { "up" },
+            first.image,
+            board.rows,
+            board.rows,
+            board.cols
+        )
+    })
+}
+
 fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<BoardView> {
     let mut kept: Vec<BoardView> = Vec::with_capacity(views.len());
     for v in views {
