@@ -24,6 +24,7 @@ mod pose_log;
 mod scan;
 mod scan_track;
 mod search;
+mod sweep;
 
 pub use check::{
     check_map_report, find_ambiguities, layout_repeats, Ambiguity, AmbiguityKind,

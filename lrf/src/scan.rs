@@ -5,6 +5,7 @@ use std::path::Path;
 
 use nalgebra::{Matrix2, Point2, Vector2};
 
+use crate::sweep::Sweep;
 use crate::LrfError;
 
 /// The latest scan time accepted, seconds. Any clock in seconds will do: from the recording's
@@ -121,33 +122,6 @@ impl Scan {
                 / (self.angles_rad.len() - 1) as f64
         }
     }
-
-    /// The first and last beams with a return (range at least `min_range_m`): the scanner sees
-    /// between them. Beyond them is a sector without a single return, which is no view of
-    /// empty space but one the scanner does not have (the rear of a 360° scanner masked by
-    /// the robot's body, say). None when no beam returned.
-    pub fn returning_span(&self, min_range_m: f64) -> Option<(usize, usize)> {
-        let returns = |r: &f64| *r >= min_range_m;
-        Some((
-            self.ranges_m.iter().position(returns)?,
-            self.ranges_m.iter().rposition(returns)?,
-        ))
-    }
-
-    /// The index of the beam nearest to `angle_rad`, if inside the scan.
-    pub fn beam_at(&self, angle_rad: f64) -> Option<usize> {
-        let n = self.angles_rad.len();
-        let step = self.step_rad();
-        if n < 2 || step <= 0.0 {
-            return None;
-        }
-        let k = ((angle_rad - self.angles_rad[0]) / step).round();
-        if k < 0.0 || k >= n as f64 {
-            None
-        } else {
-            Some(k as usize)
-        }
-    }
 }
 
 /// A cluster of high-intensity returns: one reflector candidate, in the sensor frame.
@@ -173,8 +147,8 @@ pub struct Detection {
     pub step_rad: f64,
     /// Ranges of the beams just before the first and just after the last beam of the cluster,
     /// metres (0 = no return). None when that beam tells nothing about where the strip ends:
-    /// it lies outside the scan or beyond its first or last return ([`Scan::returning_span`]),
-    /// or its return is reflective (the strip went on but its range
+    /// it lies outside the scan or beyond its first or last return (the rear a 360° scanner
+    /// does not see), or its return is reflective (the strip went on but its range
     /// jumped, as at grazing incidence) or beyond the maximum range.
     pub neighbour_ranges_m: [Option<f64>; 2],
 }
@@ -282,7 +256,9 @@ impl Detection {
 }
 
 /// Clusters consecutive high-intensity returns into detections L1..Ln, right
-/// to left, rejecting clusters much wider than a reflector of `reflector_width_m`.
+/// to left, rejecting clusters much wider than a reflector of `reflector_width_m`. A full turn
+/// is read from its seam, not from the array's first beam, so a reflector across the array's
+/// ends is one detection and the detections are the same wherever the array starts.
 pub fn extract_detections(
     scan: &Scan,
     cfg: &SensorConfig,
@@ -290,14 +266,14 @@ pub fn extract_detections(
 ) -> Vec<Detection> {
     let step = scan.step_rad().abs().max(1e-6);
     let mut out = Vec::new();
-    let n = scan.ranges_m.len();
+    let sweep = Sweep::new(scan, cfg);
+    let n = sweep.len();
     // A beam in a sector without returns tells no more about where a strip ends than one
     // outside the scan: the strip may go on into the masked sector.
-    let span = scan.returning_span(cfg.min_range_m).unwrap_or((0, 0));
-    let ok = |i: usize| {
-        let r = scan.ranges_m[i];
-        r >= cfg.min_range_m && r <= cfg.max_range_m && scan.intensities[i] >= cfg.intensity_min
-    };
+    let span = sweep.returning_span().unwrap_or((0, 0));
+    let reflective =
+        |k: usize| sweep.range_m(k) <= cfg.max_range_m && sweep.intensity(k) >= cfg.intensity_min;
+    let ok = |k: usize| sweep.range_m(k) >= cfg.min_range_m && reflective(k);
     let mut i = 0;
     while i < n {
         if !ok(i) {
@@ -305,13 +281,13 @@ pub fn extract_detections(
             continue;
         }
         let mut j = i + 1;
-        while j < n && ok(j) && (scan.ranges_m[j] - scan.ranges_m[j - 1]).abs() <= 0.1 {
+        while j < n && ok(j) && (sweep.range_m(j) - sweep.range_m(j - 1)).abs() <= 0.1 {
             j += 1;
         }
         let pts: Vec<Point2<f64>> = (i..j)
             .map(|k| {
-                let (s, c) = scan.angles_rad[k].sin_cos();
-                Point2::new(scan.ranges_m[k] * c, scan.ranges_m[k] * s)
+                let (s, c) = sweep.angle_rad(k).sin_cos();
+                Point2::new(sweep.range_m(k) * c, sweep.range_m(k) * s)
             })
             .collect();
         let k = pts.len() as f64;
@@ -319,14 +295,16 @@ pub fn extract_detections(
         let range_m = centre.coords.norm();
         let spacing = range_m * step;
         let chord = (pts[pts.len() - 1] - pts[0]).norm();
-        let neighbour = |k: Option<usize>| {
-            k.filter(|&k| {
-                (span.0..=span.1).contains(&k)
-                    && scan.ranges_m[k] <= cfg.max_range_m
-                    && !(scan.ranges_m[k] >= cfg.min_range_m
-                        && scan.intensities[k] >= cfg.intensity_min)
-            })
-            .map(|k| scan.ranges_m[k])
+        let neighbour = |k: isize| {
+            sweep
+                .neighbour(k)
+                .filter(|&k| {
+                    (span.0..=span.1).contains(&k)
+                        && sweep.range_m(k) <= cfg.max_range_m
+                        && !(sweep.range_m(k) >= cfg.min_range_m
+                            && sweep.intensity(k) >= cfg.intensity_min)
+                })
+                .map(|k| sweep.range_m(k))
         };
         let limit = reflector_width_m + 2.0 * spacing + 4.0 * cfg.sigma_range_m;
         if chord <= limit {
@@ -340,14 +318,24 @@ pub fn extract_detections(
                 var_tangential_m2: (range_m * cfg.sigma_angle_rad).powi(2)
                     + spacing * spacing / 3.0
                     + 1e-6,
-                first_beam_rad: scan.angles_rad[i],
+                first_beam_rad: sweep.angle_rad(i),
                 step_rad: step,
-                neighbour_ranges_m: [neighbour(i.checked_sub(1)), neighbour(Some(j))],
+                neighbour_ranges_m: [neighbour(i as isize - 1), neighbour(j as isize)],
             });
         }
         i = j;
     }
     out
+}
+
+/// The scans of one file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanFile {
+    /// The scans, beams in increasing angle order.
+    pub scans: Vec<Scan>,
+    /// How many scans listed their beams in decreasing angle order (a ROS scan with a
+    /// negative `angle_increment`), reversed on reading.
+    pub n_reversed: usize,
 }
 
 /// Reads a scan CSV file (see [`parse_scans_csv`]).
@@ -688,6 +676,64 @@ mod tests {
             (0.85..1.15).contains(&ratio),
             "error variance {ratio} of the model's ({trials} trials)"
         );
+    }
+
+    /// A full turn of 1024 beams from `start` (a beam index on the grid of beam 0 at 0 rad):
+    /// a wall 3 m away all round, a reflector 2 m away on the 5 beams about 0 rad.
+    fn turn_from(start: i64) -> Scan {
+        let n = 1024;
+        let step = std::f64::consts::TAU / n as f64;
+        let mut scan = Scan {
+            id: 0,
+            t_s: None,
+            angles_rad: Vec::new(),
+            ranges_m: Vec::new(),
+            intensities: Vec::new(),
+        };
+        for k in start..start + n {
+            let i = k.rem_euclid(n);
+            let hit = i <= 2 || i >= n - 2;
+            scan.angles_rad.push(k as f64 * step);
+            scan.ranges_m.push(if hit { 2.0 } else { 3.0 });
+            scan.intensities.push(if hit { 0.9 } else { 0.1 });
+        }
+        scan
+    }
+
+    /// A reflector across the ends of a full turn's array (a 360° scan written from 0 to 2π,
+    /// with a reflector dead ahead) is one detection, the one of the scan written from −π:
+    /// it used to be two, each half a strip with an edge of the view beside it.
+    #[test]
+    fn a_reflector_across_a_full_turns_ends_is_one() {
+        let cfg = SensorConfig::default();
+        let reference = extract_detections(&turn_from(-512), &cfg, 0.08);
+        assert_eq!(reference.len(), 1);
+        assert_eq!(reference[0].n_beams, 5);
+        assert!(reference[0].bearing_rad.abs() < 1e-9);
+        assert!(reference[0]
+            .neighbour_ranges_m
+            .iter()
+            .all(|r| *r == Some(3.0)));
+        for start in [0, -1, 1, -2, 300, 700] {
+            let d = extract_detections(&turn_from(start), &cfg, 0.08);
+            assert_eq!(d.len(), 1, "start {start}: {d:?}");
+            assert!(
+                (d[0].point - reference[0].point).norm() < 1e-12
+                    && d[0].n_beams == 5
+                    && d[0].neighbour_ranges_m == reference[0].neighbour_ranges_m,
+                "start {start}: {:?} against {:?}",
+                d[0],
+                reference[0]
+            );
+        }
+        // Written with both ends (0 to 2π, its last beam the first's direction again).
+        let mut both_ends = turn_from(0);
+        both_ends.angles_rad.push(std::f64::consts::TAU);
+        both_ends.ranges_m.push(2.0);
+        both_ends.intensities.push(0.9);
+        let d = extract_detections(&both_ends, &cfg, 0.08);
+        assert_eq!(d.len(), 1, "{d:?}");
+        assert!((d[0].point - reference[0].point).norm() < 1e-12, "{d:?}");
     }
 
     #[test]
