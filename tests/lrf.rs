@@ -984,7 +984,7 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     let a = args(&degrees);
     expect_error(
         &a.iter().map(String::as_str).collect::<Vec<_>>(),
-        "is beyond a full turn; angles are in radians",
+        "scan 0's angles run from -119.88281 to -113.20313, beyond a full turn; angles are in radians (if they are in degrees, -119.88281° to -113.20313° is -2.0923 to -1.9758 rad)",
     );
     let a = args(&millimetres);
     expect_error(
@@ -1253,6 +1253,80 @@ fn cli_beams_without_a_return_keep_the_fix() {
             rms <= 1.1 * rms0,
             "{}: {rms} mm against {rms0} mm",
             s(scans)
+        );
+    }
+}
+
+/// The angles of a scan file are explicit, so a scan is read whichever way its beams are
+/// listed and wherever its turn starts: beams in decreasing angle order (a ROS scan with a
+/// negative angle_increment, once refused with "angles must increase") give the very poses of
+/// the original, with one note for all the scans, and the same returns as a 360° scan from
+/// π/2 to 5π/2 (once blamed on degrees) give them within the angles' 7 decimals.
+#[test]
+fn cli_scans_listed_left_to_right_or_from_anywhere_are_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 4, 20);
+    let (header, rows) = scan_rows(d);
+    let num = |v: &str| v.parse::<f64>().expect("number");
+    let reversed = rewrite_scans(&d.join("reversed.csv"), &header, &rows, &|scan| {
+        scan.iter().rev().map(|r| r.join(",")).collect()
+    });
+    let turn = rewrite_scans(&d.join("turn.csv"), &header, &rows, &|scan| {
+        let (a0, step) = (num(&scan[0][2]), num(&scan[1][2]) - num(&scan[0][2]));
+        let n = (std::f64::consts::TAU / step).round() as i64;
+        let k0 = ((std::f64::consts::FRAC_PI_2 - a0) / step).round() as i64;
+        (k0..k0 + n)
+            .map(|k| {
+                let a = a0 + k as f64 * step;
+                match scan.get(k.rem_euclid(n) as usize) {
+                    Some(r) => format!("{},{},{a:.7},{},{}", r[0], r[1], r[3], r[4]),
+                    None => format!("{},{},{a:.7},inf,0", scan[0][0], scan[0][1]),
+                }
+            })
+            .collect()
+    });
+    let poses = |scans: &Path, name: &str| {
+        let out = d.join(name);
+        let (map, truth) = (d.join("map.json"), d.join("truth.csv"));
+        let run = odocal(&[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(scans),
+            "--out",
+            s(&out),
+            "--truth",
+            s(&truth),
+            "--fov-deg",
+            "360",
+        ]);
+        let err = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert!(run.status.success(), "{}: {err}", s(scans));
+        let text = std::fs::read_to_string(&out).expect("poses written");
+        (text, err)
+    };
+    let (original, err) = poses(&d.join("scans.csv"), "original.csv");
+    assert!(!err.contains("note"), "{err}");
+    let (from_reversed, err) = poses(&reversed, "reversed_poses.csv");
+    assert_eq!(from_reversed, original);
+    assert_eq!(err.matches("note:").count(), 1, "{err}");
+    assert!(
+        err.contains("note: 20 of the 20 scans (the first in ")
+            && err.contains("list their beams in decreasing angle order (a negative angle_increment); they were read in increasing order"),
+        "{err}"
+    );
+    let (from_turn, err) = poses(&turn, "turn_poses.csv");
+    assert!(!err.contains("note") && !err.contains("warning"), "{err}");
+    let (a, b): (Vec<&str>, Vec<&str>) = (from_turn.lines().collect(), original.lines().collect());
+    assert_eq!((a.len(), a[0]), (b.len(), b[0]));
+    for (ra, rb) in a.iter().zip(&b).skip(1) {
+        let (fa, fb): (Vec<&str>, Vec<&str>) = (ra.split(',').collect(), rb.split(',').collect());
+        let near = (1..4).all(|k| (num(fa[k]) - num(fb[k])).abs() <= 1.5e-4);
+        assert!(
+            near && fa[4..6] == fb[4..6],
+            "{ra} from π/2 where the original gives {rb}"
         );
     }
 }

@@ -103,7 +103,8 @@ pub struct Scan {
     pub id: u64,
     /// Time stamp, seconds (from the `t` column if present).
     pub t_s: Option<f64>,
-    /// Beam angles in the sensor frame, radians, evenly spaced and increasing.
+    /// Beam angles in the sensor frame, radians, evenly spaced and increasing over at most a
+    /// full turn, from any start (0 to 2π as well as −π to π).
     pub angles_rad: Vec<f64>,
     /// Ranges, metres; 0 (or below the minimum range) means no return, and so does an
     /// infinite range (ROS's convention).
@@ -339,7 +340,7 @@ pub struct ScanFile {
 }
 
 /// Reads a scan CSV file (see [`parse_scans_csv`]).
-pub fn read_scans_csv(path: &Path) -> Result<Vec<Scan>, LrfError> {
+pub fn read_scans_csv(path: &Path) -> Result<ScanFile, LrfError> {
     let name = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|source| LrfError::Io {
         path: name.clone(),
@@ -350,9 +351,11 @@ pub fn read_scans_csv(path: &Path) -> Result<Vec<Scan>, LrfError> {
 
 /// Parses scans from CSV with header `angle,range,intensity` (radians, metres,
 /// unitless), optionally with `scan` (id) and `t` (seconds) columns; rows of
-/// one scan must be contiguous. Rejects NaN or negative values, angles beyond a full turn
-/// (degrees, not radians) and unevenly spaced angles with the line and column at fault.
-pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
+/// one scan must be contiguous. A scan's beams may be listed in either angle order (they are
+/// kept in increasing order) and may start anywhere, but span at most a full turn. Rejects
+/// NaN or negative values, angles spanning more than a turn (degrees, not radians) and
+/// unevenly spaced angles with the line and column at fault.
+pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
     let err = |line: usize, column: &str, message: String| LrfError::Scan {
         path: name.to_string(),
         line,
@@ -382,6 +385,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
     let mut scans: Vec<Scan> = Vec::new();
     let mut seen = std::collections::HashSet::new();
     let mut first_line = 0usize;
+    let mut n_reversed = 0;
     for rec in rdr.records() {
         let rec = rec.map_err(|e| {
             let line = e.position().map(|p| p.line() as usize).unwrap_or(0);
@@ -406,16 +410,6 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
                 line,
                 "angle",
                 format!("angle is {angle}; give a finite angle in radians"),
-            ));
-        }
-        if angle.abs() > std::f64::consts::TAU {
-            return Err(err(
-                line,
-                "angle",
-                format!(
-                    "angle {angle} is beyond a full turn; angles are in radians (if it is in degrees, {angle}° is {:.4} rad)",
-                    angle.to_radians()
-                ),
             ));
         }
         if range.is_nan() || range < 0.0 {
@@ -470,8 +464,9 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             }
         }
         if new_scan {
-            if let Some(prev) = scans.last() {
-                check_steps(prev, name, first_line, scans.first().map(|s| s.step_rad()))?;
+            let expected = (scans.len() > 1).then(|| scans[0].step_rad());
+            if let Some(prev) = scans.last_mut() {
+                n_reversed += usize::from(finish_scan(prev, name, first_line, expected)?);
             }
             if !seen.insert(id) {
                 return Err(err(
@@ -495,13 +490,9 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             s.intensities.push(intensity);
         }
     }
-    if let Some(last) = scans.last() {
-        let first_step = if scans.len() > 1 {
-            Some(scans[0].step_rad())
-        } else {
-            None
-        };
-        check_steps(last, name, first_line, first_step)?;
+    let expected = (scans.len() > 1).then(|| scans[0].step_rad());
+    if let Some(last) = scans.last_mut() {
+        n_reversed += usize::from(finish_scan(last, name, first_line, expected)?);
     } else {
         return Err(err(
             2,
@@ -509,16 +500,18 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             "no scan rows; the file has only a header".into(),
         ));
     }
-    Ok(scans)
+    Ok(ScanFile { scans, n_reversed })
 }
 
-/// Checks that a scan's angles increase by one even step (and match `expected` if given).
-fn check_steps(
-    s: &Scan,
+/// Checks that a scan's angles change by one even step over at most a full turn (and match
+/// the step `expected`, if given, in size), then puts beams listed in decreasing angle order
+/// in increasing order; true when it did. The lines named are the file's.
+fn finish_scan(
+    s: &mut Scan,
     name: &str,
     first_line: usize,
     expected: Option<f64>,
-) -> Result<(), LrfError> {
+) -> Result<bool, LrfError> {
     let err = |line: usize, message: String| LrfError::Scan {
         path: name.to_string(),
         line,
@@ -531,17 +524,21 @@ fn check_steps(
             format!("scan {} has fewer than 2 beams", s.id),
         ));
     }
-    let step0 = s.angles_rad[1] - s.angles_rad[0];
-    if step0 <= 0.0 {
+    let a0 = s.angles_rad[0];
+    let step0 = s.angles_rad[1] - a0;
+    if step0 == 0.0 {
         return Err(err(
             first_line + 1,
-            format!("angles must increase (right to left); step is {step0:.6} rad"),
+            format!(
+                "scan {}'s first two beams have the same angle {a0} rad; give each beam its own angle",
+                s.id
+            ),
         ));
     }
     for k in 1..s.angles_rad.len() {
         let d = s.angles_rad[k] - s.angles_rad[k - 1];
         // Angles starting over at the first beam's are the scan's rows again.
-        if d < 0.0 && (s.angles_rad[k] - s.angles_rad[0]).abs() < 0.5 * step0 {
+        if d * step0 < 0.0 && (s.angles_rad[k] - a0).abs() < 0.5 * step0.abs() {
             return Err(err(
                 first_line + k,
                 format!(
@@ -550,7 +547,7 @@ fn check_steps(
                 ),
             ));
         }
-        if (d - step0).abs() > 0.05 * step0 {
+        if (d - step0).abs() > 0.05 * step0.abs() {
             return Err(err(
                 first_line + k,
                 format!(
@@ -558,6 +555,26 @@ fn check_steps(
                 ),
             ));
         }
+        // A scan may start anywhere, but a turn and a half is no scanner's: the angles are
+        // in degrees. Half a step over a turn allows a last beam repeating the first's.
+        let a = s.angles_rad[k];
+        if (a - a0).abs() > std::f64::consts::TAU + 0.5 * step0.abs() {
+            return Err(err(
+                first_line + k,
+                format!(
+                    "scan {}'s angles run from {a0} to {a}, beyond a full turn; angles are in radians (if they are in degrees, {a0}° to {a}° is {:.4} to {:.4} rad)",
+                    s.id,
+                    a0.to_radians(),
+                    a.to_radians()
+                ),
+            ));
+        }
+    }
+    let reversed = step0 < 0.0;
+    if reversed {
+        s.angles_rad.reverse();
+        s.ranges_m.reverse();
+        s.intensities.reverse();
     }
     if let Some(e) = expected {
         if (s.step_rad() - e).abs() > 0.01 * e.abs() {
@@ -571,7 +588,7 @@ fn check_steps(
             ));
         }
     }
-    Ok(())
+    Ok(reversed)
 }
 
 #[cfg(test)]
@@ -589,7 +606,7 @@ mod tests {
                 text.push_str(&format!("{s},{},{a:.6},{r},{i}\n", s as f64 * 0.1));
             }
         }
-        let scans = parse_scans_csv(&text, "x.csv").unwrap();
+        let scans = parse_scans_csv(&text, "x.csv").unwrap().scans;
         assert_eq!(scans.len(), 2);
         assert_eq!(scans[1].t_s, Some(0.1));
         let cfg = SensorConfig::default();
@@ -734,6 +751,44 @@ mod tests {
         let d = extract_detections(&both_ends, &cfg, 0.08);
         assert_eq!(d.len(), 1, "{d:?}");
         assert!((d[0].point - reference[0].point).norm() < 1e-12, "{d:?}");
+    }
+
+    /// Beams listed in decreasing angle order (a ROS scan with a negative angle_increment) are
+    /// read in increasing order, each with its own range; they used to be refused with
+    /// "angles must increase". A full turn from π/2 to 5π/2 is read (it used to be blamed on
+    /// degrees); a scan spanning more than a turn still is.
+    #[test]
+    fn beams_in_either_order_and_a_turn_from_anywhere_are_read() {
+        let f = parse_scans_csv(
+            "scan,t,angle,range,intensity\n3,0.5,0.02,1.0,0.1\n3,0.5,0.01,2.0,0.2\n3,0.5,0.0,3.0,0.3\n4,0.6,0.0,4.0,0\n4,0.6,0.01,5.0,0\n",
+            "s.csv",
+        )
+        .unwrap();
+        assert_eq!(f.n_reversed, 1);
+        assert_eq!(f.scans[0].angles_rad, vec![0.0, 0.01, 0.02]);
+        assert_eq!(f.scans[0].ranges_m, vec![3.0, 2.0, 1.0]);
+        assert_eq!(f.scans[0].intensities, vec![0.3, 0.2, 0.1]);
+        assert_eq!((f.scans[0].id, f.scans[0].t_s), (3, Some(0.5)));
+        assert_eq!((f.scans[1].id, f.scans[1].ranges_m[0]), (4, 4.0));
+        // A turn from π/2: 1024 beams up to 5π/2 less a step.
+        let step = std::f64::consts::TAU / 1024.0;
+        let mut text = String::from("angle,range,intensity\n");
+        for k in 0..1024 {
+            let a = std::f64::consts::FRAC_PI_2 + k as f64 * step;
+            text.push_str(&format!("{a:.7},1.0,0.1\n"));
+        }
+        let f = parse_scans_csv(&text, "s.csv").unwrap();
+        assert_eq!(f.scans[0].angles_rad.len(), 1024);
+        // Degrees: −120° to 120° runs beyond a turn of radians 7 beams in.
+        let mut text = String::from("angle,range,intensity\n");
+        for k in 0..20 {
+            text.push_str(&format!("{},1.0,0.1\n", -120.0 + k as f64));
+        }
+        let e = parse_scans_csv(&text, "s.csv").unwrap_err().to_string();
+        assert!(
+            e.starts_with("s.csv, line 9, column angle: scan 0's angles run from -120 to -113, beyond a full turn; angles are in radians (if they are in degrees"),
+            "{e}"
+        );
     }
 
     #[test]
