@@ -24,6 +24,7 @@ mod pose_log;
 mod scan;
 mod scan_track;
 mod search;
+mod sweep;
 
 pub use check::{
     check_map_report, find_ambiguities, layout_repeats, Ambiguity, AmbiguityKind,
@@ -36,12 +37,12 @@ pub use eval::{
 };
 pub use localize::{
     check_beam_step, check_intensity_scale, check_range_unit, check_scan_times, localize_scans,
-    read_scan_files,
+    read_scan_files, ScanFiles,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{
-    extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, SensorConfig,
+    extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, ScanFile, SensorConfig,
 };
 pub use scan_track::{ScanFix, ScanTracker};
 pub use search::{Hypothesis, Localization, Localizer, LocalizerConfig, SearchStats, Status};

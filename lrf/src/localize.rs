@@ -14,8 +14,8 @@ use crate::LrfError;
 /// they do within a file. Files without times (one scan per file, say) are taken in natural
 /// name order (`scan2.csv` before `scan10.csv`), the order a logger numbers them in: the
 /// shell lists them alphabetically, `scan10.csv` between `scan1.csv` and `scan2.csv`, and
-/// nothing else would show the scrambled time. Returns the scans and that step, radians.
-pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), LrfError> {
+/// nothing else would show the scrambled time.
+pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
     for (k, p) in paths.iter().enumerate() {
         if let Some(q) = paths[..k].iter().find(|q| same_file(q, p)) {
             let also = if q == p {
@@ -29,10 +29,16 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
             )));
         }
     }
-    let mut files: Vec<(&PathBuf, Vec<Scan>)> = paths
-        .iter()
-        .map(|p| Ok((p, read_scans_csv(p)?)))
-        .collect::<Result<_, LrfError>>()?;
+    let mut reversed: Option<(usize, &PathBuf)> = None;
+    let mut files: Vec<(&PathBuf, Vec<Scan>)> = Vec::with_capacity(paths.len());
+    for p in paths {
+        let f = read_scans_csv(p)?;
+        if f.n_reversed > 0 {
+            let (n, first) = reversed.unwrap_or((0, p));
+            reversed = Some((n + f.n_reversed, first));
+        }
+        files.push((p, f.scans));
+    }
     // Timed and untimed files have no common order: the untimed ones' poses would be put
     // among the timed ones' wherever they were given, times going backwards.
     let timed = files
@@ -101,7 +107,31 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<(Vec<Scan>, Option<f64>), Lr
             s.id = k as u64;
         }
     }
-    Ok((scans, step.map(|s| s.0)))
+    // Angles are explicit, so a scan listed left to right is as good as one listed right to
+    // left; the note says it was read so, once for the whole recording.
+    let reversed_note = reversed.map(|(n, first)| {
+        format!(
+            "{n} of the {} scans (the first in {}) list their beams in decreasing angle order (a negative angle_increment); they were read in increasing order, each beam with its own angle",
+            scans.len(),
+            first.display()
+        )
+    });
+    Ok(ScanFiles {
+        scans,
+        step_rad: step.map(|s| s.0),
+        reversed_note,
+    })
+}
+
+/// Scans read from files by [`read_scan_files`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanFiles {
+    /// The scans, in time order.
+    pub scans: Vec<Scan>,
+    /// Their common angle step, radians (None without scans).
+    pub step_rad: Option<f64>,
+    /// A note when scans listed their beams in decreasing angle order.
+    pub reversed_note: Option<String>,
 }
 
 /// A recording's scans may be logged sparser than the scanner sweeps (every few sweeps), but

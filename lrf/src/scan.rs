@@ -5,6 +5,7 @@ use std::path::Path;
 
 use nalgebra::{Matrix2, Point2, Vector2};
 
+use crate::sweep::Sweep;
 use crate::LrfError;
 
 /// The latest scan time accepted, seconds. Any clock in seconds will do: from the recording's
@@ -102,7 +103,8 @@ pub struct Scan {
     pub id: u64,
     /// Time stamp, seconds (from the `t` column if present).
     pub t_s: Option<f64>,
-    /// Beam angles in the sensor frame, radians, evenly spaced and increasing.
+    /// Beam angles in the sensor frame, radians, evenly spaced and increasing over at most a
+    /// full turn, from any start (0 to 2π as well as −π to π).
     pub angles_rad: Vec<f64>,
     /// Ranges, metres; 0 (or below the minimum range) means no return, and so does an
     /// infinite range (ROS's convention).
@@ -119,33 +121,6 @@ impl Scan {
         } else {
             (self.angles_rad[self.angles_rad.len() - 1] - self.angles_rad[0])
                 / (self.angles_rad.len() - 1) as f64
-        }
-    }
-
-    /// The first and last beams with a return (range at least `min_range_m`): the scanner sees
-    /// between them. Beyond them is a sector without a single return, which is no view of
-    /// empty space but one the scanner does not have (the rear of a 360° scanner masked by
-    /// the robot's body, say). None when no beam returned.
-    pub fn returning_span(&self, min_range_m: f64) -> Option<(usize, usize)> {
-        let returns = |r: &f64| *r >= min_range_m;
-        Some((
-            self.ranges_m.iter().position(returns)?,
-            self.ranges_m.iter().rposition(returns)?,
-        ))
-    }
-
-    /// The index of the beam nearest to `angle_rad`, if inside the scan.
-    pub fn beam_at(&self, angle_rad: f64) -> Option<usize> {
-        let n = self.angles_rad.len();
-        let step = self.step_rad();
-        if n < 2 || step <= 0.0 {
-            return None;
-        }
-        let k = ((angle_rad - self.angles_rad[0]) / step).round();
-        if k < 0.0 || k >= n as f64 {
-            None
-        } else {
-            Some(k as usize)
         }
     }
 }
@@ -173,8 +148,8 @@ pub struct Detection {
     pub step_rad: f64,
     /// Ranges of the beams just before the first and just after the last beam of the cluster,
     /// metres (0 = no return). None when that beam tells nothing about where the strip ends:
-    /// it lies outside the scan or beyond its first or last return ([`Scan::returning_span`]),
-    /// or its return is reflective (the strip went on but its range
+    /// it lies outside the scan or beyond its first or last return (the rear a 360° scanner
+    /// does not see), or its return is reflective (the strip went on but its range
     /// jumped, as at grazing incidence) or beyond the maximum range.
     pub neighbour_ranges_m: [Option<f64>; 2],
 }
@@ -282,7 +257,9 @@ impl Detection {
 }
 
 /// Clusters consecutive high-intensity returns into detections L1..Ln, right
-/// to left, rejecting clusters much wider than a reflector of `reflector_width_m`.
+/// to left, rejecting clusters much wider than a reflector of `reflector_width_m`. A full turn
+/// is read from its seam, not from the array's first beam, so a reflector across the array's
+/// ends is one detection and the detections are the same wherever the array starts.
 pub fn extract_detections(
     scan: &Scan,
     cfg: &SensorConfig,
@@ -290,14 +267,14 @@ pub fn extract_detections(
 ) -> Vec<Detection> {
     let step = scan.step_rad().abs().max(1e-6);
     let mut out = Vec::new();
-    let n = scan.ranges_m.len();
+    let sweep = Sweep::new(scan, cfg);
+    let n = sweep.len();
     // A beam in a sector without returns tells no more about where a strip ends than one
     // outside the scan: the strip may go on into the masked sector.
-    let span = scan.returning_span(cfg.min_range_m).unwrap_or((0, 0));
-    let ok = |i: usize| {
-        let r = scan.ranges_m[i];
-        r >= cfg.min_range_m && r <= cfg.max_range_m && scan.intensities[i] >= cfg.intensity_min
-    };
+    let span = sweep.returning_span().unwrap_or((0, 0));
+    let reflective =
+        |k: usize| sweep.range_m(k) <= cfg.max_range_m && sweep.intensity(k) >= cfg.intensity_min;
+    let ok = |k: usize| sweep.range_m(k) >= cfg.min_range_m && reflective(k);
     let mut i = 0;
     while i < n {
         if !ok(i) {
@@ -305,13 +282,13 @@ pub fn extract_detections(
             continue;
         }
         let mut j = i + 1;
-        while j < n && ok(j) && (scan.ranges_m[j] - scan.ranges_m[j - 1]).abs() <= 0.1 {
+        while j < n && ok(j) && (sweep.range_m(j) - sweep.range_m(j - 1)).abs() <= 0.1 {
             j += 1;
         }
         let pts: Vec<Point2<f64>> = (i..j)
             .map(|k| {
-                let (s, c) = scan.angles_rad[k].sin_cos();
-                Point2::new(scan.ranges_m[k] * c, scan.ranges_m[k] * s)
+                let (s, c) = sweep.angle_rad(k).sin_cos();
+                Point2::new(sweep.range_m(k) * c, sweep.range_m(k) * s)
             })
             .collect();
         let k = pts.len() as f64;
@@ -319,14 +296,16 @@ pub fn extract_detections(
         let range_m = centre.coords.norm();
         let spacing = range_m * step;
         let chord = (pts[pts.len() - 1] - pts[0]).norm();
-        let neighbour = |k: Option<usize>| {
-            k.filter(|&k| {
-                (span.0..=span.1).contains(&k)
-                    && scan.ranges_m[k] <= cfg.max_range_m
-                    && !(scan.ranges_m[k] >= cfg.min_range_m
-                        && scan.intensities[k] >= cfg.intensity_min)
-            })
-            .map(|k| scan.ranges_m[k])
+        let neighbour = |k: isize| {
+            sweep
+                .neighbour(k)
+                .filter(|&k| {
+                    (span.0..=span.1).contains(&k)
+                        && sweep.range_m(k) <= cfg.max_range_m
+                        && !(sweep.range_m(k) >= cfg.min_range_m
+                            && sweep.intensity(k) >= cfg.intensity_min)
+                })
+                .map(|k| sweep.range_m(k))
         };
         let limit = reflector_width_m + 2.0 * spacing + 4.0 * cfg.sigma_range_m;
         if chord <= limit {
@@ -340,9 +319,9 @@ pub fn extract_detections(
                 var_tangential_m2: (range_m * cfg.sigma_angle_rad).powi(2)
                     + spacing * spacing / 3.0
                     + 1e-6,
-                first_beam_rad: scan.angles_rad[i],
+                first_beam_rad: sweep.angle_rad(i),
                 step_rad: step,
-                neighbour_ranges_m: [neighbour(i.checked_sub(1)), neighbour(Some(j))],
+                neighbour_ranges_m: [neighbour(i as isize - 1), neighbour(j as isize)],
             });
         }
         i = j;
@@ -350,8 +329,18 @@ pub fn extract_detections(
     out
 }
 
+/// The scans of one file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanFile {
+    /// The scans, beams in increasing angle order.
+    pub scans: Vec<Scan>,
+    /// How many scans listed their beams in decreasing angle order (a ROS scan with a
+    /// negative `angle_increment`), reversed on reading.
+    pub n_reversed: usize,
+}
+
 /// Reads a scan CSV file (see [`parse_scans_csv`]).
-pub fn read_scans_csv(path: &Path) -> Result<Vec<Scan>, LrfError> {
+pub fn read_scans_csv(path: &Path) -> Result<ScanFile, LrfError> {
     let name = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|source| LrfError::Io {
         path: name.clone(),
@@ -362,9 +351,11 @@ pub fn read_scans_csv(path: &Path) -> Result<Vec<Scan>, LrfError> {
 
 /// Parses scans from CSV with header `angle,range,intensity` (radians, metres,
 /// unitless), optionally with `scan` (id) and `t` (seconds) columns; rows of
-/// one scan must be contiguous. Rejects NaN or negative values, angles beyond a full turn
-/// (degrees, not radians) and unevenly spaced angles with the line and column at fault.
-pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
+/// one scan must be contiguous. A scan's beams may be listed in either angle order (they are
+/// kept in increasing order) and may start anywhere, but span at most a full turn. Rejects
+/// NaN or negative values, angles spanning more than a turn (degrees, not radians) and
+/// unevenly spaced angles with the line and column at fault.
+pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
     let err = |line: usize, column: &str, message: String| LrfError::Scan {
         path: name.to_string(),
         line,
@@ -394,6 +385,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
     let mut scans: Vec<Scan> = Vec::new();
     let mut seen = std::collections::HashSet::new();
     let mut first_line = 0usize;
+    let mut n_reversed = 0;
     for rec in rdr.records() {
         let rec = rec.map_err(|e| {
             let line = e.position().map(|p| p.line() as usize).unwrap_or(0);
@@ -418,16 +410,6 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
                 line,
                 "angle",
                 format!("angle is {angle}; give a finite angle in radians"),
-            ));
-        }
-        if angle.abs() > std::f64::consts::TAU {
-            return Err(err(
-                line,
-                "angle",
-                format!(
-                    "angle {angle} is beyond a full turn; angles are in radians (if it is in degrees, {angle}° is {:.4} rad)",
-                    angle.to_radians()
-                ),
             ));
         }
         if range.is_nan() || range < 0.0 {
@@ -482,8 +464,9 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             }
         }
         if new_scan {
-            if let Some(prev) = scans.last() {
-                check_steps(prev, name, first_line, scans.first().map(|s| s.step_rad()))?;
+            let expected = (scans.len() > 1).then(|| scans[0].step_rad());
+            if let Some(prev) = scans.last_mut() {
+                n_reversed += usize::from(finish_scan(prev, name, first_line, expected)?);
             }
             if !seen.insert(id) {
                 return Err(err(
@@ -507,13 +490,9 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             s.intensities.push(intensity);
         }
     }
-    if let Some(last) = scans.last() {
-        let first_step = if scans.len() > 1 {
-            Some(scans[0].step_rad())
-        } else {
-            None
-        };
-        check_steps(last, name, first_line, first_step)?;
+    let expected = (scans.len() > 1).then(|| scans[0].step_rad());
+    if let Some(last) = scans.last_mut() {
+        n_reversed += usize::from(finish_scan(last, name, first_line, expected)?);
     } else {
         return Err(err(
             2,
@@ -521,16 +500,18 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<Vec<Scan>, LrfError> {
             "no scan rows; the file has only a header".into(),
         ));
     }
-    Ok(scans)
+    Ok(ScanFile { scans, n_reversed })
 }
 
-/// Checks that a scan's angles increase by one even step (and match `expected` if given).
-fn check_steps(
-    s: &Scan,
+/// Checks that a scan's angles change by one even step over at most a full turn (and match
+/// the step `expected`, if given, in size), then puts beams listed in decreasing angle order
+/// in increasing order; true when it did. The lines named are the file's.
+fn finish_scan(
+    s: &mut Scan,
     name: &str,
     first_line: usize,
     expected: Option<f64>,
-) -> Result<(), LrfError> {
+) -> Result<bool, LrfError> {
     let err = |line: usize, message: String| LrfError::Scan {
         path: name.to_string(),
         line,
@@ -543,17 +524,21 @@ fn check_steps(
             format!("scan {} has fewer than 2 beams", s.id),
         ));
     }
-    let step0 = s.angles_rad[1] - s.angles_rad[0];
-    if step0 <= 0.0 {
+    let a0 = s.angles_rad[0];
+    let step0 = s.angles_rad[1] - a0;
+    if step0 == 0.0 {
         return Err(err(
             first_line + 1,
-            format!("angles must increase (right to left); step is {step0:.6} rad"),
+            format!(
+                "scan {}'s first two beams have the same angle {a0} rad; give each beam its own angle",
+                s.id
+            ),
         ));
     }
     for k in 1..s.angles_rad.len() {
         let d = s.angles_rad[k] - s.angles_rad[k - 1];
         // Angles starting over at the first beam's are the scan's rows again.
-        if d < 0.0 && (s.angles_rad[k] - s.angles_rad[0]).abs() < 0.5 * step0 {
+        if d * step0 < 0.0 && (s.angles_rad[k] - a0).abs() < 0.5 * step0.abs() {
             return Err(err(
                 first_line + k,
                 format!(
@@ -562,7 +547,7 @@ fn check_steps(
                 ),
             ));
         }
-        if (d - step0).abs() > 0.05 * step0 {
+        if (d - step0).abs() > 0.05 * step0.abs() {
             return Err(err(
                 first_line + k,
                 format!(
@@ -570,6 +555,26 @@ fn check_steps(
                 ),
             ));
         }
+        // A scan may start anywhere, but a turn and a half is no scanner's: the angles are
+        // in degrees. Half a step over a turn allows a last beam repeating the first's.
+        let a = s.angles_rad[k];
+        if (a - a0).abs() > std::f64::consts::TAU + 0.5 * step0.abs() {
+            return Err(err(
+                first_line + k,
+                format!(
+                    "scan {}'s angles run from {a0} to {a}, beyond a full turn; angles are in radians (if they are in degrees, {a0}° to {a}° is {:.4} to {:.4} rad)",
+                    s.id,
+                    a0.to_radians(),
+                    a.to_radians()
+                ),
+            ));
+        }
+    }
+    let reversed = step0 < 0.0;
+    if reversed {
+        s.angles_rad.reverse();
+        s.ranges_m.reverse();
+        s.intensities.reverse();
     }
     if let Some(e) = expected {
         if (s.step_rad() - e).abs() > 0.01 * e.abs() {
@@ -583,7 +588,7 @@ fn check_steps(
             ));
         }
     }
-    Ok(())
+    Ok(reversed)
 }
 
 #[cfg(test)]
@@ -601,7 +606,7 @@ mod tests {
                 text.push_str(&format!("{s},{},{a:.6},{r},{i}\n", s as f64 * 0.1));
             }
         }
-        let scans = parse_scans_csv(&text, "x.csv").unwrap();
+        let scans = parse_scans_csv(&text, "x.csv").unwrap().scans;
         assert_eq!(scans.len(), 2);
         assert_eq!(scans[1].t_s, Some(0.1));
         let cfg = SensorConfig::default();
@@ -687,6 +692,102 @@ mod tests {
         assert!(
             (0.85..1.15).contains(&ratio),
             "error variance {ratio} of the model's ({trials} trials)"
+        );
+    }
+
+    /// A full turn of 1024 beams from `start` (a beam index on the grid of beam 0 at 0 rad):
+    /// a wall 3 m away all round, a reflector 2 m away on the 5 beams about 0 rad.
+    fn turn_from(start: i64) -> Scan {
+        let n = 1024;
+        let step = std::f64::consts::TAU / n as f64;
+        let mut scan = Scan {
+            id: 0,
+            t_s: None,
+            angles_rad: Vec::new(),
+            ranges_m: Vec::new(),
+            intensities: Vec::new(),
+        };
+        for k in start..start + n {
+            let i = k.rem_euclid(n);
+            let hit = i <= 2 || i >= n - 2;
+            scan.angles_rad.push(k as f64 * step);
+            scan.ranges_m.push(if hit { 2.0 } else { 3.0 });
+            scan.intensities.push(if hit { 0.9 } else { 0.1 });
+        }
+        scan
+    }
+
+    /// A reflector across the ends of a full turn's array (a 360° scan written from 0 to 2π,
+    /// with a reflector dead ahead) is one detection, the one of the scan written from −π:
+    /// it used to be two, each half a strip with an edge of the view beside it.
+    #[test]
+    fn a_reflector_across_a_full_turns_ends_is_one() {
+        let cfg = SensorConfig::default();
+        let reference = extract_detections(&turn_from(-512), &cfg, 0.08);
+        assert_eq!(reference.len(), 1);
+        assert_eq!(reference[0].n_beams, 5);
+        assert!(reference[0].bearing_rad.abs() < 1e-9);
+        assert!(reference[0]
+            .neighbour_ranges_m
+            .iter()
+            .all(|r| *r == Some(3.0)));
+        for start in [0, -1, 1, -2, 300, 700] {
+            let d = extract_detections(&turn_from(start), &cfg, 0.08);
+            assert_eq!(d.len(), 1, "start {start}: {d:?}");
+            assert!(
+                (d[0].point - reference[0].point).norm() < 1e-12
+                    && d[0].n_beams == 5
+                    && d[0].neighbour_ranges_m == reference[0].neighbour_ranges_m,
+                "start {start}: {:?} against {:?}",
+                d[0],
+                reference[0]
+            );
+        }
+        // Written with both ends (0 to 2π, its last beam the first's direction again).
+        let mut both_ends = turn_from(0);
+        both_ends.angles_rad.push(std::f64::consts::TAU);
+        both_ends.ranges_m.push(2.0);
+        both_ends.intensities.push(0.9);
+        let d = extract_detections(&both_ends, &cfg, 0.08);
+        assert_eq!(d.len(), 1, "{d:?}");
+        assert!((d[0].point - reference[0].point).norm() < 1e-12, "{d:?}");
+    }
+
+    /// Beams listed in decreasing angle order (a ROS scan with a negative angle_increment) are
+    /// read in increasing order, each with its own range; they used to be refused with
+    /// "angles must increase". A full turn from π/2 to 5π/2 is read (it used to be blamed on
+    /// degrees); a scan spanning more than a turn still is.
+    #[test]
+    fn beams_in_either_order_and_a_turn_from_anywhere_are_read() {
+        let f = parse_scans_csv(
+            "scan,t,angle,range,intensity\n3,0.5,0.02,1.0,0.1\n3,0.5,0.01,2.0,0.2\n3,0.5,0.0,3.0,0.3\n4,0.6,0.0,4.0,0\n4,0.6,0.01,5.0,0\n",
+            "s.csv",
+        )
+        .unwrap();
+        assert_eq!(f.n_reversed, 1);
+        assert_eq!(f.scans[0].angles_rad, vec![0.0, 0.01, 0.02]);
+        assert_eq!(f.scans[0].ranges_m, vec![3.0, 2.0, 1.0]);
+        assert_eq!(f.scans[0].intensities, vec![0.3, 0.2, 0.1]);
+        assert_eq!((f.scans[0].id, f.scans[0].t_s), (3, Some(0.5)));
+        assert_eq!((f.scans[1].id, f.scans[1].ranges_m[0]), (4, 4.0));
+        // A turn from π/2: 1024 beams up to 5π/2 less a step.
+        let step = std::f64::consts::TAU / 1024.0;
+        let mut text = String::from("angle,range,intensity\n");
+        for k in 0..1024 {
+            let a = std::f64::consts::FRAC_PI_2 + k as f64 * step;
+            text.push_str(&format!("{a:.7},1.0,0.1\n"));
+        }
+        let f = parse_scans_csv(&text, "s.csv").unwrap();
+        assert_eq!(f.scans[0].angles_rad.len(), 1024);
+        // Degrees: −120° to 120° runs beyond a turn of radians 7 beams in.
+        let mut text = String::from("angle,range,intensity\n");
+        for k in 0..20 {
+            text.push_str(&format!("{},1.0,0.1\n", -120.0 + k as f64));
+        }
+        let e = parse_scans_csv(&text, "s.csv").unwrap_err().to_string();
+        assert!(
+            e.starts_with("s.csv, line 9, column angle: scan 0's angles run from -120 to -113, beyond a full turn; angles are in radians (if they are in degrees"),
+            "{e}"
         );
     }
 

@@ -5,6 +5,7 @@ use nalgebra::{Matrix2, Matrix3, Point2, Rotation2, Vector2};
 use odocal_core::{fit_helmert, fit_rigid, wrap_angle, Pose2};
 
 use crate::pose_fit::{fit_pose_weighted, mahalanobis2, pose_information, Observation};
+use crate::sweep::Sweep;
 use crate::{extract_detections, Detection, Map, Scan, SensorConfig};
 
 /// Settings of the localiser.
@@ -638,14 +639,16 @@ impl Localizer {
         let sens = &self.cfg.sensor;
         let s = pose.position();
         let tol = 0.2 + 3.0 * sens.sigma_range_m;
+        // From the seam, so that a full turn has the same beams checked wherever its array starts.
+        let sweep = Sweep::new(scan, sens);
         let mut bad = 0;
-        for k in (0..scan.ranges_m.len()).step_by(FREE_SPACE_STRIDE) {
-            let a = pose.theta_rad + scan.angles_rad[k];
+        for k in (0..sweep.len()).step_by(FREE_SPACE_STRIDE) {
+            let a = pose.theta_rad + sweep.angle_rad(k);
             let dir = Vector2::new(a.cos(), a.sin());
             let Some(t) = self.map.ray_to_wall(&s, &dir) else {
                 continue;
             };
-            let r = scan.ranges_m[k];
+            let r = sweep.range_m(k);
             if r >= sens.min_range_m && r.is_finite() && r > t + tol {
                 bad += 1;
             }
@@ -681,12 +684,14 @@ impl Localizer {
         let inv = pose.isometry().inverse();
         let half_fov = 0.5 * sens.fov_rad - VIEW_EDGE_MARGIN_RAD;
         let step = scan.step_rad().abs().max(1e-6);
-        // The edges of the beams with a return are edges of the field of view.
-        let Some((first, last)) = scan.returning_span(sens.min_range_m) else {
+        let sweep = Sweep::new(scan, sens);
+        // The edges of the beams with a return are edges of the field of view; a full turn
+        // with a return all round has none.
+        let Some((first, last)) = sweep.returning_span() else {
             return;
         };
-        let seen = (scan.angles_rad[first] + VIEW_EDGE_MARGIN_RAD)
-            ..=(scan.angles_rad[last] - VIEW_EDGE_MARGIN_RAD);
+        let seen = (sweep.angle_rad(first) + VIEW_EDGE_MARGIN_RAD)
+            ..=(sweep.angle_rad(last) - VIEW_EDGE_MARGIN_RAD);
         self.map.for_each_within(&s, sens.max_range_m - 0.15, |l| {
             if matched[l] {
                 return;
@@ -695,28 +700,29 @@ impl Localizer {
             let p = inv * lm.position;
             let rho = p.coords.norm();
             let beta = p.y.atan2(p.x);
-            if rho < sens.min_range_m + 0.1 || beta.abs() > half_fov || !seen.contains(&beta) {
+            if rho < sens.min_range_m + 0.1
+                || beta.abs() > half_fov
+                || !(sweep.is_closed() || seen.contains(&sweep.unwrap(beta)))
+            {
                 return;
             }
             if !lm.visible_from(&s, 0.09, 0.05) || self.map.occluded(&s, &lm.position, 0.05) {
                 return;
             }
-            let Some(c) = scan.beam_at(beta) else {
+            let Some(c) = sweep.beam_at(beta) else {
                 return;
             };
-            let half = ((0.5 * self.map.reflector_width_m / rho) / step).ceil() as usize + 1;
-            let lo = c.saturating_sub(half);
-            let hi = (c + half).min(scan.ranges_m.len() - 1);
+            let half = ((0.5 * self.map.reflector_width_m / rho) / step).ceil() as isize + 1;
             let mut seen_through = false;
-            for k in lo..=hi {
-                let r = scan.ranges_m[k];
+            for k in (c as isize - half..=c as isize + half).filter_map(|k| sweep.neighbour(k)) {
+                let r = sweep.range_m(k);
                 if r < sens.min_range_m {
                     continue;
                 }
                 if r < rho - 0.15 {
                     return; // something unmapped in front of it
                 }
-                if scan.intensities[k] >= sens.intensity_min && (r - rho).abs() < 0.3 {
+                if sweep.intensity(k) >= sens.intensity_min && (r - rho).abs() < 0.3 {
                     return; // a reflective return is there (detection rejected or not matched)
                 }
                 seen_through = true;

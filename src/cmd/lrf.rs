@@ -7,7 +7,7 @@ use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_intensity_scale, check_map_report, check_range_unit, check_scan_times,
     evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localizer,
-    LocalizerConfig, Map, SensorConfig, Status, DEFAULT_TOLERANCE_M,
+    LocalizerConfig, Map, ScanFiles, SensorConfig, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -128,7 +128,14 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     cfg.sensor.check()?;
     let map = Map::read(&a.map)?;
     warn_isolated(&map, &a.map.display().to_string(), a.max_range_m);
-    let (scans, step_rad) = read_scan_files(&a.scans)?;
+    let ScanFiles {
+        scans,
+        step_rad,
+        reversed_note,
+    } = read_scan_files(&a.scans)?;
+    if let Some(note) = reversed_note {
+        tell!("note: {note}");
+    }
     check_range_unit(&scans, a.max_range_m)?;
     check_scan_times(&scans, a.rate_hz)?;
     if let Some(step) = step_rad {
