@@ -38,6 +38,7 @@ fn sim_dataset(n: usize, seed: u64) -> Dataset {
         samples.push(Sample {
             run_id: format!("run{:03}", i + 1),
             speed_mps: run.speed_mps,
+            speed_commanded: true,
             inputs: f.inputs.to_vec(),
             target_m: [run.end_in_start_frame.x_m, run.end_in_start_frame.y_m],
             raw_end_m: f.raw_end_m,

@@ -684,12 +684,23 @@ fn recording_with_gap(
     id: &str,
     to: &std::path::Path,
 ) -> (std::path::PathBuf, std::path::PathBuf, usize) {
+    recording_with_gap_at(from, id, to, None)
+}
+
+/// [`recording_with_gap`] with data rows `m` and `m + 1` (0-based) cut, the middle ones when
+/// `None`.
+fn recording_with_gap_at(
+    from: &std::path::Path,
+    id: &str,
+    to: &std::path::Path,
+    m: Option<usize>,
+) -> (std::path::PathBuf, std::path::PathBuf, usize) {
     std::fs::create_dir_all(to).unwrap();
     let log = std::fs::read_to_string(from.join(format!("runs/{id}.odometry.csv"))).unwrap();
     let lines: Vec<&str> = log.lines().collect();
     // Data row m (0-based) is at index m + 1 of the lines; rows m and m + 1 go, so line m + 1
     // (numbered from 1) is the last before the gap.
-    let m = lines.len() / 2;
+    let m = m.unwrap_or(lines.len() / 2);
     let kept: Vec<&str> = lines
         .iter()
         .enumerate()
@@ -737,10 +748,12 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
         ];
         args.extend(extra);
         let e = fails(&args);
+        // The log is at fault, not the model.
         assert_eq!(
             e.trim_end(),
             format!(
-                "odocal: error: {model}: model: run \"run001\" of {}: {gap}",
+                "odocal: error: {} (run \"run001\" of {}): {gap}",
+                p(&odo),
                 p(&manifest)
             ),
             "{args:?}"
@@ -748,7 +761,37 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
         assert!(!out.exists(), "nothing is written on refusal");
     }
     let e = fails(&["correct", "--model", &model, p(&odo)]);
-    assert!(e.contains(&format!(": {gap}")), "{e}");
+    assert_eq!(e.trim_end(), format!("odocal: error: {}: {gap}", p(&odo)));
+    // Rows lost while the robot stands at the start (t = 0.2, 0.4 s, all counts 0) change no
+    // dead reckoning: the log is judged and corrected as the whole one is.
+    let (rest, rest_odo, _) =
+        recording_with_gap_at(&tours, "run001", &dir.path().join("rest"), Some(1));
+    let whole_manifest = dir.path().join("whole.json");
+    std::fs::write(
+        &whole_manifest,
+        r#"{"format":"odocal.manifest/1","runs":[{"id":"run001","trajectory":"tours/runs/run001.trajectory.csv","odometry":"tours/runs/run001.odometry.csv"}]}"#,
+    )
+    .unwrap();
+    let figures = |manifest: &std::path::Path| {
+        let said = ok(&["evaluate", p(manifest), "--model", &model]);
+        said.lines()
+            .filter(|l| l.contains("% of path"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let (with_gap, without) = (figures(&rest), figures(&whole_manifest));
+    assert!(with_gap.contains("perceptron 2-"), "{with_gap}");
+    assert_eq!(with_gap, without);
+    let end = |log: &std::path::Path| {
+        let said = ok(&["correct", "--model", &model, p(log)]);
+        said.lines()
+            .find(|l| l.contains("corrected"))
+            .unwrap_or_default()
+            .to_string()
+    };
+    let rest_end = end(&rest_odo);
+    assert!(!rest_end.is_empty());
+    assert_eq!(rest_end, end(&tours.join("runs/run001.odometry.csv")));
     // A log timed in milliseconds is off at every step: the unit is named, not a dropped row
     // between its first two rows.
     let log = std::fs::read_to_string(tours.join("runs/run001.odometry.csv")).unwrap();

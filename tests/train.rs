@@ -243,17 +243,42 @@ fn train_then_correct_a_log() {
     // A log inside the training domain is no guess.
     assert!(track.lines().skip(1).all(|l| l.ends_with(",0")), "{track}");
     assert!(track.lines().count() > 5);
-    // Two rows lost: the run's speeds would be read off a 0.6 s step as one 0.2 s step.
+    // Two rows lost while the wheels turn: the run's speeds would be read off a 0.6 s step as
+    // one 0.2 s step.
     let text = std::fs::read_to_string(&log).expect("log");
     let lines: Vec<&str> = text.lines().collect();
-    let gapped: Vec<&str> = lines[..6].iter().chain(&lines[8..]).copied().collect();
-    let gap = dir.path().join("gap.odometry.csv");
-    std::fs::write(&gap, gapped.join("\n") + "\n").expect("write");
+    let counts = |l: &str| l.split_once(',').map(|(_, c)| c.to_string());
+    let moves = (2..lines.len())
+        .find(|&i| counts(lines[i]) != counts(lines[1]))
+        .expect("the run moves");
+    assert!(moves > 4, "the robot stands still for the first rows");
+    let cut = |from: usize, name: &str| {
+        let gapped: Vec<&str> = lines[..from]
+            .iter()
+            .chain(&lines[from + 2..])
+            .copied()
+            .collect();
+        let gap = dir.path().join(name);
+        std::fs::write(&gap, gapped.join("\n") + "\n").expect("write");
+        gap
+    };
+    let gap = cut(moves + 2, "gap.odometry.csv");
     let e = fails(&["correct", "--model", p(&model), p(&gap)]);
     assert!(
-        e.contains("rows 6 and 7 are 0.600 s apart, but the robot logs every 0.200 s"),
+        e.contains(&format!(
+            "{}: rows {} and {} are 0.600 s apart, but the robot logs every 0.200 s",
+            p(&gap),
+            moves + 2,
+            moves + 3
+        )),
         "{e}"
     );
+    // Rows lost at rest (t = 0.2, 0.4 s, counts unchanged) change no dead reckoning, nor
+    // the run's features: the log is corrected as the whole one is.
+    let rest = cut(2, "rest.odometry.csv");
+    let corrected = ok(&["correct", "--model", p(&model), p(&rest)]);
+    assert!(corrected.contains("corrected end"), "{corrected}");
+    assert_eq!(corrected, ok(&["correct", "--model", p(&model), p(&log)]));
 
     // A model of another version, a log of another robot, a missing --out.
     let text = std::fs::read_to_string(&model).expect("model");

@@ -445,6 +445,7 @@ pub(crate) fn process_recording_at(
         out.push(RunOutcome::Sample(Box::new(Sample {
             run_id: id,
             speed_mps: rec.speed_mps.unwrap_or(odo_speed),
+            speed_commanded: rec.speed_mps.is_some(),
             inputs: odo.features(&geom).to_vec(),
             target_m: [rel.x_m, rel.y_m],
             raw_end_m: odo.end_m(&geom),
@@ -647,6 +648,7 @@ mod tests {
         assert_eq!(s.inputs.len(), N_INPUTS);
         assert_eq!(s.inputs[16], s.odometry.t_b());
         assert!(s.alignment_residual_mps < 0.05);
+        assert!(s.speed_mps == 0.5 && s.speed_commanded);
         let f = features_from_log(&log, &RobotParams::default()).unwrap();
         assert_eq!(f.inputs.to_vec(), s.inputs);
     }
@@ -735,6 +737,9 @@ mod tests {
         );
         assert!((s.target_m[0] - 1.5).abs() < 1e-6);
         assert!((s.odometry_speed_mps - 0.5).abs() < 0.05);
+        // No speed in the manifest: the odometry's stands in, marked as no command.
+        assert_eq!(s.speed_mps, s.odometry_speed_mps);
+        assert!(!s.speed_commanded);
     }
 
     #[test]

@@ -146,7 +146,10 @@ impl OdometryLog {
     /// 1.4 s step counted as one 200 ms step reads as seven times the speed) or an extra
     /// one would pass for a step of the robot's. A row logged late or early whose next row is
     /// back on time (steps of 1.6 and 0.4 periods: a logger's jitter, its counts read when
-    /// it was stamped) is no such step: the two steps span two periods, as they should.
+    /// it was stamped) is no such step: the two steps span two periods, as they should. Nor
+    /// is a step the wheels stand still across ([`Self::rests_across`]): no travel is misread
+    /// there, and every pose odocal takes from a log is placed by time, so a row lost at rest
+    /// changes no dead reckoning, feature or window.
     pub fn off_period_step(
         &self,
         first: usize,
@@ -159,7 +162,7 @@ impl OdometryLog {
         let off = |dt: f64, periods: f64| (dt - periods * period_s).abs() > tolerance * period_s;
         let mut k = first + 1;
         while k <= last {
-            if off(step(k), 1.0) {
+            if off(step(k), 1.0) && !self.rests_across(k) {
                 if k + 1 < self.t_s.len() && !off(step(k) + step(k + 1), 2.0) {
                     k += 2;
                     continue;
@@ -353,6 +356,20 @@ impl OdometryLog {
         s
     }
 
+    /// Whether the wheels stand still across the step ending at row `k` (k ≥ 1), however
+    /// long it is: a tick log's counts do not change over it; a speed log's rows on both
+    /// sides of it read rest, since its speeds hold nothing of the rows lost in between.
+    pub fn rests_across(&self, k: usize) -> bool {
+        let rest = |i: usize| {
+            self.left[i].abs() <= SPEED_REST_THRESHOLD_MPS
+                && self.right[i].abs() <= SPEED_REST_THRESHOLD_MPS
+        };
+        match self.kind {
+            LogKind::Ticks => !self.moving_at(k),
+            LogKind::Speeds => rest(k - 1) && rest(k),
+        }
+    }
+
     /// Whether the robot moved in the interval ending at row `i` (i ≥ 1).
     pub fn moving_at(&self, i: usize) -> bool {
         match self.kind {
@@ -461,9 +478,10 @@ mod tests {
 
     #[test]
     fn a_late_row_back_on_time_is_jitter_not_a_lost_row() {
+        // The wheels turn 3 ticks a row: every step is motion.
         let log = |t: &[f64]| {
-            let n = t.len();
-            OdometryLog::from_ticks(t.to_vec(), vec![0; n], vec![0; n]).unwrap()
+            let ticks: Vec<i64> = (0..t.len() as i64).map(|i| 3 * i).collect();
+            OdometryLog::from_ticks(t.to_vec(), ticks.clone(), ticks).unwrap()
         };
         let step = |t: &[f64]| log(t).off_period_step(0, t.len(), 0.2, STEP_TOLERANCE_PERIODS);
         // 120 ms late, then back on time; 150 ms early likewise.
@@ -475,6 +493,31 @@ mod tests {
         assert_eq!(step(&[0.0, 0.2, 0.3, 0.4, 0.6]).map(|s| s.0), Some(2));
         // Late on the last row, with no row to take it back.
         assert_eq!(step(&[0.0, 0.2, 0.52]).map(|s| s.0), Some(2));
+    }
+
+    #[test]
+    fn a_row_lost_while_the_wheels_stand_still_is_no_gap() {
+        let t = vec![0.0, 0.6, 0.8, 1.0, 1.6, 1.8];
+        let step = |log: OdometryLog| log.off_period_step(0, 6, 0.2, STEP_TOLERANCE_PERIODS);
+        // Counts unchanged across the 0.6 s step at the start: no travel is misread; the one
+        // while moving (rows 4 and 5) is refused.
+        let ticks = |l: Vec<i64>| OdometryLog::from_ticks(t.clone(), l.clone(), l).unwrap();
+        assert_eq!(step(ticks(vec![0, 0, 0, 3, 9, 12])).map(|s| s.0), Some(4));
+        // Moving across it, the first is refused as the second is.
+        assert_eq!(
+            step(ticks(vec![0, 9, 12, 15, 21, 24])).map(|s| s.0),
+            Some(1)
+        );
+        // A speed log holds nothing of the rows lost: rest on both sides of the step.
+        let speeds = |v: Vec<f64>| OdometryLog::from_speeds(t.clone(), v.clone(), v).unwrap();
+        assert_eq!(
+            step(speeds(vec![0.0, 0.0, 0.1, 0.1, 0.1, 0.1])).map(|s| s.0),
+            Some(4)
+        );
+        assert_eq!(
+            step(speeds(vec![0.1, 0.0, 0.1, 0.1, 0.1, 0.1])).map(|s| s.0),
+            Some(1)
+        );
     }
 
     #[test]

@@ -48,8 +48,14 @@ impl Default for RobotParams {
 pub struct Sample {
     /// Run identifier from the manifest.
     pub run_id: String,
-    /// Commanded speed, m/s.
+    /// Commanded speed, m/s: the manifest's `speed_mps`, or the odometry's cruise speed
+    /// when the manifest gives none ([`Self::speed_commanded`] false).
     pub speed_mps: f64,
+    /// Whether `speed_mps` is the manifest's commanded speed. The odometry's cruise speeds
+    /// differ run to run by noise, so grouping errors by them would pretend as many commands
+    /// as there are runs. Datasets written before this was recorded read as commanded.
+    #[serde(default = "commanded")]
+    pub speed_commanded: bool,
     /// The 18 inputs in the source's order (see [`FEATURE_RULE`]).
     pub inputs: Vec<f64>,
     /// Target: the real end position (x, y) in the run's start frame, metres.
@@ -94,6 +100,10 @@ pub struct Sample {
     /// other wheel geometry (calibration baselines, the oracle).
     #[serde(default)]
     pub odometry: RunOdometry,
+}
+
+fn commanded() -> bool {
+    true
 }
 
 /// A run that could not be turned into a sample, and why.

@@ -85,7 +85,8 @@ fn check_square_side(
 /// Judges a held-out log against the model's training domain as `odocal correct` does: the
 /// perceptron's figures on a log it was not trained for would be read as its accuracy.
 /// Refused unless --allow-extrapolation, when it is flagged and the reasons returned; a log
-/// with a gap is refused either way, as its steps' speeds would be misread.
+/// with a gap is refused either way, as its steps' speeds would be misread, and the log is
+/// named for it, not the model.
 fn outside_domain(
     model: &PathModelFile,
     rec: &PathRecording,
@@ -93,6 +94,9 @@ fn outside_domain(
     args: &Args,
 ) -> anyhow::Result<Vec<String>> {
     let name = format!("run \"{}\" of {}", rec.id, args.manifest.display());
+    if let Some(why) = odocal_trainer::log_steps::log_step_problem(&rec.log, robot) {
+        bail!("{} ({name}): {why}", rec.log_file.display());
+    }
     let why = model
         .check_domain(&rec.log, robot, &name, args.allow_extrapolation)
         .with_context(|| format!("{}", args.model.display()))?;

@@ -91,7 +91,8 @@ pub struct MethodRow {
     pub n_samples: usize,
     /// Mean real path length, m.
     pub mean_distance_m: f64,
-    /// The same metrics per commanded speed.
+    /// The same metrics per commanded speed (empty when runs have none:
+    /// [`SweepReport::per_speed_left_out`]).
     pub per_speed: Vec<SpeedRow>,
 }
 
@@ -149,6 +150,9 @@ pub struct SweepReport {
     /// folds: the inner CV needs two folds besides the outer test fold).
     #[serde(default)]
     pub nested: Vec<NestedChoice>,
+    /// Why Table 2 has no rows per commanded speed ([`per_speed_left_out`]); None when it has.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub per_speed_left_out: Option<String>,
     /// The kinematic calibration fitted on all samples (for a ROS diff_drive_controller).
     pub kinematic_calibration: KinematicCalibration,
     /// Warnings (e.g. parameter count near the number of residuals).
@@ -275,12 +279,28 @@ struct TaskOut {
     pred: Vec<(usize, [f64; 2])>,
 }
 
+/// Why errors cannot be given per commanded speed: runs whose manifest row has no
+/// `speed_mps`, whose speed is then the odometry's cruise speed, which noise spreads over
+/// nearly as many values as runs (0.17, 0.18, 0.20 m/s for one command of 0.2). None when every
+/// run has its command.
+pub fn per_speed_left_out(samples: &[Sample]) -> Option<String> {
+    let n = samples.iter().filter(|s| !s.speed_commanded).count();
+    (n > 0).then(|| {
+        format!(
+            "{n} of the {} runs have no speed_mps in the manifest, and their odometry's average speeds are no commanded speeds; give every run's speed_mps in the manifest for this table",
+            samples.len()
+        )
+    })
+}
+
 fn method_row(name: &str, samples: &[Sample], preds: &[Vec<[f64; 2]>]) -> MethodRow {
     let all: Vec<&Sample> = samples.iter().collect();
     let ms: Vec<Metrics> = preds.iter().map(|p| Metrics::of(&all, p)).collect();
     let mut groups: BTreeMap<i64, Vec<usize>> = BTreeMap::new();
-    for (i, s) in samples.iter().enumerate() {
-        groups.entry(speed_key(s)).or_default().push(i);
+    if per_speed_left_out(samples).is_none() {
+        for (i, s) in samples.iter().enumerate() {
+            groups.entry(speed_key(s)).or_default().push(i);
+        }
     }
     let per_speed = groups
         .iter()
@@ -686,6 +706,7 @@ pub fn sweep(
         table2,
         inner_restarts,
         nested,
+        per_speed_left_out: per_speed_left_out(samples),
         kinematic_calibration,
         warnings,
         verdict,
@@ -896,6 +917,53 @@ mod tests {
             mean_distance_m: 1.5,
             per_speed: Vec::new(),
         }
+    }
+
+    #[test]
+    fn errors_are_given_per_commanded_speed_only() {
+        let sample = |v: f64, commanded: bool| Sample {
+            run_id: "r".into(),
+            speed_mps: v,
+            speed_commanded: commanded,
+            target_m: [1.0, 0.0],
+            raw_end_m: [1.1, 0.0],
+            path_length_m: 1.0,
+            ..Sample::default()
+        };
+        let preds = vec![vec![[1.05, 0.0]; 5]];
+        // Three commands, 0.2, 0.5 and 0.7 m/s: one column each.
+        let commanded: Vec<Sample> = [0.2, 0.2, 0.5, 0.5, 0.7]
+            .iter()
+            .map(|&v| sample(v, true))
+            .collect();
+        assert_eq!(per_speed_left_out(&commanded), None);
+        let row = method_row("raw odometry", &commanded, &preds);
+        let cols: Vec<(f64, usize)> = row.per_speed.iter().map(|p| (p.speed_mps, p.n)).collect();
+        assert_eq!(cols, [(0.2, 2), (0.5, 2), (0.7, 1)]);
+        assert!(row
+            .per_speed
+            .iter()
+            .all(|p| (p.rel_error - 0.05).abs() < 1e-12));
+        // The odometry's average speeds of one command of 0.2 m/s are no three commands.
+        let measured: Vec<Sample> = [0.17, 0.18, 0.20, 0.48, 0.66]
+            .iter()
+            .map(|&v| sample(v, false))
+            .collect();
+        assert!(method_row("raw odometry", &measured, &preds)
+            .per_speed
+            .is_empty());
+        assert_eq!(
+            per_speed_left_out(&measured).unwrap(),
+            "5 of the 5 runs have no speed_mps in the manifest, and their odometry's average speeds are no commanded speeds; give every run's speed_mps in the manifest for this table"
+        );
+        // A dataset written before the flag was recorded keeps its table.
+        let mut old = serde_json::to_value(sample(0.2, false)).unwrap();
+        old.as_object_mut().unwrap().remove("speed_commanded");
+        assert!(
+            serde_json::from_value::<Sample>(old)
+                .unwrap()
+                .speed_commanded
+        );
     }
 
     #[test]

@@ -27,6 +27,8 @@ pub struct PathRecording {
     pub id: String,
     /// The robot's log.
     pub log: OdometryLog,
+    /// The log's file, as the manifest resolves it (what a message on the log names).
+    pub log_file: std::path::PathBuf,
     /// The camera's trajectory.
     pub camera: Trajectory,
 }
@@ -47,9 +49,11 @@ impl PathRecording {
                     )));
                 };
                 let dataset = |e: odocal_dataset::DatasetError| TrainError::Dataset(e.to_string());
+                let log_file = m.resolve(&row.odometry);
                 Ok(Self {
                     id: row.id.clone(),
-                    log: OdometryLog::read_csv(&m.resolve(&row.odometry)).map_err(dataset)?,
+                    log: OdometryLog::read_csv(&log_file).map_err(dataset)?,
+                    log_file,
                     camera: Trajectory::read_csv(&m.resolve(traj))?,
                 })
             })

@@ -11,7 +11,7 @@ pub mod error;
 pub mod evaluate;
 mod fit_model;
 pub mod kernel_ridge;
-mod log_steps;
+pub mod log_steps;
 pub mod metrics;
 pub mod model;
 pub mod net;

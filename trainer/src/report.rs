@@ -76,7 +76,12 @@ pub fn table2_markdown(r: &SweepReport) -> String {
         .first()
         .map(|m| m.per_speed.iter().map(|p| p.speed_mps).collect())
         .unwrap_or_default();
-    if !speeds.is_empty() {
+    if let Some(why) = &r.per_speed_left_out {
+        let _ = writeln!(
+            s,
+            "\nRelative error (%) per commanded speed: left out ({why})."
+        );
+    } else if !speeds.is_empty() {
         let _ = writeln!(s, "\nRelative error (%) per commanded speed:\n");
         let mut head = String::from("| method |");
         let mut sep = String::from("|---|");

@@ -158,6 +158,11 @@ pub fn training_section(r: &SweepReport) -> Result<Section, ReportError> {
                 .collect(),
         }));
     }
+    if let Some(why) = &r.per_speed_left_out {
+        s.blocks.push(Block::Note(format!(
+            "Relative end-point error per commanded speed left out: {why}."
+        )));
+    }
     if let Some(first) = r.table2.first() {
         if !first.per_speed.is_empty() {
             let mut header = vec!["method".to_string()];
