@@ -245,10 +245,10 @@ fn a_second_tag_of_the_id_is_never_followed_and_is_named() {
         }
     }
     // Someone stands over the robot in frames 14 to 23.
-    for k in 14..24 {
-        let (x, y, side) = around(k, 50);
+    for f in &mut frames[14..24] {
+        let (x, y, side) = around(f.index, 50);
         for r in 0..side {
-            frames[k].image.data[(y + r) * width + x..][..side].fill(128);
+            f.image.data[(y + r) * width + x..][..side].fill(128);
         }
     }
     let res = track(&cfg, frames, &TrackOptions::default());
