@@ -407,7 +407,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         r => r?,
     };
     let trajectory = result.trajectory()?;
-    for w in fix_warnings(&result, &camera_file, &floor, &opts) {
+    let other_tag = result.other_tag_warning(opts.tag_id);
+    for w in other_tag
+        .into_iter()
+        .chain(fix_warnings(&result, &camera_file, &floor, &opts))
+    {
         tell!("warning: {}: {w}", args.video.display());
         warnings.push(w);
     }

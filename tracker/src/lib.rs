@@ -37,6 +37,7 @@ pub use source::{
 };
 pub use timing::{DroppedFrames, TimingReport};
 pub use track::{
-    track_source, Fix, FrameRecord, Gap, GapReason, Outcome, TrackOptions, TrackResult, Tracker,
+    track_source, Fix, FrameRecord, Gap, GapReason, OtherTag, Outcome, TrackOptions, TrackResult,
+    Tracker,
 };
 pub use vouched::UnvouchedFixes;

@@ -230,5 +230,6 @@ fn gap(frame: &Frame, reason: GapReason) -> FrameRecord {
         t_s: frame.t_s,
         outcome: Outcome::Gap(reason),
         rejected: None,
+        other_tag: None,
     }
 }

@@ -204,6 +204,11 @@ pub enum GapReason {
     /// damaged frame the decoder completed from the one before). A pose from it would belong
     /// to an earlier time.
     RepeatedImage,
+    /// Tags of the tracked id were in view, but none the track could tell for the robot's:
+    /// two or more with no track to pick one (at the start, or after it was lost), or only
+    /// one lying where another tag of the id was seen beside the track. A robot carries one
+    /// tag of its id, and a track started on the other one would follow it.
+    OtherTagOfId,
 }
 
 impl GapReason {
@@ -216,6 +221,7 @@ impl GapReason {
             Self::Jump => "impossible jump",
             Self::DuplicateTime => "duplicate timestamp",
             Self::RepeatedImage => "repeated image",
+            Self::OtherTagOfId => "another tag of the id in view",
         }
     }
 }
@@ -287,6 +293,18 @@ pub struct FrameRecord {
     pub outcome: Outcome,
     /// For a gap where the tag was detected but rejected: the detection's figures.
     pub rejected: Option<Rejected>,
+    /// Another tag of the tracked id seen in this frame besides the one tracked (or, in an
+    /// [`GapReason::OtherTagOfId`] gap, one of those in view).
+    pub other_tag: Option<OtherTag>,
+}
+
+/// Where a second tag of the tracked id was seen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OtherTag {
+    /// Centre of its corners, pixels.
+    pub centre_px: Point2<f64>,
+    /// Its centre on the floor (at the marker height), metres.
+    pub floor_m: Option<Point2<f64>>,
 }
 
 /// A run of consecutive frames without a pose.
@@ -323,7 +341,21 @@ pub struct Tracker {
     intrinsics_covariance: Option<nalgebra::DMatrix<f64>>,
     /// Which of the search directions the whole-frame blurred search tries next.
     blurred_search_turn: usize,
+    /// Frames since the last whole-frame search.
+    frames_since_search: usize,
+    /// Where other tags of the tracked id were seen beside the track (pixels, newest last):
+    /// a (re)start is never made on a tag there.
+    other_places_px: Vec<Point2<f64>>,
 }
+
+/// While the ROI follows the tag, a whole-frame search runs every this many frames: a second
+/// tag of the id coming into view is seen only by it, and known, it is never taken for the
+/// robot when the track is lost (a third of a second at 30 frames/s, a tenth of a
+/// whole-frame search's cost per frame).
+const PATROL_FRAMES: usize = 10;
+
+/// The most places of other tags of the id remembered.
+const OTHER_PLACES: usize = 16;
 
 /// Farthest a tag may sit from the robot's axle midpoint, metres: beyond it the offset is
 /// not a small robot's (or was given in centimetres).
@@ -410,6 +442,8 @@ impl Tracker {
             residual_pool: (0.0, 0.0),
             intrinsics_covariance: None,
             blurred_search_turn: 0,
+            frames_since_search: 0,
+            other_places_px: Vec::new(),
         };
         if let Some(cov) = covariance {
             tracker.set_intrinsics_covariance(cov)?;
@@ -493,7 +527,7 @@ impl Tracker {
         &mut self,
         frame: &Frame,
         ids: &mut Vec<u32>,
-    ) -> Result<Option<TagDetection>, TrackError> {
+    ) -> Result<Vec<TagDetection>, TrackError> {
         let (w, h) = (frame.image.width, frame.image.height);
         let whole = Roi {
             x0: 0,
@@ -508,7 +542,7 @@ impl Tracker {
         let tries = if recently { 4 } else { 1 };
         self.detector
             .set_decimate(self.opts.search_decimate.max(1.0));
-        let mut found = None;
+        let mut found = Vec::new();
         for _ in 0..tries {
             let dir = SEARCH_DIRECTIONS[self.blurred_search_turn % 4];
             self.blurred_search_turn += 1;
@@ -524,13 +558,100 @@ impl Tracker {
                 }
             };
             ids.extend(dets.iter().map(|d| d.id));
-            found = self.pick(&dets, None);
-            if found.is_some() {
+            found = self.of_id(&dets);
+            if !found.is_empty() {
                 break;
             }
         }
         self.detector.set_decimate(1.0);
         Ok(found)
+    }
+
+    /// The tags of the tracked id a whole-frame search finds (decimated; with `blurred`,
+    /// through [`Self::search_blurred`] when none), every id seen added to `ids`.
+    fn search_whole(
+        &mut self,
+        frame: &Frame,
+        ids: &mut Vec<u32>,
+        blurred: bool,
+    ) -> Result<Vec<TagDetection>, TrackError> {
+        self.frames_since_search = 0;
+        self.detector
+            .set_decimate(self.opts.search_decimate.max(1.0));
+        let dets = self.detector.detect(&frame.image, None);
+        self.detector.set_decimate(1.0);
+        let dets = dets?;
+        ids.extend(dets.iter().map(|d| d.id));
+        let same = self.of_id(&dets);
+        if same.is_empty() && blurred {
+            return self.search_blurred(frame, ids);
+        }
+        Ok(same)
+    }
+
+    fn of_id(&self, dets: &[TagDetection]) -> Vec<TagDetection> {
+        dets.iter()
+            .filter(|d| d.id == self.opts.tag_id)
+            .copied()
+            .collect()
+    }
+
+    /// Which of the tags of the id a whole-frame search found (`same`) is the robot's, the
+    /// others, and whether none was taken because another was in view. A tag where another
+    /// of the id was seen beside the track is never taken: the ROI search, which follows the
+    /// robot over that place, did not find it there. Of the rest the track's motion picks the
+    /// one nearest `predicted_px`; without it (a start, a restart, a track lost for a while)
+    /// one alone is taken: a robot carries one tag of its id, so with two in view which is
+    /// the robot's cannot be told, and a track started on the other would follow it.
+    fn choose(
+        &self,
+        same: Vec<TagDetection>,
+        predicted_px: Option<Point2<f64>>,
+    ) -> (Option<TagDetection>, Vec<TagDetection>, bool) {
+        let (known, mut candidates): (Vec<_>, Vec<_>) =
+            same.into_iter().partition(|d| self.at_other_place(d));
+        if let Some(p) = predicted_px {
+            let chosen = self.pick(&candidates, Some(p));
+            candidates.retain(|d| chosen.is_none_or(|c| !same_place(d, &c.centre_px())));
+            candidates.extend(known);
+            let refused = chosen.is_none() && !candidates.is_empty();
+            return (chosen, candidates, refused);
+        }
+        match candidates.len() {
+            1 => (candidates.pop(), known, false),
+            0 => {
+                let refused = !known.is_empty();
+                (None, known, refused)
+            }
+            _ => {
+                candidates.extend(known);
+                (None, candidates, true)
+            }
+        }
+    }
+
+    /// Whether `d` lies where another tag of the id was seen beside the track.
+    fn at_other_place(&self, d: &TagDetection) -> bool {
+        self.other_places_px.iter().any(|p| same_place(d, p))
+    }
+
+    fn remember_other_place(&mut self, d: &TagDetection) {
+        if !self.at_other_place(d) {
+            if self.other_places_px.len() >= OTHER_PLACES {
+                self.other_places_px.remove(0);
+            }
+            self.other_places_px.push(d.centre_px());
+        }
+    }
+
+    fn other_tag(&self, d: &TagDetection) -> OtherTag {
+        let centre_px = d.centre_px();
+        OtherTag {
+            centre_px,
+            floor_m: self
+                .camera
+                .pixel_to_floor(&self.floor, &centre_px, self.opts.marker_height_m),
+        }
     }
 
     /// The unit image direction in which the tag moves, from the last fix to `predicted`.
@@ -563,7 +684,6 @@ impl Tracker {
 
     /// Tracks one frame.
     pub fn process(&mut self, frame: &Frame) -> Result<FrameRecord, TrackError> {
-        let (w, h) = (frame.image.width, frame.image.height);
         let recent = self
             .last_fix_index
             .is_some_and(|i| frame.index.saturating_sub(i) <= 5);
@@ -572,105 +692,145 @@ impl Tracker {
         } else {
             None
         };
+        // Where the track's motion puts the tag: of several tags of the id, it picks one.
+        let predicted_px = prediction.and_then(|(pose, _, _)| {
+            self.camera
+                .floor_to_pixel(&self.floor, &pose.position(), self.opts.marker_height_m)
+        });
+        self.frames_since_search += 1;
         let mut ids_in_frame: Vec<u32> = Vec::new();
         let mut found: Option<(TagDetection, bool)> = None;
+        let mut others: Vec<TagDetection> = Vec::new();
+        let mut refused = false;
         if self.opts.use_roi {
             if let Some((pose, side, step)) = prediction {
-                let px_per_m = side / self.opts.tag_size_m;
-                if let Some(roi) = self.roi_around(&pose, side, 0.5 * step * px_per_m, w, h) {
-                    // Decimated first: a quarter of the pixels for the quad search, and the
-                    // corners come from the edge refit at full resolution all the same. Then
-                    // full resolution, then a quad blur against noise.
-                    for (decimate, sigma) in ROI_SEARCHES {
-                        if found.is_some() {
-                            break;
-                        }
-                        self.detector.set_decimate(decimate);
-                        self.detector.set_quad_sigma(sigma);
-                        let dets = self.detector.detect(&frame.image, Some(roi));
-                        self.detector.set_decimate(1.0);
-                        self.detector.set_quad_sigma(0.0);
-                        let dets = dets?;
-                        ids_in_frame.extend(dets.iter().map(|d| d.id));
-                        found = self.pick(&dets, None).map(|d| (d, true));
-                    }
-                    if found.is_none() {
-                        // Along the track's motion with every trial first, then along each
-                        // search direction with the likeliest ones (the motion may have turned):
-                        // still far cheaper than a search of the whole frame.
-                        let mut dirs: Vec<(nalgebra::Vector2<f64>, usize)> = Vec::new();
-                        if let Some(d) = self.image_motion(&pose) {
-                            dirs.push((d, DEBLUR_TRIALS.len()));
-                        }
-                        dirs.extend(SEARCH_DIRECTIONS.iter().map(|&d| (d.into(), 2)));
-                        'trials: for (dir, n_trials) in dirs {
-                            for &(len, nsr, sigma) in &DEBLUR_TRIALS[..n_trials] {
-                                self.detector.set_quad_sigma(sigma);
-                                let dets = self.detector.detect_deblurred(
-                                    &frame.image,
-                                    roi,
-                                    dir,
-                                    len,
-                                    nsr,
-                                );
-                                self.detector.set_quad_sigma(0.0);
-                                let dets = dets?;
-                                ids_in_frame.extend(dets.iter().map(|d| d.id));
-                                found = self.pick(&dets, None).map(|d| (d, true));
-                                if found.is_some() {
-                                    break 'trials;
-                                }
-                            }
-                        }
-                    }
-                }
+                found = self
+                    .search_roi(frame, &pose, side, step, predicted_px, &mut ids_in_frame)?
+                    .map(|d| (d, true));
             }
-            if found.is_none() {
+            let patrol = found.is_some() && self.frames_since_search >= PATROL_FRAMES;
+            if let Some((d, _)) = found.filter(|_| patrol) {
+                others = self
+                    .search_whole(frame, &mut ids_in_frame, false)?
+                    .into_iter()
+                    .filter(|o| !same_place(o, &d.centre_px()))
+                    .collect();
+            } else if found.is_none() {
                 // Lost: search the whole frame (decimated), then refine in a ROI at full resolution.
-                self.detector
-                    .set_decimate(self.opts.search_decimate.max(1.0));
-                let dets = self.detector.detect(&frame.image, None);
-                self.detector.set_decimate(1.0);
-                let dets = dets?;
-                ids_in_frame.extend(dets.iter().map(|d| d.id));
-                let mut coarse = self.pick(&dets, None);
-                if coarse.is_none() {
-                    coarse = self.search_blurred(frame, &mut ids_in_frame)?;
-                }
-                if let Some(coarse) = coarse {
-                    found = Some((coarse, false));
-                    if self.opts.search_decimate > 1.0 {
-                        if let Some(roi) =
-                            Roi::around(coarse.centre_px(), 1.1 * coarse.side_px() + 12.0, w, h)
-                        {
-                            let fine = self.detector.detect(&frame.image, Some(roi))?;
-                            if let Some(d) = self.pick(&fine, Some(coarse.centre_px())) {
-                                found = Some((d, false));
-                            }
-                        }
-                    }
+                let same = self.search_whole(frame, &mut ids_in_frame, true)?;
+                let (chosen, rest, no_pick) = self.choose(same, predicted_px);
+                (others, refused) = (rest, no_pick);
+                if let Some(coarse) = chosen {
+                    found = Some((self.refine(frame, coarse)?, false));
                 }
             }
         } else {
+            self.frames_since_search = 0;
             let dets = self.detector.detect(&frame.image, None)?;
             ids_in_frame.extend(dets.iter().map(|d| d.id));
-            found = self.pick(&dets, None).map(|d| (d, false));
+            let (chosen, rest, no_pick) = self.choose(self.of_id(&dets), predicted_px);
+            (others, refused) = (rest, no_pick);
+            found = chosen.map(|d| (d, false));
         }
         ids_in_frame.sort_unstable();
         ids_in_frame.dedup();
         for id in ids_in_frame {
             *self.seen.entry(id).or_insert(0) += 1;
         }
+        let other_tag = others.first().map(|d| self.other_tag(d));
         let (outcome, rejected) = match found {
+            None if refused => (Outcome::Gap(GapReason::OtherTagOfId), None),
             None => (Outcome::Gap(GapReason::NotDetected), None),
-            Some((d, from_roi)) => self.grade(frame, d, from_roi),
+            Some((d, from_roi)) => {
+                let graded = self.grade(frame, d, from_roi);
+                if matches!(graded.0, Outcome::Fix(_)) {
+                    for o in &others {
+                        self.remember_other_place(o);
+                    }
+                }
+                graded
+            }
         };
         Ok(FrameRecord {
             index: frame.index,
             t_s: frame.t_s,
             outcome,
             rejected,
+            other_tag,
         })
+    }
+
+    /// The tag in a region of interest around the predicted `pose` (decimated first, then at
+    /// full resolution, then through a motion blur), the one nearest `predicted_px` when
+    /// there are several.
+    fn search_roi(
+        &mut self,
+        frame: &Frame,
+        pose: &Pose2,
+        side: f64,
+        step: f64,
+        predicted_px: Option<Point2<f64>>,
+        ids_in_frame: &mut Vec<u32>,
+    ) -> Result<Option<TagDetection>, TrackError> {
+        let (w, h) = (frame.image.width, frame.image.height);
+        let px_per_m = side / self.opts.tag_size_m;
+        let Some(roi) = self.roi_around(pose, side, 0.5 * step * px_per_m, w, h) else {
+            return Ok(None);
+        };
+        // Decimated first: a quarter of the pixels for the quad search, and the
+        // corners come from the edge refit at full resolution all the same. Then
+        // full resolution, then a quad blur against noise.
+        for (decimate, sigma) in ROI_SEARCHES {
+            self.detector.set_decimate(decimate);
+            self.detector.set_quad_sigma(sigma);
+            let dets = self.detector.detect(&frame.image, Some(roi));
+            self.detector.set_decimate(1.0);
+            self.detector.set_quad_sigma(0.0);
+            let dets = dets?;
+            ids_in_frame.extend(dets.iter().map(|d| d.id));
+            if let Some(d) = self.pick(&dets, predicted_px) {
+                return Ok(Some(d));
+            }
+        }
+        // Along the track's motion with every trial first, then along each
+        // search direction with the likeliest ones (the motion may have turned):
+        // still far cheaper than a search of the whole frame.
+        let mut dirs: Vec<(nalgebra::Vector2<f64>, usize)> = Vec::new();
+        if let Some(d) = self.image_motion(pose) {
+            dirs.push((d, DEBLUR_TRIALS.len()));
+        }
+        dirs.extend(SEARCH_DIRECTIONS.iter().map(|&d| (d.into(), 2)));
+        for (dir, n_trials) in dirs {
+            for &(len, nsr, sigma) in &DEBLUR_TRIALS[..n_trials] {
+                self.detector.set_quad_sigma(sigma);
+                let dets = self
+                    .detector
+                    .detect_deblurred(&frame.image, roi, dir, len, nsr);
+                self.detector.set_quad_sigma(0.0);
+                let dets = dets?;
+                ids_in_frame.extend(dets.iter().map(|d| d.id));
+                if let Some(d) = self.pick(&dets, predicted_px) {
+                    return Ok(Some(d));
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// A tag found by the decimated whole-frame search, read again at full resolution in a
+    /// ROI around it (itself when that finds nothing).
+    fn refine(&mut self, frame: &Frame, coarse: TagDetection) -> Result<TagDetection, TrackError> {
+        let (w, h) = (frame.image.width, frame.image.height);
+        if self.opts.search_decimate > 1.0 {
+            if let Some(roi) = Roi::around(coarse.centre_px(), 1.1 * coarse.side_px() + 12.0, w, h)
+            {
+                let fine = self.detector.detect(&frame.image, Some(roi))?;
+                if let Some(d) = self.pick(&fine, Some(coarse.centre_px())) {
+                    return Ok(d);
+                }
+            }
+        }
+        Ok(coarse)
     }
 
     /// Under a rolling shutter each corner was read at its own row's time: see [`unshear`],
@@ -851,6 +1011,11 @@ impl Tracker {
     }
 }
 
+/// Whether the tag `d` lies at `centre_px` (within half its side).
+fn same_place(d: &TagDetection, centre_px: &Point2<f64>) -> bool {
+    (d.centre_px() - centre_px).norm() < 0.5 * d.side_px()
+}
+
 /// Moves each corner of a tag read under a rolling shutter (`readout_s` from the first row
 /// to the last, negative when read from the bottom up: a row below is then read earlier) back
 /// along the tag's image motion to where it was when the tag centre's row
@@ -1020,6 +1185,12 @@ impl TrackResult {
                         " (faster than --max-speed {} m/s between detections)",
                         opts.max_speed_mps
                     ),
+                    GapReason::OtherTagOfId => format!(
+                        " (another tag {}{}: {})",
+                        opts.tag_id,
+                        self.other_tag_place(),
+                        OTHER_TAG_ADVICE
+                    ),
                 };
                 format!("{} {}{figures}", frames.len(), reason.as_str())
             })
@@ -1048,6 +1219,54 @@ impl TrackResult {
         )
     }
 
+    /// Where another tag of the tracked id lay: " at" its median place in pixels and on the
+    /// floor.
+    fn other_tag_place(&self) -> String {
+        let others: Vec<&OtherTag> = self
+            .records
+            .iter()
+            .filter_map(|r| r.other_tag.as_ref())
+            .collect();
+        let med = |f: &dyn Fn(&OtherTag) -> Option<f64>| {
+            median(others.iter().filter_map(|o| f(o)).collect())
+        };
+        let (Some(u), Some(v)) = (med(&|o| Some(o.centre_px.x)), med(&|o| Some(o.centre_px.y)))
+        else {
+            return String::new();
+        };
+        let floor = match (
+            med(&|o| o.floor_m.map(|p| p.x)),
+            med(&|o| o.floor_m.map(|p| p.y)),
+        ) {
+            (Some(x), Some(y)) => format!(", floor ({x:.3}, {y:.3}) m"),
+            _ => String::new(),
+        };
+        format!(" at pixel ({u:.0}, {v:.0}){floor} (median)")
+    }
+
+    /// The warning when another tag of the tracked id was seen: in how many frames, where it
+    /// lay, and how many frames it left without a pose. A robot carries one tag of its id:
+    /// fixes were taken only where the track's motion told the robot's apart.
+    pub fn other_tag_warning(&self, tag_id: u32) -> Option<String> {
+        let frames: Vec<usize> = self
+            .records
+            .iter()
+            .filter(|r| r.other_tag.is_some())
+            .map(|r| r.index)
+            .collect();
+        let (first, last) = (*frames.first()?, *frames.last()?);
+        let refused = self
+            .records
+            .iter()
+            .filter(|r| r.outcome == Outcome::Gap(GapReason::OtherTagOfId))
+            .count();
+        Some(format!(
+            "another tag {tag_id} than the one tracked was seen in {} frames ({first} to {last}){}: a robot carries one tag of its id, so a fix was taken only where the track's motion told the robot's tag apart, and {refused} frames where it could not are gaps; {OTHER_TAG_ADVICE}",
+            frames.len(),
+            self.other_tag_place()
+        ))
+    }
+
     /// Describes the ids seen, for error messages ("ids seen: 3 (120 frames), 7 (2 frames)").
     pub fn seen_ids_text(&self) -> String {
         if self.seen_ids.is_empty() {
@@ -1072,6 +1291,10 @@ impl TrackResult {
         format!("ids seen: {}{more}", list.join(", "))
     }
 }
+
+/// What to do about a second tag of the tracked id.
+const OTHER_TAG_ADVICE: &str =
+    "remove or cover the other tag, or give the robot a tag of an id no other tag in view has (--tag-id)";
 
 /// Distinct ids seen in a video of one robot, none accepted, that point at the wrong family.
 const FALSE_FAMILY_IDS: usize = 4;
@@ -1209,6 +1432,7 @@ fn track_batch(
                 t_s: frame.t_s,
                 outcome: Outcome::Gap(reason),
                 rejected: None,
+                other_tag: None,
             },
             None => tracker.process(&frame)?,
         };

@@ -214,3 +214,91 @@ fn impossible_jumps_are_gaps_and_gaps_are_not_filled() {
     };
     assert!((f5.pose.position() - truths[5].pose.position()).norm() < 1e-3);
 }
+
+#[test]
+fn a_second_tag_of_the_id_is_never_followed_and_is_named() {
+    let cfg = SceneConfig::default();
+    let c = nadir(&cfg.floor);
+    let traj = straight_trajectory(c, Point2::new(c.x + 0.6, c.y), 0.5);
+    let (mut frames, truths) = render(&cfg, &traj, 30.0, 36, 14);
+    let h = cfg.robot.marker_height_m;
+    let centre = |k: usize| {
+        cfg.camera
+            .floor_to_pixel(&cfg.floor, &truths[k].pose.position(), h)
+            .unwrap()
+    };
+    let width = cfg.camera.width as usize;
+    // A box of pixels around frame k's tag: (first column, first row, side).
+    let around = |k: usize, half: usize| {
+        let p = centre(k);
+        (p.x as usize - half, p.y as usize - half, 2 * half)
+    };
+    // A spare tag 0 lies still where the robot started, from frame 9 (the robot 13 cm on).
+    let (x0, y0, side) = around(0, 30);
+    let spare: Vec<u8> = (0..side)
+        .flat_map(|r| frames[0].image.data[(y0 + r) * width + x0..][..side].to_vec())
+        .collect();
+    for f in &mut frames[9..] {
+        for r in 0..side {
+            f.image.data[(y0 + r) * width + x0..][..side]
+                .copy_from_slice(&spare[r * side..][..side]);
+        }
+    }
+    // Someone stands over the robot in frames 14 to 23.
+    for f in &mut frames[14..24] {
+        let (x, y, side) = around(f.index, 50);
+        for r in 0..side {
+            f.image.data[(y + r) * width + x..][..side].fill(128);
+        }
+    }
+    let res = track(&cfg, frames, &TrackOptions::default());
+    // Every fix is the robot's, within its σ of the truth; while the robot is hidden only the
+    // spare is in view, and those frames are gaps.
+    for (rec, f) in res.fixes() {
+        let e = f.pose.position() - truths[rec.index].pose.position();
+        assert!(
+            e.x.abs() < 6.0 * f.sigma.x_m && e.y.abs() < 6.0 * f.sigma.y_m,
+            "frame {}: {:.1} mm off (σ {:.3}, {:.3} mm)",
+            rec.index,
+            e.norm() * 1e3,
+            f.sigma.x_m * 1e3,
+            f.sigma.y_m * 1e3
+        );
+    }
+    for rec in &res.records[14..24] {
+        assert_eq!(
+            rec.outcome,
+            Outcome::Gap(GapReason::OtherTagOfId),
+            "frame {}",
+            rec.index
+        );
+    }
+    // The robot is picked up again as it comes back.
+    let back = res.records[24..]
+        .iter()
+        .filter(|r| matches!(r.outcome, Outcome::Fix(_)))
+        .count();
+    assert!(
+        back >= 11,
+        "{back} of the 12 frames after the robot came back tracked"
+    );
+    let warning = res.other_tag_warning(0).expect("the spare is named");
+    assert!(
+        warning.contains("another tag 0 than the one tracked was seen in")
+            && warning.contains("10 frames where it could not are gaps")
+            && warning.contains("remove or cover the other tag"),
+        "{warning}"
+    );
+    let o = res
+        .records
+        .iter()
+        .find_map(|r| r.other_tag)
+        .expect("the spare's place");
+    let spare_floor = truths[0].pose.position();
+    assert!((o.centre_px - centre(0)).norm() < 1.0, "{:?}", o.centre_px);
+    assert!(
+        (o.floor_m.unwrap() - spare_floor).norm() < 2e-3,
+        "{:?}",
+        o.floor_m
+    );
+}
