@@ -836,7 +836,8 @@ fn calibrated_camera_meets_accuracy() {
 }
 
 /// A camera with a rolling shutter that the user does not name: the tags' shear gives it
-/// away and `track` names the readout (30 ms here, read within 3 ms); given, nothing is said.
+/// away and `track` names the readout (30 ms here, read within 3 ms); given, nothing is said;
+/// given wrongly (too short, or the other direction), the tags' readout is named.
 /// A global shutter's video says nothing either.
 #[test]
 fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
@@ -876,7 +877,28 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
         .unwrap_or_else(|| panic!("no readout: {line}"));
     assert!((readout - 0.030).abs() <= 0.003, "{line}");
     let err = run(&d.join("rolling.avi"), &["--rolling-shutter-s", "0.03"]);
-    assert!(!err.contains("sheared"), "{err}");
+    assert!(
+        !err.contains("sheared") && !err.contains("not the readout"),
+        "{err}"
+    );
+    // A plausible but wrong readout was used unchecked (15 ms for 30: 6.7 mm RMS on a faster
+    // drive, error/σ 63), and one read the wrong way round blamed the camera file: the tags'
+    // own readout is named beside the given one.
+    for (given, flipped) in [("0.015", false), ("-0.03", true)] {
+        let err = run(&d.join("rolling.avi"), &["--rolling-shutter-s", given]);
+        let readout = number_after(&err, "give --rolling-shutter-s ");
+        let off_ms = number_after(&err, "each fix's time is then off by up to ");
+        let given: f64 = given.parse().unwrap();
+        assert!(
+            err.contains(&format!(
+                "--rolling-shutter-s {given} is not the readout the tags show"
+            )) && (readout - 0.030).abs() <= 0.003
+                && (off_ms - 1e3 * (0.030 - given)).abs() <= 3.0
+                && err.contains("the other direction") == flipped
+                && !err.contains("camera file"),
+            "--rolling-shutter-s {given}: {err}"
+        );
+    }
     // The same camera mounted upside down, its image turned after readout: the rows are read
     // from the bottom of the image up. It went unnamed (10.9 mm RMS at 0.7 m/s on a 60-frame
     // drive), and --rolling-shutter-s -0.03 was refused.
@@ -991,7 +1013,9 @@ fn turned_half_way(mut cam: serde_json::Value) -> serde_json::Value {
 /// The marker's height is the user's word; the tag's apparent size checks it. A height 80 mm
 /// off moves the fixes tens of millimetres while every corner still fits: it is flagged, with
 /// the tag's apparent height near the true 0.08 m and the sideways shift near the true error.
-/// The right height says nothing.
+/// A height 5 mm off (1.9 mm RMS, error/σ 23, unsaid before) is named by the square's side,
+/// with the shift it puts on the fixes within 15 % of the true largest error. The right
+/// height says nothing.
 #[test]
 fn a_wrong_marker_height_is_flagged_by_the_tags_apparent_size() {
     let dir = tempfile::tempdir().unwrap();
@@ -1017,7 +1041,28 @@ fn a_wrong_marker_height_is_flagged_by_the_tags_apparent_size() {
         )
     };
     let (err, _) = track("0.08");
-    assert!(!err.contains("apparent size"), "{err}");
+    assert!(
+        !err.contains("apparent size") && !err.contains("black square"),
+        "{err}"
+    );
+    // 5 mm off moved every fix by millimetres (1.9 mm RMS, error/σ 23) with no word: the
+    // square's side names it, with the shift the height would put on the fixes.
+    let (err, out) = track("0.075");
+    let said_m = number_after(&err, "or the marker sits at ");
+    let typical_mm = number_after(&err, "of its distance from the point under the camera, ");
+    let up_to_mm = number_after(&err, "for the typical fix and up to ");
+    let (true_rms_mm, true_max_mm) = (
+        number_after(&out, "position RMS "),
+        number_after(&out, "(max "),
+    );
+    println!("--marker-height 0.075: said {said_m} m, shift {typical_mm} mm typical, up to {up_to_mm} mm; true RMS {true_rms_mm} mm, max {true_max_mm} mm");
+    assert!((said_m - 0.08).abs() < 0.001, "{err}");
+    assert!(
+        (up_to_mm - true_max_mm).abs() < 0.15 * true_max_mm
+            && (typical_mm - true_rms_mm).abs() < 0.25 * true_rms_mm
+            && true_rms_mm > 1.0,
+        "{err}\n{out}"
+    );
     let (err, out) = track("0.0");
     assert!(
         err.contains("warning: ") && err.contains("apparent size puts it"),
@@ -1631,8 +1676,10 @@ fn a_jpeg_frame_cut_short_is_named() {
 /// A tag printed 1 % larger than `--tag-size` says (a print scaled to the page): positions
 /// are right, but the planar fit held the square at the size given and every fix's σ took
 /// the misfit for noise (error/σ 0.19 where 1 is right, with no word). The square's side
-/// on the marker plane names it; the right size says nothing. A side that shrinks towards
-/// the image's edge names the camera file.
+/// on the marker plane names it (even a tenth of a millimetre off, which a marker height
+/// 2.7 mm off would mimic, moving the fixes twenty σ); the right size says nothing. A side
+/// that shrinks towards the image's edge names the camera file, as does an image shifted
+/// after recording, without a figure for the fixes' error the square cannot give.
 #[test]
 fn a_tag_size_a_percent_off_is_named() {
     let dir = tempfile::tempdir().unwrap();
@@ -1655,19 +1702,25 @@ fn a_tag_size_a_percent_off_is_named() {
     let said = track("0.0808");
     assert!(
         said.contains("the tag's black square spans 80.0")
-            && said.contains("-1.0 % from --tag-size 80.80 mm")
+            && said.contains("-0.99 % from --tag-size 80.80 mm")
             && said.contains("give --tag-size 0.0800"),
         "{said}"
     );
-    for size in ["0.08", "0.0801"] {
-        let said = track(size);
-        assert!(!said.contains("black square"), "--tag-size {size}: {said}");
-    }
+    let said = track("0.08");
+    assert!(!said.contains("black square"), "{said}");
+    // A tenth of a millimetre off is what a marker height 2.7 mm off would show, which moves
+    // the fixes by 1 mm, twenty times their σ: named, with the size that fits.
+    let said = track("0.0801");
+    assert!(
+        said.contains("-0.12 % from --tag-size 80.10 mm")
+            && said.contains("give --tag-size 0.0800"),
+        "{said}"
+    );
     // The camera file without its lens distortion (given a calibration made without it, 8 mm
     // RMS off): the square shrinks towards the image's edge, which names the camera file.
     let cam = d.join("camera.json");
-    let mut file: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+    let original = std::fs::read_to_string(&cam).unwrap();
+    let mut file: serde_json::Value = serde_json::from_str(&original).unwrap();
     for k in ["k1", "k2", "k3", "p1", "p2"] {
         file["camera"]["distortion"][k] = 0.0.into();
     }
@@ -1675,7 +1728,47 @@ fn a_tag_size_a_percent_off_is_named() {
     let said = track("0.08");
     assert!(
         said.contains("nearer the image's centre")
-            && said.contains("the camera file does not map this camera's image onto the floor"),
+            && said.contains("the camera file does not map this camera's image onto the floor")
+            && !said.contains("% of their distance"),
+        "{said}"
+    );
+    // The image shifted by (40, 20) px after recording moves every fix by 105 mm while the
+    // square changes by under 1 %: the camera file is named, and no figure the square cannot give.
+    std::fs::write(&cam, &original).unwrap();
+    let shifted = d.join("shifted.avi");
+    let made = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-i", p(&d.join("video.avi")), "-vf"])
+        .args([
+            "crop=1240:700:40:20,pad=1280:720:0:0",
+            "-c:v",
+            "mjpeg",
+            "-q:v",
+            "2",
+        ])
+        .arg(p(&shifted))
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let res = odocal(&[
+        "track",
+        p(&shifted),
+        "--camera",
+        p(&cam),
+        "--out",
+        p(&d.join("t.csv")),
+        "--truth",
+        p(&d.join("truth.csv")),
+    ]);
+    succeeded(&res);
+    let (said, out) = (
+        String::from_utf8_lossy(&res.stderr),
+        String::from_utf8_lossy(&res.stdout),
+    );
+    assert!(number_after(&out, "position RMS ") > 50.0, "{out}");
+    assert!(
+        said.contains("the camera file does not map this")
+            && said.contains("an amount the square's size cannot tell")
+            && !said.contains("% of their distance"),
         "{said}"
     );
 }

@@ -56,7 +56,7 @@ impl MarkerHeight {
         }
         heights.sort_by(f64::total_cmp);
         let camera_in_floor = floor.0.inverse().translation.vector;
-        let nadir = Point2::new(camera_in_floor.x, camera_in_floor.y);
+        let nadir = nadir(floor);
         let reach_m = fixes
             .iter()
             .map(|f| (f.pose.position() - nadir).norm())
@@ -90,27 +90,51 @@ impl MarkerHeight {
     }
 }
 
-/// A tag side this far (as a share) from `--tag-size` is flagged: what a marker height
-/// 7 mm off gives under a 2.2 m ceiling, several times a good calibration's focal-length
-/// error, and a third of the 1 % of a print scaled to fit the page (which makes every σ
-/// five times too large; 0.3 % makes it about twice).
-pub const TAG_SIDE_TOLERANCE: f64 = 0.003;
+/// A tag side this far (as a share) from `--tag-size` may be flagged: what a marker height
+/// 2 mm off gives under a 2.2 m ceiling, or a side a tenth of a millimetre off. The median
+/// side over a run is known to a few thousandths of a percent on a clean video, so the
+/// floor is set by what calibrations and prints differ by, not by the measurement.
+pub const TAG_SIDE_TOLERANCE: f64 = 0.001;
+
+/// A side off by this many of its median's standard errors is the run's, not its noise.
+const TAG_SIDE_SIGNIFICANCE: f64 = 5.0;
+
+/// A side off is flagged when the parallax of the marker height it would mean moves the
+/// typical fix by this many times the typical fix's σ: less hides within the σ.
+const TAG_SIDE_SHIFT_OVER_SIGMA: f64 = 3.0;
+
+/// A change of the side from the image's centre to its edge beyond this share is the
+/// mapping's (a size, height or focal length scales every square alike).
+const LENS_SIDE_SPREAD: f64 = 0.003;
 
 /// The side of the tag's black square on the marker plane, as the fixes' corners span it.
 /// The planar fit holds the square at `--tag-size` and takes the height from
-/// `--marker-height`, so a size or height a percent off leaves the positions alone but
-/// shows in every fix's misfit, which the fixes' σ take for noise (a 1 % error makes every
-/// σ five times too large, with no word). Those scale the square alike all over the image;
-/// a lens distortion that is not the lens's (another camera's calibration, or one without
-/// its distortion) scales it more towards the image's edge, and moves the fixes there.
+/// `--marker-height`, so a side off has three causes that differ in what they do to the
+/// positions: a size off leaves them alone but shows in every fix's misfit, which the
+/// fixes' σ take for noise (a 1 % error makes every σ five times too large, with no word);
+/// a height off moves every fix by the parallax, radially from the point under the camera;
+/// a focal length off (a video scaled after recording) scales every fix's distance from
+/// it. Those two move a fix by the same share of that distance, the side's share off. A
+/// camera file that does not map the image (another camera's, or an image shifted after
+/// recording) may change the side too, but moves the fixes by what the side cannot tell
+/// (105 mm RMS for a 40 px shift that changed it 0.9 %). A lens distortion that is not the lens's (another
+/// camera's calibration, or one without its distortion) scales the square more towards
+/// the image's edge.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TagSide {
     /// Median over the fixes of the square's side on the marker plane, metres.
     pub side_m: f64,
+    /// Standard error of that median, metres (from the sides' median absolute deviation).
+    pub side_sigma_m: f64,
     /// Fixes the median is taken over.
     pub fixes: usize,
     /// The camera's height above the marker plane, metres.
     pub camera_above_marker_m: f64,
+    /// Median and largest horizontal distance of a fix from the point under the camera,
+    /// metres.
+    pub distance_m: (f64, f64),
+    /// Median over the fixes of their position σ (x and y together), metres.
+    pub position_sigma_m: f64,
     /// Median side over the third of the fixes nearest the image centre, metres, and their
     /// median distance from it, pixels.
     pub inner: (f64, f64),
@@ -159,50 +183,86 @@ impl TagSide {
         let inner = medians(&by_radius[..third]);
         let outer = medians(&by_radius[n - third..]);
         let mut sides: Vec<f64> = by_radius.iter().map(|x| x.1).collect();
+        let side_m = median(&mut sides);
+        let mut deviations: Vec<f64> = sides.iter().map(|s| (s - side_m).abs()).collect();
+        // A median's standard error is 1.25 σ/√n, σ being 1.48 median absolute deviations.
+        let side_sigma_m = 1.25 * 1.4826 * median(&mut deviations) / (n as f64).sqrt();
+        let nadir = nadir(floor);
+        let mut distances: Vec<f64> = fixes
+            .iter()
+            .map(|f| (f.pose.position() - nadir).norm())
+            .collect();
+        let mut sigmas: Vec<f64> = fixes
+            .iter()
+            .map(|f| f.sigma.x_m.hypot(f.sigma.y_m))
+            .collect();
         Some(Self {
-            side_m: median(&mut sides),
+            side_m,
+            side_sigma_m,
             fixes: n,
             camera_above_marker_m: floor.0.inverse().translation.vector.z - marker_height_m,
+            distance_m: (
+                median(&mut distances),
+                distances.iter().copied().fold(0.0, f64::max),
+            ),
+            position_sigma_m: median(&mut sigmas),
             inner,
             outer,
         })
     }
 
     /// A warning when the side is not `tag_size_m`: the lens distortion when the side
-    /// changes from the image's centre to its edge, else the size or the marker height
-    /// `marker_height_m`, by what each would have to be.
+    /// changes from the image's centre to its edge, else the size, the marker height
+    /// `marker_height_m` or the focal length, with what each does to the positions.
     pub fn warning(&self, tag_size_m: f64, marker_height_m: f64) -> Option<String> {
-        // A size, height or focal length off scales every square alike: a change of the
-        // side over 50 px or more from the centre outwards is the mapping's.
+        // A change of the side over 50 px or more from the centre outwards is the mapping's.
         let spread = (self.outer.0 - self.inner.0) / tag_size_m;
-        if self.outer.1 - self.inner.1 > 50.0 && spread.abs() > TAG_SIDE_TOLERANCE {
+        if self.outer.1 - self.inner.1 > 50.0 && spread.abs() > LENS_SIDE_SPREAD {
+            // How far the fixes are off the square cannot say: an image shifted or cropped
+            // after recording moves every fix by centimetres with the square nearly unchanged.
             return Some(format!(
-                "the tag's black square spans {:.2} mm on the marker plane nearer the image's centre (about {:.0} px from it) but {:.2} mm farther out (about {:.0} px; medians of a third of {} fixes each): the camera file does not map this camera's image onto the floor (another camera's calibration, or one without its lens distortion), and the fixes are off by about {:.1} % of their distance from the point under the camera; give the camera.json calibrated for this camera",
+                "the tag's black square spans {:.2} mm on the marker plane nearer the image's centre (about {:.0} px from it) but {:.2} mm farther out (about {:.0} px; medians of a third of {} fixes each): the camera file does not map this camera's image onto the floor (another camera's calibration, one without its lens distortion, or an image cropped, shifted or scaled after recording), so the fixes are off by an amount the square's size cannot tell (a shifted image moves every fix with the square nearly unchanged); give the camera.json calibrated for this camera and this image",
                 self.inner.0 * 1e3,
                 self.inner.1,
                 self.outer.0 * 1e3,
                 self.outer.1,
                 self.fixes,
-                100.0 * (self.side_m / tag_size_m - 1.0).abs().max(spread.abs()),
             ));
         }
         let ratio = self.side_m / tag_size_m;
-        if (ratio - 1.0).abs() <= TAG_SIDE_TOLERANCE {
+        // A height or focal length off by the side's share moves a fix by that share of its
+        // distance from the point under the camera (the parallax of a marker higher by δ,
+        // seen (D − δ)/D as large, is δ/D of that distance).
+        let share = (1.0 - 1.0 / ratio).abs();
+        let off = (ratio - 1.0).abs();
+        if off <= TAG_SIDE_TOLERANCE
+            || off * tag_size_m <= TAG_SIDE_SIGNIFICANCE * self.side_sigma_m
+            || share * self.distance_m.0 <= TAG_SIDE_SHIFT_OVER_SIGMA * self.position_sigma_m
+        {
             return None;
         }
-        // The side scales with the distance from the camera: a marker higher by δ is seen
-        // (D − δ)/D as large at the height given.
         let height_m = marker_height_m + self.camera_above_marker_m * (1.0 - 1.0 / ratio);
         Some(format!(
-            "the tag's black square spans {:.2} mm on the marker plane (median of {} fixes), {:+.1} % from --tag-size {:.2} mm: either the size is off (a print scaled to fit the page; measure the square and give --tag-size {:.4}), or the marker sits at {:.3} m, not --marker-height {marker_height_m:.3} m, or the camera file is not this camera's (its focal length scales the square as the size does). Positions are not moved by a size or height off, but every fix's σ takes the misfit for noise and is too large",
+            "the tag's black square spans {:.2} mm on the marker plane (median of {} fixes, ± {:.3} %), {:+.2} % from --tag-size {:.2} mm. Either the size is off (a print scaled to fit the page; measure the square and give --tag-size {:.4}): positions are then right, but every fix's σ takes the misfit for noise and is too large; or the marker sits at {:.4} m, not --marker-height {marker_height_m:.4} m, or the camera file's focal length is not this image's (a video scaled or zoomed after recording), either of which moves every fix by {:.2} % of its distance from the point under the camera, {:.1} mm for the typical fix and up to {:.1} mm, against a typical σ of {:.2} mm; or the camera file does not map this image at all (another camera's calibration, or an image cropped or shifted after recording), which moves the fixes by an amount the square's size cannot tell",
             self.side_m * 1e3,
             self.fixes,
+            100.0 * self.side_sigma_m / tag_size_m,
             (ratio - 1.0) * 100.0,
             tag_size_m * 1e3,
             self.side_m,
             height_m,
+            100.0 * share,
+            share * self.distance_m.0 * 1e3,
+            share * self.distance_m.1 * 1e3,
+            self.position_sigma_m * 1e3,
         ))
     }
+}
+
+/// The point on the floor under the camera.
+fn nadir(floor: &FloorToCamera) -> Point2<f64> {
+    let camera_in_floor = floor.0.inverse().translation.vector;
+    Point2::new(camera_in_floor.x, camera_in_floor.y)
 }
 
 /// The median of `v` (sorted in place); `v` is not empty.

@@ -417,7 +417,7 @@ pub fn mount_warnings(
 
 /// What the tags' shapes in a run's fixes say, one line each: a marker height their apparent
 /// size contradicts, a square whose side is not the size given, and a rolling shutter
-/// `options` do not name (their shear). An arena's
+/// `options` do not name or name wrongly (their shear). An arena's
 /// cameras take only these: the fixes near one camera's edge are fused with its neighbours'
 /// by their σ, so that camera's floor alone does not bound them.
 pub fn tag_shape_warnings(
@@ -428,14 +428,10 @@ pub fn tag_shape_warnings(
 ) -> Vec<String> {
     let height = crate::MarkerHeight::of(result, &camera.camera, floor, options.tag_size_m)
         .and_then(|h| h.warning(options.marker_height_m, options.tag_size_m));
-    // A readout the user gave is taken as given; without one, the tags' shear says whether
-    // the camera has a rolling shutter.
-    let shear = (options.rolling_shutter_s == 0.0)
-        .then(|| {
-            crate::ShutterEstimate::of(result, &camera.camera, floor, options)
-                .and_then(|e| e.warning())
-        })
-        .flatten();
+    // The tags' shear says whether the camera has a rolling shutter, and checks the readout
+    // the user gave (a datasheet's figure may be another mode's, or read the other way).
+    let shear = crate::ShutterEstimate::of(result, &camera.camera, floor, options)
+        .and_then(|e| e.warning());
     // A height far off says it already, and a shear left in the corners shrinks the square
     // (0.4 % at 0.7 m/s under a 30 ms readout): the side would only repeat them.
     let side = if height.is_none() && shear.is_none() {
