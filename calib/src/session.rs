@@ -138,32 +138,100 @@ fn held_out_tolerance(n: usize) -> f64 {
     1.1 + 1.0 / n.max(1) as f64
 }
 
-/// Warnings when the views do not fit one camera: a large RMS, or views left out predicted
-/// much worse than the views fit (views from two cameras, a zoom or focus changed between
-/// views, a board that is not flat).
-fn consistency_notes(rms_px: f64, views: &[crate::ViewResidual]) -> Vec<String> {
+/// Another lens model's calibration of the same views judged on them: the model, its fit RMS
+/// and its held-out RMS, pixels.
+type Alternative = (LensModel, f64, f64);
+
+/// What the views left out of the calibration say: nothing when they are predicted about as
+/// well as the views fit. Otherwise the blame goes, in turn, to the few views predicted far
+/// worse than the median view (each reaches where no other does and is extrapolated to when
+/// left out, or came from another camera); to the lens model when another model predicts
+/// them within its own fit (the views then agree on one camera); else to the views (two
+/// cameras, a zoom or focus changed between views, a board that is not flat). `unlocated`
+/// views could not be located with the calibration of the others at all; `alternatives` is
+/// called only when there is something to blame.
+fn consistency_notes(
+    model: LensModel,
+    rms_px: f64,
+    views: &[crate::ViewResidual],
+    unlocated: usize,
+    alternatives: &dyn Fn() -> Vec<Alternative>,
+) -> Vec<String> {
+    let tolerance = held_out_tolerance(views.len());
     let held_rms = held_out_rms_px(views);
     let ratio = held_rms.map(|h| h / rms_px.max(1e-9));
-    let disagree = ratio.is_some_and(|r| r > held_out_tolerance(views.len()));
+    let disagree = unlocated > 0 || ratio.is_some_and(|r| r > tolerance);
     if rms_px <= LARGE_RMS_PX && !disagree {
         return vec![];
     }
     let worst = worst_views(views, 3);
     let what = match (held_rms, ratio) {
+        _ if unlocated > 0 => format!(
+            "{unlocated} of the {} views could not be located at all with the {model} calibration of the other views",
+            views.len()
+        ),
         (Some(h), Some(r)) if disagree => format!(
             "a view left out of the calibration is predicted {:.0} % worse than the views fit (held-out RMS {h:.3} px against {rms_px:.3} px; views of one camera agree within {:.0} % with {} views)",
             (r - 1.0) * 100.0,
-            (held_out_tolerance(views.len()) - 1.0) * 100.0,
+            (tolerance - 1.0) * 100.0,
             views.len()
         ),
         _ => format!(
             "the RMS reprojection error is {rms_px:.3} px, where sharp views of a flat board fit within {LARGE_RMS_PX} px"
         ),
     };
+    if disagree {
+        // The median view predicted as well as the views fit: a few views far out, not the
+        // model (the median is what chose it) nor the camera.
+        let held: Vec<f64> = views.iter().filter_map(|v| v.held_out_rms_px).collect();
+        let median_px = crate::select::median(&held);
+        if unlocated == 0 && median_px <= tolerance * rms_px {
+            let n_far = views
+                .iter()
+                .filter(|v| v.held_out_rms_px.is_some_and(|h| h > tolerance * rms_px))
+                .count();
+            return vec![format!(
+                "warning: {n_far} view(s) left out of the calibration are predicted far worse than the median view ({} against {median_px:.3} px; the views fit to {rms_px:.3} px): each reaches a part of the image no other view covers, where the {model} model is extrapolated when it is left out and rests on it alone when it is in, unless it was taken by another camera or at another zoom; add views with the board over the same part of the image",
+                worst_views(views, n_far.clamp(1, 3)).join(", ")
+            )];
+        }
+        let fine = alternatives()
+            .into_iter()
+            .filter(|(m, fit, held)| *m != model && *held <= tolerance * fit)
+            .min_by(|a, b| a.2.total_cmp(&b.2));
+        if let Some((other, fit, held)) = fine {
+            return vec![format!(
+                "warning: the {model} lens model does not predict these views: {what}; yet the {other} model predicts every view left out of its calibration within its fit (held-out RMS {held:.3} px against {fit:.3} px), so the views agree on one camera and the {model} model is what misfits it: calibrate with --model {other}. Worst views: {}",
+                worst.join(", ")
+            )];
+        }
+    }
     vec![format!(
         "warning: the views do not fit one camera: {what}. Were all views taken by this camera at the same zoom and focus, with the board flat and sharp? Worst views: {}",
         worst.join(", ")
     )]
+}
+
+/// A warning when another lens model fits all the views clearly better than the chosen one
+/// ([`crate::select::CLEARLY_BETTER_FIT`]) but predicts the median held-out view worse.
+fn misfit_note(chosen: &crate::ModelScore, scores: &[crate::ModelScore]) -> Option<String> {
+    let fit = chosen.fit_rms_px?;
+    let better = scores
+        .iter()
+        .filter(|s| s.fits_clearly_better_than(fit))
+        .min_by(|a, b| {
+            a.fit_rms_px
+                .unwrap_or(fit)
+                .total_cmp(&b.fit_rms_px.unwrap_or(fit))
+        })?;
+    Some(format!(
+        "warning: the {} model chosen fits the views {:.0} % worse than the {} model (RMS {fit:.3} px against {:.3} px), more than the {} model's extra parameters explain: it misfits the lens, and the ± below do not cover that misfit; the floor is vouched for only where the two models agree. More views reaching the image's corners and edges tell the models apart",
+        chosen.model,
+        (fit / better.fit_rms_px.unwrap_or(fit) - 1.0) * 100.0,
+        better.model,
+        better.fit_rms_px.unwrap_or(fit),
+        better.model,
+    ))
 }
 
 /// Refuses the lens model the user chose when it does not fit the views (RMS over
@@ -296,6 +364,7 @@ pub fn calibrate_session(
                 .find(|s| s.chosen)
                 .ok_or_else(|| CalibError::Input("no lens model fits these views".into()))?;
             let held = chosen.view_held_out_rms_px.clone();
+            notes.extend(misfit_note(chosen, &scores));
             (chosen.model, scores, held)
         }
         ModelChoice::Fixed(m) => {
@@ -322,11 +391,38 @@ pub fn calibrate_session(
     if let ModelChoice::Fixed(m) = choice {
         refuse_a_model_another_fits(&views, board, m, cal.rms_px)?;
     }
+    // A view that did not project has no error to print: it is counted instead.
     for (v, h) in cal.views.iter_mut().zip(&held_out) {
-        v.held_out_rms_px = Some(*h);
+        v.held_out_rms_px = h.is_finite().then_some(*h);
     }
+    let unlocated = held_out.iter().filter(|h| !h.is_finite()).count();
     notes.extend(crate::coverage::coverage_notes(&cal.camera, &views));
-    notes.extend(consistency_notes(cal.rms_px, &cal.views));
+    let alternatives = || -> Vec<Alternative> {
+        if !model_comparison.is_empty() {
+            return model_comparison
+                .iter()
+                .filter_map(|s| Some((s.model, s.fit_rms_px?, s.held_out_rms_px?)))
+                .collect();
+        }
+        LensModel::ALL
+            .into_iter()
+            .filter(|m| *m != model)
+            .filter_map(|m| {
+                let fit = calibrate(&views, board, m).ok()?.rms_px;
+                let held = crate::select::held_out_errors(&views, board, m).ok()?;
+                held.iter()
+                    .all(|h| h.is_finite())
+                    .then(|| (m, fit, crate::select::rms(&held)))
+            })
+            .collect()
+    };
+    notes.extend(consistency_notes(
+        model,
+        cal.rms_px,
+        &cal.views,
+        unlocated,
+        &alternatives,
+    ));
     let mut floor_uncertainty = None;
     let floor = if floor.is_empty() {
         None
@@ -384,13 +480,15 @@ pub fn calibrate_session(
         )?;
         // The other lens models the held-out views could not tell from the chosen one, each
         // with the floor its own calibration locates: where they part, no model is known.
-        let best = model_comparison
-            .iter()
-            .filter_map(|s| s.held_out_rms_px)
-            .fold(f64::INFINITY, f64::min);
+        // So are those fitting the views clearly better than the chosen one: the chosen
+        // one's covariance does not cover its misfit (a fisheye kept on a 110° rational
+        // lens vouched for a floor 4.6 mm off).
+        let best = crate::select::best_held_out_px(&model_comparison);
         let others: Vec<(crate::CameraModel, crate::FloorToCamera)> = model_comparison
             .iter()
-            .filter(|s| !s.chosen && s.fits_as_well(best))
+            .filter(|s| {
+                !s.chosen && (s.fits_as_well(best) || s.fits_clearly_better_than(cal.rms_px))
+            })
             .filter_map(|s| s.camera)
             .filter_map(|cam| {
                 let b = FloorBoards::locate(&cam, &fviews, board, corner_sigma_px).ok()?;
@@ -693,7 +791,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             ));
         }
         out.push(format!(
-            "    (the first of pinhole5, fisheye, rational within {:.0} % of the best held-out error is chosen)",
+            "    (the first of pinhole5, fisheye, rational whose median view held out is within {:.0} % of the best is chosen)",
             crate::select::SIMPLER_WITHIN * 100.0
         ));
     }
