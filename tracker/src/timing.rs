@@ -43,7 +43,8 @@ pub struct TimingReport {
     /// Frames of the file that could not be decoded whole (damaged JPEG data), left out: they
     /// are among the dropped frames.
     pub corrupt_frames: Vec<usize>,
-    /// Frames without a container timestamp, timed one step after the previous.
+    /// Frames without a container timestamp that ffprobe could not time either (the last
+    /// frames of a video with B-frames), timed one step after the previous.
     pub extrapolated_times: usize,
     /// Frames the container announces beyond those read and those dropped: the file ends early.
     pub missing_at_end: usize,
@@ -276,11 +277,15 @@ impl TimingReport {
         )
     }
 
-    /// One warning line per problem with the timeline (none for a clean video). Frames timed
-    /// by extrapolation are only in the report: every H.264 stream with B-frames ends with a
-    /// few frames drained from the decoder without a timestamp.
+    /// One warning line per problem with the timeline (none for a clean video).
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
+        if self.extrapolated_times > 0 {
+            w.push(format!(
+                "the last {} frames come without a timestamp from OpenCV (frames a decoder reordering B-frames gives out at the end) and ffprobe could not read their packets' times, so each was timed one step after the frame before: a frame dropped among them would put them a step early; install FFmpeg's ffprobe (`make deps`) to time them by the video",
+                self.extrapolated_times
+            ));
+        }
         w.extend(self.overridden_fps_warning());
         if self.dropped_frames > 0 {
             w.push(self.dropped_warning());
