@@ -359,6 +359,60 @@ fn a_container_counting_repeats_is_not_cut_short() {
     );
 }
 
+/// A 30 fps recording converted by FFmpeg: to 60 fps each frame is repeated, and H.264 makes the
+/// repeat differ a little, so 36 of 90 repeats were tracked at a time 16.7 ms after their image
+/// (11.3 mm off); to 20 fps every third frame is left out and the rest re-timed on the new
+/// grid (34 mm RMS off), with no word of it. The robot's motion shows both: a repeat stands
+/// where the frame before it stood while the robot moves, and a re-timed frame steps two
+/// frames' motion in a regular pattern.
+#[test]
+fn a_converted_frame_rate_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    for (fps, repeats) in [("60", true), ("20", false)] {
+        let video = d.join(format!("r{fps}.mp4"));
+        ffmpeg(&[
+            "-i",
+            p(&d.join("video.avi")),
+            "-r",
+            fps,
+            "-c:v",
+            "libx264",
+            "-crf",
+            "12",
+            "-pix_fmt",
+            "yuv420p",
+            p(&video),
+        ]);
+        let (est, err, report) = track(d, &video, &[]);
+        let (rms, n) = position_rms(&est, &truth);
+        println!(
+            "-r {fps}: {} rows, {n} at a true time, position RMS there {:.3} mm",
+            est.rows.len(),
+            rms * 1e3
+        );
+        assert!(
+            err.contains(&format!(
+                "the frame rate converted to {fps}.0 fps from about"
+            )),
+            "-r {fps}: {err}"
+        );
+        assert!(
+            report["timing"]["converted_from_fps"].is_number(),
+            "{report}"
+        );
+        if repeats {
+            // Every repeat but the last frame's (no motion after it to tell) is screened,
+            // and each frame left sits at its image's true time.
+            let repeated = report["timing"]["repeated_images"].as_u64().unwrap() as usize;
+            assert!(repeated >= 2 * FRAMES - FRAMES - 1, "{repeated}: {err}");
+            assert!(n >= FRAMES - 1 && rms < 0.5e-3, "{n} rows, {rms} m");
+        }
+    }
+}
+
 /// A rotate tag (180° and 90°) on an MP4, an EXIF orientation of 3 (turn 180°) on a folder's
 /// JPEG frames and on a calibration view: OpenCV applied both, and the 180° video was tracked
 /// 1253 mm RMS from its truth with exit 0, the 90° one refused as 720×1280, the frames
