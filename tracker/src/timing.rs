@@ -3,7 +3,7 @@
 //! ends before the frames its container announces. Ground truth timed wrongly is wrong, so
 //! each of these is reported on stderr and in the track report.
 
-use crate::{GapReason, Outcome, TrackResult};
+use crate::{FrameRecord, GapReason, Outcome, TrackResult};
 
 /// A run of frames missing from the video between two frames that are there.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -38,12 +38,19 @@ pub struct TimingReport {
     pub clock_jumps: Vec<DroppedFrames>,
     /// Frames whose timestamp is not after the previous one (not tracked).
     pub duplicate_times: usize,
-    /// Frames identical to the previous one (not tracked).
+    /// Frames identical to the previous one, or whose fix stands where the previous one's
+    /// stood while the robot moves (not tracked).
     pub repeated_images: usize,
+    /// The rate the frames were recorded at, frames/s, when the robot's motion shows the
+    /// video's rate converted from it (frames repeated or left out in a regular pattern, the
+    /// rest timed on the new rate's grid): the times are then not the camera's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub converted_from_fps: Option<f64>,
     /// Frames of the file that could not be decoded whole (damaged JPEG data), left out: they
     /// are among the dropped frames.
     pub corrupt_frames: Vec<usize>,
-    /// Frames without a container timestamp, timed one step after the previous.
+    /// Frames without a container timestamp that ffprobe could not time either (the last
+    /// frames of a video with B-frames), timed one step after the previous.
     pub extrapolated_times: usize,
     /// Frames the container announces beyond those read and those dropped: the file ends early.
     pub missing_at_end: usize,
@@ -124,6 +131,104 @@ fn is_clock_jump(r: &TrackResult, d: &DroppedFrames) -> bool {
     per_frame >= 0.0005 && (b - a).norm() <= 2.0 * per_frame
 }
 
+/// Below this step expected from the robot's speed (metres) a repeat cannot be told from the
+/// fixes' noise (about 0.04 mm).
+const MIN_EXPECTED_STEP_M: f64 = 0.5e-3;
+
+/// The position of a record's fix.
+fn fix_position(r: &FrameRecord) -> Option<nalgebra::Point2<f64>> {
+    match &r.outcome {
+        Outcome::Fix(f) => Some(f.pose.position()),
+        _ => None,
+    }
+}
+
+/// Turns into repeated-image gaps the fixes that stand where the fix before them stood, within
+/// a fifth of the step the robot's speed into that fix gives, while the next fix moves on at
+/// about that speed: a repeated image that is not byte-identical (a frame rate raised by
+/// repeating frames, then re-encoded), which would put the earlier pose at a later time. A
+/// robot cannot stop for one frame, so a real frame is never one; nor is the frame after a
+/// jump (frames left out of a video timed by counting), after which the motion slows back.
+pub(crate) fn screen_repeated_poses(records: &mut [FrameRecord]) {
+    const STILL_FRACTION: f64 = 0.2;
+    const WITHIN_FRAMES: usize = 3;
+    // The last two fixes kept: (frame, time, position).
+    let mut kept: [Option<(usize, f64, nalgebra::Point2<f64>)>; 2] = [None, None];
+    for i in 0..records.len() {
+        let (index, t_s) = (records[i].index, records[i].t_s);
+        let Some(p) = fix_position(&records[i]) else {
+            if records[i].outcome != Outcome::Gap(GapReason::RepeatedImage) {
+                kept = [None, None];
+            }
+            continue;
+        };
+        let next = records[i + 1..]
+            .iter()
+            .take(WITHIN_FRAMES)
+            .filter_map(|x| Some((x.index, x.t_s, fix_position(x)?)));
+        // The robot's speed into the last fix kept; at the first fix, out of it.
+        let speed_at = match kept {
+            [Some((ib, tb, b)), Some((ia, ta, a))] if ia - ib <= WITHIN_FRAMES => {
+                Some((ia, ta, a, (a - b).norm() / (ta - tb)))
+            }
+            [None, Some((ia, ta, a))] => next
+                .clone()
+                .next()
+                .map(|(_, tq, q)| (ia, ta, a, (q - a).norm() / (tq - ta))),
+            _ => None,
+        };
+        if let Some((ia, ta, a, speed)) = speed_at {
+            let expected = speed * (t_s - ta);
+            if index - ia <= WITHIN_FRAMES
+                && expected >= MIN_EXPECTED_STEP_M
+                && (p - a).norm() < STILL_FRACTION * expected
+                && next
+                    .take(1)
+                    .any(|(_, tq, q)| (q - a).norm() >= 0.4 * speed * (tq - ta))
+            {
+                records[i].outcome = Outcome::Gap(GapReason::RepeatedImage);
+                continue;
+            }
+        }
+        kept = [kept[1], Some((index, t_s, p))];
+    }
+}
+
+/// Steps between the fixes of consecutive frames over which the robot moved twice as far as
+/// its speed on the slower step beside gives (the times stepping evenly), and the steps
+/// measured: a video whose frame rate was lowered by leaving frames out and timing the rest
+/// on an even grid.
+fn double_steps(r: &TrackResult) -> (usize, usize) {
+    let fixes: Vec<(usize, f64, nalgebra::Point2<f64>)> = r
+        .records
+        .iter()
+        .filter_map(|x| Some((x.index, x.t_s, fix_position(x)?)))
+        .collect();
+    // Speeds over steps between consecutive frames: (frame, m/s, step m).
+    let steps: Vec<(usize, f64, f64)> = fixes
+        .windows(2)
+        .filter(|w| w[1].0 == w[0].0 + 1 && w[1].1 > w[0].1)
+        .map(|w| {
+            let d = (w[1].2 - w[0].2).norm();
+            (w[1].0, d / (w[1].1 - w[0].1), d)
+        })
+        .collect();
+    let (mut doubled, mut measured) = (0, 0);
+    for w in steps.windows(3) {
+        let consecutive = w[1].0 == w[0].0 + 1 && w[2].0 == w[1].0 + 1;
+        if !consecutive || w[0].2.min(w[2].2) < MIN_EXPECTED_STEP_M {
+            continue;
+        }
+        measured += 1;
+        // Against the slower side: steps of one and two frames' motion may alternate.
+        let ratio = w[1].1 / w[0].1.min(w[2].1);
+        if (1.6..2.4).contains(&ratio) {
+            doubled += 1;
+        }
+    }
+    (doubled, measured)
+}
+
 /// A step longer than this many usual steps means frames were dropped.
 const DROP_STEP_FACTOR: f64 = 1.5;
 
@@ -190,6 +295,20 @@ impl TimingReport {
                 0
             }
         });
+        let repeated_images = count(GapReason::RepeatedImage);
+        let converted_from_fps = step.and_then(|step| {
+            // One frame in ten or more repeated, or one step in twenty or more doubled, is a
+            // pattern: a camera missing a frame now and then does neither so often.
+            let (doubled, measured) = double_steps(r);
+            let fps = 1.0 / step;
+            if repeated_images >= 3 && repeated_images * 10 >= frames_read {
+                Some(fps * (1.0 - repeated_images as f64 / frames_read as f64))
+            } else if doubled >= 3 && doubled * 20 >= measured {
+                Some(fps * (1.0 + doubled as f64 / measured as f64))
+            } else {
+                None
+            }
+        });
         Self {
             timing: r.source.timing.clone(),
             frames_read,
@@ -199,7 +318,8 @@ impl TimingReport {
             dropped_frames,
             clock_jumps,
             duplicate_times: count(GapReason::DuplicateTime),
-            repeated_images: count(GapReason::RepeatedImage),
+            repeated_images,
+            converted_from_fps,
             corrupt_frames: r.source.corrupt_frames.clone(),
             extrapolated_times: r.source.extrapolated_times,
             missing_at_end,
@@ -276,11 +396,15 @@ impl TimingReport {
         )
     }
 
-    /// One warning line per problem with the timeline (none for a clean video). Frames timed
-    /// by extrapolation are only in the report: every H.264 stream with B-frames ends with a
-    /// few frames drained from the decoder without a timestamp.
+    /// One warning line per problem with the timeline (none for a clean video).
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
+        if self.extrapolated_times > 0 {
+            w.push(format!(
+                "the last {} frames come without a timestamp from OpenCV (frames a decoder reordering B-frames gives out at the end) and ffprobe could not read their packets' times, so each was timed one step after the frame before: a frame dropped among them would put them a step early; install FFmpeg's ffprobe (`make deps`) to time them by the video",
+                self.extrapolated_times
+            ));
+        }
         w.extend(self.overridden_fps_warning());
         if self.dropped_frames > 0 {
             w.push(self.dropped_warning());
@@ -323,13 +447,25 @@ impl TimingReport {
         }
         if self.repeated_images > 0 {
             w.push(format!(
-                "{} the previous frame's image, byte for byte or where the tag is (giving its very pose: a camera repeating a frame it missed, or a damaged frame the decoder completed from the one before); {} not tracked",
+                "{} the previous frame's image, byte for byte or where the tag is (giving its pose, to the fixes' noise while the robot moves: a camera repeating a frame it missed, a damaged frame the decoder completed from the one before, or a frame rate raised by repeating frames); {} not tracked",
                 if self.repeated_images == 1 {
                     "1 frame repeats".to_string()
                 } else {
                     format!("{} frames repeat", self.repeated_images)
                 },
                 if self.repeated_images == 1 { "it was" } else { "they were" }
+            ));
+        }
+        if let (Some(from), Some(step)) = (self.converted_from_fps, self.frame_step_s) {
+            w.push(format!(
+                "the robot's motion shows the frame rate converted to {:.1} fps from about {from:.0} fps ({}): the timestamps are the conversion's grid, not the camera's, so a frame's time can be up to a frame off its image (at 1 m/s, {:.0} mm); track the video as the camera recorded it",
+                1.0 / step,
+                if self.repeated_images > 0 {
+                    "frames repeated in a regular pattern"
+                } else {
+                    "steps of two frames' motion in a regular pattern: frames left out and the rest re-timed"
+                },
+                1e3 * step
             ));
         }
         if self.missing_at_end > 0 {

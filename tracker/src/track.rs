@@ -1333,69 +1333,71 @@ pub fn track_source(
     // nor the decoder waits for `on_frame` (overlays, progress).
     let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
     let (done_tx, done_rx) = mpsc::sync_channel::<Result<Vec<(Frame, FrameRecord)>, TrackError>>(3);
-    let (records, seen_ids, final_info) = std::thread::scope(|scope| -> Result<_, TrackError> {
-        let decoder = scope.spawn(move || {
-            loop {
-                let batch = source.next_batch(16);
-                let stop = !matches!(&batch, Ok(b) if !b.is_empty());
-                if tx.send(batch).is_err() || stop {
+    let (mut records, seen_ids, final_info) =
+        std::thread::scope(|scope| -> Result<_, TrackError> {
+            let decoder = scope.spawn(move || {
+                loop {
+                    let batch = source.next_batch(16);
+                    let stop = !matches!(&batch, Ok(b) if !b.is_empty());
+                    if tx.send(batch).is_err() || stop {
+                        break;
+                    }
+                }
+                source.info().clone()
+            });
+            let path = info.path.clone();
+            let worker = scope.spawn(move || -> Option<BTreeMap<u32, usize>> {
+                let mut tracker = match Tracker::new(*camera, *floor, opts.clone()) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        let _ = done_tx.send(Err(e));
+                        return None;
+                    }
+                };
+                let mut previous: Option<Frame> = None;
+                let mut repeated = RepeatedFixes::default();
+                for batch in rx {
+                    let out = batch.and_then(|batch| {
+                        track_batch(
+                            &mut tracker,
+                            camera,
+                            &path,
+                            batch,
+                            &mut previous,
+                            &mut repeated,
+                        )
+                    });
+                    let stop = !matches!(&out, Ok(b) if !b.is_empty());
+                    if done_tx.send(out).is_err() || stop {
+                        break;
+                    }
+                }
+                Some(tracker.seen_ids().clone())
+            });
+            let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
+            for batch in done_rx {
+                let batch = batch?;
+                if batch.is_empty() {
                     break;
                 }
-            }
-            source.info().clone()
-        });
-        let path = info.path.clone();
-        let worker = scope.spawn(move || -> Option<BTreeMap<u32, usize>> {
-            let mut tracker = match Tracker::new(*camera, *floor, opts.clone()) {
-                Ok(t) => t,
-                Err(e) => {
-                    let _ = done_tx.send(Err(e));
-                    return None;
-                }
-            };
-            let mut previous: Option<Frame> = None;
-            let mut repeated = RepeatedFixes::default();
-            for batch in rx {
-                let out = batch.and_then(|batch| {
-                    track_batch(
-                        &mut tracker,
-                        camera,
-                        &path,
-                        batch,
-                        &mut previous,
-                        &mut repeated,
-                    )
-                });
-                let stop = !matches!(&out, Ok(b) if !b.is_empty());
-                if done_tx.send(out).is_err() || stop {
-                    break;
+                for (frame, rec) in batch {
+                    on_frame(&frame, &rec)?;
+                    records.push(rec);
                 }
             }
-            Some(tracker.seen_ids().clone())
-        });
-        let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
-        for batch in done_rx {
-            let batch = batch?;
-            if batch.is_empty() {
-                break;
-            }
-            for (frame, rec) in batch {
-                on_frame(&frame, &rec)?;
-                records.push(rec);
-            }
-        }
-        let seen_ids = worker
-            .join()
-            .map_err(|_| TrackError::bad_input(&info.path, "the tracker stopped on a panic"))?
-            .unwrap_or_default();
-        let final_info = decoder.join().map_err(|_| {
-            TrackError::bad_input(&info.path, "the frame decoder stopped on a panic")
+            let seen_ids = worker
+                .join()
+                .map_err(|_| TrackError::bad_input(&info.path, "the tracker stopped on a panic"))?
+                .unwrap_or_default();
+            let final_info = decoder.join().map_err(|_| {
+                TrackError::bad_input(&info.path, "the frame decoder stopped on a panic")
+            })?;
+            Ok((records, seen_ids, final_info))
         })?;
-        Ok((records, seen_ids, final_info))
-    })?;
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
+    crate::timing::screen_repeated_poses(&mut records);
     let result = TrackResult {
         tag_to_robot: opts.tag_to_robot,
         records,

@@ -28,6 +28,10 @@ pub struct VideoSource {
     /// Time of the last frame and the last step forward, seconds.
     last_t_s: f64,
     last_step_s: f64,
+    /// The presentation times of the stream's packets from the first, sorted, seconds: read
+    /// by ffprobe for the frames OpenCV gives no time (None until one comes, empty when
+    /// ffprobe cannot tell).
+    packet_times_s: Option<Vec<f64>>,
 }
 
 struct SendCapture(videoio::VideoCapture);
@@ -164,6 +168,7 @@ impl VideoSource {
             first_pts_s: None,
             last_t_s: 0.0,
             last_step_s: 1.0 / fps,
+            packet_times_s: None,
         })
     }
 
@@ -212,26 +217,52 @@ impl VideoSource {
             return Ok(None);
         }
         if self.next_index > 0 && (pts_ms == 0.0 || !pts_ms.is_finite()) {
-            // A frame without a timestamp (H.264 frames drained from the decoder at the end):
-            // one step after the previous.
-            self.info.extrapolated_times += 1;
-            let t = self.last_t_s + self.last_step_s;
-            self.last_t_s = t;
-            return Ok(Some(t));
+            return Ok(Some(self.drained_frame_time()));
         }
         let first = *self.first_pts_s.get_or_insert(pts_ms / 1000.0);
-        let t = pts_ms / 1000.0 - first;
-        let on_grid = (t * self.grid_fps).round() / self.grid_fps;
-        let t = if (t - on_grid).abs() <= (0.6e-3f64).min(0.25 / self.grid_fps) {
-            on_grid
-        } else {
-            t
-        };
+        let t = self.on_grid(pts_ms / 1000.0 - first);
         if t > self.last_t_s {
             self.last_step_s = t - self.last_t_s;
         }
         self.last_t_s = t;
         Ok(Some(t))
+    }
+
+    /// `t_s` put exactly on the nominal frame grid k / fps when it lies within the
+    /// container's rounding (half a millisecond) of it.
+    fn on_grid(&self, t_s: f64) -> f64 {
+        let on_grid = (t_s * self.grid_fps).round() / self.grid_fps;
+        if (t_s - on_grid).abs() <= (0.6e-3f64).min(0.25 / self.grid_fps) {
+            on_grid
+        } else {
+            t_s
+        }
+    }
+
+    /// The time of a frame OpenCV gives no timestamp: the frames a decoder reordering B-frames
+    /// still holds at the end of the stream, which OpenCV times by the packet that made the
+    /// decoder give them out, and none does. They come out in presentation order, so each is
+    /// the next packet's presentation time after the last frame's, as ffprobe reads them; one
+    /// step after the last frame when ffprobe is not there (counted: a frame dropped among the
+    /// last would shift them).
+    fn drained_frame_time(&mut self) -> f64 {
+        if self.packet_times_s.is_none() {
+            self.packet_times_s = Some(packet_times_s(&self.info.path).unwrap_or_default());
+        }
+        let last = self.last_t_s;
+        let next = self
+            .packet_times_s
+            .iter()
+            .flatten()
+            .map(|t| self.on_grid(*t))
+            .find(|t| *t > last + 1e-4);
+        let t = next.unwrap_or_else(|| {
+            self.info.extrapolated_times += 1;
+            last + self.last_step_s
+        });
+        self.last_step_s = t - last;
+        self.last_t_s = t;
+        t
     }
 
     fn read_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError> {
@@ -313,4 +344,26 @@ impl FrameSource for VideoSource {
         }
         Ok(out)
     }
+}
+
+/// The presentation times of the first video stream's packets in `path`, from the first and
+/// sorted, seconds, read by FFmpeg's ffprobe (OpenCV does not give a packet's time); None
+/// when ffprobe is not installed or cannot read them.
+fn packet_times_s(path: &Path) -> Option<Vec<f64>> {
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+        .args(["packet=pts_time", "-of", "csv=p=0"])
+        .arg(path)
+        .output()
+        .ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    let mut times: Vec<f64> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let first = *times.first()?;
+    Some(times.into_iter().map(|t| t - first).collect())
 }
