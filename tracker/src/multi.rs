@@ -15,7 +15,7 @@ use std::sync::mpsc;
 use odocal_calib::{CameraModel, FloorToCamera};
 
 use crate::detect::TagDetector;
-use crate::source::{Frame, FrameSource};
+use crate::source::{decode_into, Batch, Frame, FrameSource};
 use crate::track::{
     check_frame_size, unusable_frame, FrameRecord, GapReason, Outcome, RepeatedFixes, TrackOptions,
     TrackResult, Tracker,
@@ -119,18 +119,9 @@ pub fn track_source_multi(
         opts.search_decimate.max(1.0),
     )?;
     let mut seen: BTreeMap<u32, usize> = BTreeMap::new();
-    let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
+    let (tx, rx) = mpsc::sync_channel::<Batch>(3);
     let final_info = std::thread::scope(|scope| -> Result<_, TrackError> {
-        let decoder = scope.spawn(move || {
-            loop {
-                let batch = source.next_batch(16);
-                let stop = !matches!(&batch, Ok(b) if !b.is_empty());
-                if tx.send(batch).is_err() || stop {
-                    break;
-                }
-            }
-            source.info().clone()
-        });
+        let decoder = scope.spawn(move || decode_into(source.as_mut(), tx));
         let mut previous: Option<Frame> = None;
         for batch in rx {
             let mut batch = batch?;

@@ -33,7 +33,7 @@ use odocal_core::{TagToRobot, Trajectory, TrajectoryRow};
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::marker_height::TAG_SIDE_TOLERANCE;
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
-use crate::source::{Frame, FrameSource, SourceInfo};
+use crate::source::{decode_into, Batch, Frame, FrameSource, SourceInfo};
 use crate::uncertainty::{
     calibration_covariance, corner_covariance, corner_covariance_from_sides, expected_residual_px2,
     sigma_of,
@@ -1331,20 +1331,11 @@ pub fn track_source(
     // Three threads: the decoder, the tracker, and this one (the caller's `on_frame`). The
     // tracker builds its detector while the first frames decode, and neither the tracker
     // nor the decoder waits for `on_frame` (overlays, progress).
-    let (tx, rx) = mpsc::sync_channel::<Result<Vec<Frame>, TrackError>>(3);
+    let (tx, rx) = mpsc::sync_channel::<Batch>(3);
     let (done_tx, done_rx) = mpsc::sync_channel::<Result<Vec<(Frame, FrameRecord)>, TrackError>>(3);
     let (mut records, seen_ids, final_info) =
         std::thread::scope(|scope| -> Result<_, TrackError> {
-            let decoder = scope.spawn(move || {
-                loop {
-                    let batch = source.next_batch(16);
-                    let stop = !matches!(&batch, Ok(b) if !b.is_empty());
-                    if tx.send(batch).is_err() || stop {
-                        break;
-                    }
-                }
-                source.info().clone()
-            });
+            let decoder = scope.spawn(move || decode_into(source.as_mut(), tx));
             let path = info.path.clone();
             let worker = scope.spawn(move || -> Option<BTreeMap<u32, usize>> {
                 let mut tracker = match Tracker::new(*camera, *floor, opts.clone()) {

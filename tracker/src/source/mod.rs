@@ -189,6 +189,26 @@ pub trait FrameSource: Send {
     fn next_batch(&mut self, n: usize) -> Result<Vec<Frame>, TrackError>;
 }
 
+/// A decoded batch on its way from the decoder thread to the tracker.
+pub(crate) type Batch = Result<Vec<Frame>, TrackError>;
+
+/// Decodes `source` batch by batch into `tx` until it ends, fails or the tracker hangs up,
+/// and returns its description as decoding left it (dropped frames and timestamps are only
+/// known once read).
+pub(crate) fn decode_into(
+    source: &mut dyn FrameSource,
+    tx: std::sync::mpsc::SyncSender<Batch>,
+) -> SourceInfo {
+    loop {
+        let batch = source.next_batch(16);
+        let stop = !matches!(&batch, Ok(b) if !b.is_empty());
+        if tx.send(batch).is_err() || stop {
+            break;
+        }
+    }
+    source.info().clone()
+}
+
 /// The fastest frame rate `--fps` may give, frames/s (high-speed cameras reach a few
 /// thousand).
 pub const MAX_FPS: f64 = 10_000.0;
