@@ -285,6 +285,9 @@ pub struct CharucoCorners {
     pub object_points: Vec<Point3<f64>>,
     /// How many of the board's markers were found.
     pub markers: usize,
+    /// The board is laid out as OpenCV before 4.6 drew boards of an even number of rows
+    /// ([`legacy_marker_ids`]).
+    pub legacy_layout: bool,
 }
 
 /// Finds the board's ChArUco corners in a grey image: OpenCV's marker detection, a check that
@@ -356,7 +359,23 @@ pub fn find_charuco_corners(
             n_markers - 1
         )));
     }
-    if let Some(agree) = layout_agreement(&cb, &corners_on, &ids_on)? {
+    // A board of the layout before OpenCV 4.6 passes the check below on most views (its
+    // markers sit a square right of the current layout's, all but one per row pair), but
+    // its corners would be misassigned: the layout whose markers agree better is taken.
+    let legacy = legacy_marker_ids(&cb, board)?;
+    let mut legacy_layout = false;
+    let mut agreement = layout_agreement(&cb, &corners_on, &ids_on)?;
+    if let Some(to_current) = &legacy {
+        let (lc, li) = legacy_to_current(&corners_on, &ids_on, to_current);
+        let legacy_agree = layout_agreement(&cb, &lc, &li)?;
+        if legacy_agree > agreement {
+            legacy_layout = true;
+            agreement = legacy_agree;
+            corners_on = lc;
+            ids_on = li;
+        }
+    }
+    if let Some(agree) = agreement {
         // On the right board all but a stray pair agree (measured 99-100 % on the synthetic
         // views); a wrong width or marker ratio leaves 40-65 %.
         if agree < MIN_LAYOUT_AGREEMENT {
@@ -478,12 +497,20 @@ pub fn find_charuco_corners(
             ids.len()
         )));
     }
+    // Back to the printed board's own numbering and frame, so the floor frame is the same
+    // corner 0, x along its rows and y down it, whichever layout the board has.
+    if legacy_layout {
+        for id in &mut ids {
+            *id = mirrored_corner(*id, board);
+        }
+    }
     let object_points = ids.iter().map(|&i| object[i as usize]).collect();
     Ok(Ok(CharucoCorners {
         corners,
         ids,
         object_points,
         markers,
+        legacy_layout,
     }))
 }
 
@@ -647,6 +674,64 @@ fn refine_corner(
 /// The smallest ratio of the two eigenvalues of a corner window's gradient scatter: below it
 /// the window sees one edge, not two crossing (edges 15° apart give 0.02).
 const MIN_EDGE_BALANCE: f64 = 0.01;
+
+/// OpenCV 4.6 changed the layout of ChArUco boards with an even number of rows of squares
+/// (opencv_contrib#3291): before it, the top-left square is white and holds marker 0; from it,
+/// black. Boards printed with an older OpenCV (or a newer one's `setLegacyPattern`, or
+/// calib.io's legacy option) are the current board mirrored top to bottom with its markers
+/// renumbered row by row from the top: the legacy board's marker squares mirrored are the
+/// current board's (an odd number of rows, less one, keeps the squares' colours). For each
+/// legacy marker id, the current board's id of the marker at its mirrored square; `None` for
+/// an odd number of rows, where the layouts are one.
+fn legacy_marker_ids(
+    cb: &Ptr<CharucoBoard>,
+    board: &BoardSpec,
+) -> Result<Option<Vec<i32>>, CalibError> {
+    let (_, sy) = squares(board);
+    if sy % 2 != 0 {
+        return Ok(None);
+    }
+    let square = cb.get_square_length()? as f64;
+    let mut mirrored = Vec::new();
+    for (obj, id) in cb.obj_points().iter().zip(cb.ids().iter()) {
+        let (x, y) = obj.iter().fold((0.0, 0.0), |a, p| {
+            (a.0 + p.x as f64 / 4.0, a.1 + p.y as f64 / 4.0)
+        });
+        let (qx, qy) = ((x / square).floor() as i32, (y / square).floor() as i32);
+        mirrored.push(((sy - 1 - qy, qx), id));
+    }
+    mirrored.sort_by_key(|(square, _)| *square);
+    Ok(Some(mirrored.into_iter().map(|(_, id)| id).collect()))
+}
+
+/// Markers of a legacy board as the current board's: ids renumbered, and each outline's
+/// corners reordered so the first is again the top-left on the mirrored board.
+fn legacy_to_current(
+    corners: &Vector<Vector<Point2f>>,
+    ids: &Vector<i32>,
+    to_current: &[i32],
+) -> (Vector<Vector<Point2f>>, Vector<i32>) {
+    let mut out_corners = Vector::<Vector<Point2f>>::new();
+    let mut out_ids = Vector::<i32>::new();
+    for (quad, id) in corners.iter().zip(ids.iter()) {
+        let Some(&current) = usize::try_from(id).ok().and_then(|i| to_current.get(i)) else {
+            continue;
+        };
+        let q: Vec<Point2f> = quad.iter().collect();
+        if q.len() != 4 {
+            continue;
+        }
+        out_corners.push([q[3], q[2], q[1], q[0]].into_iter().collect());
+        out_ids.push(current);
+    }
+    (out_corners, out_ids)
+}
+
+/// The id of the inner corner at the mirrored place (top to bottom): corner ids are row-major.
+fn mirrored_corner(id: u32, board: &BoardSpec) -> u32 {
+    let (r, c) = (id / board.cols, id % board.cols);
+    (board.rows - 1 - r) * board.cols + c
+}
 
 /// The fraction of neighbouring marker pairs that sit where the board says: each marker's
 /// own corners give the homography of its square of the board, which predicts where its

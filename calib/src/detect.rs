@@ -25,6 +25,9 @@ pub struct BoardView {
     pub ids: Vec<u32>,
     /// Each corner's position on the board (board frame, z = 0), metres.
     pub object_points: Vec<Point3<f64>>,
+    /// A ChArUco board laid out as OpenCV before 4.6 drew it (its corners are numbered and
+    /// placed as on that board).
+    pub legacy_layout: bool,
 }
 
 impl BoardView {
@@ -42,6 +45,7 @@ impl BoardView {
             ids: (0..corners.len() as u32).collect(),
             object_points: object_points.into_iter().take(corners.len()).collect(),
             corners,
+            legacy_layout: false,
         }
     }
 }
@@ -264,6 +268,7 @@ pub fn detect_file(path: &Path, board: &BoardSpec) -> Result<Detection, CalibErr
                 corners: found.corners,
                 ids: found.ids,
                 object_points: found.object_points,
+                legacy_layout: found.legacy_layout,
             }),
             Err(reason) => Detection::NotFound {
                 image,

@@ -346,6 +346,7 @@ pub fn calibrate_session(
         )));
     }
     check_board_size(&views, board)?;
+    let legacy_layout = check_layouts(views.iter())?;
     let mut notes: Vec<String> = skipped
         .iter()
         .map(|s| format!("skipped {}: {}", s.image, s.reason))
@@ -355,6 +356,12 @@ pub fn calibrate_session(
     ));
     if views.is_empty() {
         return Err(no_board_error(images, board, "calibration"));
+    }
+    if legacy_layout {
+        notes.push(format!(
+            "note: the ChArUco board is in the layout OpenCV drew before 4.6 (its top-left square white, holding marker 0; OpenCV 4.6 on makes it black for an even number of rows): its corners are read as on that board, corner 0 and the floor frame's axes where the printed board has them ({})",
+            views[0].image
+        ));
     }
     let (model, model_comparison, held_out) = match choice {
         ModelChoice::Auto => {
@@ -441,6 +448,7 @@ pub fn calibrate_session(
         // halve the floor's σ with no new information.
         let fviews = distinct_views(fviews, &mut fskipped);
         check_board_size(&fviews, board)?;
+        check_layouts(views.iter().chain(&fviews))?;
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
             fskipped
@@ -527,6 +535,23 @@ pub const SAME_VIEW_RMS_PX: f64 = 0.5;
 /// Drops views that repeat an earlier one (the same photo given twice, or the board not
 /// moved between shots), noting each as skipped: they add no constraint, yet weigh their pose
 /// twice in the fit.
+/// Whether the views show a ChArUco board in the layout before OpenCV 4.6 (see
+/// [`crate::charuco`]); an error when some do and some do not, as one board has one layout:
+/// the views of the other layout would be calibrated on corners a square off.
+fn check_layouts<'a>(
+    views: impl Iterator<Item = &'a BoardView> + Clone,
+) -> Result<bool, CalibError> {
+    let legacy = views.clone().find(|v| v.legacy_layout);
+    let current = views.clone().find(|v| !v.legacy_layout);
+    match (legacy, current) {
+        (Some(l), Some(c)) => Err(CalibError::Input(format!(
+            "{} shows a ChArUco board in the layout OpenCV drew before 4.6 (top-left square white, holding marker 0), but {} one in the layout of OpenCV 4.6 on (top-left square black), or too little of the board to tell: one board has one layout; take the views of one board, each with its board's left and right columns in sight",
+            l.image, c.image
+        ))),
+        (l, _) => Ok(l.is_some()),
+    }
+}
+
 /// A note when the floor frame's x axis (along the board's rows of `cols` corners) runs up or
 /// down the first floor view: a board whose counts were given rows first (6x9 for a 9x6) is
 /// found all the same, with the floor frame turned 90° from the one meant.

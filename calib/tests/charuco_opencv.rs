@@ -272,3 +272,81 @@ fn a_charuco_board_given_as_another_target_is_named() {
         "{e}"
     );
 }
+
+/// The board as OpenCV before 4.6 drew it (and 4.7's `setLegacyPattern`): with an even number
+/// of rows, the top-left square white and holding marker 0, markers numbered row by row in
+/// the white squares. Drawn here marker by marker with OpenCV's `drawMarker`, independently
+/// of odocal's reading of the layout.
+fn legacy_board() -> Mat {
+    let dict = aruco::get_predefined_dictionary_i32(aruco::DICT_4X4_50).expect("dictionary");
+    let size = Size::new(SQUARES.0 * PPS + 2 * PPS, SQUARES.1 * PPS + 2 * PPS);
+    let mut img =
+        Mat::new_size_with_default(size, core::CV_8UC1, Scalar::all(255.0)).expect("canvas");
+    let side = (MARKER_M / SQUARE_M * PPS as f32).round() as i32;
+    let inset = (PPS - side) / 2;
+    let mut id = 0;
+    for y in 0..SQUARES.1 {
+        for x in 0..SQUARES.0 {
+            let (u, v) = (PPS + x * PPS, PPS + y * PPS);
+            if (x + y) % 2 == 1 {
+                imgproc::rectangle(
+                    &mut img,
+                    core::Rect::new(u, v, PPS, PPS),
+                    Scalar::all(0.0),
+                    -1,
+                    imgproc::LINE_8,
+                    0,
+                )
+                .expect("square");
+                continue;
+            }
+            let mut marker = Mat::default();
+            aruco::draw_marker(&dict, id, side, &mut marker, 1).expect("marker");
+            let mut roi = Mat::roi_mut(&mut img, core::Rect::new(u + inset, v + inset, side, side))
+                .expect("roi");
+            marker.copy_to(&mut roi).expect("copy");
+            id += 1;
+        }
+    }
+    img
+}
+
+/// A board of the layout before OpenCV 4.6 (an even number of rows) is read on its own
+/// corners: the current layout's corners would be a square off (and the markers at the row
+/// ends misplaced), which calibrated views of such a board to 12.8 px RMS and fx 11 % off.
+#[test]
+fn a_board_of_the_layout_before_opencv_4_6_is_read_on_its_own_corners() {
+    let (_, corners) = opencv_board();
+    let first = corners[0];
+    let img = legacy_board();
+    let h = homography(
+        &img,
+        [
+            (180.0, 110.0),
+            (1100.0, 60.0),
+            (1190.0, 660.0),
+            (120.0, 620.0),
+        ],
+    );
+    let found = find_charuco_corners(&warp(&img, &h), &spec())
+        .expect("OpenCV runs")
+        .expect("board found");
+    assert!(found.legacy_layout, "the layout before 4.6 is named");
+    assert_eq!(found.ids.len(), corners.len(), "every inner corner found");
+    let (rms, max, _) = errors(&found, &h, &corners);
+    println!(
+        "legacy board: {} corners, error RMS {rms:.4} px, max {max:.4} px",
+        found.ids.len()
+    );
+    assert!(rms < 0.06 && max < 0.15, "RMS {rms} px, max {max} px");
+    for (p, &id) in found.object_points.iter().zip(&found.ids) {
+        let (x, y) = corners[id as usize];
+        assert!((p.x - (x - first.0)).abs() < 1e-9 && (p.y - (y - first.1)).abs() < 1e-9);
+    }
+    // OpenCV's own drawing of the current layout is not taken for the old one.
+    let (img, _) = opencv_board();
+    let found = find_charuco_corners(&warp(&img, &h), &spec())
+        .expect("OpenCV runs")
+        .expect("board found");
+    assert!(!found.legacy_layout);
+}
