@@ -831,12 +831,23 @@ fn outputs_never_replace_the_manifests_files() {
 fn runs_that_are_not_straight_runs_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    synth_with(d, 2, 1, &["--paths", "tours"]);
+    synth_with(d, 12, 1, &["--paths", "tours"]);
     let manifest = d.join("manifest.json");
     let out = d.join("dataset.json");
+    // The second piece of run011 turns 174° in place, then drives 2.2 m: a turn in place adds
+    // no path, so its end lay far enough from its start and it was taken as a straight run.
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    m["runs"] = serde_json::json!([m["runs"][0].clone(), m["runs"][10].clone()]);
+    std::fs::write(&manifest, m.to_string()).unwrap();
     let e = fails(&dataset_args(&manifest, &out, &[]));
     assert!(
-        e.contains("not a straight run: its path is") && e.contains("take --layout windows"),
+        e.contains("run001: not a straight run: its path is")
+            && e.contains("take --layout windows"),
+        "{e}"
+    );
+    assert!(
+        e.contains("run011.2: not a straight run: its heading turns 174° from its start (a straight run's stays within 45°)"),
         "{e}"
     );
     let straight = d.join("straight");

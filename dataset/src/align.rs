@@ -2,7 +2,8 @@
 //!
 //! The clock offset (t_camera = t_robot + offset) is found in two steps:
 //! 1. coarse: normalised cross-correlation of the speed profiles (odometry speed per log
-//!    interval against the camera's speed over the same interval shifted by the lag), on a
+//!    interval against the camera's speed over the same interval shifted by the lag, both
+//!    signed, negative backwards, so that driving a path and back never matches), on a
 //!    10 ms lag grid over every lag at which the log's motion lies inside the trajectory (or,
 //!    when none matches, at which the camera sees most of it), with parabolic interpolation of
 //!    the peak;
@@ -22,7 +23,7 @@
 //! Residuals are reported in metres (travel fit) and m/s (speed per log interval).
 
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
-use odocal_core::wrap_angle;
+use odocal_core::{wrap_angle, Pose2};
 
 use crate::error::DatasetError;
 use crate::kinematics::WheelGeometry;
@@ -93,6 +94,22 @@ pub struct Alignment {
     pub residual_mps: f64,
     /// Log rows used.
     pub rows_used: usize,
+}
+
+/// Travel of a pose `a` to `b` along their mean heading, metres: negative when the robot
+/// backs up.
+fn forward_step(a: &Pose2, b: &Pose2) -> f64 {
+    let mid = a.theta_rad + 0.5 * wrap_angle(b.theta_rad - a.theta_rad);
+    (b.x_m - a.x_m) * mid.cos() + (b.y_m - a.y_m) * mid.sin()
+}
+
+/// The camera's signed speed between times `t0` and `t1` (m/s, negative backwards), as the
+/// wheels' mean speed is signed: compared unsigned, a log's forward leg matched the camera's
+/// drive back along the same path as well as its own, and a run driven backwards matched
+/// nothing. None where the trajectory does not hold both times.
+fn camera_speed(traj: &Trajectory, t0: f64, t1: f64, gap: f64) -> Option<f64> {
+    let (a, b) = (traj.pose_at(t0, gap)?, traj.pose_at(t1, gap)?);
+    Some(forward_step(&a, &b) / (t1 - t0))
 }
 
 /// Mean wheel travel per row, metres, with geometry `geom`.
@@ -184,17 +201,14 @@ pub fn coarse_offset(
             .count();
         let mut moving_ok = 0;
         for k in first..=last {
-            let (Some(p0), Some(p1)) = (
-                traj.position_at(t[k - 1] + lag, gap),
-                traj.position_at(t[k] + lag, gap),
-            ) else {
+            let Some(v) = camera_speed(traj, t[k - 1] + lag, t[k] + lag, gap) else {
                 continue;
             };
             if log.moving_at(k) {
                 moving_ok += 1;
             }
             a.push(v_robot[k - 1]);
-            b.push((p1 - p0).norm() / (t[k] - t[k - 1]));
+            b.push(v);
         }
         let score = if a.len() < 3 {
             f64::NEG_INFINITY
@@ -293,12 +307,9 @@ fn rematch_near(
             a.clear();
             b.clear();
             for &k in &rows {
-                if let (Some(p0), Some(p1)) = (
-                    traj.position_at(t[k - 1] + lag, gap),
-                    traj.position_at(t[k] + lag, gap),
-                ) {
+                if let Some(v) = camera_speed(traj, t[k - 1] + lag, t[k] + lag, gap) {
                     a.push(v_robot[k - 1]);
-                    b.push((p1 - p0).norm() / (t[k] - t[k - 1]));
+                    b.push(v);
                 }
             }
             if a.len() < 3 {
@@ -398,9 +409,7 @@ impl CameraPaths {
                 return None;
             }
             let dth = wrap_angle(w[1].pose.theta_rad - w[0].pose.theta_rad);
-            let mid = w[0].pose.theta_rad + 0.5 * dth;
-            let d = w[1].pose.position() - w[0].pose.position();
-            let ds = d.x * mid.cos() + d.y * mid.sin();
+            let ds = forward_step(&w[0].pose, &w[1].pose);
             let (s_prev, th_prev) = (out.s[out.s.len() - 1], out.th[out.th.len() - 1]);
             out.t.push(w[1].t_s);
             out.s.push(s_prev + ds);

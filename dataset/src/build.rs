@@ -15,6 +15,10 @@ use odocal_core::{mean_pose, PoseSigma, Trajectory, TrajectoryRow};
 /// degrees keeps it above 0.99).
 const MIN_STRAIGHTNESS: f64 = 0.9;
 
+/// Largest turn of a straight run's heading from its start, radians (45°): the synthetic
+/// experiment's runs veer by up to 18°.
+const MAX_STRAIGHT_TURN_RAD: f64 = std::f64::consts::FRAC_PI_4;
+
 /// Shortest rest, seconds, that separates two runs in one log.
 pub const DEFAULT_MIN_GAP_S: f64 = 1.0;
 
@@ -128,6 +132,46 @@ pub fn features_from_log(
         inputs: odometry.features(&g),
         raw_end_m: odometry.end_m(&g),
         odometry,
+    })
+}
+
+/// Why a run of camera poses `poses` (rest poses at both ends), `path` metres long and ending
+/// at `rel` from its start, is not a straight run; the 18 inputs describe a straight run, and
+/// a tour's end point says nothing of its path. Its end must lie at least
+/// [`MIN_STRAIGHTNESS`] of its path from its start, and its heading stay within
+/// [`MAX_STRAIGHT_TURN_RAD`] of the start's: a turn in place adds no path, so a piece that
+/// turned 172° on the spot and then drove 2.2 m passed the first check alone.
+fn not_straight(poses: &[Pose2], path: f64, rel: &Pose2) -> Option<String> {
+    let chord = rel.x_m.hypot(rel.y_m);
+    if path > 0.1 && chord < MIN_STRAIGHTNESS * path {
+        return Some(format!(
+            "not a straight run: its path is {path:.2} m long and ends {chord:.2} m from its start; runs of any shape take --layout windows"
+        ));
+    }
+    let th0 = poses.first()?.theta_rad;
+    let turn = poses
+        .iter()
+        .map(|p| wrap_angle(p.theta_rad - th0).abs())
+        .fold(0.0, f64::max);
+    (turn > MAX_STRAIGHT_TURN_RAD).then(|| {
+        format!(
+            "not a straight run: its heading turns {:.0}° from its start (a straight run's stays within {:.0}°); runs of any shape take --layout windows",
+            turn.to_degrees(),
+            MAX_STRAIGHT_TURN_RAD.to_degrees()
+        )
+    })
+}
+
+/// Why a straight run's target cannot be its odometry's: the camera's end point lies more
+/// than 90° from the wheels' (the run matched to a stretch of the trajectory driven the
+/// other way), where a straight run's odometry errs by a few degrees.
+fn against_odometry(target_m: [f64; 2], raw_end_m: [f64; 2]) -> Option<String> {
+    let dot = target_m[0] * raw_end_m[0] + target_m[1] * raw_end_m[1];
+    (dot < 0.0).then(|| {
+        format!(
+            "the camera has the run end at ({:.3}, {:.3}) m from its start and the wheels at ({:.3}, {:.3}) m, more than 90° apart: the camera's motion there is not this run's; is the log paired with the right video or trajectory?",
+            target_m[0], target_m[1], raw_end_m[0], raw_end_m[1]
+        )
     })
 }
 
@@ -386,24 +430,24 @@ pub(crate) fn process_recording_at(
         };
         let rel = end.relative_to(&start);
         let target_sigma = target_sigma(&start_rows, &end_rows, &start, &rel);
-        // Real path length: camera positions at the aligned log rows, rest poses at the ends.
-        let mut pts = vec![start.position()];
-        for k in seg.start_row + 1..seg.end_row {
-            if let Some(p) = rec.camera.position_at(revs.t_s[k] + d, frame_gap) {
-                pts.push(p);
-            }
+        // Real path: camera poses at the aligned log rows, rest poses at the ends.
+        let mut poses = vec![start];
+        poses.extend(
+            (seg.start_row + 1..seg.end_row)
+                .filter_map(|k| rec.camera.pose_at(revs.t_s[k] + d, frame_gap)),
+        );
+        poses.push(end);
+        let path: f64 = poses
+            .windows(2)
+            .map(|w| (w[1].position() - w[0].position()).norm())
+            .sum();
+        if let Some(why) = not_straight(&poses, path, &rel) {
+            out.push(reject(id, why));
+            continue;
         }
-        pts.push(end.position());
-        let path: f64 = pts.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
-        // The 18 inputs describe a straight run: a tour's end point says nothing of its path.
-        let chord = rel.x_m.hypot(rel.y_m);
-        if path > 0.1 && chord < MIN_STRAIGHTNESS * path {
-            out.push(reject(
-                id,
-                format!(
-                    "not a straight run: its path is {path:.2} m long and ends {chord:.2} m from its start; runs of any shape take --layout windows"
-                ),
-            ));
+        let raw_end_m = odo.end_m(&geom);
+        if let Some(why) = against_odometry([rel.x_m, rel.y_m], raw_end_m) {
+            out.push(reject(id, why));
             continue;
         }
         let speeds: Vec<f64> = (1..odo.t_s.len())
@@ -448,7 +492,7 @@ pub(crate) fn process_recording_at(
             speed_commanded: rec.speed_mps.is_some(),
             inputs: odo.features(&geom).to_vec(),
             target_m: [rel.x_m, rel.y_m],
-            raw_end_m: odo.end_m(&geom),
+            raw_end_m,
             path_length_m: path,
             clock_offset_s: d,
             alignment_residual_mps: al.residual_mps,
@@ -757,6 +801,125 @@ mod tests {
             .to_string()
             .contains("positive"));
         let _ = std::fs::remove_file(&dir);
+    }
+
+    /// The runs' samples of a recording, or a panic naming the rejections.
+    fn samples(log: &OdometryLog, cam: &Trajectory) -> Vec<Sample> {
+        let rec = Recording {
+            id: "r",
+            speed_mps: None,
+            log,
+            camera: cam,
+        };
+        process_recording(&rec, &BuildOptions::default())
+            .unwrap()
+            .into_iter()
+            .map(|o| match o {
+                RunOutcome::Sample(s) => *s,
+                RunOutcome::Rejected(r) => panic!("rejected: {r:?}"),
+            })
+            .collect()
+    }
+
+    fn counts(v: &[f64], sign: f64) -> Vec<i64> {
+        v.iter().map(|&c| (sign * c) as i64).collect()
+    }
+
+    /// The robot facing the other way (heading + π) and its wheels turning backwards (left
+    /// and right change sides): the same path driven backwards. The speeds were compared
+    /// unsigned, so the wheels' negative speed matched no camera offset ("correlation 0.50",
+    /// "fits two clock offsets"), and every such run was rejected.
+    #[test]
+    fn a_run_driven_backwards_is_a_backward_run() {
+        let (log, mut cam) = synthetic(0.8373, false);
+        let log = OdometryLog::from_ticks(
+            log.t_s.clone(),
+            counts(&log.right, -1.0),
+            counts(&log.left, -1.0),
+        )
+        .unwrap();
+        cam.rows
+            .iter_mut()
+            .for_each(|r| r.pose.theta_rad = wrap_angle(r.pose.theta_rad + std::f64::consts::PI));
+        let [s] = &samples(&log, &cam)[..] else {
+            panic!("one run")
+        };
+        assert!(
+            (s.clock_offset_s - 0.8373).abs() < 0.01,
+            "{}",
+            s.clock_offset_s
+        );
+        assert!(
+            (s.target_m[0] + 1.5).abs() < 1e-6 && s.target_m[1].abs() < 1e-6,
+            "{:?}",
+            s.target_m
+        );
+        assert!((s.raw_end_m[0] + 1.5).abs() < 0.012, "{:?}", s.raw_end_m);
+    }
+
+    /// A run driven forwards, then back along the same path in reverse (still facing
+    /// forwards), one clock offset for both. Compared unsigned, the legs' speeds matched at
+    /// no offset here (correlation 0.49); in a user's recordings the forward leg matched the
+    /// camera's return 12 s off, its target pointing back to the start.
+    #[test]
+    fn there_and_back_legs_align_each_with_its_own_direction() {
+        let offset = 0.8373;
+        let (log, cam) = synthetic(offset, false);
+        let t_end = log.t_s[log.len() - 1];
+        let mirror = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .copied()
+                .chain(v.iter().rev().skip(1).copied())
+                .collect()
+        };
+        let t: Vec<f64> = log
+            .t_s
+            .iter()
+            .copied()
+            .chain(log.t_s.iter().rev().skip(1).map(|&t| 2.0 * t_end - t))
+            .collect();
+        let log = OdometryLog::from_ticks(
+            t,
+            counts(&mirror(&log.left), 1.0),
+            counts(&mirror(&log.right), 1.0),
+        )
+        .unwrap();
+        // The camera's clock mirrored about the log's last row, so the offset stays.
+        let turn_s = t_end + offset;
+        let there: Vec<TrajectoryRow> = cam.rows.into_iter().filter(|r| r.t_s < turn_s).collect();
+        let back = there.iter().rev().map(|r| TrajectoryRow {
+            t_s: 2.0 * turn_s - r.t_s,
+            ..*r
+        });
+        let cam = Trajectory::new(there.iter().copied().chain(back).collect()).unwrap();
+        let legs = samples(&log, &cam);
+        assert_eq!(legs.len(), 2);
+        for (s, x) in legs.iter().zip([1.5, -1.5]) {
+            assert!(
+                (s.clock_offset_s - offset).abs() < 0.01,
+                "{}: {}",
+                s.run_id,
+                s.clock_offset_s
+            );
+            assert!(
+                (s.target_m[0] - x).abs() < 1e-6 && s.target_m[1].abs() < 1e-6,
+                "{}: {:?}",
+                s.run_id,
+                s.target_m
+            );
+            assert!((s.raw_end_m[0] - x).abs() < 0.012, "{:?}", s.raw_end_m);
+        }
+    }
+
+    #[test]
+    fn a_target_against_the_odometry_is_named() {
+        assert!(against_odometry([1.46, 0.13], [1.50, 0.01]).is_none());
+        assert!(against_odometry([-1.46, -0.13], [-1.50, -0.01]).is_none());
+        let why = against_odometry([-1.455, 0.157], [1.497, 0.008]).unwrap();
+        assert!(
+            why.contains("(-1.455, 0.157) m from its start and the wheels at (1.497, 0.008) m"),
+            "{why}"
+        );
     }
 
     #[test]
