@@ -135,9 +135,9 @@ pub fn find_ambiguities_within(
                     // A motion onto landmarks in view with the configuration itself (reflectors
                     // in pairs 15 cm apart, moved onto their twins) confuses nothing: a scan
                     // sees those landmarks too, and nothing lies where the motion takes them.
-                    let overlaps = to.iter().any(|&j| {
-                        !from.contains(&j) && (map.position(j) - mid).norm() <= radius_m
-                    });
+                    let overlaps = to
+                        .iter()
+                        .any(|&j| !from.contains(&j) && (map.position(j) - mid).norm() <= radius_m);
                     if overlaps {
                         continue;
                     }
