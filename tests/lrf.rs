@@ -20,6 +20,7 @@ fn scans_of(sim: &LrfSim) -> Vec<Scan> {
             angles_rad: s.angles_rad.clone(),
             ranges_m: s.ranges_m.clone(),
             intensities: s.intensities.clone(),
+            reversed: false,
         })
         .collect()
 }
@@ -498,16 +499,24 @@ fn rewrite_scans(
 
 /// `odocal synth lrf` into `dir` with `seed` and `scans` scans.
 fn synth_lrf(dir: &Path, seed: u64, scans: usize) {
-    let out = odocal(&[
+    synth_lrf_with(dir, seed, scans, &[]);
+}
+
+/// [`synth_lrf`] with `extra` options.
+fn synth_lrf_with(dir: &Path, seed: u64, scans: usize, extra: &[&str]) {
+    let (seed, scans) = (seed.to_string(), scans.to_string());
+    let mut args = vec![
         "synth",
         "lrf",
         "--out",
         s(dir),
         "--seed",
-        &seed.to_string(),
+        &seed,
         "--scans",
-        &scans.to_string(),
-    ]);
+        &scans,
+    ];
+    args.extend_from_slice(extra);
+    let out = odocal(&args);
     assert!(
         out.status.success(),
         "{}",
@@ -907,7 +916,8 @@ fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
 fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    synth_lrf(d, 4, 40);
+    // Beams cast from each scan's pose, so the mirrored ones are the same returns.
+    synth_lrf_with(d, 4, 40, &["--sweep-s", "0"]);
     let (header, rows) = scan_rows(d);
     let write = |name: &str, f: &dyn Fn(&[String]) -> Vec<String>, reverse: bool| {
         rewrite_scans(&d.join(name), &header, &rows, &|scan| {
@@ -975,6 +985,8 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
             s(scans).into(),
             "--out".into(),
             s(&poses).into(),
+            "--sweep-s".into(),
+            "0".into(),
         ]
     };
     let run = |scans: &Path| {
@@ -1069,55 +1081,77 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
 
 /// The laser's `ok` poses as a trajectory (`--trajectory`): one row per `ok` scan, in the
 /// format `dataset` and `evaluate` read, with σ that the errors against the truth bear out.
+/// `synth lrf` sweeps its beams over 67 ms as a 10 Hz scanner's mirror turns while the sensor
+/// drives 0.5 m/s and turns up to 12°/s; `lrf localize` de-skews them with the tracked motion.
+/// Cast as if from the first beam's pose (`--sweep-s 0`) the poses were 5–12 times further
+/// from the truth than their σ, with no word; `--global-only`, which tracks no motion, widens
+/// the σ by half a sweep's motion and says so.
 #[test]
 fn cli_laser_poses_as_a_trajectory() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
     synth_lrf(d, 4, 120);
-    let traj = d.join("traj.csv");
-    let out = localize(d, &["--trajectory", s(&traj)]);
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(stdout.contains(&format!("and {}", s(&traj))), "{stdout}");
-    let n_ok: usize = stdout
-        .split(" ok,")
-        .next()
-        .and_then(|l| l.rsplit(' ').next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no ok count: {stdout}"));
-    let t = odocal_core::Trajectory::read_csv(&traj).expect("a trajectory");
-    assert_eq!(t.rows.len(), n_ok);
-    assert!(n_ok >= 100, "{stdout}");
     let truth = std::fs::read_to_string(d.join("truth.csv")).expect("truth");
-    let truth: Vec<(f64, f64, f64)> = truth
+    let truth: Vec<(f64, f64, f64, f64)> = truth
         .lines()
         .skip(1)
         .map(|l| {
             let v: Vec<f64> = l
                 .split(',')
-                .take(3)
+                .take(4)
                 .map(|x| x.parse().expect("number"))
                 .collect();
-            (v[0], v[1], v[2])
+            (v[0], v[1], v[2], v[3])
         })
         .collect();
-    let (mut z2, mut n) = (0.0, 0usize);
-    for r in &t.rows {
-        let (_, x, y) = truth
-            .iter()
-            .find(|(tt, _, _)| (tt - r.t_s).abs() < 1e-3)
-            .expect("a truth row at the scan's time");
-        let sigma = r.sigma.expect("σ on every row");
-        z2 += ((r.pose.x_m - x) / sigma.x_m).powi(2) + ((r.pose.y_m - y) / sigma.y_m).powi(2);
-        n += 2;
-    }
-    let z = (z2 / n as f64).sqrt();
-    println!("laser trajectory: {n_ok} poses, error/σ RMS {z:.2} (x, y)");
+    // The ok count, and error/σ RMS in position (x, y) and heading of the trajectory written.
+    let run = |name: &str, extra: &[&str]| -> (usize, f64, f64, String) {
+        let traj = d.join(format!("{name}.csv"));
+        let mut args = vec!["--trajectory", s(&traj)];
+        args.extend_from_slice(extra);
+        let out = localize_into(d, &d.join(format!("{name}.poses.csv")), &args);
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        assert!(stdout.contains(&format!("and {}", s(&traj))), "{stdout}");
+        let n_ok: usize = stdout
+            .split(" ok,")
+            .next()
+            .and_then(|l| l.rsplit(' ').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no ok count: {stdout}"));
+        let t = odocal_core::Trajectory::read_csv(&traj).expect("a trajectory");
+        assert_eq!(t.rows.len(), n_ok);
+        let (mut z2, mut h2) = (0.0, 0.0);
+        for r in &t.rows {
+            let (_, x, y, th) = truth
+                .iter()
+                .find(|(tt, ..)| (tt - r.t_s).abs() < 1e-3)
+                .expect("a truth row at the scan's time");
+            let sigma = r.sigma.expect("σ on every row");
+            z2 += ((r.pose.x_m - x) / sigma.x_m).powi(2) + ((r.pose.y_m - y) / sigma.y_m).powi(2);
+            h2 += (odocal_core::wrap_angle(r.pose.theta_rad - th) / sigma.theta_rad).powi(2);
+        }
+        let n = t.rows.len().max(1) as f64;
+        let (z, h) = ((z2 / (2.0 * n)).sqrt(), (h2 / n).sqrt());
+        println!("{name}: {n_ok} poses, error/σ RMS {z:.2} (x, y), {h:.2} (heading)");
+        (n_ok, z, h, stderr)
+    };
+    let (n_ok, z, h, stderr) = run("deskewed", &[]);
+    assert!(n_ok >= 100, "{n_ok} ok");
     assert!((0.6..=1.6).contains(&z), "error/σ RMS {z:.2}");
+    assert!((0.6..=1.6).contains(&h), "heading error/σ RMS {h:.2}");
+    assert!(!stderr.contains("de-skewed"), "{stderr}");
+    let (_, z, h, _) = run("skewed", &["--sweep-s", "0"]);
+    assert!(z > 3.0 && h > 5.0, "error/σ RMS {z:.2}, heading {h:.2}");
+    let (n_ok, z, h, stderr) = run("global", &["--global-only"]);
+    assert!(n_ok >= 100, "{n_ok} ok");
+    assert!(z <= 1.6 && h <= 1.6, "error/σ RMS {z:.2}, heading {h:.2}");
+    assert!(
+        stderr.contains("poses were not de-skewed and the sensor moved up to")
+            && stderr.contains("drop it to de-skew them"),
+        "{stderr}"
+    );
 }
 
 /// The `ok` count and the position RMS, mm, that `lrf localize --truth` prints.
@@ -1211,6 +1245,9 @@ fn cli_beams_without_a_return_keep_the_fix() {
             s(&truth),
             "--fov-deg",
             fov_deg,
+            // Padding puts other beams first: beam times would differ with the sweep.
+            "--sweep-s",
+            "0",
         ]);
         let err = String::from_utf8_lossy(&out.stderr).into_owned();
         assert!(out.status.success(), "{}: {err}", s(scans));
@@ -1289,9 +1326,12 @@ fn cli_scans_listed_left_to_right_or_from_anywhere_are_read() {
     let poses = |scans: &Path, name: &str| {
         let out = d.join(name);
         let (map, truth) = (d.join("map.json"), d.join("truth.csv"));
+        // The beams taken all at once: listed in reverse, a sweep would be a clockwise one.
         let run = odocal(&[
             "lrf",
             "localize",
+            "--sweep-s",
+            "0",
             "--map",
             s(&map),
             s(scans),
@@ -1349,13 +1389,23 @@ fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
         "--landmarks",
         "16",
         "--scans",
-        "30"
+        "30",
+        // The figures below are of beams cast from each scan's pose.
+        "--sweep-s",
+        "0"
     ])
     .status
     .success());
     let (poses, traj) = (d.join("poses.csv"), d.join("traj.csv"));
     let truth = d.join("truth.csv");
-    let args = ["--trajectory", s(&traj), "--truth", s(&truth)];
+    let args = [
+        "--trajectory",
+        s(&traj),
+        "--truth",
+        s(&truth),
+        "--sweep-s",
+        "0",
+    ];
     let out = localize(d, &args);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(!stdout.contains("RMS"), "{stdout}");
@@ -1398,6 +1448,8 @@ fn cli_no_ok_scan_in_a_symmetric_layout_is_refused() {
         s(&poses),
         "--truth",
         s(&truth),
+        "--sweep-s",
+        "0",
     ]);
     let (stdout, stderr) = (
         String::from_utf8_lossy(&out.stdout),
@@ -1578,7 +1630,7 @@ fn cli_scans_of_another_map_are_not_blamed_on_its_layout() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
     synth_lrf(&a, 1, 50);
-    synth_lrf(&b, 2, 50);
+    synth_lrf(&b, 3, 50);
     let map = a.join("map.json");
     let check = odocal(&["lrf", "check-map", s(&map)]);
     assert!(

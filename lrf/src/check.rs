@@ -41,7 +41,9 @@ impl Ambiguity {
 /// Finds landmark sets of at least `min_size` (≥ 3) landmarks, all within
 /// `radius_m` of their first pair's midpoint (seen together), that another
 /// set matches within `tol_m` by a rigid motion or a reflection, with
-/// consistent reflector orientations. Largest first.
+/// consistent reflector orientations; not when a landmark of the other set is itself within
+/// that radius and nothing lies where the motion takes it (seen with the set, it tells the
+/// two places apart). Largest first.
 pub fn find_ambiguities(map: &Map, tol_m: f64, radius_m: f64, min_size: usize) -> Vec<Ambiguity> {
     find_ambiguities_within(map, tol_m, radius_m, min_size, usize::MAX).0
 }
@@ -128,6 +130,15 @@ pub fn find_ambiguities_within(
                         }
                     });
                     if !ok || from.len() < min_size || from == to {
+                        continue;
+                    }
+                    // A motion onto landmarks in view with the configuration itself (reflectors
+                    // in pairs 15 cm apart, moved onto their twins) confuses nothing: a scan
+                    // sees those landmarks too, and nothing lies where the motion takes them.
+                    let overlaps = to
+                        .iter()
+                        .any(|&j| !from.contains(&j) && (map.position(j) - mid).norm() <= radius_m);
+                    if overlaps {
                         continue;
                     }
                     let transform = Pose2::new(t.x, t.y, wrap_angle(theta));
@@ -288,5 +299,34 @@ mod tests {
         assert!(find_ambiguities(&m, 0.02, 3.0, 3)
             .iter()
             .all(|x| x.kind == AmbiguityKind::Mirror || x.size() < 3));
+    }
+
+    /// Reflectors in pairs 15 cm apart: every subset moved 15 cm lands on its twins, which a
+    /// scan sees beside it, so the layout is no ambiguity (`lrf localize --global-only` found
+    /// 100 ok poses of 100); it used to be called AMBIGUOUS with 175 congruent configurations.
+    /// A triangle repeated 5 m away still is one, twins or not.
+    #[test]
+    fn twins_in_view_are_no_ambiguity() {
+        let base = [(0.0, 0.0), (1.3, 0.2), (0.4, 0.9), (2.1, 1.7), (3.0, 0.4)];
+        let twins: Vec<(f64, f64)> = base
+            .iter()
+            .flat_map(|&(x, y)| [(x, y), (x + 0.15, y)])
+            .collect();
+        // Congruent configurations moved `by` metres without turning (two parallel pairs of
+        // these reflectors, which face nowhere, are also a parallelogram turned 180°).
+        let congruent = |m: &Map, by: f64| {
+            find_ambiguities(m, 0.03, 5.6, 3)
+                .into_iter()
+                .filter(|x| {
+                    x.kind == AmbiguityKind::Congruent
+                        && (x.transform.position().coords.norm() - by).abs() < 0.01
+                        && x.transform.theta_rad.abs() < 0.01
+                })
+                .count()
+        };
+        assert_eq!(congruent(&map(&twins), 0.15), 0);
+        let mut repeated = twins.clone();
+        repeated.extend(base.iter().take(3).map(|&(x, y)| (x + 9.0, y)));
+        assert!(congruent(&map(&repeated), 9.0) > 0);
     }
 }

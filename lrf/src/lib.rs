@@ -37,7 +37,7 @@ pub use eval::{
 };
 pub use localize::{
     check_beam_step, check_intensity_scale, check_range_unit, check_scan_times, localize_scans,
-    read_scan_files, ScanFiles,
+    read_scan_files, Localized, ScanFiles, Skewed,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};

@@ -3,7 +3,8 @@
 
 use std::path::Path;
 
-use nalgebra::{Matrix2, Point2, Vector2};
+use nalgebra::{Matrix2, Point2, Rotation2, Vector2};
+use odocal_core::Pose2;
 
 use crate::sweep::Sweep;
 use crate::LrfError;
@@ -33,6 +34,11 @@ pub struct SensorConfig {
     pub sigma_angle_rad: f64,
     /// Returns at or above this intensity are reflector candidates.
     pub intensity_min: f64,
+    /// Time from a scan's first beam to its last, seconds; None: the share of a turn the
+    /// beams span at `rate_hz` (a mirror turning once per scan at a steady rate, as Hokuyo and
+    /// SICK scanners do; `odocal lrf localize`'s default), 0: all beams at the scan's time
+    /// (this default's, as the library simulator's default scans are cast).
+    pub sweep_s: Option<f64>,
 }
 
 impl SensorConfig {
@@ -64,6 +70,15 @@ impl SensorConfig {
                 self.rate_hz
             ));
         }
+        if let Some(s) = self
+            .sweep_s
+            .filter(|s| !(s.is_finite() && *s >= 0.0 && *s <= 1.0 / self.rate_hz))
+        {
+            return bad(format!(
+                "--sweep-s {s}: need a time from the first beam to the last in [0, 1/--rate-hz = {}] s",
+                1.0 / self.rate_hz
+            ));
+        }
         if !self.intensity_min.is_finite() {
             return bad(format!(
                 "--intensity-min {}: need a finite intensity",
@@ -91,6 +106,21 @@ impl Default for SensorConfig {
             sigma_range_m: 0.01,
             sigma_angle_rad: 0.0002,
             intensity_min: 0.5,
+            // The synthetic scans of `odocal_synth`'s library default are cast from one pose;
+            // `odocal lrf localize` assumes a sweep unless told otherwise.
+            sweep_s: Some(0.0),
+        }
+    }
+}
+
+impl SensorConfig {
+    /// Time between two beams of `scan`, seconds (see [`SensorConfig::sweep_s`]).
+    pub fn beam_interval_s(&self, scan: &Scan) -> f64 {
+        let n = scan.angles_rad.len();
+        match self.sweep_s {
+            Some(s) if n > 1 => s / (n - 1) as f64,
+            Some(_) => 0.0,
+            None => scan.step_rad().abs() / std::f64::consts::TAU / self.rate_hz,
         }
     }
 }
@@ -111,6 +141,9 @@ pub struct Scan {
     pub ranges_m: Vec<f64>,
     /// Return intensities (reflectors ≥ [`SensorConfig::intensity_min`]).
     pub intensities: Vec<f64>,
+    /// The beams were listed in decreasing angle order and are kept reversed: the last beam
+    /// here was taken first (a scanner turning clockwise).
+    pub reversed: bool,
 }
 
 impl Scan {
@@ -152,9 +185,30 @@ pub struct Detection {
     /// does not see), or its return is reflective (the strip went on but its range
     /// jumped, as at grazing incidence) or beyond the maximum range.
     pub neighbour_ranges_m: [Option<f64>; 2],
+    /// When the cluster's beams were taken (their mean), seconds after the scan's time (its
+    /// first beam's).
+    pub dt_s: f64,
+    /// The sensor's pose when the cluster's beams were taken, in the sensor frame at the
+    /// scan's time (identity until [`Detection::deskew`]): `point` is in the scan's frame, the
+    /// beams' angles and ranges in this one.
+    pub motion: Pose2,
 }
 
 impl Detection {
+    /// Moves the detection into the sensor frame at the scan's time, the sensor moving at
+    /// `velocity` (dx/dt, dy/dt in that frame, m/s; dθ/dt, rad/s) while the scan swept: a
+    /// scanner turning its beam over 67 ms while the robot drives 0.5 m/s and turns 12°/s
+    /// sees its last reflectors 33 mm and 0.8° from where the first beam's pose puts them.
+    pub fn deskew(&mut self, velocity: [f64; 3]) {
+        let beams_frame = self.motion.inverse().transform_point(&self.point);
+        self.motion = Pose2::new(
+            velocity[0] * self.dt_s,
+            velocity[1] * self.dt_s,
+            velocity[2] * self.dt_s,
+        );
+        self.point = self.motion.transform_point(&beams_frame);
+    }
+
     /// Covariance of the centre in the sensor frame, m².
     pub fn cov(&self) -> Matrix2<f64> {
         let (s, c) = self.bearing_rad.sin_cos();
@@ -176,8 +230,32 @@ impl Detection {
     /// the cluster may hide one end of the strip, only the other end is known and the centroid
     /// is biased towards the visible part: the centre is taken half a strip from the visible
     /// end instead. The range noise averages along the beam over the `n` hits.
+    /// The centre is found among the beams, in the frame of the sensor's pose when they were
+    /// taken, and moved into the scan's frame with the detection's `motion`.
     pub fn strip_centre(
         &self,
+        normal: Option<Vector2<f64>>,
+        width_m: f64,
+        sensor: &SensorConfig,
+    ) -> (Point2<f64>, Matrix2<f64>) {
+        let turn = Rotation2::new(self.motion.theta_rad);
+        let point = self.motion.inverse().transform_point(&self.point);
+        let (centre, cov) = self.strip_centre_among_beams(
+            point,
+            normal.map(|n| turn.inverse() * n),
+            width_m,
+            sensor,
+        );
+        (
+            self.motion.transform_point(&centre),
+            turn.matrix() * cov * turn.matrix().transpose(),
+        )
+    }
+
+    /// [`Detection::strip_centre`] in the frame of the beams, whose centroid is `point`.
+    fn strip_centre_among_beams(
+        &self,
+        point: Point2<f64>,
         normal: Option<Vector2<f64>>,
         width_m: f64,
         sensor: &SensorConfig,
@@ -197,7 +275,7 @@ impl Detection {
         let k = self.n_beams.max(1) as f64;
         // Where a beam at angle `a` meets the strip's plane: its range, and its position along
         // the strip. The plane goes through the centroid of the hits.
-        let plane = nrm.dot(&self.point.coords);
+        let plane = nrm.dot(&point.coords);
         let meet = |a: f64| -> (f64, f64) {
             let w = Vector2::new(a.cos(), a.sin());
             let den = nrm.dot(&w);
@@ -239,7 +317,7 @@ impl Detection {
         }
         let d = r * self.step_rad.abs() / cos_inc;
         let (shift, len) = if hi >= lo && lo.is_finite() && hi.is_finite() {
-            (0.5 * (lo + hi) - along.dot(&self.point.coords), hi - lo)
+            (0.5 * (lo + hi) - along.dot(&point.coords), hi - lo)
         } else {
             // More beams than the strip's width allows (a neighbouring glint, or an
             // orientation off the map's): keep the centroid, uncertain by a beam spacing.
@@ -252,7 +330,7 @@ impl Detection {
         let cov = u * u.transpose() * (sensor.sigma_range_m.powi(2) / k)
             + v * v.transpose() * ((r * sensor.sigma_angle_rad).powi(2) / k)
             + along * along.transpose() * var_along;
-        (self.point + along * shift, cov)
+        (point + along * shift, cov)
     }
 }
 
@@ -272,6 +350,17 @@ pub fn extract_detections(
     // A beam in a sector without returns tells no more about where a strip ends than one
     // outside the scan: the strip may go on into the masked sector.
     let span = sweep.returning_span().unwrap_or((0, 0));
+    // The beams are taken in the order they were listed in.
+    let interval_s = cfg.beam_interval_s(scan);
+    let n_listed = scan.angles_rad.len();
+    let beam_time_s = |index: usize| {
+        let order = if scan.reversed {
+            n_listed - 1 - index
+        } else {
+            index
+        };
+        order as f64 * interval_s
+    };
     let reflective =
         |k: usize| sweep.range_m(k) <= cfg.max_range_m && sweep.intensity(k) >= cfg.intensity_min;
     let ok = |k: usize| sweep.range_m(k) >= cfg.min_range_m && reflective(k);
@@ -307,6 +396,7 @@ pub fn extract_detections(
                 })
                 .map(|k| sweep.range_m(k))
         };
+        let dt_s = (i..j).map(|k| beam_time_s(sweep.index(k))).sum::<f64>() / k;
         let limit = reflector_width_m + 2.0 * spacing + 4.0 * cfg.sigma_range_m;
         if chord <= limit {
             out.push(Detection {
@@ -322,6 +412,8 @@ pub fn extract_detections(
                 first_beam_rad: sweep.angle_rad(i),
                 step_rad: step,
                 neighbour_ranges_m: [neighbour(i as isize - 1), neighbour(j as isize)],
+                dt_s,
+                motion: Pose2::new(0.0, 0.0, 0.0),
             });
         }
         i = j;
@@ -481,6 +573,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
                 angles_rad: Vec::new(),
                 ranges_m: Vec::new(),
                 intensities: Vec::new(),
+                reversed: false,
             });
             first_line = line;
         }
@@ -571,6 +664,7 @@ fn finish_scan(
         }
     }
     let reversed = step0 < 0.0;
+    s.reversed = reversed;
     if reversed {
         s.angles_rad.reverse();
         s.ranges_m.reverse();
@@ -652,6 +746,7 @@ mod tests {
                     // where it ends.
                     ranges_m: vec![5.0; n_beams],
                     intensities: vec![0.1; n_beams],
+                    reversed: false,
                 };
                 let mut hits = Vec::new();
                 for (k, a) in angles.iter().enumerate() {
@@ -706,6 +801,7 @@ mod tests {
             angles_rad: Vec::new(),
             ranges_m: Vec::new(),
             intensities: Vec::new(),
+            reversed: false,
         };
         for k in start..start + n {
             let i = k.rem_euclid(n);

@@ -2,10 +2,10 @@
 //! back to global search, and keep several hypotheses until the motion
 //! resolves them.
 
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Rotation2, Vector2};
 use odocal_core::{wrap_angle, Pose2};
 
-use crate::{Hypothesis, Localizer, Scan, Status};
+use crate::{Detection, Hypothesis, Localizer, Scan, Status};
 
 /// Result of processing one scan of a sequence.
 #[derive(Debug, Clone, PartialEq)]
@@ -28,6 +28,9 @@ pub struct ScanFix {
     pub mode: &'static str,
     /// Covariance of the best pose (x, y, θ; m², m·rad, rad²): its Cramér–Rao bound.
     pub pose_cov: Option<Matrix3<f64>>,
+    /// The detections were de-skewed with the tracked motion; false when there was none yet
+    /// (the first scans of a track), so the pose still carries the sweep's skew.
+    pub deskewed: bool,
 }
 
 impl ScanFix {
@@ -43,6 +46,7 @@ impl ScanFix {
             score: 0.0,
             mode,
             pose_cov: None,
+            deskewed: false,
         }
     }
 }
@@ -52,6 +56,8 @@ struct Track {
     pose: Pose2,
     /// Velocity in the map frame: dx/dt, dy/dt (m/s), dθ/dt (rad/s).
     vel: [f64; 3],
+    /// `vel` was measured (the track has been updated at least once).
+    vel_known: bool,
     t_s: f64,
     /// Accumulated score (evidence) since the track was created.
     cum: f64,
@@ -109,9 +115,12 @@ impl<'a> ScanTracker<'a> {
                 (h.pose.y_m - tr.pose.y_m) / dt,
                 wrap_angle(h.pose.theta_rad - tr.pose.theta_rad) / dt,
             ];
+            // A new track's first velocity is the measured one, not half of it.
+            let keep = if tr.vel_known { 0.5 } else { 0.0 };
             for (w, vk) in tr.vel.iter_mut().zip(v) {
-                *w = 0.5 * *w + 0.5 * vk;
+                *w = keep * *w + (1.0 - keep) * vk;
             }
+            tr.vel_known = true;
         }
         tr.pose = h.pose;
         tr.t_s = t_s;
@@ -124,6 +133,7 @@ impl<'a> ScanTracker<'a> {
         Track {
             pose: h.pose,
             vel: [0.0; 3],
+            vel_known: false,
             t_s,
             cum: h.score,
             confirmed,
@@ -134,8 +144,19 @@ impl<'a> ScanTracker<'a> {
 
     /// Processes the next scan taken at `t_s`.
     pub fn process(&mut self, scan: &Scan, t_s: f64) -> ScanFix {
-        let dets = self.loc.detections(scan);
-        let n_det = dets.len();
+        let measured = self.loc.detections(scan);
+        let n_det = measured.len();
+        // The beams were taken while the sensor moved: the best track's motion puts them in
+        // the frame of the scan's time (for the global search; each track uses its own).
+        let motion = self
+            .tracks
+            .first()
+            .filter(|t| t.vel_known)
+            .map(|tr| (tr.vel, Self::predict(tr, t_s).0));
+        let dets = match motion {
+            Some((vel, at)) => deskewed(&measured, vel, &at),
+            None => measured.clone(),
+        };
         let mut mode = "track";
         // 1. Tracking mode for every live hypothesis.
         let mut matched_any = false;
@@ -143,9 +164,39 @@ impl<'a> ScanTracker<'a> {
         for tr in &self.tracks {
             let (pred, dt) = Self::predict(tr, t_s);
             let dt = dt + 0.1 * tr.coasting as f64;
-            let h = self
-                .loc
-                .track(scan, &dets, pred, 0.02 + 0.3 * dt, 0.005 + 0.1 * dt);
+            let (gate_m, gate_rad) = (0.02 + 0.3 * dt, 0.005 + 0.1 * dt);
+            if !tr.vel_known {
+                let h = self.loc.track(scan, &measured, pred, gate_m, gate_rad);
+                matched_any |= h.is_some();
+                results.push(h);
+                continue;
+            }
+            let h = self.loc.track(
+                scan,
+                &deskewed(&measured, tr.vel, &pred),
+                pred,
+                gate_m,
+                gate_rad,
+            );
+            // The track's smoothed velocity lags behind the sweep by a scan or two; the motion
+            // from its last pose to this fit is nearer the sweep's time: the fit is repeated with
+            // it (the heading error of a sensor turning at a changing rate halves).
+            let h = h.map(|h| {
+                let dt = t_s - tr.t_s;
+                let swept = self.loc.cfg.sensor.beam_interval_s(scan) > 0.0;
+                if dt <= 1e-6 || tr.coasting > 0 || !swept {
+                    return h;
+                }
+                let vel = [
+                    (h.pose.x_m - tr.pose.x_m) / dt,
+                    (h.pose.y_m - tr.pose.y_m) / dt,
+                    wrap_angle(h.pose.theta_rad - tr.pose.theta_rad) / dt,
+                ];
+                let dets = deskewed(&measured, vel, &h.pose);
+                self.loc
+                    .track(scan, &dets, h.pose, gate_m, gate_rad)
+                    .unwrap_or(h)
+            });
             matched_any |= h.is_some();
             results.push(h);
         }
@@ -212,7 +263,9 @@ impl<'a> ScanTracker<'a> {
                 self.tracks = tracks;
             }
         }
-        self.report(t_s, n_det, mode)
+        let mut fix = self.report(t_s, n_det, mode);
+        fix.deskewed = motion.is_some() && fix.pose.is_some();
+        fix
     }
 
     /// Drops hypotheses far behind the best in accumulated evidence.
@@ -244,8 +297,19 @@ impl<'a> ScanTracker<'a> {
             score: best.last.score,
             mode,
             pose_cov: best.last.cov,
+            deskewed: false,
         }
     }
+}
+
+/// `dets` de-skewed for a sensor at `at` moving at `vel` (map frame: m/s, m/s, rad/s).
+fn deskewed(dets: &[Detection], vel: [f64; 3], at: &Pose2) -> Vec<Detection> {
+    let v = Rotation2::new(-at.theta_rad) * Vector2::new(vel[0], vel[1]);
+    let mut out = dets.to_vec();
+    for d in &mut out {
+        d.deskew([v.x, v.y, vel[2]]);
+    }
+    out
 }
 
 fn same(a: &Pose2, b: &Pose2) -> bool {

@@ -117,7 +117,7 @@ impl<'a> Sweep<'a> {
         self.closed
     }
 
-    fn index(&self, k: usize) -> usize {
+    pub(crate) fn index(&self, k: usize) -> usize {
         (self.start + k) % self.n
     }
 

@@ -69,6 +69,7 @@ fn scan_of(map: &Map, pose: &Pose2, skip: &[usize], extra: &[Point2<f64>]) -> Sc
         angles_rad: angles,
         ranges_m: ranges,
         intensities: inten,
+        reversed: false,
     }
 }
 

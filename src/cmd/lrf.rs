@@ -6,8 +6,8 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_intensity_scale, check_map_report, check_range_unit, check_scan_times,
-    evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localizer,
-    LocalizerConfig, Map, ScanFiles, SensorConfig, Status, DEFAULT_TOLERANCE_M,
+    evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localized,
+    Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, progress, write_atomic};
@@ -77,6 +77,12 @@ pub struct LocalizeArgs {
     /// that the scans' times are in seconds.
     #[arg(long, default_value_t = 10.0)]
     pub rate_hz: f64,
+    /// Time from a scan's first beam to its last, seconds. By default a turn takes 1/--rate-hz
+    /// and the beams span their share of it (240° at 10 Hz: 67 ms); give the scanner's own
+    /// time when its mirror turns faster than it sends scans, 0 when it takes all beams at once.
+    /// A scan's time is its first beam's; its beams are de-skewed with the tracked motion.
+    #[arg(long)]
+    pub sweep_s: Option<f64>,
 }
 
 /// Runs a subcommand.
@@ -108,6 +114,23 @@ fn warn_isolated(map: &Map, name: &str, max_range_m: f64) {
     }
 }
 
+/// Warns of poses left with their sweep's skew whose σ had to be widened for it.
+fn warn_skewed(w: &Skewed, global_only: bool) {
+    let (m, rad) = w.max_sweep_motion;
+    let cause = if global_only {
+        "--global-only localises each scan on its own, with no tracked motion to de-skew its beams by; drop it to de-skew them"
+    } else {
+        "no motion was tracked yet for them (the first scans of a track)"
+    };
+    tell!(
+        "warning: {} of {} poses were not de-skewed and the sensor moved up to {:.1} mm and {:.2}° during their sweeps: their σ were widened by half a sweep's motion ({cause}; if the scanner takes all beams at once, give --sweep-s 0)",
+        w.n_widened,
+        w.n_poses,
+        m * 1e3,
+        rad.to_degrees()
+    );
+}
+
 fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     check_output_file(&a.out, "--out")?;
     if let Some(p) = &a.trajectory {
@@ -120,6 +143,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             sigma_range_m: a.sigma_range_m,
             intensity_min: a.intensity_min,
             rate_hz: a.rate_hz,
+            sweep_s: a.sweep_s,
             ..SensorConfig::default()
         },
         ..LocalizerConfig::default()
@@ -149,7 +173,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     let bar = progress(scans.len() as u64, "localize");
     let start = Instant::now();
-    let log = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
+    let Localized { log, skewed } =
+        localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
     let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
@@ -269,6 +294,12 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             (None, Some(t)) => format!("wrote {} and {}", a.out.display(), t.display()),
         }
     );
+    // The first scan of a track carries its skew in its σ alone: one pose in many needs no word.
+    if let Some(w) =
+        skewed.filter(|w| w.n_widened > 0 && (a.global_only || w.n_widened * 10 > n_ok))
+    {
+        warn_skewed(&w, a.global_only);
+    }
     if count(Status::Lost) * 2 > log.rows.len() {
         tell!(
             "warning: {} of {} scans found no pose: {}",

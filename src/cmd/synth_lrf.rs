@@ -24,6 +24,11 @@ pub struct Args {
     /// Place landmarks in pairs symmetric under a 180° turn about the room centre (deliberately ambiguous).
     #[arg(long)]
     pub symmetric: bool,
+    /// Time from a scan's first beam to its last, seconds; each beam is cast from the pose at
+    /// its time. Default: one turn per scan (240° at 10 Hz: 67 ms), as `lrf localize` assumes;
+    /// 0: all beams from the scan's pose (localise those with `--sweep-s 0`).
+    #[arg(long)]
+    pub sweep_s: Option<f64>,
 }
 
 /// Runs the subcommand.
@@ -40,10 +45,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.landmarks
         );
     }
-    let cfg = LrfSimConfig {
+    let mut cfg = LrfSimConfig {
         symmetric: args.symmetric,
         n_scans: args.scans,
         ..LrfSimConfig::scaled(args.landmarks, args.seed)
+    };
+    cfg.sweep_s = match args.sweep_s {
+        Some(s) if !(s.is_finite() && (0.0..=1.0 / cfg.rate_hz).contains(&s)) => anyhow::bail!(
+            "--sweep-s {s}: need a time from the first beam to the last in [0, {}] s (one scan at {} Hz)",
+            1.0 / cfg.rate_hz,
+            cfg.rate_hz
+        ),
+        Some(s) => s,
+        None => cfg.turn_share_s(),
     };
     let sim = simulate(&cfg);
     // The room keeps free space for the path and between landmarks: a crowded one fills up.
