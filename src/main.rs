@@ -91,6 +91,8 @@ fn negative_numbers_are_values(cmd: clap::Command) -> clap::Command {
 }
 
 fn main() {
+    // First, before any thread starts: they all inherit the blocked interrupt signals.
+    output::discard_on_interrupt();
     // Rust ignores SIGPIPE, so a write into a closed pipe is an error that `say!` and `tell!`
     // pass over: the command runs to its end and commits its files.
     let matches = negative_numbers_are_values(Cli::command()).get_matches();

@@ -1,18 +1,23 @@
 //! Shared helpers of the binary: progress bars, counts, and the outputs of a command, which
-//! appear together when it succeeds and not at all when it fails
-//! (`odocal_core::staging`).
+//! appear together when it succeeds and not at all when it fails or is interrupted
+//! (`odocal_core::staging`). A command writes all its outputs, then calls [`commit`], and
+//! only then says what it wrote: a file it names is a file that is there.
 
+use std::collections::HashSet;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use indicatif::{ProgressBar, ProgressStyle};
-pub use odocal_core::staging::{check_output_dir, commit, discard, staged_dir, write_atomic};
+use odocal_core::staging::{self, temp_owner};
+pub use odocal_core::staging::{commit, discard};
 use odocal_core::FileError;
 
 /// What a failed write to standard output means: a closed pipe (`| head -1`) is a reader
 /// who has seen enough, and the command goes on to commit its files; any other failure (a
 /// full disk under `> out.csv`) loses what was printed, which for `correct` or `lrf
-/// check-map` is the result, so the command fails and commits nothing.
+/// check-map` is the result, so the command fails and commits nothing (files it committed
+/// before saying it wrote them stay: they hold the result).
 pub fn stdout_failed(e: std::io::Error) {
     if e.kind() == std::io::ErrorKind::BrokenPipe {
         return;
@@ -25,13 +30,14 @@ pub fn stdout_failed(e: std::io::Error) {
     std::process::exit(2);
 }
 
-/// Refuses an output path that is not a plain file to be replaced
-/// ([`odocal_core::staging::check_output_file`]), or that names the same file as another
-/// argument of the command: an input the output would destroy (`track a.avi --out a.avi`),
-/// or a second output that would overwrite the first (`--out x.csv --tum x.csv`). The value
-/// given to `option` itself is not counted.
+/// Refuses an output path that is not a plain file to be replaced, or in a folder the command
+/// cannot write ([`odocal_core::staging::check_output_file`]), or that names the same file
+/// as another argument of the command: an input the output would destroy (`track a.avi --out
+/// a.avi`, `train sw/report.json --report sw`), or a second output that would overwrite the
+/// first (`--out x.csv --tum x.csv`). The value given to `option` itself is not counted.
 pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
-    odocal_core::staging::check_output_file(path, option)?;
+    remove_stale_temporaries(path);
+    staging::check_output_file(path, option)?;
     let Some(target) = file_identity(path) else {
         return Ok(());
     };
@@ -104,6 +110,158 @@ pub fn check_output_not_input(
     }
     Ok(())
 }
+
+/// Refuses an output path that is an existing file inside one of `folders`, input folders the
+/// command reads files from (`report --experiment exp --out exp/truth/run001.true.csv`): it
+/// may be one of the files read. A new file there is no input, and is let through.
+pub fn check_output_not_in_folder(
+    path: &Path,
+    option: &str,
+    folders: &[PathBuf],
+    whose: &str,
+) -> Result<(), FileError> {
+    let Some(target) = file_identity(path).filter(|t| t.is_file()) else {
+        return Ok(());
+    };
+    for folder in folders {
+        if file_identity(folder).is_some_and(|d| target.starts_with(d)) {
+            return Err(FileError::content(
+                &format!("{option} {}", path.display()),
+                format!(
+                    "is a file inside {} ({whose}), an input folder the command reads files from, which writing it could replace; give {option} a path outside it",
+                    folder.display(),
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// [`odocal_core::staging::check_output_dir`], after removing the leftovers of killed runs.
+pub fn check_output_dir(path: &Path, option: &str) -> Result<(), FileError> {
+    remove_stale_temporaries(path);
+    staging::check_output_dir(path, option)
+}
+
+/// [`odocal_core::staging::write_atomic`], after removing the leftovers of killed runs.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
+    remove_stale_temporaries(path);
+    staging::write_atomic(path, bytes)
+}
+
+/// [`odocal_core::staging::staged_dir`], after removing the leftovers of killed runs.
+pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
+    remove_stale_temporaries(target);
+    staging::staged_dir(target, option)
+}
+
+/// Deletes the temporaries (`.odocal-<pid>-<n>.tmp`) beside `output` whose process no longer
+/// exists: a run killed with SIGKILL, or before its interrupt handler could act, leaves its
+/// unfinished outputs, and the next run writing to the same folder removes them. Each folder
+/// is looked at once per run.
+fn remove_stale_temporaries(output: &Path) {
+    static SEEN: Mutex<Option<HashSet<PathBuf>>> = Mutex::new(None);
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut seen = SEEN.lock().unwrap_or_else(|e| e.into_inner());
+    if !seen
+        .get_or_insert_with(HashSet::new)
+        .insert(dir.to_path_buf())
+    {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.filter_map(|e| e.ok()) {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(temp_owner) else {
+            continue;
+        };
+        if pid == std::process::id() || process_exists(pid) {
+            continue;
+        }
+        let path = entry.path();
+        let _ = if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+    }
+}
+
+/// Whether a process `pid` exists (signal 0 checks without sending; EPERM is another user's
+/// live process). Where that cannot be asked, every process counts as alive.
+fn process_exists(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        let Ok(pid) = libc::pid_t::try_from(pid) else {
+            return true;
+        };
+        // SAFETY: kill with signal 0 only checks that the process exists.
+        let r = unsafe { libc::kill(pid, 0) };
+        r == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// Deletes the command's temporary outputs when it is ended by SIGINT (Ctrl-C), SIGTERM or
+/// SIGHUP, then ends it by that signal as before. The signals are blocked in every thread
+/// (call this first in `main`, before any thread starts) and taken by one thread of its own,
+/// where deleting files is safe, unlike in a signal handler. A signal that was ignored when
+/// odocal started (`nohup`) stays ignored. Child processes start with the signals unblocked
+/// (the standard library resets the mask).
+#[cfg(unix)]
+pub fn discard_on_interrupt() {
+    const SIGNALS: [libc::c_int; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+    // SAFETY: plain calls on a local, initialised signal set.
+    let set = unsafe {
+        let mut set: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut set);
+        for sig in SIGNALS {
+            libc::sigaddset(&mut set, sig);
+        }
+        if libc::pthread_sigmask(libc::SIG_BLOCK, &set, std::ptr::null_mut()) != 0 {
+            return;
+        }
+        set
+    };
+    let waiter = std::thread::Builder::new()
+        .name("odocal-interrupt".into())
+        .spawn(move || loop {
+            let mut sig: libc::c_int = 0;
+            // SAFETY: `set` is initialised and `sig` is a valid place for the result.
+            if unsafe { libc::sigwait(&set, &mut sig) } != 0 {
+                continue;
+            }
+            discard();
+            // SAFETY: restore the default action and deliver the signal to this thread,
+            // unblocked here: the process ends as the signal asked, with its usual status.
+            unsafe {
+                libc::signal(sig, libc::SIG_DFL);
+                let mut one: libc::sigset_t = std::mem::zeroed();
+                libc::sigemptyset(&mut one);
+                libc::sigaddset(&mut one, sig);
+                libc::pthread_sigmask(libc::SIG_UNBLOCK, &one, std::ptr::null_mut());
+                libc::raise(sig);
+            }
+            std::process::exit(128 + sig);
+        });
+    if waiter.is_err() {
+        // No thread to take them: the signals end odocal as before.
+        // SAFETY: unblocks the set blocked above.
+        unsafe { libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut()) };
+    }
+}
+
+#[cfg(not(unix))]
+pub fn discard_on_interrupt() {}
 
 /// The file a path names, whether or not it exists yet: the canonical path, or the
 /// canonical parent joined with the name. `None` when even the parent does not exist.

@@ -499,6 +499,161 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
     );
 }
 
+/// Files of `dir` with a temporary name of odocal (`.odocal-<pid>-<n>.tmp`).
+fn temporaries(dir: &Path) -> Vec<String> {
+    listing(dir)
+        .into_iter()
+        .filter(|f| f.starts_with(".odocal-"))
+        .collect()
+}
+
+#[test]
+fn outputs_inside_input_folders_or_naming_folders_are_refused_before_any_work() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    // A dataset named as a file of train's --report folder: it would be replaced by the report.
+    let (exp, sw) = (dir.join("exp"), dir.join("sw"));
+    std::fs::create_dir_all(&sw).expect("mkdir");
+    experiment_dataset(&exp, &sw.join("report.json"), 12, 1);
+    let dataset = std::fs::read(sw.join("report.json")).expect("read");
+    for name in ["report.json", "report.md"] {
+        let ds = sw.join(name);
+        std::fs::write(&ds, &dataset).expect("write");
+        let args = [
+            "train",
+            p(&ds),
+            "--sweep",
+            "1..1",
+            "--restarts",
+            "1",
+            "--report",
+            p(&sw),
+        ];
+        refused(
+            &sw,
+            &args,
+            &["--report", "is the same file as the argument"],
+        );
+        assert_eq!(std::fs::read(&ds).expect("read"), dataset);
+        std::fs::remove_file(&ds).expect("remove");
+    }
+    // A file inside a folder the command reads files from: the experiment's truth, a
+    // trajectory among --trajectories, a shared view among --shared.
+    let truth = exp.join("truth/run001.true.csv");
+    let before = std::fs::read(&truth).expect("read");
+    let ds = dir.join("ds.json");
+    std::fs::write(&ds, &dataset).expect("write");
+    for (option, folder) in [
+        ("--experiment", &exp),
+        ("--trajectories", &exp.join("truth")),
+    ] {
+        let args = [
+            "report",
+            "--dataset",
+            p(&ds),
+            option,
+            p(folder),
+            "--out",
+            p(&truth),
+        ];
+        refused(
+            &exp.join("truth"),
+            &args,
+            &["--out", "is a file inside", option],
+        );
+    }
+    assert_eq!(std::fs::read(&truth).expect("read"), before);
+    let view = exp.join("truth/s00_c0.png");
+    std::fs::write(&view, "png").expect("write");
+    let args = ["arena", "--camera", "a.json", "b.json", "--shared"];
+    let args = [&args[..], &[p(&exp), "--out", p(&view)]].concat();
+    refused(&exp, &args, &["--shared", "is a file inside"]);
+    // A path ending in a slash names a folder: refused before calibrating, so nothing is
+    // replaced and nothing is said to be written.
+    let camera = dir.join("camera.json");
+    std::fs::write(&camera, "{}").expect("write");
+    let ros = format!("{}/ros/", p(dir));
+    let o = odocal(&[
+        "calibrate",
+        "view_0.png",
+        "--square",
+        "0.05",
+        "--out",
+        p(&camera),
+        "--yaml-opencv",
+        p(&dir.join("cam.yaml")),
+        "--yaml-ros",
+        &ros,
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("ends in a slash"), "{err}");
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert_eq!(std::fs::read(&camera).expect("read"), b"{}");
+    assert!(!dir.join("cam.yaml").exists() && temporaries(dir).is_empty());
+    let slash = format!("{}/model/", p(dir));
+    refused(
+        dir,
+        &["train", p(&data("dataset.json")), "--out", &slash],
+        &["ends in a slash"],
+    );
+    // A folder no file can be created in is found before training, not after.
+    #[cfg(target_os = "linux")]
+    refused(
+        dir,
+        &[
+            "train",
+            p(&data("dataset.json")),
+            "--out",
+            "/proc/odocal/m.json",
+        ],
+        &["--out /proc/odocal/m.json", "cannot create a file in /proc"],
+    );
+}
+
+#[test]
+fn an_interrupted_run_leaves_no_temporaries_and_a_killed_ones_are_removed_later() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let dir = d.path();
+    let vids = dir.join("vids");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_odocal"))
+        .args(["synth", "experiment", "--out", p(&vids), "--runs", "3"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let start = std::time::Instant::now();
+    while temporaries(dir).is_empty() && start.elapsed().as_secs() < 20 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(!temporaries(dir).is_empty(), "no staged folder appeared");
+    let pid = child.id().to_string();
+    let killed = Command::new("kill").args(["-INT", &pid]).status();
+    assert!(killed.expect("kill").success());
+    let status = child.wait().expect("wait");
+    assert!(!status.success(), "{status:?}");
+    assert_eq!(temporaries(dir), Vec::<String>::new(), "left by SIGINT");
+    assert!(!vids.exists());
+    // Leftovers of a process that is gone (killed with SIGKILL) are removed by the next run
+    // writing beside them; those of a live process are not.
+    let mut gone = Command::new("true").spawn().expect("spawn");
+    let gone_pid = gone.id();
+    gone.wait().expect("wait");
+    let lrf = dir.join("lrf");
+    let stale = lrf.join(format!(".odocal-{gone_pid}-3.tmp"));
+    std::fs::create_dir_all(&stale).expect("mkdir");
+    std::fs::write(stale.join("frame.png"), "partial").expect("write");
+    std::fs::write(lrf.join(format!(".odocal-{gone_pid}-4.tmp")), "x").expect("write");
+    let live = format!(".odocal-{}-0.tmp", std::process::id());
+    std::fs::write(lrf.join(&live), "x").expect("write");
+    ok(&["synth", "lrf", "--scans", "20", "--out", p(&lrf)]);
+    assert_eq!(temporaries(&lrf), [live]);
+}
+
 #[test]
 fn a_closed_stdout_pipe_ends_quietly() {
     let d = tempfile::tempdir().expect("tempdir");

@@ -4,7 +4,9 @@
 //! deletes them when it failed. So a command that fails half-way, at any step, leaves every
 //! earlier output as it was. Directory outputs (rendered videos) are built in a temporary
 //! directory beside the target ([`staged_dir`]) and moved in the same way. The staged list
-//! belongs to the process: one command, one set of outputs.
+//! belongs to the process: one command, one set of outputs. Temporary names are
+//! `.odocal-<pid>-<n>.tmp` ([`temp_owner`]), so that a later run can tell the leftovers of a
+//! process that was killed from those of one still running.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -75,6 +77,17 @@ fn temp_in(dir: &Path) -> PathBuf {
     dir.join(format!(".odocal-{}-{n}.tmp", std::process::id()))
 }
 
+/// The process id in a temporary name of [`temp_in`] (`.odocal-<pid>-<n>.tmp`), `None` for
+/// any other name.
+pub fn temp_owner(name: &str) -> Option<u32> {
+    let (pid, n) = name
+        .strip_prefix(".odocal-")?
+        .strip_suffix(".tmp")?
+        .split_once('-')?;
+    n.parse::<usize>().ok()?;
+    pid.parse().ok()
+}
+
 fn inside_staged_dir(path: &Path) -> bool {
     staged()
         .iter()
@@ -82,9 +95,15 @@ fn inside_staged_dir(path: &Path) -> bool {
 }
 
 /// Refuses an output path that is not a plain file to be replaced: an existing directory,
-/// device or FIFO, or a name the file system cannot hold. Commands call it on every output
-/// path (`option` names it) before doing any work, so a wrong path fails at once.
+/// device or FIFO, a path ending in a slash (which names a folder), a name the file system
+/// cannot hold, or a place the command cannot create files in. Commands call it on every
+/// output path (`option` names it) before doing any work, so a wrong path fails at once.
 pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
+    check_file_shape(path, option)?;
+    check_can_create(parent_of(path), path, option)
+}
+
+fn check_file_shape(path: &Path, option: &str) -> Result<(), FileError> {
     if path.as_os_str().is_empty() {
         return Err(refuse(
             option,
@@ -104,6 +123,17 @@ pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
             ));
         }
     }
+    // `Path` drops a trailing slash, and the rename into place would fail after all the work.
+    if path
+        .to_string_lossy()
+        .ends_with(['/', std::path::MAIN_SEPARATOR])
+    {
+        return Err(refuse(
+            option,
+            path,
+            "ends in a slash, which names a folder; give a file path (the folder followed by a file name)",
+        ));
+    }
     if path.file_name().is_some_and(|n| n.len() > 255) {
         return Err(refuse(
             option,
@@ -117,7 +147,51 @@ pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
     Ok(())
 }
 
-/// Refuses an output directory path that exists as something other than a directory.
+/// Refuses an output whose folder `dir` (made if missing) cannot take a new file: tried by
+/// creating one in the nearest folder that exists, since permissions, ACLs, a read-only
+/// mount or root's exemption from them are only known to the file system.
+fn check_can_create(dir: &Path, path: &Path, option: &str) -> Result<(), FileError> {
+    let Some(existing) = dir
+        .ancestors()
+        .find(|d| d.as_os_str().is_empty() || d.exists())
+    else {
+        return Ok(());
+    };
+    let existing = if existing.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        existing
+    };
+    if !existing.is_dir() {
+        return Err(refuse(
+            option,
+            path,
+            &format!("{} is not a directory", existing.display()),
+        ));
+    }
+    let probe = temp_in(existing);
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => Err(refuse(
+            option,
+            path,
+            &format!(
+                "cannot create a file in {} ({e}); give a folder you can write to",
+                existing.display()
+            ),
+        )),
+    }
+}
+
+/// Refuses an output directory path that exists as something other than a directory, or
+/// where the command cannot create files.
 pub fn check_output_dir(path: &Path, option: &str) -> Result<(), FileError> {
     if path.as_os_str().is_empty() {
         return Err(refuse(
@@ -133,13 +207,13 @@ pub fn check_output_dir(path: &Path, option: &str) -> Result<(), FileError> {
             "exists and is not a directory; give a directory path",
         ));
     }
-    Ok(())
+    check_can_create(path, path, option)
 }
 
 /// Writes `bytes` for `path`: into a temporary file beside it, moved into place by [`commit`].
 /// A path inside a [`staged_dir`] is written directly (the whole directory moves on commit).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
-    check_output_file(path, "output")?;
+    check_file_shape(path, "output")?;
     let dir = parent_of(path);
     if inside_staged_dir(path) {
         std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
@@ -181,19 +255,109 @@ pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
 }
 
 /// Moves every staged output into place (files first, in the order written, then
-/// directories). Called once, when the command has succeeded.
+/// directories): all of them or, when one cannot be moved, none (those already moved are put
+/// back and every temporary is deleted). Called once, when the command has succeeded, and
+/// before it says what it wrote.
+///
+/// The list stays locked throughout, so an interrupt's [`discard`] waits for the moves to end
+/// instead of deleting temporaries half-way through them. A directory merged into an existing
+/// one comes last and is not undone if it fails part-way.
 pub fn commit() -> Result<(), FileError> {
-    created().clear();
-    let mut list = std::mem::take(&mut *staged());
-    list.sort_by_key(|s| s.is_dir);
-    for s in &list {
-        if s.is_dir && s.target.is_dir() {
-            merge_dir(&s.tmp, &s.target)?;
+    let mut list = staged();
+    list.sort_by_key(|s| s.is_dir && s.target.is_dir());
+    let mut placed: Vec<Placed> = Vec::new();
+    let mut result = Ok(());
+    for s in list.iter() {
+        let step = if s.is_dir && s.target.is_dir() {
+            merge_dir(&s.tmp, &s.target).map(|()| None)
         } else {
-            std::fs::rename(&s.tmp, &s.target).map_err(|e| io(&s.target, e))?;
+            place(s).map(Some)
+        };
+        match step {
+            Ok(p) => placed.extend(p),
+            Err(e) => {
+                result = Err(e);
+                break;
+            }
         }
     }
+    if result.is_err() {
+        for p in placed.iter().rev() {
+            p.undo();
+        }
+        remove_temporaries(&mut list);
+        return result;
+    }
+    list.clear();
+    for p in placed {
+        if let Some(b) = p.backup {
+            let _ = std::fs::remove_file(b);
+        }
+    }
+    created().clear();
     Ok(())
+}
+
+/// An output moved into place, with what it replaced.
+struct Placed {
+    target: PathBuf,
+    /// The file the target was before (a second name for it), or `None` when it is new.
+    backup: Option<PathBuf>,
+    is_dir: bool,
+}
+
+impl Placed {
+    fn undo(&self) {
+        match &self.backup {
+            Some(b) => {
+                let _ = std::fs::rename(b, &self.target);
+            }
+            None if self.is_dir => {
+                let _ = std::fs::remove_dir_all(&self.target);
+            }
+            None => {
+                let _ = std::fs::remove_file(&self.target);
+            }
+        }
+    }
+}
+
+/// Renames a staged file or new directory to its target, keeping a second name for the file
+/// it replaces so that [`commit`] can put it back. The target is never absent meanwhile (a
+/// hard link, or a copy where the file system has none), so a process killed here loses
+/// nothing: the backup is only a leftover temporary.
+fn place(s: &Staged) -> Result<Placed, FileError> {
+    let backup = if !s.is_dir && s.target.is_file() {
+        let b = temp_in(parent_of(&s.target));
+        if std::fs::hard_link(&s.target, &b).is_err() {
+            std::fs::copy(&s.target, &b).map_err(|e| io(&s.target, e))?;
+        }
+        Some(b)
+    } else {
+        None
+    };
+    if let Err(e) = std::fs::rename(&s.tmp, &s.target) {
+        if let Some(b) = backup {
+            let _ = std::fs::remove_file(b);
+        }
+        return Err(io(&s.target, e));
+    }
+    Ok(Placed {
+        target: s.target.clone(),
+        backup,
+        is_dir: s.is_dir,
+    })
+}
+
+/// Deletes the temporaries of `list` that are still there, and empties it.
+fn remove_temporaries(list: &mut Vec<Staged>) {
+    for s in list.drain(..) {
+        if s.is_dir {
+            let _ = std::fs::remove_dir_all(&s.tmp);
+        } else {
+            let _ = std::fs::remove_file(&s.tmp);
+        }
+    }
 }
 
 /// Moves every entry of the staged directory `tmp` into the existing directory `target`,
@@ -272,15 +436,10 @@ fn series_of(name: &str) -> Option<String> {
     numbered.then_some(key)
 }
 
-/// Deletes every staged output: the command failed, so nothing it wrote appears.
+/// Deletes every staged output: the command failed or was interrupted, so nothing it wrote
+/// appears. Safe to call from any thread; it waits for a [`commit`] under way.
 pub fn discard() {
-    for s in std::mem::take(&mut *staged()) {
-        if s.is_dir {
-            let _ = std::fs::remove_dir_all(&s.tmp);
-        } else {
-            let _ = std::fs::remove_file(&s.tmp);
-        }
-    }
+    remove_temporaries(&mut staged());
     // Innermost first; `remove_dir` leaves a directory someone else has filled meanwhile.
     for dir in std::mem::take(&mut *created()).iter().rev() {
         let _ = std::fs::remove_dir(dir);
@@ -348,6 +507,30 @@ mod tests {
             ["notes.txt", "scan_1.csv", "view_00.png", "view_01.png"]
         );
         assert_eq!(std::fs::read(set.join("view_01.png")).unwrap(), b"new");
+        // One output that cannot be moved into place: none is, the files replaced before it
+        // are back, and no temporary is left.
+        std::fs::write(&a, b"old").unwrap();
+        write_atomic(&a, b"new").unwrap();
+        write_atomic(&dir.join("fresh.txt"), b"new").unwrap();
+        write_atomic(&dir.join("lost.txt"), b"new").unwrap();
+        let lost = super::staged().last().map(|s| s.tmp.clone()).unwrap();
+        std::fs::remove_file(lost).unwrap();
+        assert!(commit().unwrap_err().to_string().contains("lost.txt"));
+        assert_eq!(std::fs::read(&a).unwrap(), b"old");
+        assert!(!dir.join("fresh.txt").exists());
+        let left: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".odocal-"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+        assert_eq!(temp_owner(".odocal-12-3.tmp"), Some(12));
+        assert_eq!(temp_owner(".odocal-12.tmp"), None);
+        // A path ending in a slash names a folder, whose rename would fail after the work.
+        assert!(check_output_file(Path::new("somedir/"), "--out")
+            .unwrap_err()
+            .to_string()
+            .contains("ends in a slash"));
         assert_eq!(
             series_of("run012.odometry.csv").as_deref(),
             Some("run#.odometry.csv")

@@ -7,7 +7,7 @@ use anyhow::bail;
 use odocal_arena::{build_arena, detect_shared, shared_residual_warnings};
 use odocal_calib::{BoardSpec, CameraFile};
 
-use crate::output::{check_output_file, write_json};
+use crate::output::{check_output_file, check_output_not_in_folder, commit, write_json};
 
 /// Arguments of `odocal arena`.
 #[derive(clap::Args)]
@@ -47,6 +47,7 @@ fn board_of(args: &Args, first: &CameraFile) -> anyhow::Result<BoardSpec> {
 /// Runs `odocal arena`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     check_output_file(&args.out, "--out")?;
+    check_output_not_in_folder(&args.out, "--out", &args.shared, "--shared")?;
     let files = args
         .camera
         .iter()
@@ -132,6 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         c.points,
         arena.shared_views.len()
     );
+    commit()?;
     say!("wrote {}", args.out.display());
     Ok(())
 }

@@ -8,7 +8,7 @@ use odocal_calib::export::{opencv_yaml, ros_yaml};
 use odocal_calib::{calibrate_session, summary, ModelChoice};
 
 use super::board::TargetArgs;
-use crate::output::{check_output_file, progress, write_atomic, write_json};
+use crate::output::{check_output_file, commit, progress, write_atomic, write_json};
 
 /// Arguments of `odocal calibrate`.
 #[derive(ClapArgs)]
@@ -80,6 +80,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for line in summary(file) {
         say!("{line}");
     }
+    commit()?;
     say!("wrote {}", a.out.display());
     Ok(())
 }

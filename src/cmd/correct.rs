@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use odocal_dataset::{OdometryLog, RobotParams};
 use odocal_trainer::{ModelFile, PathModelFile, PATH_MODEL_FORMAT};
 
-use crate::output::{check_output_file, write_atomic};
+use crate::output::{check_output_file, commit, write_atomic};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -72,6 +72,7 @@ fn warn_outside_domain(outside_domain: &[String]) {
 fn write_track(args: &Args, csv: String) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         write_atomic(out, csv.as_bytes())?;
+        commit()?;
         say!("wrote {}", out.display());
     }
     Ok(())

@@ -14,7 +14,7 @@ use odocal_dataset::{
 use odocal_tracker::{track_video, TrackOptions};
 
 use crate::output::{
-    check_output_file, check_output_not_input, count, progress, write_atomic, write_json,
+    check_output_file, check_output_not_input, commit, count, progress, write_atomic, write_json,
 };
 
 /// Arguments of this subcommand.
@@ -364,6 +364,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(csv) = &args.csv {
         write_atomic(csv, samples_csv(&ds).as_bytes())?;
     }
+    commit()?;
     print_summary(&ds, &args.out);
     {
         if let Some(e) = against_truth {

@@ -10,7 +10,7 @@ use odocal_trainer::evaluate::{evaluate_paths, PathRecording, Reckoner};
 use odocal_trainer::umbmark::{SquareError, Umbmark};
 use odocal_trainer::PathModelFile;
 
-use crate::output::{check_output_file, check_output_not_input, write_json};
+use crate::output::{check_output_file, check_output_not_input, commit, write_json};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -304,6 +304,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(out) = &args.out {
         write_json(out, &ev)?;
+        commit()?;
         say!("wrote {}", out.display());
     }
     Ok(())

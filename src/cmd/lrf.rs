@@ -10,7 +10,7 @@ use odocal_lrf::{
     Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
 };
 
-use crate::output::{check_output_file, progress, write_atomic};
+use crate::output::{check_output_file, commit, progress, write_atomic};
 
 /// Subcommands.
 #[derive(clap::Subcommand)]
@@ -276,6 +276,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         if let Some((p, csv)) = trajectory {
             write_atomic(p, csv.as_bytes())?;
         }
+        commit()?;
     }
     let n = log.rows.len().max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();

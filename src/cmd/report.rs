@@ -6,7 +6,10 @@ use std::path::PathBuf;
 use anyhow::bail;
 use odocal_report::{assemble, ReportInputs};
 
-use crate::output::{check_output_dir, check_output_file, check_output_not_input, write_atomic};
+use crate::output::{
+    check_output_dir, check_output_file, check_output_not_in_folder, check_output_not_input,
+    commit, write_atomic,
+};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -150,6 +153,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let whose = format!("read from --demo-dir {}", d.display());
         check_output_not_input(&a.out, "--out", &read, &whose)?;
     }
+    for (folder, whose) in [
+        (&experiment, "--experiment"),
+        (&trajectories, "--trajectories"),
+    ] {
+        let folders: Vec<PathBuf> = folder.iter().cloned().collect();
+        check_output_not_in_folder(&a.out, "--out", &folders, whose)?;
+    }
     if let Some(d) = &a.svg_dir {
         check_output_dir(d, "--svg-dir")?;
     }
@@ -227,6 +237,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             write_atomic(&dir.join(format!("{name}.svg")), svg.as_bytes())?;
         }
     }
+    commit()?;
     let n_fig = report.figures().len();
     say!(
         "report: {} sections, {} plots -> {}{}",

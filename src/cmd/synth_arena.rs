@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use odocal_calib::BoardSpec;
 use odocal_synth::arena::{write_arena, ArenaScene};
 
-use crate::output::{progress, staged_dir};
+use crate::output::{commit, progress, staged_dir};
 
 /// Arguments of `odocal synth arena`.
 #[derive(clap::Args)]
@@ -88,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.clock_offset_s * 1e3
         );
     }
+    commit()?;
     say!(
         "wrote {} shared-view images of {} boards, {} video frames ({}x{}, {} fps) and the truth to {}",
         written.shared_images,

@@ -11,7 +11,7 @@ use odocal_synth::board::{
 use odocal_synth::calib_set::{self, check_scene};
 
 use super::board::{TargetArg, TargetArgs};
-use crate::output::{progress, staged_dir};
+use crate::output::{commit, progress, staged_dir};
 
 /// Arguments of `odocal synth calib`.
 #[derive(ClapArgs)]
@@ -108,6 +108,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ..CalibScene::default()
     };
     let truth = write_calib_set(&a.out, &scene, a.seed)?;
+    commit()?;
     let k = truth.camera.intrinsics;
     if scene.board.is_charuco() {
         say!(

@@ -9,7 +9,7 @@ use odocal_synth::experiment::{self, simulate_experiment, ExperimentSettings};
 use odocal_synth::robot::{PathKind, RobotSimConfig};
 
 use crate::cmd::synth_track::CameraArgs;
-use crate::output::{count, progress, staged_dir};
+use crate::output::{commit, count, progress, staged_dir};
 
 /// What stands for the camera.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -132,6 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.seed,
         )?;
     }
+    commit()?;
     say!(
         "synth experiment: {} in {} (seed {}, frames {}) -> {}",
         count(

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use odocal_synth::lrf_sim::{simulate, LrfSimConfig};
 
-use crate::output::write_atomic;
+use crate::output::{commit, write_atomic};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -90,6 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         100.0 * missed,
         cfg.sigma_range_m * 1e3
     );
+    commit()?;
     say!(
         "wrote {}, {}, {}\nnext: odocal lrf localize --map {} {} --out poses.csv --truth {}",
         map.display(),

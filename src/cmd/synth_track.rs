@@ -9,7 +9,7 @@ use odocal_synth::scene::{
 };
 use odocal_synth::track_scene::{write_track_scene, TrackScene};
 
-use crate::output::{progress, staged_dir};
+use crate::output::{commit, progress, staged_dir};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -235,6 +235,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let written = write_track_scene(&dir, &scene, &|_| bar.inc(1));
     bar.finish_and_clear();
     let written = written?;
+    commit()?;
     say!(
         "wrote {} frames ({}x{}, {} fps) to {}, the true camera.json, truth.csv and frames.csv{}",
         written.frames,

@@ -433,6 +433,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.report {
         write_report(&args, &opts, &result, compared.clone(), &warnings, path)?;
     }
+    commit()?;
     tell!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {
         print_against_truth(a, args.tag.tag_id);

@@ -17,7 +17,7 @@ use odocal_tracker::{
 };
 
 use crate::output::{
-    check_output_file, check_output_not_input, progress, write_atomic, write_json,
+    check_output_file, check_output_not_input, commit, progress, write_atomic, write_json,
 };
 
 /// The options of `odocal track` for several robots and several cameras.
@@ -133,6 +133,10 @@ pub fn run(args: super::track::Args) -> anyhow::Result<()> {
         let path = out_path(&args.out, *id, single);
         check_output_file(&path, "--out")?;
         write_atomic(&path, t.to_csv().as_bytes())?;
+    }
+    commit()?;
+    for (id, t) in &trajectories {
+        let path = out_path(&args.out, *id, single);
         tell!("tag {id}: {} poses → {}", t.rows.len(), path.display());
     }
     Ok(())

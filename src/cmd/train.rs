@@ -11,7 +11,9 @@ use odocal_trainer::{
     fit_model, oracle_ends, report, sweep, Method, PathModelFile, SweepSettings, TrainSettings,
 };
 
-use crate::output::{check_output_dir, check_output_file, progress, write_atomic, write_json};
+use crate::output::{
+    check_output_dir, check_output_file, commit, progress, write_atomic, write_json,
+};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -205,6 +207,7 @@ fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
         1e3 * ds.robot.wheel_diameter_m,
         1e3 * ds.robot.wheel_base_m
     );
+    commit()?;
     say!("wrote {}", out.display());
     Ok(())
 }
@@ -331,6 +334,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for line in fitted.summary(args.folds.unwrap_or(DEFAULT_FOLDS)) {
         say!("{line}");
     }
+    commit()?;
     say!("wrote {}", out.display());
     Ok(())
 }
@@ -359,6 +363,9 @@ fn run_sweep(
     };
     if let Some(dir) = &args.report {
         check_output_dir(dir, "--report")?;
+        for name in ["report.json", "report.md"] {
+            check_output_file(&dir.join(name), "--report")?;
+        }
     }
     let bar = progress((sizes.len() * restarts * folds) as u64, "training");
     let rep = sweep(ds, sha, &settings, oracle, &|| bar.inc(1))
@@ -372,6 +379,7 @@ fn run_sweep(
     if let Some(dir) = &args.report {
         write_json(&dir.join("report.json"), &rep)?;
         write_atomic(&dir.join("report.md"), md.as_bytes())?;
+        commit()?;
         tell!(
             "wrote {} and {}",
             dir.join("report.json").display(),
