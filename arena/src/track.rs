@@ -66,6 +66,18 @@ pub fn track_cameras(
             arena.cameras.len()
         )));
     }
+    // Frame counts would put every camera on its own guess of a frame rate, and --fps is
+    // one video's: a frame folder of an arena camera carries its own times.
+    if let Some(dir) = videos
+        .iter()
+        .find(|v| v.is_dir() && !v.join(odocal_tracker::source::FOLDER_TIMESTAMPS).is_file())
+    {
+        return Err(ArenaError::Input(format!(
+            "{}: a frame folder of an arena camera needs its frames' times: put a {} into it (columns file,t: each image's file name and its time in seconds on that camera's clock)",
+            dir.display(),
+            odocal_tracker::source::FOLDER_TIMESTAMPS
+        )));
+    }
     let one = |(k, v): (usize, &PathBuf)| track_camera(arena, k, v, opts, selection);
     if parallel {
         std::thread::scope(|scope| {
@@ -216,6 +228,16 @@ pub fn fuse_all(
 ) -> Result<ArenaTracking, ArenaError> {
     let tracks = camera_tracks(arena, results, marker_height_m);
     let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts)?;
+    // The fused rows fall on the reference camera's frames, its first frame time the grid's
+    // origin (its records are every frame, fix or gap).
+    let opts = &FuseOptions {
+        grid_origin_s: results
+            .get(offsets.reference)
+            .and_then(|per_id| per_id.values().next())
+            .and_then(|r| r.records.first())
+            .map_or(0.0, |r| r.t_s),
+        ..*opts
+    };
     let mut ids: Vec<u32> = tracks.iter().map(|t| t.tag_id).collect();
     ids.sort_unstable();
     ids.dedup();
