@@ -35,7 +35,8 @@ pub use graph::{
 };
 pub use shared::{detect_shared, parse_shared_name, SharedView};
 pub use track::{
-    camera_tracks, fuse_all, track_camera, track_cameras, ArenaTracking, CameraResult,
+    camera_tracks, check_frame_folders, fuse_all, track_camera, track_cameras, ArenaTracking,
+    CameraResult,
 };
 pub use track_file::{
     ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,

@@ -46,6 +46,23 @@ pub fn track_camera(
     )?)
 }
 
+/// Refuses a frame folder without its own timestamps file: frame counts would put every
+/// camera on its own guess of a frame rate, and --fps is one video's, so a frame folder of
+/// an arena camera carries its own times.
+pub fn check_frame_folders(videos: &[PathBuf]) -> Result<(), ArenaError> {
+    match videos
+        .iter()
+        .find(|v| v.is_dir() && !v.join(odocal_tracker::source::FOLDER_TIMESTAMPS).is_file())
+    {
+        Some(dir) => Err(ArenaError::Input(format!(
+            "{}: a frame folder of an arena camera needs its frames' times: put a {} into it (columns file,t: each image's file name and its time in seconds on that camera's clock)",
+            dir.display(),
+            odocal_tracker::source::FOLDER_TIMESTAMPS
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Tracks every camera's video, `parallel` (a thread per video) or one after another.
 ///
 /// A video is one sequential chain (each frame's search region comes from the previous
@@ -66,18 +83,7 @@ pub fn track_cameras(
             arena.cameras.len()
         )));
     }
-    // Frame counts would put every camera on its own guess of a frame rate, and --fps is
-    // one video's: a frame folder of an arena camera carries its own times.
-    if let Some(dir) = videos
-        .iter()
-        .find(|v| v.is_dir() && !v.join(odocal_tracker::source::FOLDER_TIMESTAMPS).is_file())
-    {
-        return Err(ArenaError::Input(format!(
-            "{}: a frame folder of an arena camera needs its frames' times: put a {} into it (columns file,t: each image's file name and its time in seconds on that camera's clock)",
-            dir.display(),
-            odocal_tracker::source::FOLDER_TIMESTAMPS
-        )));
-    }
+    check_frame_folders(videos)?;
     let one = |(k, v): (usize, &PathBuf)| track_camera(arena, k, v, opts, selection);
     if parallel {
         std::thread::scope(|scope| {

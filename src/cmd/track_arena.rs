@@ -284,6 +284,10 @@ fn track_arena(
             m.max_clock_offset_s
         );
     }
+    let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
+        .chain(m.more_videos.iter().cloned())
+        .collect();
+    odocal_arena::check_frame_folders(&videos)?;
     let arena = ArenaFile::load(arena_path)?;
     // Files from before the calibrations' covariance was carried through the shared boards
     // give σ that leave out what the calibrations share.
@@ -298,9 +302,6 @@ fn track_arena(
             arena_path.display()
         );
     }
-    let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
-        .chain(m.more_videos.iter().cloned())
-        .collect();
     let lowest = arena
         .cameras
         .iter()
