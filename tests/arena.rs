@@ -320,6 +320,32 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("in the order of the arena's cameras"), "{e}");
     assert!(!d.join("swapped_tag0.csv").exists());
+    // A frame folder without its timestamps.csv: the fix is to put one there (--fps and
+    // --timestamps, which the tracker's own message suggested, are refused with --arena).
+    let bare = d.join("bare_c3");
+    std::fs::create_dir_all(&bare).unwrap();
+    for e in std::fs::read_dir(&videos[3]).unwrap() {
+        let e = e.unwrap();
+        if e.file_name() != "timestamps.csv" {
+            std::fs::copy(e.path(), bare.join(e.file_name())).unwrap();
+        }
+    }
+    let mut a = vec!["track", "--arena", p(&arena)];
+    a.extend(videos[..3].iter().map(String::as_str));
+    a.extend([
+        p(&bare),
+        "--tags",
+        "0,3",
+        "--tag-size",
+        "0.16",
+        "--out",
+        p(&out2),
+    ]);
+    let e = fails(&a);
+    assert!(
+        e.contains("bare_c3: a frame folder of an arena camera needs its frames' times: put a timestamps.csv into it"),
+        "{e}"
+    );
     // A camera started 0.1 s late (its timestamps shifted): beyond a search of ±0.05 s it is
     // named with the search's width and the option that widens it; within ±0.2 s it fuses.
     let late = d.join("late_c3");

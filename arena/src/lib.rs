@@ -26,16 +26,17 @@ mod track_file;
 pub use error::ArenaError;
 pub use file::{ArenaCamera, ArenaFile, Consistency, PairConsistency, ARENA_FORMAT};
 pub use fuse::{
-    estimate_clock_offsets, fix_weight, fuse_robot, CameraFix, CameraTrack, ClockOffsets,
-    FuseOptions, FusedTrack, Handoff,
+    estimate_clock_offsets, fix_weight, fuse_robot, Agreement, CameraFix, CameraTrack,
+    ClockOffsets, Disagreement, FuseOptions, FusedTrack, Handoff, DISAGREE_SIGMAS,
 };
 pub use graph::{
-    build_arena, shared_residual_warnings, solve_arena, ArenaSolution, SharedObservation,
-    REFUSE_RMS_MM,
+    build_arena, height_warnings, shared_residual_warnings, solve_arena, ArenaSolution,
+    SharedObservation, REFUSE_RMS_MM,
 };
 pub use shared::{detect_shared, parse_shared_name, SharedView};
 pub use track::{
-    camera_tracks, fuse_all, track_camera, track_cameras, ArenaTracking, CameraResult,
+    camera_tracks, check_frame_folders, fuse_all, track_camera, track_cameras, ArenaTracking,
+    CameraResult,
 };
 pub use track_file::{
     ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,

@@ -46,6 +46,23 @@ pub fn track_camera(
     )?)
 }
 
+/// Refuses a frame folder without its own timestamps file: frame counts would put every
+/// camera on its own guess of a frame rate, and --fps is one video's, so a frame folder of
+/// an arena camera carries its own times.
+pub fn check_frame_folders(videos: &[PathBuf]) -> Result<(), ArenaError> {
+    match videos
+        .iter()
+        .find(|v| v.is_dir() && !v.join(odocal_tracker::source::FOLDER_TIMESTAMPS).is_file())
+    {
+        Some(dir) => Err(ArenaError::Input(format!(
+            "{}: a frame folder of an arena camera needs its frames' times: put a {} into it (columns file,t: each image's file name and its time in seconds on that camera's clock)",
+            dir.display(),
+            odocal_tracker::source::FOLDER_TIMESTAMPS
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Tracks every camera's video, `parallel` (a thread per video) or one after another.
 ///
 /// A video is one sequential chain (each frame's search region comes from the previous
@@ -66,6 +83,7 @@ pub fn track_cameras(
             arena.cameras.len()
         )));
     }
+    check_frame_folders(videos)?;
     let one = |(k, v): (usize, &PathBuf)| track_camera(arena, k, v, opts, selection);
     if parallel {
         std::thread::scope(|scope| {
@@ -216,6 +234,16 @@ pub fn fuse_all(
 ) -> Result<ArenaTracking, ArenaError> {
     let tracks = camera_tracks(arena, results, marker_height_m);
     let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts)?;
+    // The fused rows fall on the reference camera's frames, its first frame time the grid's
+    // origin (its records are every frame, fix or gap).
+    let opts = &FuseOptions {
+        grid_origin_s: results
+            .get(offsets.reference)
+            .and_then(|per_id| per_id.values().next())
+            .and_then(|r| r.records.first())
+            .map_or(0.0, |r| r.t_s),
+        ..*opts
+    };
     let mut ids: Vec<u32> = tracks.iter().map(|t| t.tag_id).collect();
     ids.sort_unstable();
     ids.dedup();

@@ -103,6 +103,26 @@ fn arena_meets_the_bounds() {
         e.contains("camera 0") && e.contains("in the order of the _cK image names"),
         "{e}"
     );
+    // Cameras 1 and 2 swapped: their shared views fit within 2 times their calibrations', but
+    // each sits 3-4 % off the height above the floor its own floor views gave: warned about,
+    // naming both files (before: accepted with no word, tracking 2.2 mm RMS off).
+    let mut swapped = files.clone();
+    swapped.swap(1, 2);
+    let mut swapped_paths = path_refs.clone();
+    swapped_paths.swap(1, 2);
+    let (_, sw) = build_arena(&swapped, &swapped_paths, &shared, &scene.board).unwrap();
+    let w = odocal_arena::height_warnings(&swapped, &swapped_paths, &sw.arena_to_camera);
+    eprintln!("swapped camera files 1 and 2: {w:?}");
+    assert!(
+        w.len() == 1
+            && w[0].contains(&format!("camera 1 ({})", paths[2].display()))
+            && w[0].contains(&format!("camera 2 ({})", paths[1].display()))
+            && w[0].contains("two swapped?"),
+        "{w:?}"
+    );
+    assert!(
+        odocal_arena::height_warnings(&files, &path_refs, &solution.arena_to_camera).is_empty()
+    );
     // A board nudged between two cameras' shots of one view (camera 1's corners 2 px to the
     // right, about 6 mm on the floor): accepted, but a camera of the pair whose shared views
     // now fit several times worse than its calibration is warned about, since the fused σ
@@ -323,6 +343,7 @@ fn arena_meets_the_bounds() {
         both as f64 >= 0.9 * scene.frames as f64,
         "both robots at once in only {both} rows"
     );
+    perturbed_cameras(&arena, &results, &truths, truth.marker_height_m, scene.fps);
     // Every camera saw both robots at some point and handed them on: all four overlaps used.
     for k in 0..4 {
         for id in [0, 3] {
@@ -333,6 +354,110 @@ fn arena_meets_the_bounds() {
                     .any(|t| t.camera == k && t.tag_id == id),
                 "camera {k} never saw tag {id}"
             );
+        }
+    }
+}
+
+/// Position RMS of every fused robot against its truth, metres.
+fn fused_rms(
+    tracking: &odocal_arena::ArenaTracking,
+    truths: &[(u32, Trajectory)],
+    to_truth_s: f64,
+) -> Vec<f64> {
+    tracking
+        .robots
+        .iter()
+        .map(|r| {
+            let own = &truths.iter().find(|(i, _)| *i == r.tag_id).unwrap().1;
+            let rows = &r.trajectory.rows;
+            let sq: f64 = rows
+                .iter()
+                .map(|row| {
+                    (row.pose.position() - own.position_at(row.t_s + to_truth_s, 0.01).unwrap())
+                        .norm_squared()
+                })
+                .sum();
+            (sq / rows.len() as f64).sqrt()
+        })
+        .collect()
+}
+
+/// The same tracking with one camera's frames perturbed in memory.
+fn perturbed_cameras(
+    arena: &odocal_arena::ArenaFile,
+    results: &[odocal_arena::CameraResult],
+    truths: &[(u32, Trajectory)],
+    marker_height_m: f64,
+    fps: f64,
+) {
+    use odocal_tracker::Outcome;
+    let opts = FuseOptions::for_fps(fps);
+    let retime = |r: &mut odocal_arena::CameraResult, f: &dyn Fn(usize, f64) -> f64| {
+        for rec in r.values_mut().flat_map(|t| t.records.iter_mut()) {
+            rec.t_s = f(rec.index, rec.t_s);
+            if let Outcome::Fix(fix) = &mut rec.outcome {
+                fix.t_s = f(rec.index, fix.t_s);
+            }
+        }
+    };
+    // Camera 1's frames 70-77 dropped and the rest re-encoded at a constant frame rate: its
+    // later frames are timed 8 frames early (dropped before most of its overlaps, its pairs
+    // no longer line up and its clock offset is refused instead). Camera 1 is named, left out where the others
+    // disagree with it, and the fusion holds (before: 148.6 mm RMS off, named nowhere).
+    let mut dropped = results.to_vec();
+    retime(&mut dropped[1], &|i, t| {
+        if i >= 78 {
+            t - 8.0 / fps
+        } else {
+            t
+        }
+    });
+    let tracking = fuse_all(arena, &dropped, marker_height_m, &opts).unwrap();
+    let rms = fused_rms(&tracking, truths, 0.0);
+    let named: Vec<_> = tracking
+        .robots
+        .iter()
+        .flat_map(|r| r.disagreements.iter())
+        .collect();
+    eprintln!("camera 1 re-timed after frame 78: position RMS {rms:?} m; {named:?}");
+    assert!(
+        !named.is_empty() && named.iter().all(|d| d.camera == 1 && d.left_out),
+        "{named:?}"
+    );
+    assert!(rms.iter().all(|r| *r <= 1.5e-3), "{rms:?}");
+    assert!(tracking.robots.iter().any(|r| r.agreement.max_m > 0.05));
+    // Camera 0 saw no robot: the others go on, on camera 1's clock (before: refused, blaming
+    // cameras 1-3).
+    let offset_2 = fuse_all(arena, results, marker_height_m, &opts)
+        .unwrap()
+        .offsets
+        .offset_s[2];
+    let mut blank = results.to_vec();
+    for r in blank[0].values_mut() {
+        r.records
+            .retain(|rec| !matches!(rec.outcome, Outcome::Fix(_)));
+    }
+    let tracking = fuse_all(arena, &blank, marker_height_m, &opts).unwrap();
+    assert_eq!(tracking.offsets.reference, 1);
+    // The truth's clock is camera 0's.
+    let to_truth_s = offset_2 - tracking.offsets.offset_s[2];
+    let rms = fused_rms(&tracking, truths, to_truth_s);
+    assert!(rms.iter().all(|r| *r <= 1.5e-3), "{rms:?}");
+    eprintln!("camera 0 blank: position RMS {rms:?} m on camera 1's clock");
+    assert_eq!(tracking.robots.len(), 2);
+    // Epoch timestamps: the fused rows stay on camera 0's frames (before: 24.7 ms off them).
+    let epoch = 1_764_000_000.0;
+    let mut late = results.to_vec();
+    for r in &mut late {
+        retime(r, &|_, t| t + epoch);
+    }
+    let plain = fuse_all(arena, results, marker_height_m, &opts).unwrap();
+    let tracking = fuse_all(arena, &late, marker_height_m, &opts).unwrap();
+    for (a, b) in plain.robots.iter().zip(&tracking.robots) {
+        assert_eq!(a.trajectory.rows.len(), b.trajectory.rows.len());
+        for (x, y) in a.trajectory.rows.iter().zip(&b.trajectory.rows) {
+            assert!((y.t_s - epoch - x.t_s).abs() < 1e-5, "{} {}", x.t_s, y.t_s);
+            assert!((y.pose.position() - x.pose.position()).norm() < 1e-5);
         }
     }
 }

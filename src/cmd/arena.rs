@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use odocal_arena::{build_arena, detect_shared, shared_residual_warnings};
+use odocal_arena::{build_arena, detect_shared, height_warnings, shared_residual_warnings};
 use odocal_calib::{BoardSpec, CameraFile};
 
 use crate::output::{check_output_file, check_output_not_in_folder, commit, write_json};
@@ -104,7 +104,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if bare.len() == 1 { "it" } else { "them" },
         );
     }
-    for w in shared_residual_warnings(&files, &paths, &solution.rms_px) {
+    for w in shared_residual_warnings(&files, &paths, &solution.rms_px)
+        .into_iter()
+        .chain(height_warnings(&files, &paths, &solution.arena_to_camera))
+    {
         tell!("warning: {w}");
     }
     write_json(&args.out, &arena)?;

@@ -288,6 +288,10 @@ fn track_arena(
             m.max_clock_offset_s
         );
     }
+    let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
+        .chain(m.more_videos.iter().cloned())
+        .collect();
+    odocal_arena::check_frame_folders(&videos)?;
     let arena = ArenaFile::load(arena_path)?;
     // Files from before the calibrations' covariance was carried through the shared boards
     // give σ that leave out what the calibrations share.
@@ -302,9 +306,6 @@ fn track_arena(
             arena_path.display()
         );
     }
-    let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
-        .chain(m.more_videos.iter().cloned())
-        .collect();
     let lowest = arena
         .cameras
         .iter()
@@ -344,16 +345,25 @@ fn track_arena(
             }
         }
     }
-    // A tag mounted turned shows in the fused trajectory as in one camera's.
+    // A tag mounted turned shows in the fused trajectory as in one camera's; cameras that
+    // disagree put a sideways step into it that no mount explains.
     for r in &tracking.robots {
-        let mount = &opts.tag_to_robot;
-        for w in mount_warnings(&r.trajectory, mount) {
-            tell!("warning: tag {}: {w}", r.tag_id);
+        say_disagreements(r, &tracking.offsets, &videos);
+        if r.disagreements.is_empty() {
+            for w in mount_warnings(&r.trajectory, &opts.tag_to_robot) {
+                tell!("warning: tag {}: {w}", r.tag_id);
+            }
         }
     }
     say!(
         "frame rate {fps:.3} frames/s, taken to be every camera's (clocks without drift, one constant offset each)"
     );
+    if tracking.offsets.reference != 0 {
+        say!(
+            "the arena clock is camera {}'s, the first camera that saw a robot; the fused times fall on its frames",
+            tracking.offsets.reference
+        );
+    }
     for k in 0..arena.cameras.len() {
         let (o, sd) = (tracking.offsets.offset_s[k], tracking.offsets.sigma_s[k]);
         if sd.is_nan() {
@@ -391,6 +401,18 @@ fn track_arena(
             jump * 1e3,
             dis * 1e3
         );
+        let a = &r.agreement;
+        if a.fixes > 0 {
+            say!(
+                "tag {}: simultaneous fixes of different cameras {:.2} mm RMS apart, {:.2} mm at most; {:.2} σ RMS, {:.1} σ at most ({} fixes against the others' fused pose)",
+                r.tag_id,
+                a.rms_m * 1e3,
+                a.max_m * 1e3,
+                a.sigmas_rms,
+                a.max_sigmas,
+                a.fixes
+            );
+        }
     }
     if let Some(dir) = &m.arena_truth {
         print_against_truth(dir, &tracking)?;
@@ -409,6 +431,38 @@ fn track_arena(
         .into_iter()
         .map(|r| (r.tag_id, r.trajectory))
         .collect())
+}
+
+/// Warns of every stretch in which a camera's fixes of a robot disagreed with the others far
+/// beyond their σ, naming the camera's video and the stretch on both clocks.
+fn say_disagreements(
+    r: &odocal_arena::FusedTrack,
+    offsets: &odocal_arena::ClockOffsets,
+    videos: &[PathBuf],
+) {
+    for d in &r.disagreements {
+        let own = offsets.offset_s.get(d.camera).copied().unwrap_or(0.0);
+        let video = videos
+            .get(d.camera)
+            .map_or(String::new(), |v| format!(" ({})", v.display()));
+        let done = if d.left_out {
+            "left out of the fused poses there; where no other camera saw the robot its fixes are kept and may be as far off".to_string()
+        } else {
+            "which camera is wrong could not be told, so the fused σ there are widened to cover the cameras' spread".to_string()
+        };
+        tell!(
+            "warning: tag {}: camera {}{video} disagrees with the other cameras seeing the robot by up to {:.1} mm ({:.0} σ) at {} instants from {:.2} s to {:.2} s (arena clock; {:.2}–{:.2} s on its own): {done}. Its clock jumped (frames dropped and the video re-encoded at a constant frame rate: track the original recording) or the camera moved since `odocal arena` (calibrate it and build the arena again)",
+            r.tag_id,
+            d.camera,
+            d.max_m * 1e3,
+            d.max_sigmas,
+            d.instants,
+            d.from_s,
+            d.to_s,
+            d.from_s - own,
+            d.to_s - own
+        );
+    }
 }
 
 /// The common frame rate: each camera's median frame interval, which must agree (the fusion
@@ -453,12 +507,19 @@ fn frame_rate(results: &[odocal_arena::CameraResult], videos: &[PathBuf]) -> any
 /// Each robot's error against the synthetic truth, and the offsets against the true ones.
 fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> anyhow::Result<()> {
     let truth = ArenaTruth::read(&dir.join("truth.json"))?;
+    // The truth's clock is camera 0's; the arena's is the reference camera's.
+    let to_truth_s = truth
+        .cameras
+        .get(tracking.offsets.reference)
+        .map_or(0.0, |c| c.clock_offset_s);
     for (k, c) in truth.cameras.iter().enumerate() {
-        if let Some(o) = tracking.offsets.offset_s.get(k) {
-            say!(
+        match tracking.offsets.offset_s.get(k) {
+            Some(_) if tracking.offsets.sigma_s[k].is_nan() => {}
+            Some(o) => say!(
                 "against the truth: camera {k} clock offset off by {:.3} ms",
-                (o - c.clock_offset_s).abs() * 1e3
-            );
+                (o + to_truth_s - c.clock_offset_s).abs() * 1e3
+            ),
+            None => {}
         }
     }
     for r in &tracking.robots {
@@ -471,7 +532,7 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
         };
         let tt = Trajectory::read_csv(&dir.join(&rt.trajectory))?;
         let err = |row: &odocal_core::TrajectoryRow| {
-            tt.position_at(row.t_s, 0.01)
+            tt.position_at(row.t_s + to_truth_s, 0.01)
                 .map(|p| row.pose.position() - p)
         };
         let errs: Vec<_> = r.trajectory.rows.iter().filter_map(err).collect();

@@ -265,7 +265,7 @@ impl SourceOptions {
 
 /// The timestamps file a frame folder carries: it times the folder's frames unless
 /// `--timestamps` names another.
-const FOLDER_TIMESTAMPS: &str = "timestamps.csv";
+pub const FOLDER_TIMESTAMPS: &str = "timestamps.csv";
 
 /// Opens a video file or an image folder.
 pub fn open_source(path: &Path, opts: &SourceOptions) -> Result<Box<dyn FrameSource>, TrackError> {
