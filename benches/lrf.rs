@@ -54,6 +54,7 @@ fn main() {
                 angles_rad: s.angles_rad.clone(),
                 ranges_m: s.ranges_m.clone(),
                 intensities: s.intensities.clone(),
+                reversed: false,
             })
             .collect();
         let dets: Vec<Vec<Detection>> = scans.iter().map(|s| loc.detections(s)).collect();
