@@ -826,7 +826,8 @@ fn outputs_never_replace_the_manifests_files() {
 
 /// Tours built as straight runs used to give "4 samples from 4 runs … mean path 17.401 m":
 /// each run is now refused as not straight, naming --layout windows. A manifest speed in mm/s
-/// used to be stored as given; it is refused against the odometry's own cruise speed.
+/// used to be stored as given; it is refused against the camera's peak speed, and the right
+/// label of a run too short to reach it is kept.
 #[test]
 fn runs_that_are_not_straight_runs_are_named() {
     let dir = tempfile::tempdir().unwrap();
@@ -869,6 +870,23 @@ fn runs_that_are_not_straight_runs_are_named() {
             && err.contains("the dataset holds a minority of the experiment"),
         "{err}"
     );
+    // Runs of 0.4 m never reach 0.7 m/s at 1 m/s²: their right label was refused as mixed up
+    // ("0.7 is 2.379 times the 0.294 m/s the camera saw the run average").
+    let short = d.join("short");
+    std::fs::create_dir_all(&short).unwrap();
+    let config = short.join("r40.json");
+    std::fs::write(
+        &config,
+        r#"{"format":"odocal.robotsim/1","protocol":{"run_distance_m":0.4}}"#,
+    )
+    .unwrap();
+    synth_with(&short, 3, 1, &["--config", p(&config)]);
+    let said = ok(&dataset_args(
+        &short.join("manifest.json"),
+        &short.join("dataset.json"),
+        &[],
+    ));
+    assert!(said.contains("3 samples from 3 runs"), "{said}");
     // Recordings shorter than a window used to vanish from a windows dataset unsaid, and a
     // window longer than all of them read "all 0 rejected ()".
     let e = fails(&[
