@@ -432,6 +432,52 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         p(&out),
     ]);
     assert!(e.contains("expected a camera.json"), "{e}");
+    // A folder as --camera was "camera calibration … does not exist".
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&m3),
+        "--camera",
+        p(d),
+        "--out",
+        p(&out),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "camera calibration {} is a directory",
+            d.display()
+        )),
+        "{e}"
+    );
+    // A frame folder as a run's video, as `odocal track` takes it, was refused as "a folder,
+    // not a file". Without timestamps.csv the dataset cannot time its frames (it has no
+    // --fps); with one, the row goes on to tracking (here stopped by the camera).
+    let frames = d.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    std::fs::write(
+        &m3,
+        "id,video,odometry\nv1,frames,runs/run001.odometry.csv\n",
+    )
+    .unwrap();
+    let camera_of = |c: &Path| {
+        fails(&[
+            "dataset",
+            "--manifest",
+            p(&m3),
+            "--camera",
+            p(c),
+            "--out",
+            p(&out),
+        ])
+    };
+    let e = camera_of(&m3);
+    assert!(
+        e.contains("frames listed as its video has no timestamps.csv to time its frames: add one"),
+        "{e}"
+    );
+    std::fs::write(frames.join("timestamps.csv"), "file,t\n").unwrap();
+    let e = camera_of(&m3);
+    assert!(e.contains("expected a camera.json"), "{e}");
     let m4 = d.join("m4.json");
     std::fs::write(&m4, r#"{"format":"odocal.dataset/1","runs":[]}"#).unwrap();
     assert!(run(&m4).contains("expected \"odocal.manifest/1\""));
