@@ -185,7 +185,8 @@ impl Manifest {
                         full.display()
                     )));
                 }
-                if !full.is_file() && !(role == "video" && full.is_dir()) {
+                let frame_folder = role == "video" && full.is_dir();
+                if !(full.is_file() || frame_folder) {
                     let what = if full.is_dir() {
                         "is a folder, not a file"
                     } else {
