@@ -432,6 +432,52 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
         p(&out),
     ]);
     assert!(e.contains("expected a camera.json"), "{e}");
+    // A folder as --camera was "camera calibration … does not exist".
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&m3),
+        "--camera",
+        p(d),
+        "--out",
+        p(&out),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "camera calibration {} is a directory",
+            d.display()
+        )),
+        "{e}"
+    );
+    // A frame folder as a run's video, as `odocal track` takes it, was refused as "a folder,
+    // not a file". Without timestamps.csv the dataset cannot time its frames (it has no
+    // --fps); with one, the row goes on to tracking (here stopped by the camera).
+    let frames = d.join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    std::fs::write(
+        &m3,
+        "id,video,odometry\nv1,frames,runs/run001.odometry.csv\n",
+    )
+    .unwrap();
+    let camera_of = |c: &Path| {
+        fails(&[
+            "dataset",
+            "--manifest",
+            p(&m3),
+            "--camera",
+            p(c),
+            "--out",
+            p(&out),
+        ])
+    };
+    let e = camera_of(&m3);
+    assert!(
+        e.contains("frames listed as its video has no timestamps.csv to time its frames: add one"),
+        "{e}"
+    );
+    std::fs::write(frames.join("timestamps.csv"), "file,t\n").unwrap();
+    let e = camera_of(&m3);
+    assert!(e.contains("expected a camera.json"), "{e}");
     let m4 = d.join("m4.json");
     std::fs::write(&m4, r#"{"format":"odocal.dataset/1","runs":[]}"#).unwrap();
     assert!(run(&m4).contains("expected \"odocal.manifest/1\""));
@@ -826,7 +872,8 @@ fn outputs_never_replace_the_manifests_files() {
 
 /// Tours built as straight runs used to give "4 samples from 4 runs … mean path 17.401 m":
 /// each run is now refused as not straight, naming --layout windows. A manifest speed in mm/s
-/// used to be stored as given; it is refused against the odometry's own cruise speed.
+/// used to be stored as given; it is refused against the camera's peak speed, and the right
+/// label of a run too short to reach it is kept.
 #[test]
 fn runs_that_are_not_straight_runs_are_named() {
     let dir = tempfile::tempdir().unwrap();
@@ -880,6 +927,23 @@ fn runs_that_are_not_straight_runs_are_named() {
             && err.contains("the dataset holds a minority of the experiment"),
         "{err}"
     );
+    // Runs of 0.4 m never reach 0.7 m/s at 1 m/s²: their right label was refused as mixed up
+    // ("0.7 is 2.379 times the 0.294 m/s the camera saw the run average").
+    let short = d.join("short");
+    std::fs::create_dir_all(&short).unwrap();
+    let config = short.join("r40.json");
+    std::fs::write(
+        &config,
+        r#"{"format":"odocal.robotsim/1","protocol":{"run_distance_m":0.4}}"#,
+    )
+    .unwrap();
+    synth_with(&short, 3, 1, &["--config", p(&config)]);
+    let said = ok(&dataset_args(
+        &short.join("manifest.json"),
+        &short.join("dataset.json"),
+        &[],
+    ));
+    assert!(said.contains("3 samples from 3 runs"), "{said}");
     // Recordings shorter than a window used to vanish from a windows dataset unsaid, and a
     // window longer than all of them read "all 0 rejected ()".
     let e = fails(&[

@@ -8,6 +8,7 @@ use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
 use crate::odometry::{OdometryLog, STEP_TOLERANCE_PERIODS};
 use crate::segment::{split_runs, RunSegment};
+use crate::speed_label::{camera_peak_speed_mps, commanded_speed_mismatch};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
 use odocal_core::{mean_pose, PoseSigma, Trajectory, TrajectoryRow};
 
@@ -464,25 +465,12 @@ pub(crate) fn process_recording_at(
             })
             .collect();
         let odo_speed = median(speeds);
-        // Judged against the camera's mean speed, which a wrong robot file does not scale.
-        let real_speed = path / (te - tb);
+        // Judged against the camera's speeds, which a wrong robot file does not scale.
         if let Some(v) = rec.speed_mps {
-            let ratio = v / real_speed;
-            if real_speed > 0.0 && !(0.5..=2.0).contains(&ratio) {
-                // A unit is named only where the ratio is near one's (the camera's average
-                // lies below a commanded cruise speed by the run's starting and stopping);
-                // otherwise the label is another run's (rows mixed up) or not a speed.
-                let why = match ratio {
-                    r if (400.0..=2500.0).contains(&r) => "is it in mm/s?",
-                    r if (40.0..=250.0).contains(&r) => "is it in cm/s?",
-                    _ => "is it another run's label (rows of the manifest mixed up)?",
-                };
-                out.push(reject(
-                    id,
-                    format!(
-                        "the manifest's speed_mps {v} is {ratio:.3} times the {real_speed:.3} m/s the camera saw the run average: {why} It must be the run's speed in m/s (or leave it out to use the odometry's)"
-                    ),
-                ));
+            let run_t_s = &revs.t_s[seg.start_row..=seg.end_row];
+            let peak = camera_peak_speed_mps(rec.camera, run_t_s, d, frame_gap);
+            if let Some(why) = commanded_speed_mismatch(v, peak, path / (te - tb)) {
+                out.push(reject(id, why));
                 continue;
             }
         }

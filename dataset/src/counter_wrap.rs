@@ -14,6 +14,44 @@ const COUNTER_BITS: [u32; 2] = [32, 16];
 /// step (a robot speeding up as its counter wraps).
 const STEP_SLACK_TICKS: f64 = 100.0;
 
+/// The range of counts a 16- or 32-bit counter gives, signed or not.
+const COUNTER_RANGE: std::ops::RangeInclusive<f64> = -2_147_483_648.0..=4_294_967_295.0;
+
+/// A count in a tick column that no 16- or 32-bit counter gives: a glitch (a 64-bit
+/// `18446744073709551615`, a `1e30`). Its step is no wrap: read as a number, a huge count is
+/// a whole number of 2³² turns from its neighbours, and was "unwrapped" to a count that is
+/// nowhere in the file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CountBeyondCounters {
+    /// The wheel's column, `left_ticks` or `right_ticks`.
+    pub column: &'static str,
+    /// The file's line.
+    pub line: u64,
+    /// The count as written in the file.
+    pub written: String,
+}
+
+impl CountBeyondCounters {
+    /// Whether `count` lies beyond what a 16- or 32-bit counter gives.
+    pub fn is_beyond(count: f64) -> bool {
+        !COUNTER_RANGE.contains(&count)
+    }
+}
+
+impl std::fmt::Display for CountBeyondCounters {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "line {}: {} is {}, beyond any 16- or 32-bit encoder counter ({} to {}): a glitch in the log?",
+            self.line,
+            self.column,
+            self.written,
+            COUNTER_RANGE.start(),
+            COUNTER_RANGE.end()
+        )
+    }
+}
+
 /// One wrap of a wheel's counter that was unwrapped.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CounterWrap {
@@ -54,7 +92,11 @@ pub fn unwrap_counts(v: &mut [f64], column: &'static str, lines: &[u64]) -> Vec<
     let mut wraps = Vec::new();
     let mut offset = 0.0;
     for (i, step) in steps.iter().enumerate() {
-        for bits in COUNTER_BITS {
+        let glitch = logged[i..i + 2]
+            .iter()
+            .any(|&c| CountBeyondCounters::is_beyond(c));
+        let widths: &[u32] = if glitch { &[] } else { &COUNTER_BITS };
+        for &bits in widths {
             let turn = 2f64.powi(bits as i32);
             if step.abs() < turn / 2.0 {
                 continue;
@@ -115,6 +157,17 @@ mod tests {
         let w = unwrap_counts(&mut up, "right_ticks", &lines);
         assert_eq!(w.len(), 2);
         assert!(up.windows(2).all(|s| s[1] - s[0] == 9000.0), "{up:?}");
+    }
+
+    #[test]
+    fn counts_no_32_bit_counter_gives_are_no_wrap() {
+        // 2^64 and 1e30 are whole numbers of 2^32 turns from 0: they were "unwrapped" to 0.
+        for glitch in [18446744073709551615.0, 1e30, -1e300] {
+            let v = [95.0, 99.0, glitch, 104.0];
+            let (u, w) = unwrap(&v);
+            assert!(w.is_empty(), "{w:?}");
+            assert_eq!(u, v.to_vec());
+        }
     }
 
     #[test]

@@ -54,7 +54,10 @@ pub fn heading_mismatch(
         .iter()
         .any(|r| r.pose.theta_rad.abs() > 2.0 * PI);
     let fits_in_radians = misfit.is_some_and(|m| m <= FITS_RAD);
-    if fits_in_degrees && !fits_in_radians && (beyond_a_turn || misfit.is_none()) {
+    // Degrees' frame-to-frame noise, read as radians, turns most steps by more than 2°; a short
+    // run lacks straight steps for want of travel, its steps being as straight either way.
+    let turning_in_radians = misfit.is_none() && 2 * radians.steps() < degrees.steps();
+    if fits_in_degrees && !fits_in_radians && (beyond_a_turn || turning_in_radians) {
         return Some(format!(
             "theta is in degrees: read as degrees the heading follows the direction of motion over {} straight steps, read as radians it does not; write theta in radians",
             degrees.steps()
@@ -170,6 +173,51 @@ mod tests {
                 "{near_zero}"
             );
         }
+    }
+
+    /// A trajectory of rows 0.1 s apart at `(x, y, theta)`, and a tick log driving along it.
+    fn rows_of(poses: &[(f64, f64, f64)]) -> (OdometryLog, Trajectory) {
+        let t: Vec<f64> = (0..poses.len()).map(|i| 0.1 * i as f64).collect();
+        let rows = poses
+            .iter()
+            .zip(&t)
+            .map(|(&(x, y, theta), &t_s)| TrajectoryRow {
+                t_s,
+                pose: Pose2::new(x, y, theta),
+                quality: 1.0,
+                sigma: None,
+            })
+            .collect();
+        let ticks: Vec<i64> = (0..poses.len() as i64).collect();
+        let log = OdometryLog::from_ticks(t, ticks.clone(), ticks).expect("log");
+        (log, Trajectory::new(rows).expect("trajectory"))
+    }
+
+    #[test]
+    fn a_short_run_is_not_taken_for_degrees() {
+        let robot = RobotParams::default();
+        // 12 cm in 10 steps along 0°, the first turning 3° (a synthetic 0.15 m run): 9
+        // straight steps read as radians, 10 as degrees. It was "theta is in degrees".
+        let short: Vec<_> = (0..11)
+            .map(|i| (0.012 * i as f64, 0.0, if i == 0 { -0.05 } else { 0.0 }))
+            .collect();
+        let (log, traj) = rows_of(&short);
+        assert_eq!(heading_mismatch(&log, &traj, &robot), None);
+        // Degrees with half a degree of noise, along 2°: read as radians, every step turns.
+        let noisy: Vec<_> = (0..30)
+            .map(|i| {
+                let d = 0.012 * i as f64;
+                let noise_deg = if i % 2 == 0 { 0.5 } else { -0.5 };
+                (
+                    d * 2f64.to_radians().cos(),
+                    d * 2f64.to_radians().sin(),
+                    2.0 + noise_deg,
+                )
+            })
+            .collect();
+        let (log, traj) = rows_of(&noisy);
+        let deg = heading_mismatch(&log, &traj, &robot).expect("degrees");
+        assert!(deg.contains("theta is in degrees"), "{deg}");
     }
 
     #[test]

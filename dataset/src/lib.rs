@@ -13,6 +13,7 @@ pub mod odometry;
 pub mod oracle;
 pub mod sample;
 pub mod segment;
+pub mod speed_label;
 pub mod turn_sides;
 pub mod twitch;
 pub mod units;

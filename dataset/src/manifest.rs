@@ -176,7 +176,17 @@ impl Manifest {
             ] {
                 let Some(p) = p else { continue };
                 let full = self.resolve(p);
-                if !full.is_file() {
+                // A video may be a folder of frames, as `odocal track` reads it; the dataset
+                // has no --fps to time them by, so the folder must carry its timestamps.
+                if role == "video" && full.is_dir() && !full.join(FOLDER_TIMESTAMPS).is_file() {
+                    return Err(DatasetError::Mismatch(format!(
+                        "run \"{}\": the frame folder {} listed as its video has no {FOLDER_TIMESTAMPS} to time its frames: add one (columns file,t: each frame's file and its time in seconds), or track the folder with `odocal track --fps` and list the result as the run's trajectory",
+                        r.id,
+                        full.display()
+                    )));
+                }
+                let frame_folder = role == "video" && full.is_dir();
+                if !(full.is_file() || frame_folder) {
                     let what = if full.is_dir() {
                         "is a folder, not a file"
                     } else {
@@ -214,6 +224,7 @@ impl Manifest {
         // log saved again, with Windows line ends or not).
         let sized: Vec<_> = seen
             .iter()
+            .filter(|(f, _, _)| f.is_file())
             .filter_map(|(f, id, role)| Some((std::fs::metadata(f).ok()?.len(), f, *id, *role)))
             .collect();
         for (i, (size, a, first, first_role)) in sized.iter().enumerate() {
@@ -245,6 +256,10 @@ impl Manifest {
         serde_json::to_string_pretty(self).unwrap_or_default()
     }
 }
+
+/// The file that times the frames of a folder listed as a video (the tracker's own name for
+/// it, `odocal_tracker`'s `FOLDER_TIMESTAMPS`).
+const FOLDER_TIMESTAMPS: &str = "timestamps.csv";
 
 /// The columns of a CSV manifest.
 const MANIFEST_COLUMNS: [&str; 5] = ["id", "video", "trajectory", "odometry", "speed_mps"];

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use odocal_core::{csv_table, numeric_row};
 
-use crate::counter_wrap::{unwrap_counts, CounterWrap};
+use crate::counter_wrap::{unwrap_counts, CountBeyondCounters, CounterWrap};
 use crate::error::{read_text, DatasetError};
 use crate::twitch::{remove_twitches, Twitch};
 use crate::RobotParams;
@@ -53,6 +53,8 @@ pub struct OdometryLog {
     /// The encoder twitches at rest set back to the count around them (see
     /// [`crate::twitch`]).
     pub twitches: Vec<Twitch>,
+    /// The first count of a tick log that no 16- or 32-bit counter gives, as written.
+    pub count_beyond_counters: Option<CountBeyondCounters>,
 }
 
 /// Cumulative wheel revolutions at the log's times, relative to the first row.
@@ -78,6 +80,7 @@ impl OdometryLog {
             right: right.into_iter().map(|v| v as f64).collect(),
             counter_wraps: Vec::new(),
             twitches: Vec::new(),
+            count_beyond_counters: None,
         };
         log.validate("<ticks>", |i| i as u64 + 2)?;
         Ok(log)
@@ -96,6 +99,7 @@ impl OdometryLog {
             right: v_right,
             counter_wraps: Vec::new(),
             twitches: Vec::new(),
+            count_beyond_counters: None,
         };
         log.validate("<speeds>", |i| i as u64 + 2)?;
         Ok(log)
@@ -246,6 +250,7 @@ impl OdometryLog {
         let mut left = Vec::new();
         let mut right = Vec::new();
         let mut lines = Vec::new();
+        let mut count_beyond_counters = None;
         for &(line, ref rec) in &table.rows {
             let vals: [f64; 3] = numeric_row(name, line, rec)?;
             if kind == LogKind::Ticks {
@@ -257,6 +262,15 @@ impl OdometryLog {
                         format!("\"{}\" is not a whole tick count", &rec[c]),
                     ));
                 }
+            }
+            if kind == LogKind::Ticks && count_beyond_counters.is_none() {
+                count_beyond_counters = (1..3)
+                    .find(|&c| CountBeyondCounters::is_beyond(vals[c]))
+                    .map(|c| CountBeyondCounters {
+                        column: TICKS_HEADER[c],
+                        line,
+                        written: rec[c].to_string(),
+                    });
             }
             t_s.push(vals[0]);
             left.push(vals[1]);
@@ -277,6 +291,7 @@ impl OdometryLog {
             right,
             counter_wraps,
             twitches,
+            count_beyond_counters,
         };
         log.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
         Ok(log)
@@ -386,8 +401,12 @@ impl OdometryLog {
     /// The first step in which a wheel's surface moves faster than
     /// [`MAX_WHEEL_SPEED_MPS`], as what is wrong with it (its rows numbered as the file's
     /// lines): a counter glitch or a spike in a speed column, which the alignment would
-    /// otherwise only see as speed profiles that do not match.
+    /// otherwise only see as speed profiles that do not match. A count no 16- or 32-bit
+    /// counter gives is named first, as written.
     pub fn implausible_step(&self, robot: &RobotParams) -> Option<String> {
+        if let Some(beyond) = &self.count_beyond_counters {
+            return Some(beyond.to_string());
+        }
         let revs = self.wheel_revs(robot);
         let circ = std::f64::consts::PI * robot.wheel_diameter_m;
         (1..revs.t_s.len()).find_map(|k| {
@@ -532,6 +551,24 @@ mod tests {
         assert_eq!(
             log.count_note().unwrap(),
             "encoder counts unwrapped: left_ticks wraps as a 16-bit counter at line 4 (65535 → 4) and 1 more wrap; check that the robot's counter is 16 bits wide"
+        );
+    }
+
+    /// A 64-bit glitch read as a number is a whole number of 2³² turns: it was "unwrapped" to
+    /// 0, noted as a 32-bit wrap "(18 → 18446744073709552000)", and the run rejected for a
+    /// step "from 95 to 0 ticks", a count nowhere in the file.
+    #[test]
+    fn a_count_no_32_bit_counter_gives_is_named_as_written() {
+        let log = OdometryLog::parse_csv(
+            "t,left_ticks,right_ticks\n0,90,90\n0.2,95,95\n0.4,99,18446744073709551615\n0.6,104,104\n",
+            "g.csv",
+        )
+        .unwrap();
+        assert_eq!(log.count_note(), None);
+        assert_eq!(log.right[2], 18446744073709551615.0);
+        assert_eq!(
+            log.implausible_step(&RobotParams::default()).unwrap(),
+            "line 4: right_ticks is 18446744073709551615, beyond any 16- or 32-bit encoder counter (-2147483648 to 4294967295): a glitch in the log?"
         );
     }
 

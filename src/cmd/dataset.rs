@@ -177,6 +177,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => {
                 bail!("the manifest lists videos: give the calibration with --camera camera.json")
             }
+            Some(c) if c.is_dir() => bail!(
+                "camera calibration {} is a directory: give the camera.json that `odocal calibrate` wrote",
+                c.display()
+            ),
             Some(c) if !c.is_file() => bail!("camera calibration {} does not exist", c.display()),
             _ => {}
         }
