@@ -234,7 +234,16 @@ fn covariance_matches_opencv_standard_deviations() {
     let (mut k, mut d) = (Mat::default(), Mat::default());
     let (mut rv, mut tv) = (Vector::<Mat>::new(), Vector::<Mat>::new());
     let (mut si, mut se, mut pv) = (Mat::default(), Mat::default(), Mat::default());
-    calib3d::calibrate_camera_extended_def(
+    // OpenCV's σ fy on these corners once read 0.92 px instead of its usual 0.83 (not seen
+    // again in 20 runs): it is run to convergence rather than stopped at its default 30
+    // iterations, so the reference does not hang on where those stop.
+    let converged = core::TermCriteria::new(
+        core::TermCriteria_COUNT + core::TermCriteria_EPS,
+        500,
+        f64::EPSILON,
+    )
+    .unwrap();
+    calib3d::calibrate_camera_extended(
         &op,
         &ip,
         core::Size::new(1280, 720),
@@ -245,6 +254,8 @@ fn covariance_matches_opencv_standard_deviations() {
         &mut si,
         &mut se,
         &mut pv,
+        0,
+        converged,
     )
     .unwrap();
     // OpenCV scales its covariance by the residual sum of squares over (points − parameters)
