@@ -53,8 +53,9 @@ pub struct FloorReach {
 impl FloorReach {
     /// One line for people: how far out the floor is vouched for, at [`FLOOR_BOUND_MM`] and
     /// [`FLOOR_BOUND_SIGMAS`] (the bound [`FloorUncertaintyMap::vouched_reach`] uses), and
-    /// what extends it.
-    pub fn sentence(&self) -> String {
+    /// what extends it. `model_given`: the lens model was fixed with `--model`, so the
+    /// models bounding the floor are ones fitting the views clearly better, not as well.
+    pub fn sentence(&self, model_given: bool) -> String {
         let bound = format!("within {FLOOR_BOUND_MM} mm ({FLOOR_BOUND_SIGMAS}σ)");
         if self.whole {
             format!(
@@ -62,10 +63,24 @@ impl FloorReach {
                 self.radius_m, self.off_nadir_deg
             )
         } else if let Some(spread) = self.model_spread_mm {
-            format!(
-                "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out the lens models that fit the views equally well map the floor up to {spread:.1} mm apart, so none can be vouched for there: add hand-held views reaching the image's corners and edges, or give the lens model (--model)",
-                self.radius_m, self.off_nadir_deg
-            )
+            // Far out, where a model's rays graze the floor, models part by metres: the
+            // figure then says only that.
+            let spread = if spread < 1000.0 {
+                format!("{spread:.1} mm")
+            } else {
+                "more than a metre".to_string()
+            };
+            if model_given {
+                format!(
+                    "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out a lens model that fits the views clearly better maps the floor up to {spread} away from --model's, so it cannot be vouched for there: calibrate with the better-fitting model the warning names, or leave --model out",
+                    self.radius_m, self.off_nadir_deg
+                )
+            } else {
+                format!(
+                    "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out the lens models that fit the views equally well map the floor up to {spread} apart, so none can be vouched for there: add hand-held views reaching the image's corners and edges, or give the lens model (--model)",
+                    self.radius_m, self.off_nadir_deg
+                )
+            }
         } else {
             format!(
                 "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out 1σ grows to {:.1} mm: add floor views farther out and hand-held views reaching the image's edges",
@@ -405,4 +420,39 @@ fn difference(
     let a = cam_a.pixel_to_floor(floor_a, pixel, 0.0)?;
     let b = cam_b.pixel_to_floor(floor_b, pixel, 0.0)?;
     Some(a - b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Where models bound the floor, the sentence names the kind of model that does, and a
+    /// spread of metres (rays grazing the floor) is not printed as "102643.5 mm".
+    #[test]
+    fn the_reach_names_what_bounds_it() {
+        let reach = FloorReach {
+            radius_m: 0.46,
+            off_nadir_deg: 10.0,
+            whole: false,
+            worst_sigma_mm: 0.3,
+            model_spread_mm: Some(102_643.5),
+        };
+        let given = reach.sentence(true);
+        assert!(
+            given.contains("a lens model that fits the views clearly better maps the floor up to more than a metre away from --model's")
+                && !given.contains("give the lens model"),
+            "{given}"
+        );
+        let auto = FloorReach {
+            model_spread_mm: Some(1.34),
+            ..reach
+        }
+        .sentence(false);
+        assert!(
+            auto.contains(
+                "the lens models that fit the views equally well map the floor up to 1.3 mm apart"
+            ) && auto.ends_with("or give the lens model (--model)"),
+            "{auto}"
+        );
+    }
 }

@@ -561,9 +561,6 @@ pub fn calibrate_session(
 /// Corners of two views closer than this (RMS, pixels) make them the same view.
 pub const SAME_VIEW_RMS_PX: f64 = 0.5;
 
-/// Drops views that repeat an earlier one (the same photo given twice, or the board not
-/// moved between shots), noting each as skipped: they add no constraint, yet weigh their pose
-/// twice in the fit.
 /// Whether the views show a ChArUco board in the layout before OpenCV 4.6 (see
 /// [`crate::charuco`]); an error when some do and some do not, as one board has one layout:
 /// the views of the other layout would be calibrated on corners a square off.
@@ -603,6 +600,9 @@ fn turned_floor_note(first: &BoardView, board: &BoardSpec) -> Option<String> {
     })
 }
 
+/// Drops views that repeat an earlier one (the same photo given twice, or the board not
+/// moved between shots), noting each as skipped: they add no constraint, yet weigh their pose
+/// twice in the fit.
 fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<BoardView> {
     let mut kept: Vec<BoardView> = Vec::with_capacity(views.len());
     for v in views {
@@ -931,7 +931,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             .as_ref()
             .and_then(|m| m.vouched_reach(&f.camera, &fl.floor_to_camera))
         {
-            out.push(format!("  {}", r.sentence()));
+            out.push(format!("  {}", r.sentence(f.model_comparison.is_empty())));
         }
     } else {
         out.push(

@@ -399,7 +399,7 @@ fn calib_input(cam: &CameraFile, truth: Option<&CalibTruth>) -> CalibInput {
             .as_ref()
             .and_then(|m| m.vouched_reach(&cam.camera, &f.floor_to_camera))
         {
-            let text = r.sentence();
+            let text = r.sentence(cam.model_comparison.is_empty());
             let mut chars = text.chars();
             let first = chars.next().map(|c| c.to_uppercase().to_string());
             facts.push(format!("{}{}.", first.unwrap_or_default(), chars.as_str()));
