@@ -44,6 +44,14 @@ fn opencv_board() -> (Mat, Vec<(f64, f64)>) {
     (img, corners)
 }
 
+/// Where the whole board's outer corners go in a view that tilts it in perspective, pixels.
+const WHOLE_BOARD_TILTED: [(f32, f32); 4] = [
+    (180.0, 110.0),
+    (1100.0, 60.0),
+    (1190.0, 660.0),
+    (120.0, 620.0),
+];
+
 /// The homography taking the drawing's four outer corners to `quad` (pixels).
 fn homography(img: &Mat, quad: [(f32, f32); 4]) -> Matrix3<f64> {
     let (w, h) = (img.cols() as f32 - 0.5, img.rows() as f32 - 0.5);
@@ -120,16 +128,7 @@ fn errors(
 fn opencv_drawn_board_is_found_where_opencv_geometry_puts_it() {
     let (img, corners) = opencv_board();
     let first = corners[0];
-    // The whole board, tilted in perspective.
-    let h = homography(
-        &img,
-        [
-            (180.0, 110.0),
-            (1100.0, 60.0),
-            (1190.0, 660.0),
-            (120.0, 620.0),
-        ],
-    );
+    let h = homography(&img, WHOLE_BOARD_TILTED);
     let view = warp(&img, &h);
     let found = find_charuco_corners(&view, &spec())
         .expect("OpenCV runs")
@@ -319,15 +318,7 @@ fn a_board_of_the_layout_before_opencv_4_6_is_read_on_its_own_corners() {
     let (_, corners) = opencv_board();
     let first = corners[0];
     let img = legacy_board();
-    let h = homography(
-        &img,
-        [
-            (180.0, 110.0),
-            (1100.0, 60.0),
-            (1190.0, 660.0),
-            (120.0, 620.0),
-        ],
-    );
+    let h = homography(&img, WHOLE_BOARD_TILTED);
     let found = find_charuco_corners(&warp(&img, &h), &spec())
         .expect("OpenCV runs")
         .expect("board found");
