@@ -107,7 +107,7 @@ fn forward_step(a: &Pose2, b: &Pose2) -> f64 {
 /// wheels' mean speed is signed: compared unsigned, a log's forward leg matched the camera's
 /// drive back along the same path as well as its own, and a run driven backwards matched
 /// nothing. None where the trajectory does not hold both times.
-fn camera_speed(traj: &Trajectory, t0: f64, t1: f64, gap: f64) -> Option<f64> {
+pub(crate) fn camera_speed(traj: &Trajectory, t0: f64, t1: f64, gap: f64) -> Option<f64> {
     let (a, b) = (traj.pose_at(t0, gap)?, traj.pose_at(t1, gap)?);
     Some(forward_step(&a, &b) / (t1 - t0))
 }

@@ -7,6 +7,8 @@
 
 use odocal_core::Trajectory;
 
+use crate::align::camera_speed;
+
 /// Mean speed over peak speed at or above which a run cruised at its peak. A run too short to
 /// reach its command is all ramps, and the mean of a triangle of speed is half its peak; a
 /// run holding its speed for most of its time has a mean near its peak (1.5 m at 0.7 m/s and
@@ -16,18 +18,18 @@ const CRUISE_FILL: f64 = 2.0 / 3.0;
 /// Factor by which a command may lie off the peak of a run that cruised at it (either way).
 const MAX_FACTOR: f64 = 2.0;
 
-/// The camera's fastest speed over one log step of a run, m/s: its positions at the log rows'
-/// times `t_s` moved to the camera's clock by `offset_s`, steps over a frame gap (longer
-/// than `max_gap_s`) left out.
+/// The camera's fastest speed over one log step of a run, either way, m/s
+/// ([`camera_speed`] between the log rows' times `t_s` moved to the camera's clock by
+/// `offset_s`), steps over a frame gap (longer than `max_gap_s`) left out.
 pub fn camera_peak_speed_mps(
     camera: &Trajectory,
     t_s: &[f64],
     offset_s: f64,
     max_gap_s: f64,
 ) -> f64 {
-    let at = |t: f64| camera.position_at(t + offset_s, max_gap_s);
     t_s.windows(2)
-        .filter_map(|w| Some((at(w[1])? - at(w[0])?).norm() / (w[1] - w[0])))
+        .filter_map(|w| camera_speed(camera, w[0] + offset_s, w[1] + offset_s, max_gap_s))
+        .map(f64::abs)
         .fold(0.0, f64::max)
 }
 
