@@ -24,7 +24,7 @@ use crate::error::TrainError;
 use crate::kernel_ridge::{grid_sse, KernelRidge, KernelRidgeParams};
 use crate::metrics::{MeanSd, Metrics};
 use crate::net::Perceptron;
-use crate::train::{train, TrainSettings, HIDDEN_RANGE};
+use crate::train::{drives_backwards, train_runs, TrainSettings, HIDDEN_RANGE};
 
 /// The `format` tag of sweep reports.
 pub const REPORT_FORMAT: &str = "odocal.train-report/1";
@@ -343,8 +343,8 @@ pub const NESTED_NET: &str = "perceptron 18-k-2, k by nested CV";
 pub const KERNEL_RIDGE: &str = "kernel ridge regression (RBF)";
 /// Name of the raw odometry row.
 pub const RAW: &str = "raw odometry";
-/// Name of the row that predicts every run's end as the mean end of the training runs: a
-/// corrector that does no better has learned the odometry's mean bias, nothing from the log.
+/// Name of the row that predicts every run's end as the mean end of the training runs driven
+/// the same way (forwards or backwards, the one thing it reads of the log): a corrector that does no better has learned the odometry's mean bias, nothing from the log.
 pub const MEAN_END: &str = "mean end point (ignores the log)";
 /// Name of the kinematic calibration row.
 pub const KINEMATIC: &str = "kinematic calibration";
@@ -427,10 +427,10 @@ pub fn sweep(
         let fit_s: Vec<&Sample> = fit.iter().map(|&i| &samples[i]).collect();
         let kc = KinematicCalibration::fit(&fit_s, &ds.robot)?;
         let lr = LinearRegression::fit(&fit_s)?;
-        let mean_end = mean_target(&fit_s);
+        let mean_end = mean_target_by_direction(&fit_s);
         for &i in test {
             raw[i] = raw_predict(&samples[i]);
-            mean[i] = mean_end;
+            mean[i] = mean_end[usize::from(drives_backwards(&samples[i].inputs))];
             kin[i] = kc.predict(&samples[i]);
             lin[i] = lr.predict(&samples[i]);
         }
@@ -523,7 +523,7 @@ pub fn sweep(
             ts.hidden = k;
             let fin: Vec<Vec<f64>> = fit.iter().map(|&i| inputs[i].clone()).collect();
             let ftg: Vec<[f64; 2]> = fit.iter().map(|&i| targets[i]).collect();
-            let net = train(&fin, &ftg, &ts, seed)?;
+            let net = train_runs(&fin, &ftg, &ts, seed)?;
             let pred = test.iter().map(|&i| (i, net.predict(&inputs[i]))).collect();
             let train_mse_m2 = match task {
                 Task::Outer { .. } => {
@@ -795,6 +795,25 @@ fn mean_target(samples: &[&Sample]) -> [f64; 2] {
         [a[0] + s.target_m[0], a[1] + s.target_m[1]]
     });
     [sum[0] / n, sum[1] / n]
+}
+
+/// The mean end point of `samples`' targets per direction of travel, [forwards, backwards],
+/// metres. The mean of runs driven both ways lies near the start, where no run ends: beside
+/// it any corrector would seem to read the log. A direction without runs takes all runs' mean.
+fn mean_target_by_direction(samples: &[&Sample]) -> [[f64; 2]; 2] {
+    let all = mean_target(samples);
+    [false, true].map(|back| {
+        let one_way: Vec<&Sample> = samples
+            .iter()
+            .copied()
+            .filter(|s| drives_backwards(&s.inputs) == back)
+            .collect();
+        if one_way.is_empty() {
+            all
+        } else {
+            mean_target(&one_way)
+        }
+    })
 }
 
 /// How much better than the mean end point a corrector must be to have learned something

@@ -8,8 +8,8 @@ use odocal_dataset::{Dataset, OracleFile, Sample};
 
 use crate::crossval::{assign_folds, derive_seed, net_method_name, row};
 use crate::{
-    report, sweep, train, KinematicCalibration, Metrics, ModelFile, ModelMetrics, SweepSettings,
-    TrainError, TrainSettings,
+    report, sweep, train_runs, KinematicCalibration, Metrics, ModelFile, ModelMetrics,
+    SweepSettings, TrainError, TrainSettings, TrainedNet,
 };
 
 /// A fitted model and what `odocal train` reports about it.
@@ -68,15 +68,8 @@ pub fn fit_model(
     }
     let inputs: Vec<Vec<f64>> = ds.samples.iter().map(|s| s.inputs.clone()).collect();
     let targets: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.target_m).collect();
-    let net = train(&inputs, &targets, ts, seed)?;
-    if net.best_epoch == 0 && !net.validation_indices.is_empty() {
-        // The starting weights are random: they put every end near the targets' mean, give
-        // or take a random function of the log.
-        warnings.push(format!(
-            "no training step improved the early-stopping split's error over the starting weights (kept epoch 0, {}): the model is its random initialisation, which puts every run's end near the training runs' mean whatever the log says; try other seeds (--seed), or `--sweep` with --restarts to see how the net does across them",
-            net.stop_reason
-        ));
-    }
+    let net = train_runs(&inputs, &targets, ts, seed)?;
+    let kept_start = kept_starting_weights(&net);
     let all: Vec<&Sample> = ds.samples.iter().collect();
     let pred: Vec<[f64; 2]> = inputs.iter().map(|x| net.predict(x)).collect();
     let raw: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.raw_end_m).collect();
@@ -89,6 +82,12 @@ pub fn fit_model(
     };
     let train_metrics = subset(&net.fit_indices);
     let validation = (!net.validation_indices.is_empty()).then(|| subset(&net.validation_indices));
+    let raw_subset = |idx: &[usize]| {
+        let s: Vec<&Sample> = idx.iter().map(|&i| &ds.samples[i]).collect();
+        let r: Vec<[f64; 2]> = idx.iter().map(|&i| raw[i]).collect();
+        Metrics::of(&s, &r)
+    };
+    let raw_validation = raw_subset(&net.validation_indices);
     let mut table2_markdown = None;
     let cross_validated = match cv_folds.map(|f| (f, assign_folds(&ds.samples, f, seed))) {
         None => None,
@@ -122,6 +121,20 @@ pub fn fit_model(
             None
         }
     };
+    // Judged where the net was not fitted: the cross-validated estimate, else the split.
+    let held_out = cross_validated
+        .as_ref()
+        .map(|m| ("cross-validated", m.rel_error, raw_odometry_error(ds)))
+        .or_else(|| {
+            validation.as_ref().map(|m| {
+                (
+                    "on the early-stopping split",
+                    m.rel_error,
+                    raw_validation.rel_error,
+                )
+            })
+        });
+    warnings.splice(0..0, usefulness_warning(kept_start, held_out));
     let kin = KinematicCalibration::fit(&all, &ds.robot).ok();
     if let Some(k) = &kin {
         k.check_physical()?;
@@ -143,12 +156,74 @@ pub fn fit_model(
     })
 }
 
+/// Which net kept its random starting weights (epoch 0 best on the early-stopping split):
+/// "" for the one net, "for runs driven forwards"/"backwards" when there are two.
+fn kept_starting_weights(net: &TrainedNet) -> Vec<&'static str> {
+    let at_start = |n: &TrainedNet| n.best_epoch == 0 && !n.validation_indices.is_empty();
+    match &net.backward {
+        None => at_start(net).then_some("").into_iter().collect(),
+        Some(b) => [
+            (net, "for runs driven forwards"),
+            (b.as_ref(), "for runs driven backwards"),
+        ]
+        .into_iter()
+        .filter(|(n, _)| at_start(n))
+        .map(|(_, way)| way)
+        .collect(),
+    }
+}
+
+fn raw_odometry_error(ds: &Dataset) -> f64 {
+    let raw: Vec<[f64; 2]> = ds.samples.iter().map(|s| s.raw_end_m).collect();
+    Metrics::of(&ds.samples.iter().collect::<Vec<_>>(), &raw).rel_error
+}
+
+/// A model whose error on runs it was not fitted to is no lower than raw odometry's corrects
+/// nothing: said first and plainly, with the figures, whatever the epoch. A net that kept its
+/// random starting weights (`kept_start` names which) is said so too; it puts every run's
+/// end near the training runs' mean whatever the log says. `held_out`: where it was judged,
+/// its relative error and raw odometry's on the same runs.
+fn usefulness_warning(kept_start: Vec<&str>, held_out: Option<(&str, f64, f64)>) -> Vec<String> {
+    let start = |ways: &[&str]| {
+        ways.iter()
+            .map(|w| {
+                format!(
+                    "kept epoch 0{}",
+                    if w.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" {w}")
+                    }
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match held_out {
+        Some((where_, model, raw)) if model >= raw => vec![format!(
+            "THE MODEL IS USELESS: its relative end-point error {where_} is {:.2} %, no better than raw odometry's {:.2} % on the same runs{}; do not use it to correct logs. Check the dataset (`odocal dataset` lists rejected runs and notes), try other seeds (--seed) or `--sweep` with --restarts to see how the net does across them",
+            100.0 * model,
+            100.0 * raw,
+            if kept_start.is_empty() {
+                String::new()
+            } else {
+                format!(" (training {}: the model is its random initialisation)", start(&kept_start))
+            }
+        )],
+        _ if !kept_start.is_empty() => vec![format!(
+            "no training step improved the early-stopping split's error over the starting weights ({}): the model is its random initialisation, which puts every run's end near the training runs' mean whatever the log says; try other seeds (--seed), or `--sweep` with --restarts to see how the net does across them",
+            start(&kept_start)
+        )],
+        _ => Vec::new(),
+    }
+}
+
 impl FittedModel {
     /// What `odocal train` prints about the model: one line per figure, each with its unit.
     pub fn summary(&self, folds: usize) -> Vec<String> {
         let m = &self.model;
-        let mut out = vec![
-            format!(
+        let trained = match &m.backward_net {
+            None => format!(
                 "trained 18-{}-2 ({} parameters) with {:?} on {} samples ({} fitted): kept epoch {} ({}).",
                 m.training.hidden,
                 self.n_params,
@@ -158,6 +233,23 @@ impl FittedModel {
                 m.best_epoch,
                 m.stop_reason
             ),
+            Some(b) => format!(
+                "trained two 18-{}-2 nets ({} parameters each) with {:?} on {} samples ({} fitted), one per direction of travel: {} runs driven forwards, kept epoch {} ({}); {} driven backwards, kept epoch {} ({}).",
+                m.training.hidden,
+                self.n_params,
+                m.training.method,
+                m.n_samples,
+                self.n_fit,
+                m.n_samples - b.n_samples,
+                m.best_epoch,
+                m.stop_reason,
+                b.n_samples,
+                b.best_epoch,
+                b.stop_reason
+            ),
+        };
+        let mut out = vec![
+            trained,
             format!(
                 "fitted samples: MSE {:.6} m² ({:.2} cm²), relative end-point error {:.2} % (raw odometry on all samples {:.2} %).",
                 m.metrics.train.mse_m2,
@@ -190,5 +282,46 @@ impl FittedModel {
             ));
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A net that kept its starting weights and corrects nothing used to be reported as
+    /// "kept epoch 0" alone, among the capacity and mean-end warnings; it leads now, plainly.
+    #[test]
+    fn a_model_no_better_than_raw_odometry_is_called_useless() {
+        let w = usefulness_warning(
+            vec!["for runs driven backwards"],
+            Some(("cross-validated", 0.30, 0.095)),
+        );
+        assert_eq!(w.len(), 1);
+        assert!(w[0].starts_with("THE MODEL IS USELESS"), "{}", w[0]);
+        for figure in [
+            "30.00 %",
+            "9.50 %",
+            "kept epoch 0 for runs driven backwards",
+        ] {
+            assert!(w[0].contains(figure), "{figure}: {}", w[0]);
+        }
+        let w = usefulness_warning(
+            Vec::new(),
+            Some(("on the early-stopping split", 0.12, 0.10)),
+        );
+        assert!(
+            w[0].starts_with("THE MODEL IS USELESS") && !w[0].contains("epoch 0"),
+            "{}",
+            w[0]
+        );
+        // Epoch 0 better than raw odometry: the milder warning; neither: none.
+        let w = usefulness_warning(vec![""], Some(("cross-validated", 0.045, 0.095)));
+        assert!(
+            w[0].starts_with("no training step") && w[0].contains("(kept epoch 0)"),
+            "{}",
+            w[0]
+        );
+        assert!(usefulness_warning(Vec::new(), Some(("cross-validated", 0.045, 0.095))).is_empty());
     }
 }

@@ -26,6 +26,24 @@ pub struct Weights {
     pub b2: Vec<f64>,
 }
 
+/// The net of runs driven backwards, beside the forward runs' net of a model trained on runs
+/// driven both ways (see [`crate::train_runs`]); same layer sizes and activations.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BackwardNet {
+    /// Runs driven backwards in the dataset (its fitted runs and early-stopping split).
+    pub n_samples: usize,
+    /// Weights acting on normalised inputs.
+    pub weights: Weights,
+    /// Input normalisation of the backward runs.
+    pub input_normalisation: Normalisation,
+    /// Output normalisation of the backward runs.
+    pub output_normalisation: Normalisation,
+    /// Epoch whose weights were kept.
+    pub best_epoch: usize,
+    /// Why training stopped.
+    pub stop_reason: String,
+}
+
 /// Metrics recorded with a model (all MSE per coordinate, m^2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelMetrics {
@@ -56,7 +74,7 @@ pub struct ModelFile {
     pub layer_sizes: [usize; 3],
     /// Activation functions, for readers: hidden, output.
     pub activations: [String; 2],
-    /// Weights acting on normalised inputs.
+    /// Weights acting on normalised inputs (of the forward runs when `backward_net` is given).
     pub weights: Weights,
     /// Input normalisation: x_n = (x - offset) * scale.
     pub input_normalisation: Normalisation,
@@ -77,6 +95,18 @@ pub struct ModelFile {
     /// What the model was trained on; logs outside it are refused by `odocal correct`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub domain: Option<crate::domain::TrainingDomain>,
+    /// The net of runs driven backwards, when the dataset had runs driven both ways.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub backward_net: Option<BackwardNet>,
+}
+
+fn weights_of(net: &Perceptron) -> Weights {
+    Weights {
+        w1: rows(&net.w1),
+        b1: net.b1.iter().copied().collect(),
+        w2: rows(&net.w2),
+        b2: net.b2.iter().copied().collect(),
+    }
 }
 
 fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
@@ -113,12 +143,7 @@ impl ModelFile {
             n_samples,
             layer_sizes: [net.net.n_in(), net.net.hidden(), net.net.n_out()],
             activations: ["logistic sigmoid".into(), "linear".into()],
-            weights: Weights {
-                w1: rows(&net.net.w1),
-                b1: net.net.b1.iter().copied().collect(),
-                w2: rows(&net.net.w2),
-                b2: net.net.b2.iter().copied().collect(),
-            },
+            weights: weights_of(&net.net),
             input_normalisation: net.input_norm.clone(),
             output_normalisation: net.output_norm.clone(),
             training: settings.clone(),
@@ -128,6 +153,14 @@ impl ModelFile {
             metrics,
             kinematic_calibration,
             domain: None,
+            backward_net: net.backward.as_ref().map(|b| BackwardNet {
+                n_samples: b.n_fit + b.validation_indices.len(),
+                weights: weights_of(&b.net),
+                input_normalisation: b.input_norm.clone(),
+                output_normalisation: b.output_norm.clone(),
+                best_epoch: b.best_epoch,
+                stop_reason: b.stop_reason.clone(),
+            }),
         }
     }
 
@@ -174,16 +207,18 @@ impl ModelFile {
                 "input_normalisation.scale[{i}] is negative; a scale is 1 / the training's spread"
             ));
         }
-        if let Some(i) = self
-            .output_normalisation
-            .scale
-            .iter()
-            .position(|&v| v <= 0.0)
-        {
-            return Err(format!(
-                "output_normalisation.scale[{i}] = {} must be > 0 (1 / the targets' spread; 0 would put every corrected end point at one place)",
-                self.output_normalisation.scale[i]
-            ));
+        let outputs = std::iter::once(("", &self.output_normalisation)).chain(
+            self.backward_net
+                .iter()
+                .map(|b| ("backward_net.", &b.output_normalisation)),
+        );
+        for (part, norm) in outputs {
+            if let Some(i) = norm.scale.iter().position(|&v| v <= 0.0) {
+                return Err(format!(
+                    "{part}output_normalisation.scale[{i}] = {} must be > 0 (1 / the targets' spread; 0 would put every corrected end point at one place)",
+                    norm.scale[i]
+                ));
+            }
         }
         if let Some(d) = &self.domain {
             if d.input_min.len() != self.layer_sizes[0] || d.input_max.len() != self.layer_sizes[0]
@@ -212,14 +247,50 @@ impl ModelFile {
 
     /// Rebuilds the trained net (checks sizes and finiteness).
     pub fn to_net(&self) -> Result<TrainedNet, TrainError> {
-        let [n, k, o] = self.layer_sizes;
+        let [n, _, o] = self.layer_sizes;
         if n != N_INPUTS || o != 2 {
             return Err(TrainError::Model(format!(
                 "layer sizes {:?}: expected [{N_INPUTS}, k, 2]",
                 self.layer_sizes
             )));
         }
-        let w = &self.weights;
+        let backward = match &self.backward_net {
+            Some(b) => Some(Box::new(
+                self.net_of(
+                    &b.weights,
+                    &b.input_normalisation,
+                    &b.output_normalisation,
+                    b.best_epoch,
+                    &b.stop_reason,
+                    b.n_samples,
+                )
+                .map_err(|e| TrainError::Model(format!("backward_net: {e}")))?,
+            )),
+            None => None,
+        };
+        let mut net = self.net_of(
+            &self.weights,
+            &self.input_normalisation,
+            &self.output_normalisation,
+            self.best_epoch,
+            &self.stop_reason,
+            self.n_samples,
+        )?;
+        net.backward = backward;
+        Ok(net)
+    }
+
+    /// One net of the model's layer sizes from its weights and normalisations.
+    fn net_of(
+        &self,
+        w: &Weights,
+        input_normalisation: &Normalisation,
+        output_normalisation: &Normalisation,
+        best_epoch: usize,
+        stop_reason: &str,
+        n_samples: usize,
+    ) -> Result<TrainedNet, TrainError> {
+        let [n, k, o] = self.layer_sizes;
         let net = Perceptron {
             w1: matrix(&w.w1, k, n, "weights.w1")?,
             b1: DVector::from_vec(w.b1.clone()),
@@ -231,10 +302,7 @@ impl ModelFile {
                 "bias lengths do not match layer sizes".into(),
             ));
         }
-        let norms = [
-            (&self.input_normalisation, n),
-            (&self.output_normalisation, o),
-        ];
+        let norms = [(input_normalisation, n), (output_normalisation, o)];
         for (nm, len) in norms {
             if nm.offset.len() != len || nm.scale.len() != len {
                 return Err(TrainError::Model(
@@ -253,14 +321,15 @@ impl ModelFile {
         }
         Ok(TrainedNet {
             net,
-            input_norm: self.input_normalisation.clone(),
-            output_norm: self.output_normalisation.clone(),
-            best_epoch: self.best_epoch,
-            epochs_run: self.best_epoch,
-            stop_reason: self.stop_reason.clone(),
-            n_fit: self.n_samples,
+            input_norm: input_normalisation.clone(),
+            output_norm: output_normalisation.clone(),
+            best_epoch,
+            epochs_run: best_epoch,
+            stop_reason: stop_reason.to_string(),
+            n_fit: n_samples,
             fit_indices: Vec::new(),
             validation_indices: Vec::new(),
+            backward: None,
         })
     }
 
