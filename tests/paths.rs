@@ -933,3 +933,41 @@ fn correct_refuses_a_counter_reset_as_the_logs_glitch() {
         );
     }
 }
+
+/// Straight runs cut into windows barely turn, so the kinematic fit cannot tell the wheel
+/// base from the wheels' diameters: it came out 465 mm (nominal 100 mm) and `train` blamed
+/// the trajectories ("the targets do not follow the odometry") of a right dataset.
+#[test]
+fn a_path_model_of_straight_runs_names_the_missing_turns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).display().to_string();
+    ok(&[
+        "synth",
+        "experiment",
+        "--runs",
+        "60",
+        "--frames",
+        "none",
+        "--out",
+        &d("exp"),
+    ]);
+    ok(&[
+        "dataset",
+        "--manifest",
+        &d("exp/manifest.json"),
+        "--layout",
+        "windows",
+        "--window-s",
+        "5",
+        "--window-stride-s",
+        "1",
+        "--out",
+        &d("windows.json"),
+    ]);
+    let e = fails(&["train", &d("windows.json"), "--out", &d("model.json")]);
+    assert!(
+        e.contains("too few turns to fit a wheel base")
+            && !e.contains("do not follow the odometry"),
+        "{e}"
+    );
+}

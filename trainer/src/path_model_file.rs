@@ -162,6 +162,35 @@ fn check_physical(g: &WheelGeometry, robot: &RobotParams) -> Result<(), TrainErr
     Ok(())
 }
 
+/// The largest turn (by nominal odometry) a window must hold for a wheel base to be told
+/// from the wheels' diameters: on straight runs both wheels count alike, and only the
+/// diameters' difference over the base shows (the synthetic straight runs' windows turn 0°
+/// by odometry while the robot veers up to 18.5°); a UMBMark square's or a tour's windows
+/// hold turns of 90° and more.
+const MIN_WINDOW_TURN_RAD: f64 = std::f64::consts::FRAC_PI_4;
+
+/// Why a kinematic fit gave a geometry no robot has, when no window turns: the targets may
+/// follow the odometry perfectly, but a wheel base is fitted from turns.
+fn too_little_turning(
+    samples: &[&odocal_dataset::Sample],
+    robot: &RobotParams,
+) -> Option<TrainError> {
+    let largest_rad = samples
+        .iter()
+        .map(|s| {
+            let turn_m: f64 = s.inputs.chunks_exact(2).map(|d| d[1] - d[0]).sum();
+            (turn_m / robot.wheel_base_m).abs()
+        })
+        .fold(0.0, f64::max);
+    (largest_rad < MIN_WINDOW_TURN_RAD).then(|| {
+        TrainError::Dataset(format!(
+            "the windows hold too few turns to fit a wheel base: the most any window turns is {:.1}° by its odometry (a path model needs turns of {:.0}° or more); record runs that turn (tours, arcs or UMBMark squares), or train straight runs as straight runs (`odocal dataset` without --layout windows)",
+            largest_rad.to_degrees(),
+            MIN_WINDOW_TURN_RAD.to_degrees()
+        ))
+    })
+}
+
 impl PathModelFile {
     /// Fits a path model with `hidden` neurons to a window dataset.
     pub fn fit(
@@ -178,7 +207,8 @@ impl PathModelFile {
         }
         let samples: Vec<&odocal_dataset::Sample> = ds.samples.iter().collect();
         let kin = fit_step_corrector(&samples, &ds.robot, 0, 1, 0.0, seed)?;
-        check_physical(&kin.geometry(), &ds.robot)?;
+        check_physical(&kin.geometry(), &ds.robot)
+            .map_err(|e| too_little_turning(&samples, &ds.robot).unwrap_or(e))?;
         let net = fit_step_corrector(&samples, &ds.robot, hidden, restarts, 1e-4, seed)?;
         let raw = StepCorrector::nominal(ds.robot, 0);
         let max_wheel_speed_mps = samples
