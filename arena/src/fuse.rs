@@ -2,14 +2,16 @@
 //! once, and one trajectory per robot from all cameras' fixes.
 //!
 //! Time: every camera's fixes carry its own clock (seconds from its video's first frame).
-//! All cameras are assumed to run at the same frame rate on clocks that do not drift against
-//! each other, so one constant offset per camera relates them: t_arena = t_camera + offset,
-//! the reference camera's offset 0 (the arena clock is the first camera's, or the first
-//! camera's that saw a robot if it saw none). A robot seen by two
-//! cameras gives their offset: the shift that best lays one camera's interpolated track onto
-//! the other's fixes. A robot moving in a straight line at constant speed cannot tell a time
-//! shift from a small disagreement in position along its path, so the estimate needs turns
-//! or speed changes in the overlaps; its standard deviation is reported.
+//! Each camera's clock is related to the arena clock by an offset and, where the camera's
+//! overlaps with the others span long enough to tell one ([`MIN_RATE_SPAN_S`]), a rate: a
+//! 29.97 frames/s camera stamped as if at 30 drifts 1000 ppm, 60 ms a minute, which one
+//! constant offset cannot follow ([`ClockRate`]). The reference camera's offset is 0 (the
+//! arena clock is the first camera's, or the first camera's that saw a robot if it saw none).
+//! A robot seen by two cameras gives their offset: the shift that best lays one camera's
+//! interpolated track onto the other's fixes. A robot moving in a straight line at constant
+//! speed cannot tell a time shift from a small disagreement in position along its path, so
+//! the estimate needs turns or speed changes in the overlaps; its standard deviation is
+//! reported.
 //!
 //! Fusion: on a grid at the common frame period (the reference camera's frame times), each
 //! camera that saw the robot shortly before and after contributes its pose interpolated to
@@ -194,21 +196,110 @@ impl FuseOptions {
     }
 }
 
-/// The cameras' clock offsets: t_arena = t_camera + offset_s[camera].
+/// A fitted clock rate needs the camera's matched fixes to span this long on its clock,
+/// seconds: over a shorter stretch a rate and an offset cannot be told apart (1000 ppm, NTSC's
+/// 29.97 against 30 frames/s, is 2 ms over it).
+pub const MIN_RATE_SPAN_S: f64 = 2.0;
+
+/// The largest clock rate taken for one, ppm: twice NTSC's 1000 ppm (crystals are within
+/// 100). A fit asking for more is laying a clock jump (frames dropped) over a rate, and is not
+/// taken.
+pub const MAX_RATE_PPM: f64 = 2000.0;
+
+/// A camera's clock rate against the arena clock's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ClockRate {
+    /// The reference camera, or a camera that saw no robot: no rate.
+    None,
+    /// The camera's matched fixes span too short a time to tell a rate (`span_s` seconds,
+    /// [`MIN_RATE_SPAN_S`] needed): taken as the reference's.
+    Untold {
+        /// The span, seconds on the camera's clock.
+        span_s: f64,
+    },
+    /// Fitted, but not told apart from the reference's (within 3 σ): taken as equal.
+    Equal {
+        /// The fitted rate's σ, ppm.
+        sigma_ppm: f64,
+    },
+    /// Fitted beyond [`MAX_RATE_PPM`]: no clock runs so fast, so the fit was laying a jump
+    /// over a rate; taken as equal.
+    Implausible {
+        /// The fitted rate, ppm.
+        ppm: f64,
+    },
+    /// Fitted and used.
+    Fitted {
+        /// How much faster the camera's clock runs than the arena clock, ppm.
+        ppm: f64,
+        /// Its σ, ppm.
+        sigma_ppm: f64,
+    },
+}
+
+impl ClockRate {
+    /// The rate used, ppm (0 unless fitted).
+    pub fn ppm(&self) -> f64 {
+        match self {
+            ClockRate::Fitted { ppm, .. } => *ppm,
+            _ => 0.0,
+        }
+    }
+}
+
+/// The cameras' clocks on the arena clock: t_arena = t_camera + offset_s[camera] −
+/// rate·(t_camera − origin_s[camera]), rate in ppm ([`ClockRate`], 0 unless fitted).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClockOffsets {
     /// The camera whose clock is the arena's: the first camera that saw a robot (the first
     /// camera unless it saw none; a camera that saw no robot cannot be placed in time).
     pub reference: usize,
-    /// Offset of each camera, seconds (the reference camera's is 0).
+    /// Offset of each camera at its `origin_s`, seconds (the reference camera's is 0).
     pub offset_s: Vec<f64>,
     /// Standard deviation of each offset from the fit, seconds (0 for the reference camera;
     /// NaN for a camera that saw no robot, whose offset is unknown and unused).
     pub sigma_s: Vec<f64>,
+    /// Each camera's clock rate against the reference's.
+    pub rate: Vec<ClockRate>,
+    /// The instant on each camera's clock at which its offset is `offset_s`: its first fix,
+    /// seconds (0 for a camera that saw no robot).
+    pub origin_s: Vec<f64>,
     /// Pairs of cameras that saw a robot at once, with how many fixes matched.
     pub pairs: Vec<(usize, usize, usize)>,
     /// RMS distance between matched fixes after the fit, metres.
     pub rms_m: f64,
+}
+
+impl ClockOffsets {
+    /// Camera `k`'s time `t_s` (its own clock) on the arena clock.
+    pub fn to_arena(&self, k: usize, t_s: f64) -> f64 {
+        clock(
+            self.offset_s[k],
+            self.rate[k].ppm() * 1e-6,
+            self.origin_s[k],
+        )
+        .0(t_s)
+    }
+
+    /// Arena time `t_s` on camera `k`'s clock.
+    pub fn to_camera(&self, k: usize, t_s: f64) -> f64 {
+        clock(
+            self.offset_s[k],
+            self.rate[k].ppm() * 1e-6,
+            self.origin_s[k],
+        )
+        .1(t_s)
+    }
+}
+
+/// A camera clock's map to the arena clock and back, for an offset, a rate (a fraction: the
+/// camera's clock gains `rate` seconds a second) and the origin at which the offset holds. The
+/// differences from the origin keep epoch times exact.
+fn clock(offset_s: f64, rate: f64, origin_s: f64) -> (impl Fn(f64) -> f64, impl Fn(f64) -> f64) {
+    (
+        move |t: f64| t + offset_s - rate * (t - origin_s),
+        move |t: f64| origin_s + (t - offset_s - origin_s) / (1.0 - rate),
+    )
 }
 
 /// The matched fixes of a pair: (track of camera j, fix index, track of camera i).
@@ -232,26 +323,27 @@ fn matches(
         .collect()
 }
 
-/// Estimates every camera's clock offset from the tracks (all cameras, all robots): a coarse
-/// scan per pair of cameras, chained from the reference camera (the first that saw a robot),
-/// then one least-squares fit of all offsets together over every pair's matched fixes.
-pub fn estimate_clock_offsets(
+/// Coarse offset and matched fixes of every pair (i < j) of cameras that saw a robot at once:
+/// offsets searched within ±`opts.max_offset_s` of `prior_s[j] − prior_s[i]` (a camera's
+/// prior is 0 where not given).
+fn coarse_pairs(
     tracks: &[CameraTrack],
-    cameras: usize,
     opts: &FuseOptions,
-) -> Result<ClockOffsets, ArenaError> {
+    prior_s: &[f64],
+) -> BTreeMap<(usize, usize), (f64, Matches)> {
     let step = 0.002_f64.min(opts.period_s / 8.0);
     let steps = (opts.max_offset_s / step).ceil() as i64;
-    // Coarse offset and matched fixes of every pair (i < j) of tracks of the same robot.
+    let prior = |k: usize| prior_s.get(k).copied().unwrap_or(0.0);
     let mut pair_best: BTreeMap<(usize, usize), (f64, Matches)> = BTreeMap::new();
     for (a, ta) in tracks.iter().enumerate() {
         for (b, tb) in tracks.iter().enumerate() {
             if ta.tag_id != tb.tag_id || ta.camera >= tb.camera {
                 continue;
             }
+            let centre = prior(tb.camera) - prior(ta.camera);
             let mut best: Option<(f64, f64, usize)> = None;
             for s in -steps..=steps {
-                let d = s as f64 * step;
+                let d = centre + s as f64 * step;
                 let m = matches(ta, tb, d, opts.max_gap_s);
                 if m.len() < opts.min_matches {
                     continue;
@@ -284,6 +376,22 @@ pub fn estimate_clock_offsets(
             }
         }
     }
+    pair_best
+}
+
+/// Estimates every camera's clock offset, and its rate where its overlaps span long enough,
+/// from the tracks (all cameras, all robots): a coarse scan per pair of cameras (around
+/// `prior_s`, each camera's offset guessed beforehand, 0 where not given), chained from the
+/// reference camera (the first that saw a robot), then one least-squares fit of all offsets
+/// and rates together over every pair's matched fixes; a rate not told apart from 0, or beyond
+/// [`MAX_RATE_PPM`], is dropped and the rest fitted again.
+pub fn estimate_clock_offsets(
+    tracks: &[CameraTrack],
+    cameras: usize,
+    opts: &FuseOptions,
+    prior_s: &[f64],
+) -> Result<ClockOffsets, ArenaError> {
+    let pair_best = coarse_pairs(tracks, opts, prior_s);
     // Chain the coarse offsets from the reference camera.
     let saw = |k: usize| tracks.iter().any(|t| t.camera == k && !t.fixes.is_empty());
     let reference = (0..cameras).find(|&k| saw(k)).unwrap_or(0);
@@ -338,21 +446,132 @@ pub fn estimate_clock_offsets(
         .filter(|&k| k != reference && offset[k].is_some())
         .collect();
     let init: Vec<f64> = free.iter().filter_map(|&k| offset[k]).collect();
-    let all: Vec<(usize, usize, usize)> = pair_best.values().flat_map(|(_, m)| m.clone()).collect();
+    let all: Matches = pair_best.values().flat_map(|(_, m)| m.clone()).collect();
+    let coarse: Vec<f64> = offset.iter().map(|o| o.unwrap_or(0.0)).collect();
+    let spans = matched_spans(tracks, &all, &coarse, cameras);
+    let origin_s: Vec<f64> = (0..cameras)
+        .map(|k| {
+            tracks
+                .iter()
+                .filter(|t| t.camera == k)
+                .filter_map(|t| t.fixes.first().map(|f| f.t_s))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .map(|t| if t.is_finite() { t } else { 0.0 })
+        .collect();
+    let mut rate = vec![ClockRate::None; cameras];
+    for &k in &free {
+        rate[k] = ClockRate::Untold { span_s: spans[k] };
+    }
+    let rated: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&k| spans[k] >= MIN_RATE_SPAN_S)
+        .collect();
+    let fit_with = |rated: &[usize]| fit_clocks(tracks, &all, &free, rated, &origin_s, &init);
+    let mut fit = fit_with(&rated);
+    let n = free.len();
+    let mut told = Vec::new();
+    for (i, &k) in rated.iter().enumerate() {
+        let (r, s) = (fit.p[n + i] * 1e6, fit.sigma[n + i] * 1e6);
+        if r.abs() > MAX_RATE_PPM {
+            rate[k] = ClockRate::Implausible { ppm: r };
+        } else if r.abs() <= 3.0 * s {
+            rate[k] = ClockRate::Equal { sigma_ppm: s };
+        } else {
+            told.push(k);
+        }
+    }
+    if told.len() < rated.len() {
+        fit = fit_with(&told);
+    }
+    for (i, &k) in told.iter().enumerate() {
+        rate[k] = ClockRate::Fitted {
+            ppm: fit.p[n + i] * 1e6,
+            sigma_ppm: fit.sigma[n + i] * 1e6,
+        };
+    }
+    // Cameras that saw no robot keep offset 0 with an unknown (NaN) standard deviation.
+    let mut offset_s = vec![0.0; cameras];
+    let mut sigma_s = vec![f64::NAN; cameras];
+    sigma_s[reference] = 0.0;
+    for (i, &k) in free.iter().enumerate() {
+        offset_s[k] = fit.p[i];
+        sigma_s[k] = fit.sigma[i];
+    }
+    Ok(ClockOffsets {
+        reference,
+        offset_s,
+        sigma_s,
+        rate,
+        origin_s,
+        pairs: pair_best
+            .iter()
+            .map(|(&(i, j), (_, m))| (i, j, m.len()))
+            .collect(),
+        rms_m: fit.rms_m,
+    })
+}
+
+/// How long each camera's matched fixes span on its own clock, seconds (a match's time on
+/// the other camera's clock through the coarse offsets).
+fn matched_spans(
+    tracks: &[CameraTrack],
+    all: &Matches,
+    coarse_s: &[f64],
+    cameras: usize,
+) -> Vec<f64> {
+    let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); cameras];
+    for &(tj, f, ti) in all {
+        let (a, b) = (tracks[ti].camera, tracks[tj].camera);
+        let t = tracks[tj].fixes[f].t_s;
+        for (k, t) in [(b, t), (a, t + coarse_s[b] - coarse_s[a])] {
+            range[k] = (range[k].0.min(t), range[k].1.max(t));
+        }
+    }
+    range.iter().map(|(lo, hi)| (hi - lo).max(0.0)).collect()
+}
+
+/// The least-squares fit of the clocks: the offsets of `free` (after `init`) and the rates of
+/// `rated` (fractions), each with its σ, and the matched fixes' RMS distance, metres.
+struct ClockFit {
+    p: Vec<f64>,
+    sigma: Vec<f64>,
+    rms_m: f64,
+}
+
+fn fit_clocks(
+    tracks: &[CameraTrack],
+    all: &Matches,
+    free: &[usize],
+    rated: &[usize],
+    origin_s: &[f64],
+    init: &[f64],
+) -> ClockFit {
+    let n = free.len();
+    // The offsets are fitted as steps from their first guesses, so that epoch-sized offsets
+    // do not make the numeric derivatives' steps seconds long.
+    let at = |p: &[f64], k: usize| {
+        let o = free
+            .iter()
+            .position(|&f| f == k)
+            .map_or(0.0, |i| init[i] + p[i]);
+        let r = rated.iter().position(|&f| f == k).map_or(0.0, |i| p[n + i]);
+        clock(o, r, origin_s[k])
+    };
     let residuals = |p: &[f64]| -> Vec<f64> {
-        let off = |k: usize| free.iter().position(|&f| f == k).map_or(0.0, |i| p[i]);
         let mut r = Vec::with_capacity(all.len() * 2);
-        for &(tj, f, ti) in &all {
+        for &(tj, f, ti) in all {
             let (a, b) = (&tracks[ti], &tracks[tj]);
             let fix = &b.fixes[f];
-            let p_i = a.position_extrapolated(fix.t_s + off(b.camera) - off(a.camera));
-            let d = p_i - fix.pose.position();
+            let t = at(p, a.camera).1(at(p, b.camera).0(fix.t_s));
+            let d = a.position_extrapolated(t) - fix.pose.position();
             r.push(d.x);
             r.push(d.y);
         }
         r
     };
-    let (p, _) = odocal_core::lsq::minimize(&residuals, init, 100);
+    let (p, _) = odocal_core::lsq::minimize(&residuals, vec![0.0; n + rated.len()], 100);
     let r = residuals(&p);
     let m = r.len();
     let ssr: f64 = r.iter().map(|v| v * v).sum();
@@ -374,28 +593,24 @@ pub fn estimate_clock_offsets(
     // measurements than there are fixes: the variance grows by their integrated
     // autocorrelation time τ = 1 + 2 Σ ρ(L) over frame lags L up to half a second, summed
     // while ρ stays positive.
-    let s2 = ssr / (m.saturating_sub(np)).max(1) as f64 * autocorrelation_time(&all, &r, 15);
+    let s2 = ssr / (m.saturating_sub(np)).max(1) as f64 * autocorrelation_time(all, &r, 15);
     let cov = (jac.transpose() * &jac).try_inverse();
-    // Cameras that saw no robot keep offset 0 with an unknown (NaN) standard deviation.
-    let mut offset_s = vec![0.0; cameras];
-    let mut sigma_s = vec![f64::NAN; cameras];
-    sigma_s[reference] = 0.0;
-    for (i, &k) in free.iter().enumerate() {
-        offset_s[k] = p[i];
-        sigma_s[k] = cov
-            .as_ref()
-            .map_or(f64::INFINITY, |cv| (s2 * cv[(i, i)]).sqrt());
-    }
-    Ok(ClockOffsets {
-        reference,
-        offset_s,
-        sigma_s,
-        pairs: pair_best
-            .iter()
-            .map(|(&(i, j), (_, m))| (i, j, m.len()))
-            .collect(),
+    let sigma = (0..np)
+        .map(|i| {
+            cov.as_ref()
+                .map_or(f64::INFINITY, |cv| (s2 * cv[(i, i)]).sqrt())
+        })
+        .collect();
+    let p = p
+        .iter()
+        .enumerate()
+        .map(|(i, v)| if i < n { init[i] + v } else { *v })
+        .collect();
+    ClockFit {
+        p,
+        sigma,
         rms_m: (ssr / (m / 2).max(1) as f64).sqrt(),
-    })
+    }
 }
 
 /// The integrated autocorrelation time of the matched fixes' residuals `r` (x and y of each
@@ -594,9 +809,10 @@ fn grid(
         .collect();
     let span = mine
         .iter()
-        .filter_map(|t| {
-            let o = offsets.offset_s.get(t.camera)?;
-            Some((t.fixes[0].t_s + o, t.fixes[t.fixes.len() - 1].t_s + o))
+        .filter(|t| t.camera < offsets.offset_s.len())
+        .map(|t| {
+            let arena = |t_s: f64| offsets.to_arena(t.camera, t_s);
+            (arena(t.fixes[0].t_s), arena(t.fixes[t.fixes.len() - 1].t_s))
         })
         .fold((f64::INFINITY, f64::NEG_INFINITY), |a, b| {
             (a.0.min(b.0), a.1.max(b.1))
@@ -615,7 +831,7 @@ fn grid(
             let parts = mine
                 .iter()
                 .filter_map(|tr| {
-                    let fix = tr.at(t - offsets.offset_s[tr.camera], opts.max_gap_s)?;
+                    let fix = tr.at(offsets.to_camera(tr.camera, t), opts.max_gap_s)?;
                     Some((tr.camera, fix))
                 })
                 .collect();
@@ -907,7 +1123,7 @@ mod tests {
         let offsets = [0.0, 0.0137, -0.0461];
         let tr = tracks(&offsets, 3);
         let opts = FuseOptions::for_fps(30.0);
-        let found = estimate_clock_offsets(&tr, 3, &opts).unwrap();
+        let found = estimate_clock_offsets(&tr, 3, &opts, &[]).unwrap();
         for (k, want) in offsets.iter().enumerate() {
             let err = (found.offset_s[k] - want).abs();
             assert!(err < 3e-4, "camera {k}: {err} s, {found:?}");
@@ -1006,7 +1222,7 @@ mod tests {
         let offsets = [0.0, 0.0137, -0.0461];
         let mut tr = tracks_with_sigma(&offsets, 3);
         let opts = FuseOptions::for_fps(30.0);
-        let found = estimate_clock_offsets(&tr, 3, &opts).unwrap();
+        let found = estimate_clock_offsets(&tr, 3, &opts, &[]).unwrap();
         let clean = fuse_robot(7, &tr, &found, &opts).unwrap();
         assert!(clean.disagreements.is_empty(), "{:?}", clean.disagreements);
         assert!(clean.agreement.sigmas_rms < 3.0, "{:?}", clean.agreement);
@@ -1049,7 +1265,7 @@ mod tests {
         for f in tr.iter_mut().flat_map(|t| t.fixes.iter_mut()) {
             f.t_s += epoch;
         }
-        let found = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0)).unwrap();
+        let found = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0), &[]).unwrap();
         assert_eq!(found.reference, 1);
         assert!(found.sigma_s[0].is_nan(), "{found:?}");
         assert!(
@@ -1072,7 +1288,7 @@ mod tests {
     fn a_camera_that_saw_no_robot_needs_no_offset() {
         let mut tr = tracks(&[0.0, 0.01, 0.02], 5);
         tr.truncate(2);
-        let found = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0)).unwrap();
+        let found = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0), &[]).unwrap();
         assert!((found.offset_s[1] - 0.01).abs() < 3e-4, "{found:?}");
         assert!(found.sigma_s[2].is_nan() && found.sigma_s[1].is_finite());
     }
@@ -1081,9 +1297,77 @@ mod tests {
     fn a_camera_that_never_shares_a_robot_is_refused() {
         let mut tr = tracks(&[0.0, 0.01, 0.02], 4);
         tr[2].tag_id = 8;
-        let e = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0))
+        let e = estimate_clock_offsets(&tr, 3, &FuseOptions::for_fps(30.0), &[])
             .unwrap_err()
             .to_string();
         assert!(e.contains("camera 2 never saw a robot"), "{e}");
+    }
+
+    /// Camera 1's clock runs 1000 ppm fast (a 29.97 frames/s camera stamped as 30, or the
+    /// reverse): over 10 s it drifts 10 ms, 10 mm on the robot's path. Its rate is fitted and
+    /// the fusion holds (before: one constant offset, camera 1 and its good neighbours named
+    /// as disagreeing beyond 8 σ, "its clock jumped … or the camera moved").
+    #[test]
+    fn a_camera_clock_running_fast_gets_its_rate() {
+        let offsets = [0.0, 0.0137, -0.0461];
+        let mut tr = tracks_with_sigma(&offsets, 3);
+        let opts = FuseOptions::for_fps(30.0);
+        let clean = estimate_clock_offsets(&tr, 3, &opts, &[]).unwrap();
+        assert!(
+            clean.rate.iter().all(|r| r.ppm() == 0.0),
+            "{:?}",
+            clean.rate
+        );
+        for f in tr[1].fixes.iter_mut() {
+            f.t_s *= 1.001;
+        }
+        let found = estimate_clock_offsets(&tr, 3, &opts, &[]).unwrap();
+        let ClockRate::Fitted { ppm, sigma_ppm } = found.rate[1] else {
+            panic!("{:?}", found.rate);
+        };
+        assert!(
+            (ppm - 1000.0).abs() < 30.0 && sigma_ppm < 30.0,
+            "{ppm} ± {sigma_ppm}"
+        );
+        assert_eq!(found.rate[2].ppm(), 0.0, "{:?}", found.rate);
+        // Camera 1's true offset at its first fix (stamped t·1.001, true time t).
+        let t0 = found.origin_s[1];
+        let want = t0 / 1.001 + offsets[1] - t0;
+        assert!((found.offset_s[1] - want).abs() < 3e-4, "{found:?} {want}");
+        let fused = fuse_robot(7, &tr, &found, &opts).unwrap();
+        assert!(fused.disagreements.is_empty(), "{:?}", fused.disagreements);
+        assert!(fused.agreement.sigmas_rms < 3.0, "{:?}", fused.agreement);
+    }
+
+    /// Camera 2 stamps its frames in epoch seconds, the others from their recordings' start:
+    /// its recording lies years from camera 0's, so it is re-based to start with camera 0 and
+    /// its offset found around that (before: "never saw a robot at the same time … widen the
+    /// search", which no width up to its limit could satisfy).
+    #[test]
+    fn a_camera_on_another_clock_is_re_based() {
+        let offsets = [0.0, 0.0137, -0.0461];
+        let mut tr = tracks_with_sigma(&offsets, 3);
+        let epoch = 1_764_180_000.25;
+        for f in tr[2].fixes.iter_mut() {
+            f.t_s += epoch;
+        }
+        let opts = FuseOptions::for_fps(30.0);
+        let e = estimate_clock_offsets(&tr, 3, &opts, &[]).unwrap_err();
+        assert!(e.to_string().contains("camera 2 never saw"), "{e}");
+        // Each camera's recording: 10 s from its clock's start.
+        let spans = [(0.0, 10.0), (0.0, 10.0), (epoch, epoch + 10.0)];
+        let prior = crate::track::priors_of_spans(&spans, opts.max_offset_s);
+        assert_eq!(prior, vec![0.0, 0.0, -epoch]);
+        let found = estimate_clock_offsets(&tr, 3, &opts, &prior).unwrap();
+        let err = found.offset_s[2] - (offsets[2] - epoch);
+        assert!(err.abs() < 3e-4, "{err} s: {found:?}");
+        let fused = fuse_robot(7, &tr, &found, &opts).unwrap();
+        assert!(fused.disagreements.is_empty(), "{:?}", fused.disagreements);
+        // Cameras on one clock, started seconds apart, are not re-based.
+        let near = [(0.0, 10.0), (0.0, 10.0), (10.5, 20.0)];
+        assert_eq!(
+            crate::track::priors_of_spans(&near, opts.max_offset_s),
+            vec![0.0; 3]
+        );
     }
 }

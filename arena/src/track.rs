@@ -219,10 +219,53 @@ pub(crate) fn calibration_covariance(
 pub struct ArenaTracking {
     /// The cameras' clock offsets.
     pub offsets: ClockOffsets,
+    /// Each camera's clock offset as guessed from its frames' times before the fit
+    /// ([`clock_priors`]): not 0 for a camera on another clock, re-based.
+    pub prior_s: Vec<f64>,
     /// One fused trajectory per tag id seen, in id order.
     pub robots: Vec<FusedTrack>,
     /// Every camera's fixes, for plots.
     pub tracks: Vec<CameraTrack>,
+}
+
+/// Each camera's clock offset guessed from its frames' times, seconds (t_arena ≈ t_camera +
+/// prior): 0, except for a camera whose recording lies, on its clock, more than
+/// `max_offset_s` before or after the first camera's: it cannot have seen a robot at the
+/// same time on the same clock, so its clock counts from another origin (epoch seconds
+/// against seconds from the recording's start), and its first frame is taken as the first
+/// camera's, the offset searched around that.
+pub fn clock_priors(results: &[CameraResult], max_offset_s: f64) -> Vec<f64> {
+    let spans: Vec<(f64, f64)> = results
+        .iter()
+        .map(|per_id| {
+            per_id
+                .values()
+                .flat_map(|r| r.records.iter().map(|x| x.t_s))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+                    (lo.min(t), hi.max(t))
+                })
+        })
+        .collect();
+    priors_of_spans(&spans, max_offset_s)
+}
+
+/// [`clock_priors`] from each camera's first and last frame times (infinite for a camera
+/// without frames).
+pub(crate) fn priors_of_spans(spans: &[(f64, f64)], max_offset_s: f64) -> Vec<f64> {
+    let Some(&(start, end)) = spans.iter().find(|s| s.0.is_finite()) else {
+        return vec![0.0; spans.len()];
+    };
+    spans
+        .iter()
+        .map(|&(s, e)| {
+            let apart = s > end + max_offset_s || e < start - max_offset_s;
+            if s.is_finite() && apart {
+                start - s
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 /// Offsets and fusion from every camera's tracking.
@@ -233,7 +276,8 @@ pub fn fuse_all(
     opts: &FuseOptions,
 ) -> Result<ArenaTracking, ArenaError> {
     let tracks = camera_tracks(arena, results, marker_height_m);
-    let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts)?;
+    let prior_s = clock_priors(results, opts.max_offset_s);
+    let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts, &prior_s)?;
     // The fused rows fall on the reference camera's frames, its first frame time the grid's
     // origin (its records are every frame, fix or gap).
     let opts = &FuseOptions {
@@ -253,6 +297,7 @@ pub fn fuse_all(
         .collect::<Result<Vec<_>, _>>()?;
     Ok(ArenaTracking {
         offsets,
+        prior_s,
         robots,
         tracks,
     })

@@ -10,7 +10,7 @@ use crate::{ArenaError, ArenaTracking};
 /// The `format` tag of arena tracking summaries.
 pub const ARENA_TRACK_FORMAT: &str = "odocal.arena-track/1";
 
-/// One camera's clock offset: t_arena = t_camera + offset_s.
+/// One camera's clock offset and rate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct OffsetEntry {
     /// The camera's index in the arena.
@@ -19,6 +19,14 @@ pub struct OffsetEntry {
     pub offset_s: f64,
     /// Its standard deviation, seconds.
     pub sigma_s: f64,
+    /// How much faster the camera's clock runs than the arena clock, ppm (0 where not
+    /// fitted): t_arena = t_camera + offset_s − rate·(t_camera − origin_s). Absent in files
+    /// written before rates were fitted.
+    #[serde(default)]
+    pub rate_ppm: f64,
+    /// The instant on the camera's clock at which the offset is `offset_s`, seconds.
+    #[serde(default)]
+    pub origin_s: f64,
 }
 
 /// One fused pose and the camera that weighed most in it.
@@ -89,6 +97,8 @@ impl ArenaTrackFile {
                     camera: k,
                     offset_s: tracking.offsets.offset_s[k],
                     sigma_s: tracking.offsets.sigma_s[k],
+                    rate_ppm: tracking.offsets.rate[k].ppm(),
+                    origin_s: tracking.offsets.origin_s[k],
                 })
                 .collect(),
             offset_fit_rms_mm: tracking.offsets.rms_m * 1e3,

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use odocal_arena::{fuse_all, track_cameras, ArenaFile, ArenaTrackFile, FuseOptions};
+use odocal_arena::{fuse_all, track_cameras, ArenaFile, ArenaTrackFile, ClockRate, FuseOptions};
 use odocal_calib::CameraFile;
 use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
@@ -30,7 +30,7 @@ pub struct MultiArgs {
     pub tags: Option<String>,
     /// arena.json from `odocal arena`: VIDEO and the videos after it are the arena's cameras
     /// in its order; one fused trajectory per robot (arena floor frame, first camera's
-    /// clock). All cameras must run at the same frame rate; their clock offsets are
+    /// clock). The cameras' clock offsets, and rates where the overlaps are long enough, are
     /// estimated from robots seen by two cameras at once.
     #[arg(long)]
     pub arena: Option<PathBuf>,
@@ -356,7 +356,8 @@ fn track_arena(
         }
     }
     say!(
-        "frame rate {fps:.3} frames/s, taken to be every camera's (clocks without drift, one constant offset each)"
+        "frame rate {fps:.3} frames/s; each camera's clock gets an offset, and a rate where its overlaps span {} s or more",
+        odocal_arena::MIN_RATE_SPAN_S
     );
     if tracking.offsets.reference != 0 {
         say!(
@@ -364,18 +365,7 @@ fn track_arena(
             tracking.offsets.reference
         );
     }
-    for k in 0..arena.cameras.len() {
-        let (o, sd) = (tracking.offsets.offset_s[k], tracking.offsets.sigma_s[k]);
-        if sd.is_nan() {
-            say!("camera {k} clock offset unknown: it saw no robot");
-        } else {
-            say!(
-                "camera {k} clock offset {:+.3} ms ± {:.3} ms (t_arena = t_camera + offset)",
-                o * 1e3,
-                sd * 1e3
-            );
-        }
-    }
+    say_clocks(&tracking, &videos, m.max_clock_offset_s);
     if tracking.offsets.pairs.is_empty() {
         say!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
     } else {
@@ -433,6 +423,78 @@ fn track_arena(
         .collect())
 }
 
+/// Every camera's clock: its offset and rate, and a note for a camera re-based because its
+/// frames' times lie far from the first camera's.
+fn say_clocks(tracking: &odocal_arena::ArenaTracking, videos: &[PathBuf], max_offset_s: f64) {
+    for (k, prior) in tracking.prior_s.iter().enumerate() {
+        if *prior != 0.0 {
+            tell!(
+                "note: camera {k} ({}): its frames are timed {} from camera 0's, so it counts from another origin (epoch seconds against seconds from the recording's start); its first frame is taken as camera 0's first frame and its clock offset searched within ±{max_offset_s} s of that",
+                videos.get(k).map_or(String::new(), |v| v.display().to_string()),
+                long_time(prior.abs())
+            );
+        }
+    }
+    let offsets = &tracking.offsets;
+    for k in 0..offsets.offset_s.len() {
+        let (o, sd) = (offsets.offset_s[k], offsets.sigma_s[k]);
+        if sd.is_nan() {
+            say!("camera {k} clock offset unknown: it saw no robot");
+            continue;
+        }
+        let rate = match offsets.rate[k] {
+            ClockRate::None => String::new(),
+            ClockRate::Untold { span_s } => format!(
+                "; its rate taken as the arena clock's (its overlaps span {span_s:.1} s, too short to tell one)"
+            ),
+            ClockRate::Equal { sigma_ppm } => format!(
+                "; its rate within ±{:.0} ppm of the arena clock's, taken as equal",
+                3.0 * sigma_ppm
+            ),
+            ClockRate::Implausible { ppm } => format!(
+                "; a rate of {ppm:+.0} ppm fitted, beyond any clock's ({} ppm): taken as the arena clock's",
+                odocal_arena::MAX_RATE_PPM
+            ),
+            ClockRate::Fitted { ppm, sigma_ppm } => {
+                say!(
+                    "camera {k} clock offset {} ± {:.3} ms at {:.3} s on its clock, rate {ppm:+.1} ppm ± {sigma_ppm:.1} ppm: its clock gains {:.3} ms a second on the arena clock (t_arena = t_camera + offset − rate·(t_camera − {:.3} s))",
+                    offset_text(o),
+                    sd * 1e3,
+                    offsets.origin_s[k],
+                    ppm * 1e-3,
+                    offsets.origin_s[k]
+                );
+                continue;
+            }
+        };
+        say!(
+            "camera {k} clock offset {} ± {:.3} ms (t_arena = t_camera + offset){rate}",
+            offset_text(o),
+            sd * 1e3
+        );
+    }
+}
+
+/// An offset in milliseconds, or in seconds when it is a re-based clock's (epoch-sized).
+fn offset_text(offset_s: f64) -> String {
+    if offset_s.abs() < 60.0 {
+        format!("{:+.3} ms", offset_s * 1e3)
+    } else {
+        format!("{offset_s:+.6} s")
+    }
+}
+
+/// A span of time as a reader takes it in: seconds, hours or days.
+fn long_time(s: f64) -> String {
+    if s >= 2.0 * 86400.0 {
+        format!("{:.0} days", s / 86400.0)
+    } else if s >= 2.0 * 3600.0 {
+        format!("{:.1} hours", s / 3600.0)
+    } else {
+        format!("{s:.1} s")
+    }
+}
+
 /// Warns of every stretch in which a camera's fixes of a robot disagreed with the others far
 /// beyond their σ, naming the camera's video and the stretch on both clocks.
 fn say_disagreements(
@@ -441,7 +503,7 @@ fn say_disagreements(
     videos: &[PathBuf],
 ) {
     for d in &r.disagreements {
-        let own = offsets.offset_s.get(d.camera).copied().unwrap_or(0.0);
+        let own = |t_s: f64| offsets.to_camera(d.camera, t_s);
         let video = videos
             .get(d.camera)
             .map_or(String::new(), |v| format!(" ({})", v.display()));
@@ -450,8 +512,15 @@ fn say_disagreements(
         } else {
             "which camera is wrong could not be told, so the fused σ there are widened to cover the cameras' spread".to_string()
         };
+        // Where its rate was not fitted, a clock running at another rate is a third cause.
+        let rate = match offsets.rate.get(d.camera) {
+            Some(ClockRate::Untold { span_s }) => format!(
+                "; or its clock runs at another rate than the others' (its overlaps span {span_s:.1} s, too short to fit one; 29.97 against 30 frames/s drifts 1 ms a second): drive a robot through its overlaps for longer"
+            ),
+            _ => String::new(),
+        };
         tell!(
-            "warning: tag {}: camera {}{video} disagrees with the other cameras seeing the robot by up to {:.1} mm ({:.0} σ) at {} instants from {:.2} s to {:.2} s (arena clock; {:.2}–{:.2} s on its own): {done}. Its clock jumped (frames dropped and the video re-encoded at a constant frame rate: track the original recording) or the camera moved since `odocal arena` (calibrate it and build the arena again)",
+            "warning: tag {}: camera {}{video} disagrees with the other cameras seeing the robot by up to {:.1} mm ({:.0} σ) at {} instants from {:.2} s to {:.2} s (arena clock; {:.2}–{:.2} s on its own): {done}. Its clock jumped (frames dropped and the video re-encoded at a constant frame rate: track the original recording) or the camera moved since `odocal arena` (calibrate it and build the arena again){rate}",
             r.tag_id,
             d.camera,
             d.max_m * 1e3,
@@ -459,8 +528,8 @@ fn say_disagreements(
             d.instants,
             d.from_s,
             d.to_s,
-            d.from_s - own,
-            d.to_s - own
+            own(d.from_s),
+            own(d.to_s)
         );
     }
 }
