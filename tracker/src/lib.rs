@@ -13,6 +13,7 @@ pub mod marker_height;
 pub mod multi;
 pub mod overlay;
 pub mod pose;
+mod repeats;
 mod report;
 pub mod rolling_shutter;
 pub mod source;

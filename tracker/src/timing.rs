@@ -3,7 +3,8 @@
 //! ends before the frames its container announces. Ground truth timed wrongly is wrong, so
 //! each of these is reported on stderr and in the track report.
 
-use crate::{FrameRecord, GapReason, Outcome, TrackResult};
+use crate::repeats::{fix_position, MIN_EXPECTED_STEP_M};
+use crate::{GapReason, Outcome, TrackResult};
 
 /// A run of frames missing from the video between two frames that are there.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -39,8 +40,12 @@ pub struct TimingReport {
     /// Frames whose timestamp is not after the previous one (not tracked).
     pub duplicate_times: usize,
     /// Frames identical to the previous one, or whose fix stands where the previous one's
-    /// stood while the robot moves (not tracked).
+    /// stood while the robot moves, that the motion places after the image's own slot (not
+    /// tracked). A still scene's identical frames are tracked and not counted.
     pub repeated_images: usize,
+    /// Slots of dropped frames filled with the next frame's image (a conversion to a constant
+    /// frame rate): the motion places the image at the later slot, where it was tracked.
+    pub filled_drops: usize,
     /// The rate the frames were recorded at, frames/s, when the robot's motion shows the
     /// video's rate converted from it (frames repeated or left out in a regular pattern, the
     /// rest timed on the new rate's grid): the times are then not the camera's.
@@ -129,69 +134,6 @@ fn is_clock_jump(r: &TrackResult, d: &DroppedFrames) -> bool {
     }
     let per_frame = before.iter().sum::<f64>() / before.len() as f64;
     per_frame >= 0.0005 && (b - a).norm() <= 2.0 * per_frame
-}
-
-/// Below this step expected from the robot's speed (metres) a repeat cannot be told from the
-/// fixes' noise (about 0.04 mm).
-const MIN_EXPECTED_STEP_M: f64 = 0.5e-3;
-
-/// The position of a record's fix.
-fn fix_position(r: &FrameRecord) -> Option<nalgebra::Point2<f64>> {
-    match &r.outcome {
-        Outcome::Fix(f) => Some(f.pose.position()),
-        _ => None,
-    }
-}
-
-/// Turns into repeated-image gaps the fixes that stand where the fix before them stood, within
-/// a fifth of the step the robot's speed into that fix gives, while the next fix moves on at
-/// about that speed: a repeated image that is not byte-identical (a frame rate raised by
-/// repeating frames, then re-encoded), which would put the earlier pose at a later time. A
-/// robot cannot stop for one frame, so a real frame is never one; nor is the frame after a
-/// jump (frames left out of a video timed by counting), after which the motion slows back.
-pub(crate) fn screen_repeated_poses(records: &mut [FrameRecord]) {
-    const STILL_FRACTION: f64 = 0.2;
-    const WITHIN_FRAMES: usize = 3;
-    // The last two fixes kept: (frame, time, position).
-    let mut kept: [Option<(usize, f64, nalgebra::Point2<f64>)>; 2] = [None, None];
-    for i in 0..records.len() {
-        let (index, t_s) = (records[i].index, records[i].t_s);
-        let Some(p) = fix_position(&records[i]) else {
-            if records[i].outcome != Outcome::Gap(GapReason::RepeatedImage) {
-                kept = [None, None];
-            }
-            continue;
-        };
-        let next = records[i + 1..]
-            .iter()
-            .take(WITHIN_FRAMES)
-            .filter_map(|x| Some((x.index, x.t_s, fix_position(x)?)));
-        // The robot's speed into the last fix kept; at the first fix, out of it.
-        let speed_at = match kept {
-            [Some((ib, tb, b)), Some((ia, ta, a))] if ia - ib <= WITHIN_FRAMES => {
-                Some((ia, ta, a, (a - b).norm() / (ta - tb)))
-            }
-            [None, Some((ia, ta, a))] => next
-                .clone()
-                .next()
-                .map(|(_, tq, q)| (ia, ta, a, (q - a).norm() / (tq - ta))),
-            _ => None,
-        };
-        if let Some((ia, ta, a, speed)) = speed_at {
-            let expected = speed * (t_s - ta);
-            if index - ia <= WITHIN_FRAMES
-                && expected >= MIN_EXPECTED_STEP_M
-                && (p - a).norm() < STILL_FRACTION * expected
-                && next
-                    .take(1)
-                    .any(|(_, tq, q)| (q - a).norm() >= 0.4 * speed * (tq - ta))
-            {
-                records[i].outcome = Outcome::Gap(GapReason::RepeatedImage);
-                continue;
-            }
-        }
-        kept = [kept[1], Some((index, t_s, p))];
-    }
 }
 
 /// Steps between the fixes of consecutive frames over which the robot moved twice as far as
@@ -296,13 +238,15 @@ impl TimingReport {
             }
         });
         let repeated_images = count(GapReason::RepeatedImage);
+        let filled_drops = count(GapReason::FilledDrop);
         let converted_from_fps = step.and_then(|step| {
             // One frame in ten or more repeated, or one step in twenty or more doubled, is a
             // pattern: a camera missing a frame now and then does neither so often.
             let (doubled, measured) = double_steps(r);
             let fps = 1.0 / step;
-            if repeated_images >= 3 && repeated_images * 10 >= frames_read {
-                Some(fps * (1.0 - repeated_images as f64 / frames_read as f64))
+            let repeats = repeated_images + filled_drops;
+            if repeats >= 3 && repeats * 10 >= frames_read {
+                Some(fps * (1.0 - repeats as f64 / frames_read as f64))
             } else if doubled >= 3 && doubled * 20 >= measured {
                 Some(fps * (1.0 + doubled as f64 / measured as f64))
             } else {
@@ -319,6 +263,7 @@ impl TimingReport {
             clock_jumps,
             duplicate_times: count(GapReason::DuplicateTime),
             repeated_images,
+            filled_drops,
             converted_from_fps,
             corrupt_frames: r.source.corrupt_frames.clone(),
             extrapolated_times: r.source.extrapolated_times,
@@ -396,6 +341,18 @@ impl TimingReport {
         )
     }
 
+    /// The warning naming the dropped frames whose slots hold the next frame's image.
+    fn filled_drops_warning(&self) -> String {
+        let n = self.filled_drops;
+        format!(
+            "{n} {} dropped and {} filled with the next frame's image (a conversion to a constant frame rate, as FFmpeg's default MP4 output does): the robot's motion places each such image at the later slot, where it was tracked, and the dropped {} left as {}",
+            if n == 1 { "frame was" } else { "frames were" },
+            if n == 1 { "its slot" } else { "their slots" },
+            if n == 1 { "frame is" } else { "frames are" },
+            if n == 1 { "a gap" } else { "gaps" },
+        )
+    }
+
     /// One warning line per problem with the timeline (none for a clean video).
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
@@ -447,7 +404,7 @@ impl TimingReport {
         }
         if self.repeated_images > 0 {
             w.push(format!(
-                "{} the previous frame's image, byte for byte or where the tag is (giving its pose, to the fixes' noise while the robot moves: a camera repeating a frame it missed, a damaged frame the decoder completed from the one before, or a frame rate raised by repeating frames); {} not tracked",
+                "{} the previous frame's image, byte for byte or where the tag is (giving its pose, to the fixes' noise while the robot moves), and the robot's motion places the image at the earlier frame (a camera repeating a frame it missed, a damaged frame the decoder completed from the one before, or a frame rate raised by repeating frames); {} not tracked",
                 if self.repeated_images == 1 {
                     "1 frame repeats".to_string()
                 } else {
@@ -456,11 +413,14 @@ impl TimingReport {
                 if self.repeated_images == 1 { "it was" } else { "they were" }
             ));
         }
+        if self.filled_drops > 0 {
+            w.push(self.filled_drops_warning());
+        }
         if let (Some(from), Some(step)) = (self.converted_from_fps, self.frame_step_s) {
             w.push(format!(
                 "the robot's motion shows the frame rate converted to {:.1} fps from about {from:.0} fps ({}): the timestamps are the conversion's grid, not the camera's, so a frame's time can be up to a frame off its image (at 1 m/s, {:.0} mm); track the video as the camera recorded it",
                 1.0 / step,
-                if self.repeated_images > 0 {
+                if self.repeated_images + self.filled_drops > 0 {
                     "frames repeated in a regular pattern"
                 } else {
                     "steps of two frames' motion in a regular pattern: frames left out and the rest re-timed"

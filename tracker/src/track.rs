@@ -204,6 +204,9 @@ pub enum GapReason {
     /// damaged frame the decoder completed from the one before). A pose from it would belong
     /// to an earlier time.
     RepeatedImage,
+    /// The frame was dropped and its slot filled with a later frame's image (a conversion to a
+    /// constant frame rate, FFmpeg's default for MP4): that image was tracked at its own slot.
+    FilledDrop,
     /// Tags of the tracked id were in view, but none the track could tell for the robot's:
     /// two or more with no track to pick one (at the start, or after it was lost), or only
     /// one lying where another tag of the id was seen beside the track. A robot carries one
@@ -221,6 +224,7 @@ impl GapReason {
             Self::Jump => "impossible jump",
             Self::DuplicateTime => "duplicate timestamp",
             Self::RepeatedImage => "repeated image",
+            Self::FilledDrop => "dropped, slot filled with the next image",
             Self::OtherTagOfId => "another tag of the id in view",
         }
     }
@@ -1165,7 +1169,8 @@ impl TrackResult {
                 let figures = match reason {
                     GapReason::NotDetected
                     | GapReason::DuplicateTime
-                    | GapReason::RepeatedImage => String::new(),
+                    | GapReason::RepeatedImage
+                    | GapReason::FilledDrop => String::new(),
                     GapReason::LowConfidence => format!(
                         " (median decision margin {}, accepted from {}; median hamming {})",
                         fmt_opt(margin, 1),
@@ -1388,7 +1393,7 @@ pub fn track_source(
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
-    crate::timing::screen_repeated_poses(&mut records);
+    crate::repeats::place_repeated_images(&mut records);
     let result = TrackResult {
         tag_to_robot: opts.tag_to_robot,
         records,
