@@ -220,6 +220,7 @@ pub fn build_from_manifest(
         outcomes.push(runs);
         notes.extend(note);
     }
+    crate::units::reject_scale_outliers(&mut outcomes, matches!(opts.layout, Layout::Windows(_)));
     let mut ds = assemble(opts.robot, outcomes);
     ds.notes = notes;
     if let Layout::Windows(_) = opts.layout {

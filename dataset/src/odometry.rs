@@ -23,6 +23,22 @@ pub const SPEED_REST_THRESHOLD_MPS: f64 = 0.005;
 /// does not.
 pub const STEP_TOLERANCE_PERIODS: f64 = 0.5;
 
+/// How far, as a fraction, a log's mean period may be off the robot's before the log is taken
+/// for another robot's or logger's.
+pub const PERIOD_TOLERANCE: f64 = 0.05;
+
+/// A step this many times a log's median step or longer is rows lost, when the log's own
+/// period is measured: a logger's jitter moves single rows by well under half a period.
+const GAP_STEPS: f64 = 1.75;
+
+/// A count falling back to about 0 by more than this many times the wheel's steps around it
+/// (and [`RESET_SLACK_TICKS`]) is a reset counter, not the wheel: a wheel driven backwards
+/// counts down step by step, at a speed it changes gradually.
+const RESET_STEPS: f64 = 3.0;
+
+/// See [`RESET_STEPS`]: a wheel at rest nudged by a tick or two is no reset.
+const RESET_SLACK_TICKS: f64 = 2.0;
+
 /// The fastest a small wheeled robot's wheel surface moves, m/s: the reference robot drives
 /// at 0.1-0.7 m/s; a faster step is a glitch or a unit error.
 pub const MAX_WHEEL_SPEED_MPS: f64 = 5.0;
@@ -126,14 +142,38 @@ impl OdometryLog {
         Some(d[d.len() / 2])
     }
 
-    /// What is wrong when the log's own period is more than 5 % off the robot's `period_s`
-    /// (rows logged by another robot or logger, times in another unit, or a robot file that
-    /// describes another robot); `None` when it fits. Every feature and speed odocal derives
-    /// assumes the rows are `period_s` apart.
+    /// The log's mean period, seconds: its span over the periods it holds, so a logger's
+    /// jitter (steps of 0.11 to 0.29 s on a 200 ms log) does not move it as it moves the
+    /// median step. A step of [`GAP_STEPS`] mean steps or more is rows lost, and counts as the
+    /// periods it spans. `None` for fewer than two rows.
+    pub fn mean_period_s(&self) -> Option<f64> {
+        let median = self.median_period_s()?;
+        let steps = || self.t_s.windows(2).map(|w| w[1] - w[0]);
+        let regular: Vec<f64> = steps().filter(|&dt| dt < GAP_STEPS * median).collect();
+        let step_s = regular.iter().sum::<f64>() / regular.len() as f64;
+        let periods: f64 = steps()
+            .map(|dt| {
+                if dt < GAP_STEPS * median {
+                    1.0
+                } else {
+                    (dt / step_s).round()
+                }
+            })
+            .sum();
+        Some((self.t_s[self.t_s.len() - 1] - self.t_s[0]) / periods)
+    }
+
+    /// What is wrong when the log's mean period ([`Self::mean_period_s`]) is more than
+    /// [`PERIOD_TOLERANCE`] off the robot's `period_s`, either way (rows logged by another
+    /// robot or logger, times in another unit, or a robot file that describes another robot);
+    /// `None` when it fits. Every feature and speed odocal derives assumes the rows are
+    /// `period_s` apart.
     pub fn period_mismatch(&self, period_s: f64) -> Option<String> {
+        // The margin keeps a period exactly at the tolerance on the same side both ways
+        // (0.19 and 0.21 s against 0.2 s differ from it by 0.01 s only up to rounding).
         let p = self
-            .median_period_s()
-            .filter(|p| (p - period_s).abs() > 0.05 * period_s)?;
+            .mean_period_s()
+            .filter(|p| (p / period_s - 1.0).abs() > PERIOD_TOLERANCE + 1e-9)?;
         let unit = if (p / period_s / 1000.0 - 1.0).abs() < 0.05 {
             " (1000 times that: are the times in milliseconds? they must be in seconds)"
         } else {
@@ -407,6 +447,9 @@ impl OdometryLog {
         if let Some(beyond) = &self.count_beyond_counters {
             return Some(beyond.to_string());
         }
+        if let Some(reset) = self.counter_reset() {
+            return Some(reset);
+        }
         let revs = self.wheel_revs(robot);
         let circ = std::f64::consts::PI * robot.wheel_diameter_m;
         (1..revs.t_s.len()).find_map(|k| {
@@ -437,6 +480,54 @@ impl OdometryLog {
                 })
             })
         })
+    }
+
+    /// The first row of a tick log where a wheel's count falls back to about 0 in one step far
+    /// beyond the wheel's steps around it (a motor board restarted, its counters reset), as what
+    /// is wrong with it, naming the file's line. Read as motion, the drop is one step of
+    /// the wheel driven backwards: at a few dozen ticks it is no impossible speed, and it
+    /// only spoiled the alignment ("speed-profile correlation 0.30") or the model's domain.
+    /// A wheel driven backwards counts down step by step, and a wrap is unwrapped before.
+    pub fn counter_reset(&self) -> Option<String> {
+        if self.kind != LogKind::Ticks {
+            return None;
+        }
+        let n = self.len();
+        // The wheel's largest step on either side of row k's.
+        let around = |c: &[f64], k: usize| {
+            let step = |j: usize| {
+                if j >= 1 && j < n {
+                    (c[j] - c[j - 1]).abs()
+                } else {
+                    0.0
+                }
+            };
+            step(k - 1).max(step(k + 1))
+        };
+        // The count lands where a counter started at 0 would be a step later, after a fall
+        // no step of the wheel around it comes near.
+        let reset_at = |c: &[f64], k: usize| {
+            (c[k] - c[k - 1]).abs() > RESET_STEPS * around(c, k) + RESET_SLACK_TICKS
+                && c[k].abs() <= around(c, k) + 1.0
+        };
+        let k = (1..n).find(|&k| reset_at(&self.left, k) || reset_at(&self.right, k))?;
+        let line = k + 2;
+        let drops: Vec<String> = [(TICKS_HEADER[1], &self.left), (TICKS_HEADER[2], &self.right)]
+            .into_iter()
+            .filter(|(_, c)| reset_at(c, k))
+            .map(|(name, c)| {
+                format!(
+                    "{name} drops from {} to {} in one step where the wheel moves {} ticks a step around it",
+                    c[k - 1],
+                    c[k],
+                    around(c, k)
+                )
+            })
+            .collect();
+        Some(format!(
+            "line {line}: {}: the counter was reset (motor board restarted?); the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
+            drops.join(", and ")
+        ))
     }
 
     /// Cumulative wheel revolutions relative to the first row. Speeds are converted with the
@@ -493,6 +584,91 @@ mod tests {
         let back = OdometryLog::parse_csv(&log.to_csv(), "c").unwrap();
         assert_eq!(back, log);
         assert_eq!(log.count_note(), None);
+    }
+
+    /// A tick log at times `t_s`, both wheels 3 ticks a row.
+    fn moving_log(t_s: Vec<f64>) -> OdometryLog {
+        let ticks: Vec<i64> = (0..t_s.len() as i64).map(|i| 3 * i).collect();
+        OdometryLog::from_ticks(t_s, ticks.clone(), ticks).expect("log")
+    }
+
+    #[test]
+    fn a_jittery_logger_on_the_robots_period_is_its_period() {
+        // Rows stamped up to 40 ms early of a 200 ms grid: steps of 0.18, 0.18, 0.24 s,
+        // a median step of 0.180 s (it was refused as 10 % off) and a mean of 0.200 s.
+        let jittery: Vec<f64> = (0..60)
+            .map(|k| 0.2 * k as f64 - [0.0, 0.02, 0.04][k % 3])
+            .collect();
+        let log = moving_log(jittery);
+        assert!((log.median_period_s().expect("median") - 0.18).abs() < 1e-9);
+        assert!((log.mean_period_s().expect("mean") - 0.2).abs() < 1e-3);
+        assert_eq!(log.period_mismatch(0.2), None);
+        // A few rows lost (steps of 0.4 and 0.6 s) leave the period alone.
+        let mut gaps: Vec<f64> = (0..60).map(|k| 0.2 * k as f64).collect();
+        gaps.retain(|t| ![1.0, 3.0, 3.2].iter().any(|g| (t - g).abs() < 1e-9));
+        assert!((moving_log(gaps).mean_period_s().expect("mean") - 0.2).abs() < 1e-9);
+        // Constant periods 5 % off either way are both inside (0.19 s was refused, 0.21 s
+        // taken); 10 %, a 400 ms logger and milliseconds are refused.
+        let every = |p: f64| moving_log((0..30).map(|k| p * k as f64).collect());
+        assert_eq!(every(0.19).period_mismatch(0.2), None);
+        assert_eq!(every(0.21).period_mismatch(0.2), None);
+        let off = every(0.22).period_mismatch(0.2).expect("10 % off");
+        assert!(
+            off.starts_with("rows are 0.220 s apart, but the robot logs every 0.200 s"),
+            "{off}"
+        );
+        assert!(every(0.4).period_mismatch(0.2).is_some());
+        let ms = every(200.0).period_mismatch(0.2).expect("ms");
+        assert!(ms.contains("are the times in milliseconds?"), "{ms}");
+    }
+
+    #[test]
+    fn a_counter_reset_mid_run_is_named_not_a_backward_drive_nor_a_wrap() {
+        let robot = RobotParams::default();
+        // Both counters reset at line 12 (row 10) while driving 4 ticks a row: 40 ticks back
+        // in 0.2 s is 2.3 m/s, no impossible speed; it was left to fail the alignment.
+        let csv = |l: &[i64], r: &[i64]| {
+            let mut s = String::from("t,left_ticks,right_ticks\n");
+            for (i, (a, b)) in l.iter().zip(r).enumerate() {
+                s.push_str(&format!("{:.1},{a},{b}\n", 0.2 * i as f64));
+            }
+            OdometryLog::parse_csv(&s, "r.csv").expect("log")
+        };
+        let up: Vec<i64> = (0..20).map(|i| 4 * i).collect();
+        let reset: Vec<i64> = up
+            .iter()
+            .map(|&c| if c >= 40 { c - 40 } else { c })
+            .collect();
+        let why = csv(&reset, &reset).implausible_step(&robot).expect("reset");
+        assert!(
+            why.starts_with("line 12: left_ticks drops from 36 to 0 in one step where the wheel moves 4 ticks a step around it, and right_ticks drops from 36 to 0")
+                && why.contains("the counter was reset (motor board restarted?)")
+                && why.contains("cut the log before line 12"),
+            "{why}"
+        );
+        // One counter reset at rest, a tick after the reset.
+        let rest = [0, 0, 50, 50, 50, 51, 51, 55, 60];
+        let still = [0, 0, 50, 50, 50, 50, 50, 54, 59];
+        let one: Vec<i64> = rest
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| if i >= 5 { c - 50 } else { c })
+            .collect();
+        let why = csv(&one, &still).counter_reset().expect("reset at rest");
+        assert!(why.starts_with("line 7: left_ticks drops from 50 to 1 in one step where the wheel moves 0 ticks a step around it: the counter was reset"), "{why}");
+        // Driven backwards (counting down through 0), turning round, or wrapping: no reset.
+        let down: Vec<i64> = (0..20).map(|i| 30 - 4 * i).collect();
+        let back_and_forth: Vec<i64> = [0, 4, 8, 12, 8, 4, 0, -4, -8].to_vec();
+        let wrap: Vec<i64> = (0..10).map(|i| (65520 + 4 * i) % 65536).collect();
+        for (l, r) in [
+            (&down, &down),
+            (&back_and_forth, &back_and_forth),
+            (&wrap, &wrap),
+        ] {
+            let log = csv(l, r);
+            assert_eq!(log.counter_reset(), None, "{l:?}");
+            assert_eq!(log.implausible_step(&robot), None, "{l:?}");
+        }
     }
 
     #[test]

@@ -5,11 +5,12 @@
 
 use odocal_core::Trajectory;
 
+use crate::build::RunOutcome;
 use crate::build::DEFAULT_MIN_GAP_S;
 use crate::kinematics::{dead_reckon, WheelGeometry};
 use crate::odometry::{LogKind, OdometryLog};
 use crate::segment::split_runs;
-use crate::RobotParams;
+use crate::{RejectedRun, RobotParams, Sample};
 
 /// The largest ratio between the camera path's extent and the odometry's that can still be
 /// the same motion (odometry drifts by percent, not by factors).
@@ -134,22 +135,101 @@ const WARN_ODOMETRY_SCALE: f64 = 1.2;
 /// Samples whose real end point moved less than this are not compared, metres.
 const MIN_TARGET_M: f64 = 0.1;
 
+/// |raw odometry end point| / |real end point| of a sample; `None` when the real end point
+/// moved less than [`MIN_TARGET_M`].
+fn end_ratio(s: &Sample) -> Option<f64> {
+    let real = s.target_m[0].hypot(s.target_m[1]);
+    (real >= MIN_TARGET_M).then(|| s.raw_end_m[0].hypot(s.raw_end_m[1]) / real)
+}
+
+/// The upper median of `v`; `None` when empty.
+fn upper_median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
 /// The odometry's distances against the camera's over a dataset's samples: the median of
 /// |raw odometry end point| / |real end point| and the samples behind it; `None` when no
 /// sample moved 10 cm.
-pub fn odometry_scale(samples: &[crate::Sample]) -> Option<(f64, usize)> {
-    let mut ratios: Vec<f64> = samples
-        .iter()
-        .filter_map(|s| {
-            let real = s.target_m[0].hypot(s.target_m[1]);
-            (real >= MIN_TARGET_M).then(|| s.raw_end_m[0].hypot(s.raw_end_m[1]) / real)
-        })
-        .collect();
-    if ratios.is_empty() {
-        return None;
+pub fn odometry_scale(samples: &[Sample]) -> Option<(f64, usize)> {
+    let ratios: Vec<f64> = samples.iter().filter_map(end_ratio).collect();
+    let n = ratios.len();
+    upper_median(ratios).map(|m| (m, n))
+}
+
+/// The factor, either way, by which a run's odometry-to-camera distance ratio may differ from
+/// the median of the runs' before the run is taken for another robot's log. The synthetic
+/// robot's runs lie within 1.4 % of their median (four seeds of 60 runs), a window dataset's
+/// recordings (the median of their windows) within 5 %; a log counting twice the edges, or
+/// logged by a robot with other encoders or wheels, is off by a factor.
+const MAX_RUN_SCALE_SPREAD: f64 = 1.25;
+
+/// The fewest runs among which one can be told apart from the others: of two, either may be
+/// the odd one.
+const MIN_RUNS_FOR_SPREAD: usize = 3;
+
+/// Rejects the runs whose odometry's distances are off the other runs' by more than
+/// [`MAX_RUN_SCALE_SPREAD`] (a window dataset's recordings, by the median of their windows,
+/// when `per_recording`; a recording is the list of its runs' outcomes). Alignment matches
+/// speed profiles whatever their scale, and [`robot_scale_mismatch`] judges only the median:
+/// a third of the logs at twice the counts (a second robot's 24-count encoders, firmware
+/// counting both edges) used to pass, and trained multipliers of 0.64.
+pub fn reject_scale_outliers(outcomes: &mut [Vec<RunOutcome>], per_recording: bool) {
+    // Each group is (recording, the outcomes in it) judged as one.
+    let groups: Vec<(usize, Vec<usize>)> = if per_recording {
+        (0..outcomes.len())
+            .map(|r| (r, (0..outcomes[r].len()).collect()))
+            .collect()
+    } else {
+        (0..outcomes.len())
+            .flat_map(|r| (0..outcomes[r].len()).map(move |i| (r, vec![i])))
+            .collect()
+    };
+    let ratio_of = |(r, idx): &(usize, Vec<usize>)| {
+        upper_median(
+            idx.iter()
+                .filter_map(|&i| match &outcomes[*r][i] {
+                    RunOutcome::Sample(s) => end_ratio(s),
+                    RunOutcome::Rejected(_) => None,
+                })
+                .collect(),
+        )
+    };
+    let ratios: Vec<Option<f64>> = groups.iter().map(ratio_of).collect();
+    let judged: Vec<f64> = ratios.iter().flatten().copied().collect();
+    let n = judged.len();
+    let Some(median) = upper_median(judged).filter(|_| n >= MIN_RUNS_FOR_SPREAD) else {
+        return;
+    };
+    let what = if per_recording { "recordings" } else { "runs" };
+    for ((r, idx), ratio) in groups.iter().zip(&ratios) {
+        let Some(ratio) = *ratio else { continue };
+        if (ratio / median).ln().abs() <= MAX_RUN_SCALE_SPREAD.ln() {
+            continue;
+        }
+        let reason = format!(
+            "the odometry's distances are {ratio:.2} times the camera's, where the {n} {what}' median is {median:.2}: is this log of another robot, or do its encoders count other ticks per wheel turn (both edges of each line counted)?"
+        );
+        let rejected = |run_id: String| {
+            RunOutcome::Rejected(RejectedRun {
+                run_id,
+                reason: reason.clone(),
+            })
+        };
+        if per_recording {
+            let id = idx.iter().find_map(|&i| match &outcomes[*r][i] {
+                RunOutcome::Sample(s) => Some(s.recording_id.clone()),
+                RunOutcome::Rejected(_) => None,
+            });
+            // The recording's windows are one rejection, as a recording that cannot be
+            // aligned is.
+            outcomes[*r].retain(|o| matches!(o, RunOutcome::Rejected(_)));
+            outcomes[*r].extend(id.map(rejected));
+        } else if let RunOutcome::Sample(s) = &outcomes[*r][idx[0]] {
+            let id = s.run_id.clone();
+            outcomes[*r][idx[0]] = rejected(id);
+        }
     }
-    ratios.sort_by(f64::total_cmp);
-    Some((ratios[ratios.len() / 2], ratios.len()))
 }
 
 /// How far the robot file puts the odometry's distances from the camera's: `Err` when a
@@ -158,7 +238,7 @@ pub fn odometry_scale(samples: &[crate::Sample]) -> Option<(f64, usize)> {
 /// beyond 20 %, `Ok(None)` within. Alignment cannot see it: it matches the speed profiles'
 /// shapes, whatever their scale.
 pub fn robot_scale_mismatch(
-    samples: &[crate::Sample],
+    samples: &[Sample],
     robot: &RobotParams,
 ) -> Result<Option<String>, String> {
     let Some((scale, n)) = odometry_scale(samples) else {
@@ -235,6 +315,75 @@ mod tests {
         };
         let w = unit_mismatch(&log, &camera(1.0), &wheel_mm).expect("wheel");
         assert!(w.contains("wheel_diameter_m in millimetres"), "{w}");
+    }
+
+    #[test]
+    fn runs_at_another_scale_than_the_others_are_rejected_by_name() {
+        // Straight runs of 1.5 m whose odometry reads `ratio` times that.
+        let run = |id: usize, ratio: f64| {
+            RunOutcome::Sample(Box::new(Sample {
+                run_id: format!("run{id:03}"),
+                recording_id: format!("run{id:03}"),
+                target_m: [1.5, 0.0],
+                raw_end_m: [1.5 * ratio, 0.1],
+                ..Sample::default()
+            }))
+        };
+        let ids = |outcomes: &[Vec<RunOutcome>]| -> Vec<String> {
+            outcomes
+                .iter()
+                .flatten()
+                .filter_map(|o| match o {
+                    RunOutcome::Rejected(r) => Some(format!("{}: {}", r.run_id, r.reason)),
+                    RunOutcome::Sample(_) => None,
+                })
+                .collect()
+        };
+        // The synthetic robot's spread (1.018 to 1.044) and every third log at twice the
+        // counts: 2.06 against 1.03.
+        let mut outcomes: Vec<Vec<RunOutcome>> = (0..12)
+            .map(|i| {
+                let clean = 1.018 + 0.026 * (i % 5) as f64 / 4.0;
+                vec![run(i, if i % 3 == 0 { 2.0 * clean } else { clean })]
+            })
+            .collect();
+        let clean_only: Vec<Vec<RunOutcome>> = outcomes
+            .iter()
+            .filter(|o| !matches!(&o[0], RunOutcome::Sample(s) if s.raw_end_m[0] > 2.0))
+            .cloned()
+            .collect();
+        let mut kept = clean_only.clone();
+        reject_scale_outliers(&mut kept, false);
+        assert_eq!(kept, clean_only);
+        reject_scale_outliers(&mut outcomes, false);
+        let rejected = ids(&outcomes);
+        assert_eq!(rejected.len(), 4, "{rejected:?}");
+        assert!(
+            rejected[0].starts_with("run000: the odometry's distances are 2.04 times the camera's, where the 12 runs' median is 1.04: is this log of another robot, or do its encoders count other ticks per wheel turn"),
+            "{rejected:?}"
+        );
+        // Windows are judged by recording, and a recording is one rejection.
+        let window = |rec: usize, ratio: f64| {
+            let mut w = run(rec, ratio);
+            if let RunOutcome::Sample(s) = &mut w {
+                s.run_id = format!("run{rec:03}.w1");
+            }
+            w
+        };
+        let mut recordings: Vec<Vec<RunOutcome>> = (0..4)
+            .map(|r| {
+                let k = if r == 2 { 2.0 } else { 1.0 };
+                vec![window(r, k * 1.02), window(r, k * 0.4), window(r, k * 1.0)]
+            })
+            .collect();
+        reject_scale_outliers(&mut recordings, true);
+        let rejected = ids(&recordings);
+        assert_eq!(rejected.len(), 1, "{rejected:?}");
+        assert!(rejected[0].starts_with("run002: the odometry's distances are 2.00 times the camera's, where the 4 recordings' median is 1.00"), "{rejected:?}");
+        // Of two runs either may be the odd one: none is judged.
+        let mut two = vec![vec![run(0, 1.0)], vec![run(1, 2.0)]];
+        reject_scale_outliers(&mut two, false);
+        assert!(ids(&two).is_empty());
     }
 
     #[test]

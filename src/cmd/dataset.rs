@@ -78,9 +78,7 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
             ds.rejected.len(),
             out.display()
         );
-        for r in &ds.rejected {
-            say!("  rejected {}: {}", r.run_id, r.reason);
-        }
+        print_rejected(&ds.rejected, out);
         if !ds.samples.is_empty() {
             say!(
                 "raw odometry window end-point error: {:.2} % of wheel travel (RMS {:.1} mm, mean travel {:.3} m)",
@@ -99,9 +97,7 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
         ds.rejected.len(),
         out.display()
     );
-    for r in &ds.rejected {
-        say!("  rejected {}: {}", r.run_id, r.reason);
-    }
+    print_rejected(&ds.rejected, out);
     if !ds.samples.is_empty() {
         say!(
             "raw odometry end-point error: {:.2} % of path length (RMS {:.1} mm, mean path {:.3} m)",
@@ -113,6 +109,38 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
             "largest alignment residual: {:.4} m/s",
             s.max_alignment_residual_mps
         );
+    }
+}
+
+/// Rejections shown in full per kind of reason; the rest of a kind are counted on one line.
+const REJECTIONS_SHOWN_PER_KIND: usize = 3;
+
+/// The rejected runs, each kind of reason (the same words, other figures) shown
+/// [`REJECTIONS_SHOWN_PER_KIND`] times and the rest counted: twenty logs of another robot
+/// are one finding, not twenty lines. Every reason stays in the dataset file.
+fn print_rejected(rejected: &[odocal_dataset::RejectedRun], out: &Path) {
+    let mut kinds: Vec<(String, Vec<&odocal_dataset::RejectedRun>)> = Vec::new();
+    for r in rejected {
+        let kind: String = r.reason.chars().filter(|c| !c.is_ascii_digit()).collect();
+        match kinds.iter_mut().find(|(k, _)| *k == kind) {
+            Some((_, runs)) => runs.push(r),
+            None => kinds.push((kind, vec![r])),
+        }
+    }
+    for (_, runs) in &kinds {
+        for r in runs.iter().take(REJECTIONS_SHOWN_PER_KIND) {
+            say!("  rejected {}: {}", r.run_id, r.reason);
+        }
+        let more = &runs[runs.len().min(REJECTIONS_SHOWN_PER_KIND)..];
+        if !more.is_empty() {
+            let ids: Vec<&str> = more.iter().map(|r| r.run_id.as_str()).collect();
+            say!(
+                "  rejected {} more for the same reason (each with its own figures, in {}'s \"rejected\"): {}",
+                more.len(),
+                out.display(),
+                ids.join(", ")
+            );
+        }
     }
 }
 

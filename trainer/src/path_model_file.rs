@@ -345,22 +345,25 @@ impl PathModelFile {
         allow_extrapolation: bool,
     ) -> Result<Vec<String>, TrainError> {
         crate::log_steps::check_log_steps(log, robot, name)?;
-        let steps = nominal_travels(&log.wheel_revs(robot).rev, robot);
-        self.check_steps_domain(&steps, robot, name, allow_extrapolation)
+        let revs = log.wheel_revs(robot);
+        let steps = nominal_travels(&revs.rev, robot);
+        self.check_steps_domain(&steps, &revs.t_s, name, allow_extrapolation)
     }
 
-    /// [`Self::check_domain`] on a log's nominal wheel travels per step.
+    /// [`Self::check_domain`] on a log's nominal wheel travels per step, the steps ending at
+    /// the rows `t_s` times after the first.
     fn check_steps_domain(
         &self,
         steps: &[[f64; 2]],
-        robot: &RobotParams,
+        t_s: &[f64],
         name: &str,
         allow_extrapolation: bool,
     ) -> Result<Vec<String>, TrainError> {
-        let fastest = steps
-            .iter()
-            .fold(0.0f64, |a, d| a.max(d[0].abs()).max(d[1].abs()))
-            / robot.period_s;
+        // Each step over its own duration: a logger's jitter stretches a step to 1.4 periods,
+        // and its travel over one period read as a speed the wheels never reached.
+        let fastest = steps.iter().zip(t_s.windows(2)).fold(0.0f64, |a, (d, t)| {
+            a.max(d[0].abs().max(d[1].abs()) / (t[1] - t[0]))
+        });
         let mut outside_domain = Vec::new();
         if fastest > (1.0 + SPEED_MARGIN) * self.max_wheel_speed_mps {
             outside_domain.push(format!(
@@ -407,7 +410,8 @@ impl PathModelFile {
         let revs = log.wheel_revs(robot);
         let steps = nominal_travels(&revs.rev, robot);
         crate::log_steps::check_log_steps(log, robot, name)?;
-        let outside_domain = self.check_steps_domain(&steps, robot, name, allow_extrapolation)?;
+        let outside_domain =
+            self.check_steps_domain(&steps, &revs.t_s, name, allow_extrapolation)?;
         let c = self.corrector()?;
         let corrected = c.dead_reckon_travels(&steps);
         let raw = odocal_dataset::dead_reckon(&revs.rev, &WheelGeometry::nominal(robot));
