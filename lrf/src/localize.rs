@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use crate::pose_log::{PoseLog, PoseLogRow};
 use crate::scan::{read_scans_csv, Scan, SensorConfig};
 use crate::scan_track::ScanTracker;
-use crate::search::{Localizer, Status};
+use crate::search::{Hypothesis, Localizer, Status};
 use crate::LrfError;
 
 /// Reads scan files; all must share one angular step (one sensor setting). Files with times
@@ -138,10 +138,19 @@ pub struct ScanFiles {
 /// not this many times sparser: scan times in milliseconds are a thousand times it.
 const MAX_INTERVAL_PERIODS: f64 = 100.0;
 
+/// A sweep at most this share longer than the median time between scans is taken for the
+/// timing's jitter; beyond it, the scanner cannot have swept so slowly.
+const SWEEP_SLACK: f64 = 1.1;
+
 /// Refuses scans whose median time between scans is more than [`MAX_INTERVAL_PERIODS`] scan
-/// periods at `rate_hz`: their times are not in seconds (milliseconds give a thousand times
-/// the period), and a truth or a track in seconds would match almost none of them.
-pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
+/// periods at `sensor.rate_hz`: their times are not in seconds (milliseconds give a thousand
+/// times the period), and a truth or a track in seconds would match almost none of them.
+/// Refuses too scans closer together than a sweep of `sensor`: a scanner does not start a scan
+/// before it ends the last, so its rate (or `sweep_s`) is not the scanner's, and the beams'
+/// times with it were so wrong that de-skewing made confident poses up to 116 mm off (10 Hz
+/// scans at --rate-hz 5).
+pub fn check_scan_times(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> {
+    let rate_hz = sensor.rate_hz;
     let t: Vec<f64> = scans.iter().filter_map(|s| s.t_s).collect();
     let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     if dt.is_empty() {
@@ -169,6 +178,28 @@ pub fn check_scan_times(scans: &[Scan], rate_hz: f64) -> Result<(), LrfError> {
             "the scans' median time between scans is {m} s, {:.0} times the scanner's period of {p} s at --rate-hz {rate_hz}: are the times in {unit}? Give t in seconds (if these are {unit}, {m} {abbr} is {} s), or the scanner's --rate-hz",
             median / period,
             six_digits(median / per_s)
+        )));
+    }
+    let sweep_s = scans.first().map_or(0.0, |s| {
+        sensor.beam_interval_s(s) * s.angles_rad.len().saturating_sub(1) as f64
+    });
+    if median > 0.0 && sweep_s > SWEEP_SLACK * median {
+        let (m, sw) = (six_digits(median), six_digits(sweep_s));
+        let given = match sensor.sweep_s {
+            Some(_) => format!("--sweep-s {sw}"),
+            None => format!(
+                "a sweep of {sw} s (their {:.0}° at --rate-hz {rate_hz})",
+                (sweep_s * rate_hz * 360.0)
+            ),
+        };
+        return Err(LrfError::Config(format!(
+            "the scans are {m} s apart (median), less than {given}, but a scanner does not start a scan before it ends the last: give the scanner's real --rate-hz (these scans come at {} Hz){}",
+            six_digits(1.0 / median),
+            if sensor.sweep_s.is_some() {
+                " and --sweep-s at most the time between its scans"
+            } else {
+                ""
+            }
         )));
     }
     Ok(())
@@ -219,6 +250,20 @@ pub fn check_range_unit(scans: &[Scan], max_range_m: f64) -> Result<(), LrfError
         )));
     }
     Ok(())
+}
+
+/// Turns every range at or beyond the scanner's `max_range_m` into 0, "no return": ROS's
+/// LaserScan says a range outside [range_min, range_max] is to be discarded, and Gazebo and
+/// many drivers write a beam without an echo as range_max itself (or a sentinel such as
+/// 65.535). Read as returns, such beams went through the walls and made the right pose look
+/// wrong: with 10 % of the beams so written, 198 (range_max) and 282 (65.535) of 300 scans
+/// were lost. Call it after [`check_range_unit`], which must see the ranges as written.
+pub fn drop_beyond_range(scans: &mut [Scan], max_range_m: f64) {
+    for r in scans.iter_mut().flat_map(|s| s.ranges_m.iter_mut()) {
+        if *r >= max_range_m {
+            *r = 0.0;
+        }
+    }
 }
 
 /// Reflectors are narrow: even a room full of them gives a few percent of a scan's returns
@@ -309,14 +354,32 @@ pub fn localize_scans(
     let mut rows = Vec::with_capacity(scans.len());
     let mut deskewed = Vec::with_capacity(scans.len());
     let mut sweeps_s = Vec::with_capacity(scans.len());
+    let mut n_repeated = 0;
+    let mut views = LandmarkViews::new(loc.map.landmarks.len());
     for (k, scan) in scans.iter().enumerate() {
         let t_s = scan.t_s.unwrap_or(k as f64 / rate_hz);
         sweeps_s.push(
             loc.cfg.sensor.beam_interval_s(scan) * scan.angles_rad.len().saturating_sub(1) as f64,
         );
-        let row = if global_only {
+        let row = if k > 0 && repeats(&scans[k - 1], scan) {
+            n_repeated += 1;
+            deskewed.push(false);
+            PoseLogRow {
+                t_s,
+                pose: None,
+                status: Status::Lost,
+                n_landmarks: 0,
+                n_detections: 0,
+                n_hypotheses: 0,
+                score: 0.0,
+                mode: "repeated".into(),
+                scan: scan.id,
+                pose_cov: None,
+            }
+        } else if global_only {
             let dets = loc.detections(scan);
             let g = loc.global(scan, &dets);
+            views.add(loc, scan, &g.hypotheses);
             let b = g.best();
             deskewed.push(false);
             PoseLogRow {
@@ -333,6 +396,7 @@ pub fn localize_scans(
             }
         } else {
             let r = tracker.process(scan, t_s);
+            views.add(loc, scan, &r.hypotheses);
             deskewed.push(r.deskewed);
             PoseLogRow {
                 t_s,
@@ -351,17 +415,153 @@ pub fn localize_scans(
         on_scan();
     }
     let mut log = PoseLog { rows };
+    if !global_only {
+        deskew_track_starts(loc, scans, &mut log, &mut deskewed);
+    }
     let skewed = widen_skewed(&mut log, &deskewed, &sweeps_s);
-    Localized { log, skewed }
+    Localized {
+        log,
+        skewed,
+        n_repeated,
+        unseen: views.unseen(loc),
+    }
 }
 
-/// The poses of [`localize_scans`] and what it could not de-skew.
+/// A landmark missed in at least this many scans, and in [`MIN_UNSEEN_SHARE`] of those it was
+/// in view in, is named: one scan in ten misses a reflector (the synthetic rooms' landmarks
+/// are missed in 2–20 % of the scans they are in view in), so ten misses in a row happen by
+/// chance once in ten billion.
+const MIN_UNSEEN_SCANS: usize = 10;
+
+/// See [`MIN_UNSEEN_SCANS`]: a spurious return now and then may be taken for the landmark (25
+/// of 26 for a reflector gone from a symmetric room).
+const MIN_UNSEEN_SHARE: f64 = 0.9;
+
+/// For every landmark, in how many scans some hypothesis had it in view, and in how many one
+/// that had it in view did not see it. Judged so, a reflector gone from a symmetric room is
+/// missed in every scan: the mirror pose matches the reflector opposite it in its place.
+struct LandmarkViews {
+    in_view: Vec<usize>,
+    missed: Vec<usize>,
+}
+
+impl LandmarkViews {
+    fn new(n_landmarks: usize) -> Self {
+        LandmarkViews {
+            in_view: vec![0; n_landmarks],
+            missed: vec![0; n_landmarks],
+        }
+    }
+
+    /// Counts the landmarks `hyps` (the hypotheses of `scan`) matched or should have seen.
+    fn add(&mut self, loc: &Localizer, scan: &Scan, hyps: &[Hypothesis]) {
+        let n = self.in_view.len();
+        let (mut in_view, mut missed) = (vec![false; n], vec![false; n]);
+        for h in hyps {
+            let mut matched = vec![false; n];
+            for &(_, l) in &h.matches {
+                matched[l] = true;
+                in_view[l] = true;
+            }
+            loc.for_each_missing(scan, &h.pose, &matched, |l| {
+                in_view[l] = true;
+                missed[l] = true;
+            });
+        }
+        for l in 0..n {
+            self.in_view[l] += usize::from(in_view[l]);
+            self.missed[l] += usize::from(missed[l]);
+        }
+    }
+
+    /// The landmarks (id, scans in view, scans missed) missed in [`MIN_UNSEEN_SCANS`] scans or
+    /// more, nearly every time they were in view.
+    fn unseen(&self, loc: &Localizer) -> Vec<(u32, usize, usize)> {
+        (0..self.in_view.len())
+            .filter(|&l| {
+                let (n, missed) = (self.in_view[l], self.missed[l]);
+                missed >= MIN_UNSEEN_SCANS && missed as f64 >= MIN_UNSEEN_SHARE * n as f64
+            })
+            .map(|l| (loc.map.landmarks[l].id, self.in_view[l], self.missed[l]))
+            .collect()
+    }
+}
+
+/// True if `scan` has the very ranges and intensities of `prev`, the scan before it, with
+/// some return among them: a driver republishing its last scan under a new time. The range
+/// noise of a real sweep (millimetres at the least) never repeats over all its beams, and a
+/// repeat localised at its new time gave a pose 50 mm (45σ) off while the robot moved.
+fn repeats(prev: &Scan, scan: &Scan) -> bool {
+    scan.ranges_m.iter().any(|r| *r > 0.0)
+        && scan.ranges_m == prev.ranges_m
+        && scan.intensities == prev.intensities
+}
+
+/// The next two `ok` poses after this one must follow within this time for their motion to
+/// stand for the motion during its sweep, seconds.
+const MAX_START_GAP_S: f64 = 0.5;
+
+/// Fits again, de-skewed, the first poses of every track: the first two had no motion to
+/// de-skew them by, and the third one the motion between those two, each off by its own
+/// sweep's skew (seed 1 of `synth lrf`: 40 % too fast, its pose 9–12σ off). Going backwards,
+/// each takes the motion between the two poses after it, already fitted de-skewed.
+fn deskew_track_starts(loc: &Localizer, scans: &[Scan], log: &mut PoseLog, deskewed: &mut [bool]) {
+    let rows = &mut log.rows;
+    let ok = |r: &PoseLogRow| r.status == Status::Ok && r.pose.is_some();
+    for k in (0..rows.len()).rev() {
+        let start = !deskewed[k] || k == 0 || !deskewed[k - 1];
+        if !start || !ok(&rows[k]) || loc.cfg.sensor.beam_interval_s(&scans[k]) <= 0.0 {
+            continue;
+        }
+        let next: Vec<usize> = (k + 1..rows.len())
+            .filter(|&i| ok(&rows[i]) && deskewed[i])
+            .take(2)
+            .collect();
+        let (Some(&i), Some(&j)) = (next.first(), next.get(1)) else {
+            continue;
+        };
+        let (Some(p), Some(pi), Some(pj)) = (rows[k].pose, rows[i].pose, rows[j].pose) else {
+            continue;
+        };
+        let dt = rows[j].t_s - rows[i].t_s;
+        if dt <= 1e-6 || rows[j].t_s - rows[k].t_s > MAX_START_GAP_S {
+            continue;
+        }
+        let vel = [
+            (pj.x_m - pi.x_m) / dt,
+            (pj.y_m - pi.y_m) / dt,
+            odocal_core::wrap_angle(pj.theta_rad - pi.theta_rad) / dt,
+        ];
+        let dets = crate::scan_track::deskewed(&loc.detections(&scans[k]), vel, &p);
+        let Some(h) = loc.track(&scans[k], &dets, p, 0.03, 0.01) else {
+            continue;
+        };
+        if h.matches.len() < rows[k].n_landmarks {
+            continue;
+        }
+        let r = &mut rows[k];
+        r.pose = Some(h.pose);
+        r.pose_cov = h.cov;
+        r.n_landmarks = h.matches.len();
+        r.score = h.score;
+        deskewed[k] = true;
+    }
+}
+
+/// The poses of [`localize_scans`], and what it could not de-skew or localise.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Localized {
     /// One row per scan.
     pub log: PoseLog,
     /// The poses left with their sweep's skew, if any moved enough to matter.
     pub skewed: Option<Skewed>,
+    /// Scans that repeat the scan before them beam for beam, left without a pose (status
+    /// lost, mode `repeated`).
+    pub n_repeated: usize,
+    /// Landmarks (id, scans in view, scans missed) that a hypothesis had in view and did not
+    /// see nearly every time: gone from the room, or covered, and evidence against the right
+    /// pose alone.
+    pub unseen: Vec<(u32, usize, usize)>,
 }
 
 /// Poses whose scans were not de-skewed (no motion was tracked yet, or `--global-only`)

@@ -137,7 +137,8 @@ pub struct Scan {
     /// full turn, from any start (0 to 2π as well as −π to π).
     pub angles_rad: Vec<f64>,
     /// Ranges, metres; 0 (or below the minimum range) means no return, and so does an
-    /// infinite range (ROS's convention).
+    /// infinite range (ROS's convention; `odocal lrf localize` also reads one at or beyond
+    /// the maximum range so, see [`crate::drop_beyond_range`]).
     pub ranges_m: Vec<f64>,
     /// Return intensities (reflectors ≥ [`SensorConfig::intensity_min`]).
     pub intensities: Vec<f64>,

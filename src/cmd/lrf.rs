@@ -6,8 +6,9 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_intensity_scale, check_map_report, check_range_unit, check_scan_times,
-    evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv, Localized,
-    Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
+    drop_beyond_range, evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv,
+    Localized, Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status,
+    DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, commit, progress, write_atomic};
@@ -153,7 +154,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     let map = Map::read(&a.map)?;
     warn_isolated(&map, &a.map.display().to_string(), a.max_range_m);
     let ScanFiles {
-        scans,
+        mut scans,
         step_rad,
         reversed_note,
     } = read_scan_files(&a.scans)?;
@@ -161,7 +162,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         tell!("note: {note}");
     }
     check_range_unit(&scans, a.max_range_m)?;
-    check_scan_times(&scans, a.rate_hz)?;
+    drop_beyond_range(&mut scans, a.max_range_m);
+    check_scan_times(&scans, &cfg.sensor)?;
     if let Some(step) = step_rad {
         cfg.sensor.step_rad = step;
     }
@@ -173,8 +175,12 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     let bar = progress(scans.len() as u64, "localize");
     let start = Instant::now();
-    let Localized { log, skewed } =
-        localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
+    let Localized {
+        log,
+        skewed,
+        n_repeated,
+        unseen,
+    } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
     let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
@@ -186,6 +192,14 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.max_range_m
         )
     };
+    // Said before any refusal: a reflector gone from a symmetric room leaves every scan
+    // ambiguous.
+    for (id, n, missed) in unseen {
+        tell!(
+            "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
+            a.map.display()
+        );
+    }
     // A file without one `ok` row is no result: refused, as `track` refuses a video where
     // the tag was never accepted.
     if !log.rows.is_empty() && count(Status::Ok) == 0 {
@@ -300,6 +314,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         skewed.filter(|w| w.n_widened > 0 && (a.global_only || w.n_widened * 10 > n_ok))
     {
         warn_skewed(&w, a.global_only);
+    }
+    if n_repeated > 0 {
+        tell!(
+            "warning: {} the previous scan's ranges and intensities beam for beam (a driver republishing its last scan under a new time: range noise never repeats over a whole scan); {} not localised (status lost, mode repeated)",
+            if n_repeated == 1 {
+                "1 scan repeats".to_string()
+            } else {
+                format!("{n_repeated} scans repeat")
+            },
+            if n_repeated == 1 { "it was" } else { "they were" }
+        );
     }
     if count(Status::Lost) * 2 > log.rows.len() {
         tell!(
