@@ -270,7 +270,7 @@ impl<'a> FloorBoards<'a> {
     }
 
     /// Board `k`'s pose in the floor frame for parameters `p`.
-    fn board_to_floor(&self, p: &[f64], k: usize) -> Isometry3<f64> {
+    pub(crate) fn board_to_floor(&self, p: &[f64], k: usize) -> Isometry3<f64> {
         if k == 0 {
             return Isometry3::from_parts(Translation3::identity(), self.base[0]);
         }

@@ -72,7 +72,7 @@ impl FloorReach {
             };
             if model_given {
                 format!(
-                    "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out a lens model that fits the views clearly better maps the floor up to {spread} away from --model's, so it cannot be vouched for there: calibrate with the better-fitting model the warning names, or leave --model out",
+                    "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out a lens model that fits the views clearly better maps the floor up to {spread} away from --model's, so it cannot be vouched for there: calibrate with the better-fitting model the warning names",
                     self.radius_m, self.off_nadir_deg
                 )
             } else {

@@ -9,6 +9,7 @@ pub mod detect;
 mod error;
 pub mod export;
 pub mod floor;
+mod floor_consistency;
 pub mod floor_uncertainty;
 pub mod model;
 mod opencv_glue;

@@ -85,14 +85,41 @@ pub fn solve_pnp(
     image: &[Point2<f64>],
     method: i32,
 ) -> Result<Option<Isometry3<f64>>, CalibError> {
-    let object_cv = points3d(object);
-    let ideal: Vector<core::Point2d> = image
+    // Only corners whose ideal coordinates the model maps back onto them start the pose: a
+    // model calibrated without a view reaching the image's edge may turn over before it (a
+    // rational lens's radial factor, extrapolated), and no ray maps there; such corners' ideal
+    // coordinates are wherever its inversion stopped, and put the board behind the camera.
+    // They are kept for the refinement, which judges every corner.
+    let start_pairs: Vec<(Point3<f64>, core::Point2d)> = object
         .iter()
-        .map(|p| {
+        .zip(image)
+        .filter_map(|(o, p)| {
             let u = camera.unproject(p);
-            core::Point2d::new(u.x, u.y)
+            let back = camera.project(&Point3::new(u.x, u.y, 1.0))?;
+            ((back - p).norm() < ROUND_TRIP_PX).then(|| (*o, core::Point2d::new(u.x, u.y)))
         })
         .collect();
+    let (object_cv, ideal): (Vector<core::Point3d>, Vector<core::Point2d>) =
+        if start_pairs.len() >= 6 {
+            (
+                start_pairs
+                    .iter()
+                    .map(|(o, _)| core::Point3d::new(o.x, o.y, o.z))
+                    .collect(),
+                start_pairs.iter().map(|(_, u)| *u).collect(),
+            )
+        } else {
+            (
+                points3d(object),
+                image
+                    .iter()
+                    .map(|p| {
+                        let u = camera.unproject(p);
+                        core::Point2d::new(u.x, u.y)
+                    })
+                    .collect(),
+            )
+        };
     let eye = Mat::from_slice_2d(&[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])?;
     let mut rvec = Mat::default();
     let mut tvec = Mat::default();
@@ -134,6 +161,11 @@ pub fn solve_pnp(
     let (p, _) = odocal_core::lsq::minimize(&residuals, vec![0.0; 6], 50);
     Ok(Some(moved(&p)))
 }
+
+/// A corner whose ideal coordinates project back this far from it, pixels, has none the lens
+/// model maps onto it (its inversion stopped short): far beyond any corner's noise, far below
+/// a misplaced start.
+const ROUND_TRIP_PX: f64 = 0.01;
 
 /// Object points as OpenCV's double points.
 pub fn points3d(points: &[Point3<f64>]) -> Vector<core::Point3d> {
