@@ -3,14 +3,17 @@
 //! one layout; this is the other, for robots that drive curves, turns in place and squares.
 //!
 //! The robot clock is mapped to the camera's by the recording's coarse offset (speed-profile
-//! cross-correlation, a few milliseconds on these logs); the window's end poses are the camera
-//! poses interpolated at its first and last log rows. A window of W rows carries the nominal
+//! cross-correlation, a few milliseconds on these logs) and its clock rate where one was told
+//! apart from 1 (`align::clock_rate`: a robot clock 0.2 % fast drifts 0.2 s over 100 s, and
+//! every window's target with it); the window's end poses are the camera poses interpolated
+//! at its first and last log rows, and its alignment residual is its wheels' speeds against
+//! the camera's over its steps. A window of W rows carries the nominal
 //! wheel travel of each of its W steps as inputs, so a corrector can be applied step by step
 //! and chained; its target is in the window's start frame.
 
 use odocal_core::wrap_angle;
 
-use crate::align::CoarseOffset;
+use crate::align::{wheel_speed_residual_mps, CoarseOffset};
 use crate::build::coarse_of;
 use crate::build::{BuildOptions, Recording, RunOutcome};
 use crate::error::DatasetError;
@@ -155,7 +158,7 @@ pub(crate) fn window_samples_at(
             }));
             continue;
         }
-        let (t0, t1) = (t[0] + offset, t[t.len() - 1] + offset);
+        let (t0, t1) = (coarse.camera_s(t[0]), coarse.camera_s(t[t.len() - 1]));
         let gap = frame_gap;
         let id = format!("{}.w{:04}", rec.id, rows.start());
         let (Some(p0), Some(p1), true) = (
@@ -171,6 +174,19 @@ pub(crate) fn window_samples_at(
             }));
             continue;
         };
+        let residual =
+            wheel_speed_residual_mps(rec.camera, &coarse, t, &rev, &geom, gap).unwrap_or(f64::NAN);
+        // A window whose wheels do not follow the camera is off the recording's clock there.
+        if !(residual <= opts.max_alignment_residual_mps) {
+            out.push(RunOutcome::Rejected(RejectedRun {
+                run_id: id,
+                reason: format!(
+                    "odometry and camera disagree over this window: its wheels' speeds differ from the camera's by {residual:.3} m/s RMS on the recording's clock (limit {:.3} m/s; aligned windows give about 0.025): the clock is off here, or the log is not this run's",
+                    opts.max_alignment_residual_mps
+                ),
+            }));
+            continue;
+        }
         let rel = p1.relative_to(&p0);
         let odometry = RunOdometry {
             t_s: t.to_vec(),
@@ -188,6 +204,8 @@ pub(crate) fn window_samples_at(
             raw_end_m: [raw_end.x_m, raw_end.y_m],
             path_length_m: travel,
             clock_offset_s: offset,
+            alignment_residual_mps: residual,
+            clock_rate: (coarse.rate != 1.0).then_some(coarse.rate),
             speed_correlation: coarse.correlation,
             start_pose_floor: p0,
             odometry,
