@@ -214,3 +214,117 @@ pub(crate) fn window_samples_at(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::step;
+    use odocal_core::{Pose2, Trajectory, TrajectoryRow};
+
+    /// A 66 s tour of straight legs and turns in place (varied, so no stretch repeats
+    /// another), logged every 0.2 s by a robot clock `1 / rate` times the true seconds, seen
+    /// by a 30 frames/s camera whose clock is the true one plus 0.8 s. Returns the log, the
+    /// camera trajectory and the true pose every millisecond.
+    fn tour(clock_fast: f64) -> (OdometryLog, Trajectory, Vec<Pose2>) {
+        let (dt, end_s, base) = (0.001, 66.0, 0.1);
+        // Wheel speeds (m/s): each 6 s leg drives, stops and turns, ramped over 0.4 s.
+        let speeds = |t: f64| -> [f64; 2] {
+            let (leg, u) = ((t / 6.0).floor(), t % 6.0);
+            if !(1.0..end_s - 2.0).contains(&t) {
+                return [0.0; 2];
+            }
+            let ramp =
+                |a: f64, b: f64| ((u - a) / 0.4).clamp(0.0, 1.0) * ((b - u) / 0.4).clamp(0.0, 1.0);
+            let v = (0.2 + 0.05 * (leg % 3.0)) * ramp(0.0, 3.0 + 0.3 * (leg % 2.0));
+            let w = (0.1 + 0.03 * (leg % 4.0))
+                * ramp(3.8, 5.6)
+                * if leg % 2.0 == 0.0 { 1.0 } else { -1.0 };
+            [v - w, v + w]
+        };
+        let (mut pose, mut travel) = (Pose2::new(0.3, -0.2, 0.4), [0.0; 2]);
+        let (mut poses, mut travels) = (vec![pose], vec![travel]);
+        for i in 0..(end_s / dt) as usize {
+            let v = speeds((i as f64 + 0.5) * dt);
+            pose = step(&pose, v[0] * dt, v[1] * dt, base);
+            travel = [travel[0] + v[0] * dt, travel[1] + v[1] * dt];
+            poses.push(pose);
+            travels.push(travel);
+        }
+        let circ = std::f64::consts::PI * 0.043;
+        let rows: Vec<usize> = (0..)
+            .map(|k| (0.2 * k as f64 / clock_fast / dt).round() as usize)
+            .take_while(|&i| i < poses.len())
+            .collect();
+        let ticks = |w: usize| -> Vec<i64> {
+            rows.iter()
+                .map(|&i| (travels[i][w] / circ * 12.0 + 0.4).floor() as i64)
+                .collect()
+        };
+        let t: Vec<f64> = (0..rows.len()).map(|k| 0.2 * k as f64).collect();
+        let log = OdometryLog::from_ticks(t, ticks(0), ticks(1)).unwrap();
+        let camera = (0..)
+            .map(|f| f as f64 / 30.0)
+            .take_while(|&tc| tc < end_s + 0.8)
+            .map(|tc| TrajectoryRow {
+                t_s: tc,
+                pose: poses[(((tc - 0.8).max(0.0)) / dt).round() as usize],
+                quality: 1.0,
+                sigma: None,
+            })
+            .collect();
+        (log, Trajectory::new(camera).unwrap(), poses)
+    }
+
+    /// A robot clock 1 % fast drifted every window 10 ms per second of the recording off the
+    /// camera (the targets 60 mm off by its end), with exit 0 and alignment residuals of 0.
+    #[test]
+    fn a_robot_clock_at_another_rate_is_fitted_and_applied() {
+        for clock_fast in [1.0, 1.01] {
+            let (log, camera, poses) = tour(clock_fast);
+            let rec = Recording {
+                id: "tour",
+                speed_mps: None,
+                log: &log,
+                camera: &camera,
+            };
+            let opts = BuildOptions::default();
+            let out = window_samples(&rec, &opts, &WindowOptions::default()).unwrap();
+            let samples: Vec<&Sample> = out
+                .iter()
+                .map(|o| match o {
+                    RunOutcome::Sample(s) => &**s,
+                    RunOutcome::Rejected(r) => panic!("rejected: {r:?}"),
+                })
+                .collect();
+            assert!(samples.len() >= 10, "{} windows", samples.len());
+            let rate = samples[0].clock_rate;
+            if clock_fast == 1.0 {
+                assert_eq!(rate, None, "a true clock is told no rate");
+            } else {
+                let rate = rate.expect("the rate is told");
+                assert!((rate * clock_fast - 1.0).abs() < 2e-4, "rate {rate}");
+            }
+            let (mut worst, mut sq) = (0.0f64, 0.0);
+            for s in &samples {
+                let k: usize = s.run_id[s.run_id.len() - 4..].parse().unwrap();
+                let at = |k: usize| poses[(0.2 * k as f64 / clock_fast / 0.001).round() as usize];
+                let truth = at(k + 50).relative_to(&at(k));
+                let e = (s.target_m[0] - truth.x_m).hypot(s.target_m[1] - truth.y_m);
+                worst = worst.max(e);
+                sq += e * e;
+                assert!(
+                    s.alignment_residual_mps > 0.0 && s.alignment_residual_mps < 0.05,
+                    "{}: residual {}",
+                    s.run_id,
+                    s.alignment_residual_mps
+                );
+            }
+            let rms = (sq / samples.len() as f64).sqrt();
+            eprintln!("clock {clock_fast}: targets off by {rms} m RMS, {worst} m at most");
+            assert!(
+                rms < 0.004 && worst < 0.012,
+                "clock {clock_fast}: targets off by {rms} m RMS, {worst} m at most"
+            );
+        }
+    }
+}
