@@ -177,7 +177,7 @@ pub(crate) fn window_samples_at(
         let residual =
             wheel_speed_residual_mps(rec.camera, &coarse, t, &rev, &geom, gap).unwrap_or(f64::NAN);
         // A window whose wheels do not follow the camera is off the recording's clock there.
-        if !(residual <= opts.max_alignment_residual_mps) {
+        if residual.is_nan() || residual > opts.max_alignment_residual_mps {
             out.push(RunOutcome::Rejected(RejectedRun {
                 run_id: id,
                 reason: format!(
