@@ -74,13 +74,43 @@ impl AlignOptions {
     }
 }
 
-/// Result of the coarse cross-correlation.
+/// Result of the coarse cross-correlation: the recording's clock map.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CoarseOffset {
-    /// Clock offset, seconds: t_camera = t_robot + offset.
+    /// Clock offset, seconds: t_camera = offset + rate t_robot.
     pub offset_s: f64,
     /// Peak normalised cross-correlation of the speed profiles.
     pub correlation: f64,
+    /// Camera seconds per robot second: 1 unless [`clock_rate`] told another.
+    pub rate: f64,
+}
+
+impl CoarseOffset {
+    /// The camera-clock time of robot-clock time `t_robot_s`.
+    pub fn camera_s(&self, t_robot_s: f64) -> f64 {
+        self.offset_s + self.rate * t_robot_s
+    }
+
+    /// The clock offset (t_camera - t_robot) at robot-clock time `t_robot_s`: a clock running
+    /// at another rate drifts.
+    pub fn offset_at(&self, t_robot_s: f64) -> f64 {
+        self.camera_s(t_robot_s) - t_robot_s
+    }
+
+    /// Why the log's times are no clock's: they run more than [`MAX_CLOCK_RATE`] fast or slow
+    /// against the camera's.
+    pub fn implausible_rate(&self) -> Option<String> {
+        let fast = 1.0 / self.rate - 1.0;
+        (fast.abs() > MAX_CLOCK_RATE).then(|| {
+            format!(
+                "the log's times run {:.1} % {} against the camera's (each of its seconds is {:.3} s of video), more than any clock is off ({:.0} %): are they stamped by a loop counter (t = row × period) while the loop takes another time? Log the robot's clock at each row",
+                100.0 * fast.abs(),
+                if fast > 0.0 { "fast" } else { "slow" },
+                self.rate,
+                100.0 * MAX_CLOCK_RATE
+            )
+        })
+    }
 }
 
 /// Result of the fine alignment of one run.
@@ -119,6 +149,15 @@ fn travel(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
     revs.rev
         .iter()
         .map(|r| 0.5 * (r[0] * cl + r[1] * cr))
+        .collect()
+}
+
+/// The wheels' mean speed over each log interval (the k-th is rows k to k + 1), m/s on the
+/// robot's clock.
+fn robot_speeds(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
+    let (r, t) = (travel(revs, geom), &revs.t_s);
+    (1..r.len())
+        .map(|k| (r[k] - r[k - 1]) / (t[k] - t[k - 1]))
         .collect()
 }
 
@@ -181,10 +220,7 @@ pub fn coarse_offset(
             (c1 - c0).max(0.0)
         )));
     }
-    let r = travel(revs, geom);
-    let v_robot: Vec<f64> = (1..n)
-        .map(|k| (r[k] - r[k - 1]) / (t[k] - t[k - 1]))
-        .collect();
+    let v_robot = robot_speeds(revs, geom);
     let first = m0.saturating_sub(5).max(1);
     let last = (m1 + 5).min(n - 1);
     let mut a = Vec::with_capacity(last - first + 1);
@@ -345,6 +381,7 @@ fn peak(scores: &[f64], lo: f64, step: f64) -> Option<CoarseOffset> {
     Some(CoarseOffset {
         offset_s: offset,
         correlation: best,
+        rate: 1.0,
     })
 }
 
@@ -366,6 +403,264 @@ fn other_match(scores: &[f64], lo: f64, opts: &AlignOptions, best_s: f64) -> Opt
         .into_iter()
         .map(|(j, _)| lo + j as f64 * opts.coarse_step_s)
         .find(|lag| (lag - best_s).abs() >= DISTINCT_OFFSETS_S)
+}
+
+/// Robot-clock time each stretch of a rate fit spans, seconds: long enough that its starts,
+/// stops and turns fix its own offset, short enough that a clock 2 % off drifts only 0.2 s
+/// within it.
+const RATE_STRETCH_S: f64 = 10.0;
+
+/// Fewest stretches whose offsets tell a clock rate: fewer leave too little scatter about
+/// their line to judge it by.
+const MIN_RATE_STRETCHES: usize = 4;
+
+/// Largest departure from the camera's rate that the stretches' offsets are searched for:
+/// beyond [`MAX_CLOCK_RATE`], so that a clock running implausibly is found and named.
+const SEARCH_RATE: f64 = 0.05;
+
+/// Largest departure from the camera's clock rate a robot's clock plausibly has (a crystal
+/// is off by 0.01 %, a clock adjusted by network time by less): beyond it the log's times are
+/// not a clock's, such as a loop counter stamping t = k period while each loop takes longer.
+pub const MAX_CLOCK_RATE: f64 = 0.02;
+
+/// Departure from rate 1, in its σ, that a fitted rate must pass to be applied.
+const RATE_TOLD_SIGMA: f64 = 3.0;
+
+/// Drift over the stretches' span, seconds, that a fitted rate must pass to be applied: less
+/// is within the few milliseconds the offset is known to, and would change the windows'
+/// targets by noise alone.
+const RATE_TOLD_DRIFT_S: f64 = 0.005;
+
+/// A robot clock's rate against the camera's, from the offsets of stretches across a
+/// recording.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockRate {
+    /// Camera seconds per robot second.
+    pub rate: f64,
+    /// σ of `rate`, from the stretches' scatter about their line.
+    pub sigma: f64,
+    /// Robot-clock time between the first and last stretch's middles, seconds.
+    pub span_s: f64,
+}
+
+impl ClockRate {
+    /// Whether the rate departs from 1 by more than its scatter explains, and drifts the clock
+    /// by more than the offset is known to over the recording.
+    pub fn told(&self) -> bool {
+        let d = (self.rate - 1.0).abs();
+        d > RATE_TOLD_SIGMA * self.sigma && d * self.span_s > RATE_TOLD_DRIFT_S
+    }
+}
+
+/// The robot clock's rate against the camera's, `coarse` being the recording's offset at
+/// rate 1. Each stretch of [`RATE_STRETCH_S`] of the log's motion gets an offset of its own
+/// by speed-profile correlation: first over every lag a rate up to [`SEARCH_RATE`] allows,
+/// through which a line robust to a stretch matched elsewhere is drawn (Theil–Sen); then
+/// within the fine search's half width of that line, the stretch's times scaled by its rate,
+/// and the rate is the least-squares line through those. None when fewer than
+/// [`MIN_RATE_STRETCHES`] stretches fit (a recording too short or too still to tell).
+pub fn clock_rate(
+    log: &OdometryLog,
+    revs: &WheelRevs,
+    geom: &WheelGeometry,
+    traj: &Trajectory,
+    opts: &AlignOptions,
+    coarse: &CoarseOffset,
+) -> Option<ClockRate> {
+    let t = &revs.t_s;
+    let circ = [
+        std::f64::consts::PI * geom.left_wheel_diameter_m,
+        std::f64::consts::PI * geom.right_wheel_diameter_m,
+    ];
+    // Each wheel's speed, so that turns in place time a stretch as well as its starts and
+    // stops (the mean speed of a tour's turn is nil).
+    let v_wheels: Vec<[f64; 2]> = (1..t.len())
+        .map(|k| {
+            let dt = t[k] - t[k - 1];
+            [0, 1].map(|w| (revs.rev[k][w] - revs.rev[k - 1][w]) * circ[w] / dt)
+        })
+        .collect();
+    let moving: Vec<usize> = (1..log.len()).filter(|&i| log.moving_at(i)).collect();
+    let (&m0, &m1) = (moving.first()?, moving.last()?);
+    let per = ((m1 + 1 - m0) as f64 / ((t[m1] - t[m0 - 1]) / RATE_STRETCH_S).max(1.0)) as usize;
+    let stretches: Vec<std::ops::Range<usize>> = (m0..=m1)
+        .step_by(per.max(5))
+        .map(|a| a..(a + per.max(5)).min(m1 + 1))
+        .filter(|r| {
+            2 * r.len() >= per && 4 * moving.iter().filter(|k| r.contains(k)).count() >= r.len()
+        })
+        .collect();
+    if stretches.len() < MIN_RATE_STRETCHES {
+        return None;
+    }
+    let mid = |r: &std::ops::Range<usize>| 0.5 * (t[r.start - 1] + t[r.end - 1]);
+    let t_c = 0.5 * (t[m0 - 1] + t[m1]);
+    let gap = opts.frame_gap_s(traj);
+    let search = |r: &std::ops::Range<usize>, centre: f64, half: f64, rate: f64| {
+        let clock = CoarseOffset {
+            offset_s: centre,
+            correlation: 0.0,
+            rate,
+        };
+        let half_base = 0.5 * geom.wheel_base_m;
+        stretch_offset(
+            traj,
+            t,
+            &v_wheels,
+            half_base,
+            r.clone(),
+            &clock,
+            half,
+            opts,
+            gap,
+        )
+        .map(|o| (mid(r), o))
+    };
+    let wide: Vec<(f64, f64)> = stretches
+        .iter()
+        .filter_map(|r| {
+            let half = opts.refine_half_width_s + SEARCH_RATE * (mid(r) - t_c).abs();
+            search(r, coarse.offset_s, half, 1.0)
+        })
+        .collect();
+    let (a, d) = theil_sen(&wide)?;
+    let rate = 1.0 + d;
+    let fine: Vec<(f64, f64)> = stretches
+        .iter()
+        .filter_map(|r| search(r, a, opts.refine_half_width_s, rate))
+        .collect();
+    if fine.len() < MIN_RATE_STRETCHES {
+        return None;
+    }
+    let (d, sigma) = line_slope(&fine)?;
+    Some(ClockRate {
+        rate: rate + d,
+        sigma,
+        span_s: fine[fine.len() - 1].0 - fine[0].0,
+    })
+}
+
+/// The offset of the log intervals `rows` (the k-th spans rows k - 1 to k) within `half` of
+/// `clock`'s (its rate scaling their times) by the correlation of the wheels' speeds
+/// `v_wheels` with those the camera sees (forward speed ∓ `half_base` times the turn rate);
+/// None when it correlates below the threshold or at the edge of the search.
+#[allow(clippy::too_many_arguments)]
+fn stretch_offset(
+    traj: &Trajectory,
+    t: &[f64],
+    v_wheels: &[[f64; 2]],
+    half_base: f64,
+    rows: std::ops::Range<usize>,
+    clock: &CoarseOffset,
+    half: f64,
+    opts: &AlignOptions,
+    gap: f64,
+) -> Option<f64> {
+    let lo = clock.offset_s - half;
+    let steps = (2.0 * half / opts.coarse_step_s).round() as usize;
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let scores: Vec<f64> = (0..=steps)
+        .map(|j| {
+            let lag = lo + j as f64 * opts.coarse_step_s;
+            a.clear();
+            b.clear();
+            for k in rows.clone() {
+                let (t0, t1) = (lag + clock.rate * t[k - 1], lag + clock.rate * t[k]);
+                let (Some(p0), Some(p1)) = (traj.pose_at(t0, gap), traj.pose_at(t1, gap)) else {
+                    continue;
+                };
+                let v = forward_step(&p0, &p1) / (t1 - t0);
+                let turn = half_base * wrap_angle(p1.theta_rad - p0.theta_rad) / (t1 - t0);
+                a.extend(v_wheels[k - 1]);
+                b.extend([v - turn, v + turn]);
+            }
+            // Most of the stretch seen, so that its own motion decides.
+            if 5 * a.len() < 8 * rows.len() {
+                f64::NEG_INFINITY
+            } else {
+                ncc(&a, &b)
+            }
+        })
+        .collect();
+    let p = peak(&scores, lo, opts.coarse_step_s)?;
+    let inside = (p.offset_s - clock.offset_s).abs() < half - opts.coarse_step_s;
+    (p.correlation >= opts.min_correlation && inside).then_some(p.offset_s)
+}
+
+/// Intercept and slope of a line through `points` (x, y), robust to a minority of outliers:
+/// the median of the pairwise slopes, the median intercept at it.
+fn theil_sen(points: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let mut slopes = Vec::new();
+    for (i, p) in points.iter().enumerate() {
+        for q in &points[i + 1..] {
+            if q.0 != p.0 {
+                slopes.push((q.1 - p.1) / (q.0 - p.0));
+            }
+        }
+    }
+    let d = median_of(slopes)?;
+    let a = median_of(points.iter().map(|p| p.1 - d * p.0).collect())?;
+    Some((a, d))
+}
+
+fn median_of(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    (n > 0).then(|| 0.5 * (v[(n - 1) / 2] + v[n / 2]))
+}
+
+/// Least-squares slope of `points` (x, y) and its σ from their scatter about the line.
+fn line_slope(points: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let n = points.len() as f64;
+    let (mx, my) = (
+        points.iter().map(|p| p.0).sum::<f64>() / n,
+        points.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    if points.len() < 3 || sxx <= 0.0 {
+        return None;
+    }
+    let d = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
+    let sse: f64 = points
+        .iter()
+        .map(|p| (p.1 - my - d * (p.0 - mx)).powi(2))
+        .sum();
+    Some((d, (sse / (n - 2.0) / sxx).sqrt()))
+}
+
+/// RMS difference, m/s, between each wheel's speed over the log steps of `rev` (revolutions
+/// at robot times `t_s`) and that wheel's speed the camera sees over the same steps on
+/// `clock` (forward travel ∓ half the base times the heading change). Aligned, it is the
+/// encoders' quantisation and the nominal geometry's error; a fraction of a second off, the
+/// robot's starts, stops and turns add to it. None where the camera misses a row's time.
+pub(crate) fn wheel_speed_residual_mps(
+    traj: &Trajectory,
+    clock: &CoarseOffset,
+    t_s: &[f64],
+    rev: &[[f64; 2]],
+    geom: &WheelGeometry,
+    gap: f64,
+) -> Option<f64> {
+    let circ = [
+        std::f64::consts::PI * geom.left_wheel_diameter_m,
+        std::f64::consts::PI * geom.right_wheel_diameter_m,
+    ];
+    let poses = t_s
+        .iter()
+        .map(|&t| traj.pose_at(clock.camera_s(t), gap))
+        .collect::<Option<Vec<Pose2>>>()?;
+    let mut sq = Vec::with_capacity(2 * t_s.len());
+    for k in 1..t_s.len() {
+        let dt = clock.rate * (t_s[k] - t_s[k - 1]);
+        let ds = forward_step(&poses[k - 1], &poses[k]);
+        let turn =
+            0.5 * geom.wheel_base_m * wrap_angle(poses[k].theta_rad - poses[k - 1].theta_rad);
+        for (w, cam) in [ds - turn, ds + turn].into_iter().enumerate() {
+            let odo = (rev[k][w] - rev[k - 1][w]) * circ[w];
+            sq.push(((odo - cam) / dt).powi(2));
+        }
+    }
+    (!sq.is_empty()).then(|| (sq.iter().sum::<f64>() / sq.len() as f64).sqrt())
 }
 
 /// Normalised cross-correlation (Pearson) of two equally long series.

@@ -3,10 +3,12 @@
 use nalgebra::Point2;
 use odocal_core::{wrap_angle, Pose2};
 
-use crate::align::{coarse_offset, refine_offset, AlignOptions, CoarseOffset};
+use crate::align::{
+    clock_rate, coarse_offset, refine_offset, AlignOptions, ClockRate, CoarseOffset,
+};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
-use crate::odometry::{OdometryLog, STEP_TOLERANCE_PERIODS};
+use crate::odometry::{OdometryLog, WheelRevs, STEP_TOLERANCE_PERIODS};
 use crate::segment::{split_runs, RunSegment};
 use crate::speed_label::{camera_peak_speed_mps, commanded_speed_mismatch};
 use crate::{Dataset, RejectedRun, RobotParams, Sample, N_INPUTS};
@@ -271,15 +273,33 @@ pub fn process_recording(
     process_recording_at(rec, opts, coarse_of(rec, opts))
 }
 
-/// The coarse clock offset of a whole recording (speed-profile cross-correlation), found
-/// once per recording and shared by the checks and the samples.
+/// The clock of a whole recording: its coarse offset (speed-profile cross-correlation) and,
+/// where the recording tells one apart from 1, its rate, the offset then found again on the
+/// log's times scaled by it. Found once per recording and shared by the checks and the
+/// samples.
 pub(crate) fn coarse_of(
     rec: &Recording,
     opts: &BuildOptions,
 ) -> Result<CoarseOffset, DatasetError> {
     let revs = rec.log.wheel_revs(&opts.robot);
     let geom = WheelGeometry::nominal(&opts.robot);
-    coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id)
+    let coarse = coarse_offset(rec.log, &revs, &geom, rec.camera, &opts.align, rec.id)?;
+    if coarse.correlation < opts.align.min_correlation {
+        return Ok(coarse);
+    }
+    let Some(r) =
+        clock_rate(rec.log, &revs, &geom, rec.camera, &opts.align, &coarse).filter(ClockRate::told)
+    else {
+        return Ok(coarse);
+    };
+    // The offset again over the whole log on the camera's seconds: the first one, at rate 1,
+    // fits the log's middle.
+    let scaled = WheelRevs {
+        t_s: revs.t_s.iter().map(|t| r.rate * t).collect(),
+        rev: revs.rev,
+    };
+    let c = coarse_offset(rec.log, &scaled, &geom, rec.camera, &opts.align, rec.id)?;
+    Ok(CoarseOffset { rate: r.rate, ..c })
 }
 
 /// [`process_recording`] with the recording's coarse offset already found.
@@ -359,7 +379,7 @@ pub(crate) fn process_recording_at(
             ));
             continue;
         }
-        let motion = (odo.t_b() + coarse.offset_s, odo.t_e() + coarse.offset_s);
+        let motion = (coarse.camera_s(odo.t_b()), coarse.camera_s(odo.t_e()));
         if let Some(why) = unseen_reason(rec.camera, motion, frame_gap) {
             out.push(reject(id, why));
             continue;
@@ -370,7 +390,8 @@ pub(crate) fn process_recording_at(
             seg,
             &opts.robot,
             rec.camera,
-            coarse.offset_s,
+            // The run's own offset is near the clock's there: a clock at another rate drifts.
+            coarse.offset_at(0.5 * (odo.t_b() + odo.t_e())),
             &opts.align,
         ) {
             Ok(a) => a,
@@ -484,6 +505,7 @@ pub(crate) fn process_recording_at(
             path_length_m: path,
             clock_offset_s: d,
             alignment_residual_mps: al.residual_mps,
+            clock_rate: (coarse.rate != 1.0).then_some(coarse.rate),
             recording_id: rec.id.to_string(),
             alignment_residual_m: al.residual_m,
             speed_correlation: coarse.correlation,

@@ -121,6 +121,13 @@ fn one_row(
         camera: &traj,
     };
     let coarse = coarse_of(&rec, opts);
+    if let Some(why) = coarse.as_ref().ok().and_then(|c| c.implausible_rate()) {
+        return Err(DatasetError::Mismatch(format!(
+            "run \"{}\" ({}): {why}",
+            row.id,
+            log_path.display()
+        )));
+    }
     if let Some(why) = coarse
         .as_ref()
         .ok()
@@ -240,6 +247,9 @@ pub struct TruthErrors {
     pub offset_rms_s: f64,
     /// Largest clock-offset error, seconds.
     pub offset_max_s: f64,
+    /// Largest departure of a recording's clock rate from the truth's (a synthetic
+    /// experiment's clocks tick together), parts per million.
+    pub rate_max_ppm: f64,
     /// Samples compared.
     pub n: usize,
 }
@@ -280,7 +290,7 @@ pub fn errors_against_truth(
     oracle: &OracleFile,
     name: &str,
 ) -> Result<Option<TruthErrors>, DatasetError> {
-    let (mut target, mut offset) = (Vec::new(), Vec::new());
+    let (mut target, mut offset, mut rate_max_ppm) = (Vec::new(), Vec::new(), 0.0);
     // Windows have no truth of their own in the oracle file: only their recording's clock
     // offset is compared (the targets' errors are NaN).
     let windows = ds.is_windows();
@@ -302,6 +312,10 @@ pub fn errors_against_truth(
             (sample.target_m[0] - t.true_end_m[0]).hypot(sample.target_m[1] - t.true_end_m[1])
         });
         offset.push((sample.clock_offset_s - t.clock_offset_s).abs());
+        rate_max_ppm = f64::max(
+            rate_max_ppm,
+            1e6 * (sample.clock_rate.unwrap_or(1.0) - 1.0).abs(),
+        );
     }
     if target.is_empty() {
         return Ok(None);
@@ -313,6 +327,7 @@ pub fn errors_against_truth(
         target_max_m: max(&target),
         offset_rms_s: rms(&offset),
         offset_max_s: max(&offset),
+        rate_max_ppm,
         n: target.len(),
     }))
 }

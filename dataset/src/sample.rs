@@ -68,6 +68,11 @@ pub struct Sample {
     pub clock_offset_s: f64,
     /// RMS residual of the time alignment (speed profiles), m/s.
     pub alignment_residual_mps: f64,
+    /// The recording's robot clock rate against the camera's (camera seconds per robot
+    /// second; `clock_offset_s` is then the offset at the log's time 0) where it was told
+    /// apart from 1; absent for 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock_rate: Option<f64>,
     /// Manifest row (recording) the run came from; equals `run_id` for one run per recording.
     #[serde(default)]
     pub recording_id: String,

@@ -40,7 +40,7 @@ pub fn turn_mismatch(
     let (mut cam_abs, mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0, 0.0);
     let gap = align.frame_gap_s(camera);
     for k in 1..revs.t_s.len() {
-        let at = |i: usize| camera.pose_at(revs.t_s[i] + coarse.offset_s, gap);
+        let at = |i: usize| camera.pose_at(coarse.camera_s(revs.t_s[i]), gap);
         let (Some(a), Some(b)) = (at(k - 1), at(k)) else {
             continue;
         };

@@ -3,14 +3,17 @@
 //! one layout; this is the other, for robots that drive curves, turns in place and squares.
 //!
 //! The robot clock is mapped to the camera's by the recording's coarse offset (speed-profile
-//! cross-correlation, a few milliseconds on these logs); the window's end poses are the camera
-//! poses interpolated at its first and last log rows. A window of W rows carries the nominal
+//! cross-correlation, a few milliseconds on these logs) and its clock rate where one was told
+//! apart from 1 (`align::clock_rate`: a robot clock 0.2 % fast drifts 0.2 s over 100 s, and
+//! every window's target with it); the window's end poses are the camera poses interpolated
+//! at its first and last log rows, and its alignment residual is its wheels' speeds against
+//! the camera's over its steps. A window of W rows carries the nominal
 //! wheel travel of each of its W steps as inputs, so a corrector can be applied step by step
 //! and chained; its target is in the window's start frame.
 
 use odocal_core::wrap_angle;
 
-use crate::align::CoarseOffset;
+use crate::align::{wheel_speed_residual_mps, CoarseOffset};
 use crate::build::coarse_of;
 use crate::build::{BuildOptions, Recording, RunOutcome};
 use crate::error::DatasetError;
@@ -155,7 +158,7 @@ pub(crate) fn window_samples_at(
             }));
             continue;
         }
-        let (t0, t1) = (t[0] + offset, t[t.len() - 1] + offset);
+        let (t0, t1) = (coarse.camera_s(t[0]), coarse.camera_s(t[t.len() - 1]));
         let gap = frame_gap;
         let id = format!("{}.w{:04}", rec.id, rows.start());
         let (Some(p0), Some(p1), true) = (
@@ -171,6 +174,19 @@ pub(crate) fn window_samples_at(
             }));
             continue;
         };
+        let residual =
+            wheel_speed_residual_mps(rec.camera, &coarse, t, &rev, &geom, gap).unwrap_or(f64::NAN);
+        // A window whose wheels do not follow the camera is off the recording's clock there.
+        if residual.is_nan() || residual > opts.max_alignment_residual_mps {
+            out.push(RunOutcome::Rejected(RejectedRun {
+                run_id: id,
+                reason: format!(
+                    "odometry and camera disagree over this window: its wheels' speeds differ from the camera's by {residual:.3} m/s RMS on the recording's clock (limit {:.3} m/s; aligned windows give about 0.025): the clock is off here, or the log is not this run's",
+                    opts.max_alignment_residual_mps
+                ),
+            }));
+            continue;
+        }
         let rel = p1.relative_to(&p0);
         let odometry = RunOdometry {
             t_s: t.to_vec(),
@@ -188,6 +204,8 @@ pub(crate) fn window_samples_at(
             raw_end_m: [raw_end.x_m, raw_end.y_m],
             path_length_m: travel,
             clock_offset_s: offset,
+            alignment_residual_mps: residual,
+            clock_rate: (coarse.rate != 1.0).then_some(coarse.rate),
             speed_correlation: coarse.correlation,
             start_pose_floor: p0,
             odometry,
@@ -195,4 +213,118 @@ pub(crate) fn window_samples_at(
         })));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::step;
+    use odocal_core::{Pose2, Trajectory, TrajectoryRow};
+
+    /// A 66 s tour of straight legs and turns in place (varied, so no stretch repeats
+    /// another), logged every 0.2 s by a robot clock `1 / rate` times the true seconds, seen
+    /// by a 30 frames/s camera whose clock is the true one plus 0.8 s. Returns the log, the
+    /// camera trajectory and the true pose every millisecond.
+    fn tour(clock_fast: f64) -> (OdometryLog, Trajectory, Vec<Pose2>) {
+        let (dt, end_s, base) = (0.001, 66.0, 0.1);
+        // Wheel speeds (m/s): each 6 s leg drives, stops and turns, ramped over 0.4 s.
+        let speeds = |t: f64| -> [f64; 2] {
+            let (leg, u) = ((t / 6.0).floor(), t % 6.0);
+            if !(1.0..end_s - 2.0).contains(&t) {
+                return [0.0; 2];
+            }
+            let ramp =
+                |a: f64, b: f64| ((u - a) / 0.4).clamp(0.0, 1.0) * ((b - u) / 0.4).clamp(0.0, 1.0);
+            let v = (0.2 + 0.05 * (leg % 3.0)) * ramp(0.0, 3.0 + 0.3 * (leg % 2.0));
+            let w = (0.1 + 0.03 * (leg % 4.0))
+                * ramp(3.8, 5.6)
+                * if leg % 2.0 == 0.0 { 1.0 } else { -1.0 };
+            [v - w, v + w]
+        };
+        let (mut pose, mut travel) = (Pose2::new(0.3, -0.2, 0.4), [0.0; 2]);
+        let (mut poses, mut travels) = (vec![pose], vec![travel]);
+        for i in 0..(end_s / dt) as usize {
+            let v = speeds((i as f64 + 0.5) * dt);
+            pose = step(&pose, v[0] * dt, v[1] * dt, base);
+            travel = [travel[0] + v[0] * dt, travel[1] + v[1] * dt];
+            poses.push(pose);
+            travels.push(travel);
+        }
+        let circ = std::f64::consts::PI * 0.043;
+        let rows: Vec<usize> = (0..)
+            .map(|k| (0.2 * k as f64 / clock_fast / dt).round() as usize)
+            .take_while(|&i| i < poses.len())
+            .collect();
+        let ticks = |w: usize| -> Vec<i64> {
+            rows.iter()
+                .map(|&i| (travels[i][w] / circ * 12.0 + 0.4).floor() as i64)
+                .collect()
+        };
+        let t: Vec<f64> = (0..rows.len()).map(|k| 0.2 * k as f64).collect();
+        let log = OdometryLog::from_ticks(t, ticks(0), ticks(1)).unwrap();
+        let camera = (0..)
+            .map(|f| f as f64 / 30.0)
+            .take_while(|&tc| tc < end_s + 0.8)
+            .map(|tc| TrajectoryRow {
+                t_s: tc,
+                pose: poses[(((tc - 0.8).max(0.0)) / dt).round() as usize],
+                quality: 1.0,
+                sigma: None,
+            })
+            .collect();
+        (log, Trajectory::new(camera).unwrap(), poses)
+    }
+
+    /// A robot clock 1 % fast drifted every window 10 ms per second of the recording off the
+    /// camera (the targets 60 mm off by its end), with exit 0 and alignment residuals of 0.
+    #[test]
+    fn a_robot_clock_at_another_rate_is_fitted_and_applied() {
+        for clock_fast in [1.0, 1.01] {
+            let (log, camera, poses) = tour(clock_fast);
+            let rec = Recording {
+                id: "tour",
+                speed_mps: None,
+                log: &log,
+                camera: &camera,
+            };
+            let opts = BuildOptions::default();
+            let out = window_samples(&rec, &opts, &WindowOptions::default()).unwrap();
+            let samples: Vec<&Sample> = out
+                .iter()
+                .map(|o| match o {
+                    RunOutcome::Sample(s) => &**s,
+                    RunOutcome::Rejected(r) => panic!("rejected: {r:?}"),
+                })
+                .collect();
+            assert!(samples.len() >= 10, "{} windows", samples.len());
+            let rate = samples[0].clock_rate;
+            if clock_fast == 1.0 {
+                assert_eq!(rate, None, "a true clock is told no rate");
+            } else {
+                let rate = rate.expect("the rate is told");
+                assert!((rate * clock_fast - 1.0).abs() < 2e-4, "rate {rate}");
+            }
+            let (mut worst, mut sq) = (0.0f64, 0.0);
+            for s in &samples {
+                let k: usize = s.run_id[s.run_id.len() - 4..].parse().unwrap();
+                let at = |k: usize| poses[(0.2 * k as f64 / clock_fast / 0.001).round() as usize];
+                let truth = at(k + 50).relative_to(&at(k));
+                let e = (s.target_m[0] - truth.x_m).hypot(s.target_m[1] - truth.y_m);
+                worst = worst.max(e);
+                sq += e * e;
+                assert!(
+                    s.alignment_residual_mps > 0.0 && s.alignment_residual_mps < 0.05,
+                    "{}: residual {}",
+                    s.run_id,
+                    s.alignment_residual_mps
+                );
+            }
+            let rms = (sq / samples.len() as f64).sqrt();
+            eprintln!("clock {clock_fast}: targets off by {rms} m RMS, {worst} m at most");
+            assert!(
+                rms < 0.004 && worst < 0.012,
+                "clock {clock_fast}: targets off by {rms} m RMS, {worst} m at most"
+            );
+        }
+    }
 }

@@ -68,6 +68,25 @@ pub enum LayoutArg {
 }
 
 /// Prints what the dataset holds: samples, rejected runs with reasons, raw odometry's error.
+/// Each recording whose robot clock rate was told apart from the camera's, and by how much.
+fn print_clock_rates(ds: &odocal_dataset::Dataset) {
+    let mut seen = std::collections::HashSet::new();
+    for smp in &ds.samples {
+        let Some(rate) = smp.clock_rate else { continue };
+        if seen.insert(smp.recording_id.as_str()) {
+            // Robot seconds per camera second: a clock running fast stamps more of them.
+            let fast = 1.0 / rate - 1.0;
+            say!(
+                "  {}: the robot's clock runs {:.3} % {} against the camera's ({:.0} ppm); its times are mapped onto the camera's at that rate",
+                smp.recording_id,
+                100.0 * fast.abs(),
+                if fast > 0.0 { "fast" } else { "slow" },
+                1e6 * fast.abs()
+            );
+        }
+    }
+}
+
 fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
     let s = &ds.summary;
     if ds.is_windows() {
@@ -78,6 +97,7 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
             ds.rejected.len(),
             out.display()
         );
+        print_clock_rates(ds);
         print_rejected(&ds.rejected, out);
         if !ds.samples.is_empty() {
             say!(
@@ -97,6 +117,7 @@ fn print_summary(ds: &odocal_dataset::Dataset, out: &Path) {
         ds.rejected.len(),
         out.display()
     );
+    print_clock_rates(ds);
     print_rejected(&ds.rejected, out);
     if !ds.samples.is_empty() {
         say!(
@@ -400,9 +421,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_summary(&ds, &args.out);
     {
         if let Some(e) = against_truth {
+            // Said only where a recording's rate was told apart from 1, as the summary does.
+            let rates = if e.rate_max_ppm > 0.0 {
+                format!(
+                    ", clock rates up to {:.0} ppm from the truth's (its clocks tick together)",
+                    e.rate_max_ppm
+                )
+            } else {
+                String::new()
+            };
             if e.target_rms_m.is_nan() {
                 say!(
-                    "against the truth: clock offsets RMS {:.2} ms (max {:.2} ms) over {} windows",
+                    "against the truth: clock offsets RMS {:.2} ms (max {:.2} ms){rates} over {} windows",
                     1e3 * e.offset_rms_s,
                     1e3 * e.offset_max_s,
                     e.n
@@ -410,7 +440,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 return Ok(());
             }
             say!(
-                "against the truth: end-point targets RMS {:.2} mm (max {:.2} mm), clock offsets RMS {:.2} ms (max {:.2} ms) over {} samples",
+                "against the truth: end-point targets RMS {:.2} mm (max {:.2} mm), clock offsets RMS {:.2} ms (max {:.2} ms){rates} over {} samples",
                 1e3 * e.target_rms_m,
                 1e3 * e.target_max_m,
                 1e3 * e.offset_rms_s,
