@@ -334,30 +334,43 @@ fn rematch_near(
     let rows: Vec<usize> = rows
         .filter(|&k| traj.covers(t[k - 1] + p.offset_s - near, t[k] + p.offset_s + near, gap))
         .collect();
-    let lo = p.offset_s - near;
-    let steps = (2.0 * near / opts.coarse_step_s).round() as usize;
+    best_lag(p.offset_s - near, near, opts.coarse_step_s, |lag, a, b| {
+        for &k in &rows {
+            if let Some(v) = camera_speed(traj, t[k - 1] + lag, t[k] + lag, gap) {
+                a.push(v_robot[k - 1]);
+                b.push(v);
+            }
+        }
+        true
+    })
+    .filter(|q| q.correlation >= opts.min_correlation)
+    .unwrap_or(p)
+}
+
+/// The lag among `lo` + j `step` (up to `lo` + 2 `half`) at which the pairs `pair(lag, a, b)`
+/// puts into `a` and `b` correlate best, refined as [`peak`] does; a lag scores nothing where
+/// `pair` says too little was seen or fewer than 3 pairs were.
+fn best_lag(
+    lo: f64,
+    half: f64,
+    step: f64,
+    mut pair: impl FnMut(f64, &mut Vec<f64>, &mut Vec<f64>) -> bool,
+) -> Option<CoarseOffset> {
+    let steps = (2.0 * half / step).round() as usize;
     let (mut a, mut b) = (Vec::new(), Vec::new());
     let scores: Vec<f64> = (0..=steps)
         .map(|j| {
-            let lag = lo + j as f64 * opts.coarse_step_s;
             a.clear();
             b.clear();
-            for &k in &rows {
-                if let Some(v) = camera_speed(traj, t[k - 1] + lag, t[k] + lag, gap) {
-                    a.push(v_robot[k - 1]);
-                    b.push(v);
-                }
-            }
-            if a.len() < 3 {
+            let enough = pair(lo + j as f64 * step, &mut a, &mut b);
+            if !enough || a.len() < 3 {
                 f64::NEG_INFINITY
             } else {
                 ncc(&a, &b)
             }
         })
         .collect();
-    peak(&scores, lo, opts.coarse_step_s)
-        .filter(|q| q.correlation >= opts.min_correlation)
-        .unwrap_or(p)
+    peak(&scores, lo, step)
 }
 
 /// The best of `scores` (lags `lo` + j `step`), its lag refined on a parabola through its
@@ -556,14 +569,11 @@ fn stretch_offset(
     opts: &AlignOptions,
     gap: f64,
 ) -> Option<f64> {
-    let lo = clock.offset_s - half;
-    let steps = (2.0 * half / opts.coarse_step_s).round() as usize;
-    let (mut a, mut b) = (Vec::new(), Vec::new());
-    let scores: Vec<f64> = (0..=steps)
-        .map(|j| {
-            let lag = lo + j as f64 * opts.coarse_step_s;
-            a.clear();
-            b.clear();
+    let p = best_lag(
+        clock.offset_s - half,
+        half,
+        opts.coarse_step_s,
+        |lag, a, b| {
             for k in rows.clone() {
                 let (t0, t1) = (lag + clock.rate * t[k - 1], lag + clock.rate * t[k]);
                 let (Some(p0), Some(p1)) = (traj.pose_at(t0, gap), traj.pose_at(t1, gap)) else {
@@ -575,14 +585,9 @@ fn stretch_offset(
                 b.extend([v - turn, v + turn]);
             }
             // Most of the stretch seen, so that its own motion decides.
-            if 5 * a.len() < 8 * rows.len() {
-                f64::NEG_INFINITY
-            } else {
-                ncc(&a, &b)
-            }
-        })
-        .collect();
-    let p = peak(&scores, lo, opts.coarse_step_s)?;
+            5 * a.len() >= 8 * rows.len()
+        },
+    )?;
     let inside = (p.offset_s - clock.offset_s).abs() < half - opts.coarse_step_s;
     (p.correlation >= opts.min_correlation && inside).then_some(p.offset_s)
 }
