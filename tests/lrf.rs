@@ -1525,6 +1525,84 @@ fn cli_a_mapped_reflector_gone_from_a_symmetric_room_is_named() {
     assert_eq!(stderr.matches("warning: landmark").count(), 1, "{stderr}");
 }
 
+/// Five of the thirty reflectors re-stuck 5 cm along their walls after mapping, the map (a
+/// survey's 5 mm σ) not updated: each is named with its offset, and the poses that matched it
+/// are fitted again without it. Landmarks 8 and 14, 0.31 m apart, moved together and passed
+/// every scan's match screen; unnamed, they left poses 40 mm (10σ) off with exit 0. The same
+/// map unmoved names none.
+#[test]
+fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf_with(d, 3, 300, &[]);
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("map.json")).expect("map"))
+            .expect("json");
+    m["position_sigma_m"] = serde_json::json!(0.005);
+    let surveyed = d.join("map_surveyed.json");
+    std::fs::write(&surveyed, m.to_string()).expect("write");
+    for l in m["landmarks"].as_array_mut().expect("landmarks") {
+        if [3, 8, 14, 21, 27].contains(&l["id"].as_u64().expect("id")) {
+            let f = l["facing_rad"].as_f64().expect("facing");
+            let (x, y) = (l["x_m"].as_f64().expect("x"), l["y_m"].as_f64().expect("y"));
+            l["x_m"] = serde_json::json!(x - 0.05 * f.sin());
+            l["y_m"] = serde_json::json!(y + 0.05 * f.cos());
+        }
+    }
+    let moved = d.join("map_moved.json");
+    std::fs::write(&moved, m.to_string()).expect("write");
+    let (scans, poses, truth) = (
+        d.join("scans.csv"),
+        d.join("poses.csv"),
+        d.join("truth.csv"),
+    );
+    let run = |map: &Path| {
+        let args = [
+            "lrf",
+            "localize",
+            "--map",
+            s(map),
+            s(&scans),
+            "--out",
+            s(&poses),
+            "--truth",
+            s(&truth),
+        ];
+        let out = odocal(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            String::from_utf8_lossy(&out.stdout).to_string(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    let (stdout, stderr) = run(&moved);
+    assert!(
+        stderr.contains(&format!(
+            "warning: landmark 8 of {} sits 38 mm from its mapped position along (-0.05, -1.00) in 55 scans (σ of that mean 1.8 mm): was it moved after mapping? The poses that matched it were fitted again without it",
+            s(&moved)
+        )),
+        "{stderr}"
+    );
+    for id in [3, 14, 21, 27] {
+        assert!(
+            stderr.contains(&format!("warning: landmark {id} of {} sits ", s(&moved))),
+            "{stderr}"
+        );
+    }
+    assert_eq!(stderr.matches("warning: landmark").count(), 5, "{stderr}");
+    // The poses are as good as their σ says: the position RMS within the bound.
+    assert!(
+        stdout.contains("position RMS 7.3 mm (Cramér–Rao bound 9.7 mm, ratio 0.75), max 37.6 mm"),
+        "{stdout}"
+    );
+    let (_, stderr) = run(&surveyed);
+    assert!(!stderr.contains("warning: landmark"), "{stderr}");
+}
+
 /// Scan files are one recording: timed files are taken in the order of their times, whatever
 /// order they are given in; one file given twice, or files whose times interleave, are
 /// refused as scans out of order within a file are, naming the files.

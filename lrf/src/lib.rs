@@ -37,7 +37,7 @@ pub use eval::{
 };
 pub use localize::{
     check_beam_step, check_intensity_scale, check_range_unit, check_scan_times, drop_beyond_range,
-    localize_scans, read_scan_files, Localized, ScanFiles, Skewed,
+    localize_scans, read_scan_files, Localized, MovedLandmark, ScanFiles, Skewed,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};

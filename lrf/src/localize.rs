@@ -3,6 +3,10 @@
 
 use std::path::PathBuf;
 
+use nalgebra::{Matrix2, Matrix3, Vector2};
+use odocal_core::Pose2;
+
+use crate::pose_fit::{fit_pose_weighted, Observation};
 use crate::pose_log::{PoseLog, PoseLogRow};
 use crate::scan::{read_scans_csv, Scan, SensorConfig};
 use crate::scan_track::ScanTracker;
@@ -356,6 +360,8 @@ pub fn localize_scans(
     let mut sweeps_s = Vec::with_capacity(scans.len());
     let mut n_repeated = 0;
     let mut views = LandmarkViews::new(loc.map.landmarks.len());
+    // The matches of every `ok` pose, (row, landmark, observation).
+    let mut fitted: Vec<(usize, usize, Observation)> = Vec::new();
     for (k, scan) in scans.iter().enumerate() {
         let t_s = scan.t_s.unwrap_or(k as f64 / rate_hz);
         sweeps_s.push(
@@ -381,6 +387,9 @@ pub fn localize_scans(
             let g = loc.global(scan, &dets);
             views.add(loc, scan, &g.hypotheses);
             let b = g.best();
+            if let (Status::Ok, Some(h)) = (g.status, b) {
+                add_fitted(&mut fitted, k, h);
+            }
             deskewed.push(false);
             PoseLogRow {
                 t_s,
@@ -398,6 +407,9 @@ pub fn localize_scans(
             let r = tracker.process(scan, t_s);
             views.add(loc, scan, &r.hypotheses);
             deskewed.push(r.deskewed);
+            if let (Status::Ok, Some(h)) = (r.status, r.hypotheses.first()) {
+                add_fitted(&mut fitted, k, h);
+            }
             PoseLogRow {
                 t_s,
                 pose: r.pose,
@@ -416,15 +428,180 @@ pub fn localize_scans(
     }
     let mut log = PoseLog { rows };
     if !global_only {
-        deskew_track_starts(loc, scans, &mut log, &mut deskewed);
+        deskew_track_starts(loc, scans, &mut log, &mut deskewed, &mut fitted);
     }
+    let moved = moved_landmarks(loc, &mut log, &fitted, &deskewed);
     let skewed = widen_skewed(&mut log, &deskewed, &sweeps_s);
     Localized {
         log,
         skewed,
         n_repeated,
         unseen: views.unseen(loc),
+        moved,
     }
+}
+
+/// Adds the matches of `h`, the pose of row `k`, to `fitted` (row, landmark, observation).
+fn add_fitted(fitted: &mut Vec<(usize, usize, Observation)>, k: usize, h: &Hypothesis) {
+    let obs = h.matches.iter().zip(&h.observations);
+    fitted.extend(obs.map(|(&(_, l), o)| (k, l, *o)));
+}
+
+/// A landmark's mean residual must be at least this many standard errors of that mean to be
+/// taken for a bias: over the seeds 1–4 of `synth lrf` the largest was 3.6 (the standard
+/// error is from the residuals' scatter, and scans in a row share some of their errors, so
+/// this is more than a Gaussian's tail would need). Reflectors moved 5 cm gave 12–20.
+const MIN_BIAS_SIGMAS: f64 = 8.0;
+
+/// ... and at least this many times the map's survey σ: a landmark surveyed within its σ has
+/// its residuals' mean within it too.
+const MIN_BIAS_MAP_SIGMAS: f64 = 3.0;
+
+/// A landmark matched in fewer scans than this has no mean worth judging.
+const MIN_BIAS_SCANS: usize = 10;
+
+/// A landmark whose detections sit off its mapped position, the same way, scan after scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MovedLandmark {
+    /// The landmark's id.
+    pub id: u32,
+    /// The mean of its detections minus its mapped position, map frame, metres.
+    pub offset_m: Vector2<f64>,
+    /// The standard error of that mean along it, metres.
+    pub sigma_m: f64,
+    /// The `ok` scans it was matched in.
+    pub n_scans: usize,
+}
+
+/// The landmarks whose residuals at the poses of `fitted` (row, landmark, observation) have a
+/// mean far beyond both its standard error and the map's σ: moved after the map was made (a
+/// reflector re-stuck 5 cm along its wall left poses 40 mm, 10σ, off). The most biased one is
+/// taken first and the poses that matched it fitted again without it: a moved landmark pulls
+/// the poses, and with them the residuals of the landmarks seen beside it.
+fn moved_landmarks(
+    loc: &Localizer,
+    log: &mut PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    deskewed: &[bool],
+) -> Vec<MovedLandmark> {
+    let map_sigma_m = loc.map.position_sigma_m.unwrap_or(loc.cfg.map_sigma_m);
+    let original: Vec<_> = log.rows.iter().map(|r| (r.pose, r.pose_cov)).collect();
+    let mut moved: Vec<usize> = Vec::new();
+    loop {
+        let worst = (0..loc.map.landmarks.len())
+            .filter(|l| !moved.contains(l))
+            .filter_map(|l| Some((l, residual_mean(loc, log, fitted, deskewed, l)?)))
+            .filter(|(_, m)| {
+                let d = m.offset_m.norm();
+                d > MIN_BIAS_SIGMAS * m.sigma_m && d > MIN_BIAS_MAP_SIGMAS * map_sigma_m
+            })
+            .max_by(|a, b| {
+                let z = |m: &MovedLandmark| m.offset_m.norm() / m.sigma_m;
+                z(&a.1).total_cmp(&z(&b.1))
+            });
+        let Some((l, _)) = worst else { break };
+        moved.push(l);
+        refit_without(loc, log, fitted, &moved, &original);
+    }
+    let out: Vec<MovedLandmark> = moved
+        .iter()
+        .filter_map(|&l| residual_mean(loc, log, fitted, deskewed, l))
+        .collect();
+    // A pose left with too few landmarks to fit again keeps its pose, and its σ takes in the
+    // offsets of the moved landmarks it matched.
+    for_each_row(fitted, |k, row| {
+        if log.rows[k].pose != original[k].0 {
+            return;
+        }
+        if let Some(cov) = log.rows[k].pose_cov.as_mut() {
+            for (_, l, _) in row {
+                if let Some(m) = out.iter().find(|m| m.id == loc.map.landmarks[*l].id) {
+                    let o = m.offset_m * m.offset_m.transpose();
+                    let mut w = cov.fixed_view_mut::<2, 2>(0, 0);
+                    w += o;
+                }
+            }
+        }
+    });
+    out
+}
+
+/// The mean of landmark `l`'s residuals (detection minus mapped position, map frame) at the
+/// `deskewed` poses of `fitted` (one not de-skewed carries its sweep's skew in its residuals,
+/// which is no landmark's), None when matched in fewer than [`MIN_BIAS_SCANS`] scans.
+fn residual_mean(
+    loc: &Localizer,
+    log: &PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    deskewed: &[bool],
+    l: usize,
+) -> Option<MovedLandmark> {
+    let r: Vec<Vector2<f64>> = fitted
+        .iter()
+        .filter(|f| f.1 == l && deskewed[f.0])
+        .filter_map(|(k, _, o)| Some(log.rows[*k].pose?.isometry() * o.sensor - o.landmark))
+        .collect();
+    let n = r.len();
+    if n < MIN_BIAS_SCANS {
+        return None;
+    }
+    let mean = r.iter().sum::<Vector2<f64>>() / n as f64;
+    let scatter = r
+        .iter()
+        .map(|v| (v - mean) * (v - mean).transpose())
+        .sum::<Matrix2<f64>>()
+        / (n - 1) as f64;
+    let dir = mean.try_normalize(0.0)?;
+    Some(MovedLandmark {
+        id: loc.map.landmarks[l].id,
+        offset_m: mean,
+        sigma_m: (dir.dot(&(scatter * dir)) / n as f64).sqrt(),
+        n_scans: n,
+    })
+}
+
+/// Calls `f` with each row of `fitted` and that row's matches.
+fn for_each_row(
+    fitted: &[(usize, usize, Observation)],
+    mut f: impl FnMut(usize, &[(usize, usize, Observation)]),
+) {
+    let mut start = 0;
+    while start < fitted.len() {
+        let k = fitted[start].0;
+        let end = start + fitted[start..].iter().take_while(|x| x.0 == k).count();
+        f(k, &fitted[start..end]);
+        start = end;
+    }
+}
+
+/// Fits again from its `original` pose, without the `moved` landmarks, every pose of `fitted`
+/// that matched one and keeps enough others to fit.
+fn refit_without(
+    loc: &Localizer,
+    log: &mut PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    moved: &[usize],
+    original: &[(Option<Pose2>, Option<Matrix3<f64>>)],
+) {
+    for_each_row(fitted, |k, row| {
+        let rest: Vec<Observation> = row
+            .iter()
+            .filter(|(_, l, _)| !moved.contains(l))
+            .map(|(_, _, o)| *o)
+            .collect();
+        let (Some(pose), true) = (original[k].0, rest.len() < row.len()) else {
+            return;
+        };
+        if rest.len() < loc.cfg.min_matches {
+            return;
+        }
+        if let Some((p, cov)) = fit_pose_weighted(pose, &rest) {
+            let r = &mut log.rows[k];
+            r.pose = Some(p);
+            r.pose_cov = Some(cov);
+            r.n_landmarks = rest.len();
+        }
+    });
 }
 
 /// A landmark missed in at least this many scans, and in [`MIN_UNSEEN_SHARE`] of those it was
@@ -505,7 +682,13 @@ const MAX_START_GAP_S: f64 = 0.5;
 /// de-skew them by, and the third one the motion between those two, each off by its own
 /// sweep's skew (seed 1 of `synth lrf`: 40 % too fast, its pose 9–12σ off). Going backwards,
 /// each takes the motion between the two poses after it, already fitted de-skewed.
-fn deskew_track_starts(loc: &Localizer, scans: &[Scan], log: &mut PoseLog, deskewed: &mut [bool]) {
+fn deskew_track_starts(
+    loc: &Localizer,
+    scans: &[Scan],
+    log: &mut PoseLog,
+    deskewed: &mut [bool],
+    fitted: &mut Vec<(usize, usize, Observation)>,
+) {
     let rows = &mut log.rows;
     let ok = |r: &PoseLogRow| r.status == Status::Ok && r.pose.is_some();
     for k in (0..rows.len()).rev() {
@@ -545,7 +728,11 @@ fn deskew_track_starts(loc: &Localizer, scans: &[Scan], log: &mut PoseLog, deske
         r.n_landmarks = h.matches.len();
         r.score = h.score;
         deskewed[k] = true;
+        fitted.retain(|f| f.0 != k);
+        add_fitted(fitted, k, &h);
     }
+    // The rows' matches together, as [`moved_landmarks`] takes them.
+    fitted.sort_by_key(|f| f.0);
 }
 
 /// The poses of [`localize_scans`], and what it could not de-skew or localise.
@@ -562,6 +749,10 @@ pub struct Localized {
     /// see nearly every time: gone from the room, or covered, and evidence against the right
     /// pose alone.
     pub unseen: Vec<(u32, usize, usize)>,
+    /// Landmarks whose detections sit off their mapped positions the same way scan after
+    /// scan: moved since the map was made. The poses that matched them were fitted again
+    /// without them.
+    pub moved: Vec<MovedLandmark>,
 }
 
 /// Poses whose scans were not de-skewed (no motion was tracked yet, or `--global-only`)

@@ -74,6 +74,9 @@ pub struct Hypothesis {
     /// Covariance of the pose (x, y, θ; m², m·rad, rad²) from the matched detections'
     /// covariances and the map's: the pose's Cramér–Rao bound, which the weighted fit reaches.
     pub cov: Option<Matrix3<f64>>,
+    /// The matched detections as fitted, one per match: over a recording they tell a landmark
+    /// moved since the map was made from noise. Empty for a search's unrefined hypotheses.
+    pub(crate) observations: Vec<Observation>,
 }
 
 /// Outcome class of a localisation.
@@ -534,6 +537,7 @@ impl Localizer {
         }
         let n_missing = self.count_missing(scan, &pose, &taken);
         let score = matches.len() as f64 - cfg.miss_weight * n_missing as f64;
+        let observations = self.observations(dets, &matches, &pose);
         Some(Hypothesis {
             pose,
             matches,
@@ -542,6 +546,7 @@ impl Localizer {
             rms_m: fit_rms,
             helmert_scale: helmert.scale,
             cov: Some(cov),
+            observations,
         })
     }
 
@@ -809,6 +814,7 @@ impl Localizer {
                         rms_m: h.rms,
                         helmert_scale: h.scale,
                         cov,
+                        observations: Vec::new(),
                     });
                 }
             }

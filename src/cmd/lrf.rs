@@ -180,6 +180,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         skewed,
         n_repeated,
         unseen,
+        moved,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
@@ -197,6 +198,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     for (id, n, missed) in unseen {
         tell!(
             "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
+            a.map.display()
+        );
+    }
+    for m in moved {
+        let dir = m.offset_m.normalize();
+        tell!(
+            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? The poses that matched it were fitted again without it; update its position in {}, or remove it",
+            m.id,
+            a.map.display(),
+            m.offset_m.norm() * 1e3,
+            dir.x,
+            dir.y,
+            m.n_scans,
+            m.sigma_m * 1e3,
             a.map.display()
         );
     }
