@@ -204,7 +204,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     for m in moved {
         let dir = m.offset_m.normalize();
         tell!(
-            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? The poses that matched it were fitted again without it; update its position in {}, or remove it",
+            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? The poses that matched it were fitted again without it; update its position in {}, or remove it (a scanner whose beams are not timed as --sweep-s says biases the landmarks too)",
             m.id,
             a.map.display(),
             m.offset_m.norm() * 1e3,
