@@ -642,6 +642,51 @@ fn one_id_in_tags_is_tag_id_with_its_report_and_truth() {
     );
 }
 
+/// Several tags' tracking kept a dropped frame's slot filled with the next frame's image (a
+/// constant-frame-rate conversion) as a fix a frame early (15 mm at the robot's speed) and
+/// left the image's own slot out, where one tag's tracking places it at its slot: every
+/// tracking path places repeated images alike.
+#[test]
+fn several_tags_place_a_filled_drop_at_its_slot() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 14, 1, &["--video", "png"]);
+    let frames = d.join("frames");
+    // Frame 8 dropped, its slot holding frame 9's image.
+    std::fs::copy(
+        frames.join("frame_000009.png"),
+        frames.join("frame_000008.png"),
+    )
+    .unwrap();
+    let out = d.join("t.csv");
+    let res = odocal(&[
+        "track",
+        p(&frames),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--tags",
+        "0,3",
+        "--out",
+        p(&out),
+    ]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("1 frame was dropped and its slot filled with the next frame's image")
+            && !err.contains("tag 3: 1 frame repeats"),
+        "{err}"
+    );
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let tracked = Trajectory::read_csv(&d.join("t_tag0.csv")).unwrap();
+    assert_eq!(tracked.rows.len(), 13);
+    for row in &tracked.rows {
+        let slot = (row.t_s * 30.0).round() as usize;
+        assert_ne!(slot, 8, "the dropped frame's slot is a gap");
+        let off_m = (row.pose.position() - truth.rows[slot].pose.position()).norm();
+        assert!(off_m < 1e-3, "slot {slot}: {:.2} mm off", off_m * 1e3);
+    }
+}
+
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
 /// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
 /// camera file. The family is named, and the ids listed are the most seen few.

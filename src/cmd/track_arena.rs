@@ -158,10 +158,20 @@ fn fixes_to_trajectories(
 
 /// What the frames' timing says about one video (dropped or repeated frames, a clock that
 /// jumps, a file cut short): once for the video, or for the tags it concerns where it
-/// differs between them (a fix repeated in one tag's frames).
+/// differs between them (a fix repeated in one tag's frames). A tag never fixed has no
+/// motion to place a repeated image by, so it is left out where others were fixed.
 fn say_timing(video: &Path, per_tag: &BTreeMap<u32, TrackResult>) {
+    let fixed: Vec<_> = per_tag
+        .iter()
+        .filter(|(_, r)| r.fixes().next().is_some())
+        .collect();
+    let judged = if fixed.is_empty() {
+        per_tag.iter().collect()
+    } else {
+        fixed
+    };
     let mut said: Vec<(String, Vec<String>)> = Vec::new();
-    for (id, r) in per_tag {
+    for (id, r) in &judged {
         for w in TimingReport::of(r).warnings() {
             match said.iter_mut().find(|(s, _)| *s == w) {
                 Some((_, ids)) => ids.push(id.to_string()),
@@ -170,7 +180,7 @@ fn say_timing(video: &Path, per_tag: &BTreeMap<u32, TrackResult>) {
         }
     }
     for (w, ids) in said {
-        if ids.len() == per_tag.len() {
+        if ids.len() == judged.len() {
             tell!("warning: {}: {w}", video.display());
         } else {
             tell!("warning: {}: tag {}: {w}", video.display(), ids.join(", "));

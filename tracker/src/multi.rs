@@ -200,7 +200,10 @@ pub fn track_source_multi(
     }
     Ok(states
         .into_iter()
-        .map(|(id, s)| {
+        .map(|(id, mut s)| {
+            // Each tag's repeated images go to their slots as a single tag's do: one robot
+            // may stand still (its fixes repeat) while another drives on.
+            crate::repeats::place_repeated_images(&mut s.records);
             (
                 id,
                 TrackResult {
