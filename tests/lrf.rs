@@ -1820,7 +1820,9 @@ fn cli_scans_of_another_map_are_not_blamed_on_its_layout() {
 /// exports; "time 1700000000 s is not a scan time (0 to 3000000 s)" before) give the poses
 /// of the same scans timed from 0, against an epoch truth, with every time written in full;
 /// nanoseconds are refused as nanoseconds (their spacing names them; epoch nanoseconds are
-/// past any time in seconds).
+/// past any time in seconds). Scans at another rate than --rate-hz are refused with theirs
+/// named, and scans a whole number of periods apart are read as a recording that keeps one in
+/// a few, with the slower rate named.
 #[test]
 fn cli_scan_times_in_milliseconds_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1892,6 +1894,35 @@ fn cli_scan_times_in_milliseconds_are_refused() {
         "the scans are 0.1 s apart (median), less than a sweep of 0.133203 s (their 240° at --rate-hz 5), but a scanner does not start a scan before it ends the last: give the scanner's real --rate-hz (these scans come at 10 Hz)",
     );
     assert!(!poses.exists(), "nothing written");
+    // 15 Hz scans (the same scans re-timed) at the default --rate-hz 10: just over a sweep
+    // apart, de-skewed as if swept in 67 ms instead of 44 they were 3.6 times their bound
+    // off (11.1 mm RMS with 300 scans) with no word.
+    let q15 = rewrite("scans.csv", "q15.csv", 1, &|_, t| t * 2.0 / 3.0);
+    let (q15, poses_s) = (s(&q15), s(&poses));
+    expect_error(
+        &["lrf", "localize", "--map", s(&map), q15, "--out", poses_s],
+        "the scans are 0.066667 s apart (median), 0.67 times the period of 0.1 s at --rate-hz 10 and not a whole number of periods: the scanner runs at another rate, and sweeps in another time than its beams would be given; give the scanner's real --rate-hz 15 (or a whole multiple of it",
+    );
+    assert!(!poses.exists(), "nothing written");
+    let at = |scans: &str, extra: &[&str]| {
+        let mut args = vec!["lrf", "localize", "--map", s(&map), scans, "--out", poses_s];
+        args.extend_from_slice(extra);
+        let out = odocal(&args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{err}");
+        std::fs::remove_file(&poses).expect("remove");
+        err
+    };
+    at(q15, &["--rate-hz", "15"]);
+    // 5 Hz scans at --rate-hz 10 have the times of every other scan of a 10 Hz scanner (a
+    // throttled topic, whose sweep is 67 ms still): accepted, and the slower rate named.
+    let q5 = rewrite("scans.csv", "q5.csv", 1, &|_, t| t * 2.0);
+    let err = at(s(&q5), &[]);
+    assert!(
+        err.contains("note: the scans are 2 periods of --rate-hz 10 apart (median), read as one scan kept in 2 of a 10 Hz scanner's; if the scanner itself runs at 5 Hz, give --rate-hz 5"),
+        "{err}"
+    );
+    assert!(!at(s(&q5), &["--rate-hz", "5"]).contains("note:"));
     // A truth whose clock runs 50 ms apart from the scans' after its fifth row.
     let shifted = rewrite("truth.csv", "shifted.csv", 0, &|i, t| {
         if i >= 5 {

@@ -1011,3 +1011,56 @@ fn a_path_model_of_straight_runs_names_the_missing_turns() {
         "{e}"
     );
 }
+
+/// UMBMark squares whose trajectories were swapped between a clockwise and a
+/// counter-clockwise run turn against their wheels, which was blamed on swapped wheel columns
+/// or a mirrored floor frame; swapping the columns as told then passed, with figures 2 to 3
+/// times off. The runs paired with each other's trajectories are now named.
+#[test]
+fn evaluate_names_squares_whose_trajectories_were_swapped() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, _) = small_path_model(dir.path());
+    let sq = dir.path().join("sq");
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "umbmark",
+        "--runs",
+        "4",
+        "--frames",
+        "none",
+        "--seed",
+        "5",
+        "--out",
+        p(&sq),
+    ]);
+    let (one, two) = (
+        sq.join("runs/run001.trajectory.csv"),
+        sq.join("runs/run002.trajectory.csv"),
+    );
+    let swap = sq.join("runs/swap.csv");
+    std::fs::rename(&one, &swap).unwrap();
+    std::fs::rename(&two, &one).unwrap();
+    std::fs::rename(&swap, &two).unwrap();
+    let e = fails(&[
+        "evaluate",
+        p(&sq.join("manifest.json")),
+        "--model",
+        &model,
+        "--umbmark-m",
+        "4",
+    ]);
+    assert!(
+        e.contains("run001: the wheels turn the robot the other way from the trajectory"),
+        "{e}"
+    );
+    assert!(
+        e.contains("is the trajectory another run's, driven the other way round"),
+        "{e}"
+    );
+    assert!(
+        e.contains("This log and run002's trajectory fit, as do run002's log and this trajectory: the manifest pairs each with the other's; swap run001's and run002's trajectories back"),
+        "{e}"
+    );
+}

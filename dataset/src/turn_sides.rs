@@ -59,7 +59,7 @@ pub fn turn_mismatch(
     let correlation = sxy / (sxx * syy).sqrt();
     (correlation < OPPOSITE).then(|| {
         format!(
-            "the wheels turn the robot the other way from the trajectory (their turn rates correlate at {correlation:.2} over {:.0}° of turning): are the log's left and right columns swapped, or is the trajectory's floor frame mirrored (y must point to the left of x)?",
+            "the wheels turn the robot the other way from the trajectory (their turn rates correlate at {correlation:.2} over {:.0}° of turning): is the trajectory another run's, driven the other way round (a clockwise square's log paired with a counter-clockwise one's trajectory)? If not, are the log's left and right columns swapped, or is the trajectory's floor frame mirrored (y must point to the left of x)?",
             cam_abs.to_degrees()
         )
     })

@@ -74,8 +74,9 @@ pub struct LocalizeArgs {
     /// Returns at or above this intensity are reflector candidates.
     #[arg(long, default_value_t = 0.5)]
     pub intensity_min: f64,
-    /// Scan rate of the scanner, Hz: the times of files without a `t` column, and the check
-    /// that the scans' times are in seconds.
+    /// Scan rate of the scanner, Hz: the times of files without a `t` column, the check that
+    /// the scans' times are in seconds and, without --sweep-s, the sweep's time (scans whose
+    /// spacing is not a whole number of its periods are refused).
     #[arg(long, default_value_t = 10.0)]
     pub rate_hz: f64,
     /// Time from a scan's first beam to its last, seconds. By default a turn takes 1/--rate-hz
@@ -163,7 +164,18 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     check_range_unit(&scans, a.max_range_m)?;
     drop_beyond_range(&mut scans, a.max_range_m);
-    check_scan_times(&scans, &cfg.sensor)?;
+    let periods_apart = check_scan_times(&scans, &cfg.sensor)?;
+    // A scanner that many times slower gives the same times with a longer sweep: said, as
+    // only the user knows which it is.
+    let slower_rate = (periods_apart > 1 && a.sweep_s.is_none()).then(|| {
+        let slower_hz = (a.rate_hz / f64::from(periods_apart) * 1e3).round() / 1e3;
+        tell!(
+            "note: the scans are {periods_apart} periods of --rate-hz {} apart (median), read as one scan kept in {periods_apart} of a {} Hz scanner's; if the scanner itself runs at {slower_hz} Hz, give --rate-hz {slower_hz}, or its sweep is taken {periods_apart} times too short",
+            a.rate_hz,
+            a.rate_hz
+        );
+        slower_hz
+    });
     if let Some(step) = step_rad {
         cfg.sensor.step_rad = step;
     }
@@ -201,10 +213,16 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.map.display()
         );
     }
+    // Beams timed wrongly bias every landmark they see moving: the other cause to name.
+    let mistimed = match (a.sweep_s, slower_rate) {
+        (Some(_), _) => "a scanner whose beams are not timed as --sweep-s says biases the landmarks too".to_string(),
+        (None, Some(hz)) => format!("a scanner slower than --rate-hz {} biases the landmarks too: if it runs at {hz} Hz, give --rate-hz {hz}", a.rate_hz),
+        (None, None) => format!("a scanner whose rate is not --rate-hz {}, or whose mirror turns faster than it sends scans (give --sweep-s), biases the landmarks too", a.rate_hz),
+    };
     for m in moved {
         let dir = m.offset_m.normalize();
         tell!(
-            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? The poses that matched it were fitted again without it; update its position in {}, or remove it (a scanner whose beams are not timed as --sweep-s says biases the landmarks too)",
+            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? The poses that matched it were fitted again without it; update its position in {}, or remove it ({mistimed})",
             m.id,
             a.map.display(),
             m.offset_m.norm() * 1e3,
