@@ -279,6 +279,25 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
             && e.contains("cam3/camera_true.json"),
         "{e}"
     );
+    assert!(!e.contains("no floor views"), "{e}");
+    // A camera file without floor views: its height cannot be checked, which is said.
+    let mut bare: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cameras[2]).unwrap()).unwrap();
+    bare.as_object_mut().unwrap().remove("floor");
+    let bare_path = d.join("cam2_without_floor.json");
+    std::fs::write(&bare_path, bare.to_string()).unwrap();
+    let mut unchecked = args.clone();
+    unchecked[4] = p(&bare_path);
+    let other = d.join("other_arena.json");
+    let last = unchecked.len() - 1;
+    unchecked[last] = p(&other);
+    let o = odocal(&unchecked);
+    succeeded(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("cam2_without_floor.json has no floor views, so the camera's height"),
+        "{e}"
+    );
     let videos: Vec<String> = (0..4)
         .map(|k| p(&d.join(format!("video_c{k}"))).to_string())
         .collect();
