@@ -289,6 +289,26 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     );
     std::fs::write(&log, &good).unwrap();
     std::fs::write(&log2, &good2).unwrap();
+    // A log's times in milliseconds are its unit: the advice was to give the robot's own
+    // file with --robot, which would not mend them.
+    let ms: Vec<String> = good
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match l.split_once(',') {
+            Some((t, rest)) if i > 0 => format!("{},{rest}", t.parse::<f64>().unwrap() * 1000.0),
+            _ => l.to_string(),
+        })
+        .collect();
+    std::fs::write(&log, ms.join("\n")).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("are the times in milliseconds?")
+            && e.contains("write the log's times in seconds (divide them by 1000)")
+            && !e.contains("--robot"),
+        "{e}"
+    );
+    std::fs::write(&log, &good).unwrap();
+
     // A trajectory that cannot overlap its log.
     let traj = d.join("runs/run002.trajectory.csv");
     let full = std::fs::read_to_string(&traj).unwrap();
