@@ -289,6 +289,25 @@ fn bad_input_gives_clear_errors_and_writes_nothing() {
     );
     std::fs::write(&log, &good).unwrap();
     std::fs::write(&log2, &good2).unwrap();
+    // A log's times in milliseconds are its unit: the advice was to give the robot's own
+    // file with --robot, which would not mend them.
+    let ms: Vec<String> = good
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match l.split_once(',') {
+            Some((t, rest)) if i > 0 => format!("{},{rest}", t.parse::<f64>().unwrap() * 1000.0),
+            _ => l.to_string(),
+        })
+        .collect();
+    std::fs::write(&log, ms.join("\n")).unwrap();
+    let e = run(&manifest);
+    assert!(
+        e.contains("are the times in milliseconds?")
+            && e.contains("write the log's times in seconds (divide them by 1000)")
+            && !e.contains("--robot"),
+        "{e}"
+    );
+    std::fs::write(&log, &good).unwrap();
 
     // A trajectory that cannot overlap its log.
     let traj = d.join("runs/run002.trajectory.csv");
@@ -1089,6 +1108,33 @@ fn a_camera_that_started_late_or_stopped_early_keeps_the_runs_it_saw() {
             );
         }
     }
+    // A camera that stopped after two whole runs of four: the log's motion, rests between
+    // runs included, spans 35.6 s, and the camera's 19.4 s held 17.1 s of it at its offset,
+    // under half, so no offset was found ("correlation 0.601") and all four were refused.
+    let four = d.join("four");
+    synth(&four, 4, 1, 4);
+    keep_rows(&four.join("runs/rec001.trajectory.csv"), &|t| t < 20.0);
+    let (ds, said) = build_said(&four);
+    let four_oracle = OracleFile::read(&four.join("truth/oracle.json")).unwrap();
+    assert_eq!(ds.samples.len(), 2, "{said}");
+    for s in &ds.samples {
+        let truth = four_oracle.get(&s.run_id).unwrap();
+        let off_m =
+            (s.target_m[0] - truth.true_end_m[0]).hypot(s.target_m[1] - truth.true_end_m[1]);
+        assert!(off_m < 0.002, "{}: target {off_m} m off", s.run_id);
+        assert!(
+            (s.clock_offset_s - truth.clock_offset_s).abs() < 0.01,
+            "{}",
+            s.run_id
+        );
+    }
+    for run in ["rec001.3", "rec001.4"] {
+        let why = rejection(&ds, run);
+        assert!(
+            why.contains("the camera's trajectory ends at 19.43 s, before this run"),
+            "{why}"
+        );
+    }
     // Less than half of the log's motion inside the trajectory is another recording's file.
     std::fs::write(&traj, &full).unwrap();
     keep_rows(&traj, &|t| t < 8.0);
@@ -1136,6 +1182,42 @@ fn a_partly_seen_recording_of_runs_alike_is_not_guessed() {
                 "the camera saw only part of the log's motion, and it fits two clock offsets"
             ) && why.contains("which runs the camera saw cannot be told"),
             "{why}"
+        );
+    }
+    // Two runs at 0.2 m/s, the camera stopped after the first or started before the second:
+    // at its own offset it overlapped the log's motion (rests included) a hair under half,
+    // so only the other run's offset was searched, and that run's log was paired with the
+    // camera's run (offset -11.3 s against 0.98 s, target 69 mm off), exit 0.
+    config["protocol"]["speeds_mps"] = serde_json::json!([0.2]);
+    std::fs::write(&config_path, config.to_string()).unwrap();
+    let two = d.join("two");
+    synth_with(
+        &two,
+        2,
+        1,
+        &["--runs-per-recording", "2", "--config", p(&config_path)],
+    );
+    let traj = two.join("runs/rec001.trajectory.csv");
+    let full = std::fs::read_to_string(&traj).unwrap();
+    for (keep, seen) in [
+        (
+            &(|t: f64| t < 12.5) as &dyn Fn(f64) -> bool,
+            "s the log's 1.4-10.5 s",
+        ),
+        (&|t: f64| t >= 12.5, "s the log's 12.7-21.6 s"),
+    ] {
+        std::fs::write(&traj, &full).unwrap();
+        keep_rows(&traj, keep);
+        let e = fails(&dataset_args(
+            &two.join("manifest.json"),
+            &two.join("dataset.json"),
+            &[],
+        ));
+        assert!(
+            e.contains("rec001.1: the camera saw only part of the log's motion, and it fits two clock offsets")
+                && e.contains(seen)
+                && e.contains("which runs the camera saw cannot be told"),
+            "{e}"
         );
     }
 }

@@ -162,9 +162,10 @@ fn robot_speeds(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
 }
 
 /// Smallest share of the log's motion (from its first moving interval to its last, rests
-/// between runs included) that the trajectory's time span must hold at an offset where it
-/// does not hold the whole motion: more than half, so the speed profiles compared are mostly
-/// the log's own and the runs missed at either end cannot outweigh them.
+/// between runs included) that the trajectory's time span must hold at all; and, at an offset
+/// where it does not hold the whole motion, the share of the shorter of the two (the motion,
+/// the trajectory's span) over which they must overlap: more than half, so the speed profiles
+/// compared are mostly the log's own and the camera's.
 pub const MIN_PARTIAL_COVERAGE: f64 = 0.5;
 
 /// Closest that two clock offsets matching a partly seen log may lie, seconds, and still be
@@ -172,14 +173,22 @@ pub const MIN_PARTIAL_COVERAGE: f64 = 0.5;
 /// and which runs the camera saw is a guess.
 const DISTINCT_OFFSETS_S: f64 = 1.0;
 
+/// Share of the moving intervals the best partial match sees that another match must see to
+/// explain the camera as well: runs alike in speed and rest, one run apart, are seen alike
+/// (a count or two apart as their rows fall); a match that leaves one of two runs the camera
+/// saw beyond the log's ends sees half.
+const ALIKE_SEEN_SHARE: f64 = 0.9;
+
 /// Coarse clock offset of a whole log by speed-profile cross-correlation.
 ///
 /// Offsets that put the log's whole motion inside the trajectory come first, as the
 /// reference experiment records them. Only when none of them correlates at
 /// `opts.min_correlation` (a camera started late or stopped early, or frames missed during a
-/// run) are offsets searched where the trajectory's span holds more than
-/// [`MIN_PARTIAL_COVERAGE`] of the motion and the camera sees at least half of the moving
-/// intervals there; the runs it did not see are then the caller's to reject.
+/// run) are offsets searched where the trajectory's span and the motion overlap over more
+/// than [`MIN_PARTIAL_COVERAGE`] of the shorter and the camera sees at least half of the
+/// moving intervals there; of the offsets that correlate, the one at which the camera sees
+/// the most moving intervals is taken, and the runs it did not see are then the caller's to
+/// reject.
 ///
 /// Fails with [`DatasetError::Mismatch`] when the trajectory is too short to hold most of the
 /// log's motion at any offset (another recording's file), and with
@@ -276,37 +285,61 @@ pub fn coarse_offset(
             return Ok(c);
         }
     }
-    // Part of the motion outside the trajectory or unseen: lags at which the trajectory's
-    // span holds most of the motion and the camera sees most of the moving intervals there.
+    // Part of the motion outside the trajectory or unseen: lags at which the trajectory and
+    // the log's motion overlap over most of the shorter of the two, and the camera sees most
+    // of the moving intervals there. Measured against the motion alone, a camera that saw two
+    // of four runs whole (the rests between them counted as motion) was held to see too
+    // little at its own offset, and every run was refused.
     let lo = c0 - t[m1];
     let steps = ((c1 - t[m0 - 1] - lo) / opts.coarse_step_s).floor() as usize;
+    let overlap_needed_s = MIN_PARTIAL_COVERAGE * motion_s.min(c1 - c0);
     let (mut best_seen, mut scores) = (0, Vec::with_capacity(steps + 1));
+    let mut seen = Vec::with_capacity(steps + 1);
     for j in 0..=steps {
         let lag = lo + j as f64 * opts.coarse_step_s;
         let held = (t[m1] + lag).min(c1) - (t[m0 - 1] + lag).max(c0);
-        if held <= MIN_PARTIAL_COVERAGE * motion_s {
+        if held <= overlap_needed_s {
             scores.push(f64::NEG_INFINITY);
+            seen.push(0);
             continue;
         }
         let (s, moving_ok, inside) = score_at(lag);
         best_seen = best_seen.max(moving_ok);
+        seen.push(moving_ok);
         scores.push(if 2 * moving_ok >= inside.max(1) {
             s
         } else {
             f64::NEG_INFINITY
         });
     }
-    let partial = peak(&scores, lo, opts.coarse_step_s);
-    match (whole.flatten(), partial) {
-        (_, Some(p)) if p.correlation >= opts.min_correlation => {
-            if let Some(other) = other_match(&scores, lo, opts, p.offset_s) {
-                return Err(DatasetError::NoClockOffset(format!(
-                    "the camera saw only part of the log's motion, and it fits two clock offsets, {:.2} s and {other:.2} s (runs alike in speed and rest); which runs the camera saw cannot be told",
-                    p.offset_s
-                )));
-            }
-            Ok(rematch_near(traj, t, &v_robot, first..=last, p, opts))
+    let matches = match_peaks(&scores, opts.min_correlation);
+    // The match that explains most of the log's motion: one that sees fewer of its moving
+    // intervals leaves camera motion unexplained (beyond the log's ends).
+    let most_seen = matches
+        .iter()
+        .copied()
+        .max_by(|&i, &j| seen[i].cmp(&seen[j]).then(scores[i].total_cmp(&scores[j])));
+    if let Some(jp) = most_seen {
+        let p = refined_peak(&scores, jp, lo, opts.coarse_step_s);
+        let lag_of = |j: usize| lo + j as f64 * opts.coarse_step_s;
+        let other = matches.iter().copied().find(|&j| {
+            (lag_of(j) - p.offset_s).abs() >= DISTINCT_OFFSETS_S
+                && seen[j] as f64 >= ALIKE_SEEN_SHARE * seen[jp] as f64
+        });
+        if let Some(jq) = other {
+            let part = |lag: f64| {
+                let (a, b) = ((t[m0 - 1]).max(c0 - lag), t[m1].min(c1 - lag));
+                format!("at {lag:.2} s the log's {a:.1}-{b:.1} s")
+            };
+            return Err(DatasetError::NoClockOffset(format!(
+                "the camera saw only part of the log's motion, and it fits two clock offsets, {} and {} (runs alike in speed and rest); which runs the camera saw cannot be told",
+                part(p.offset_s),
+                part(lag_of(jq))
+            )));
         }
+        return Ok(rematch_near(traj, t, &v_robot, first..=last, p, opts));
+    }
+    match (whole.flatten(), peak(&scores, lo, opts.coarse_step_s)) {
         (Some(w), Some(p)) => Ok(if w.correlation >= p.correlation { w } else { p }),
         (Some(c), None) | (None, Some(c)) => Ok(c),
         (None, None) => Err(DatasetError::NoClockOffset(format!(
@@ -380,42 +413,43 @@ fn peak(scores: &[f64], lo: f64, step: f64) -> Option<CoarseOffset> {
         .iter()
         .enumerate()
         .max_by(|x, y| x.1.total_cmp(y.1))?;
-    if !best.is_finite() {
-        return None;
-    }
-    let mut offset = lo + jbest as f64 * step;
-    if jbest > 0 && jbest + 1 < scores.len() {
-        let (ym, y0, yp) = (scores[jbest - 1], best, scores[jbest + 1]);
+    best.is_finite()
+        .then(|| refined_peak(scores, jbest, lo, step))
+}
+
+/// The lag of `scores[j]` (lags `lo` + j `step`) refined on a parabola through its
+/// neighbours, with its score.
+fn refined_peak(scores: &[f64], j: usize, lo: f64, step: f64) -> CoarseOffset {
+    let mut offset = lo + j as f64 * step;
+    if j > 0 && j + 1 < scores.len() {
+        let (ym, y0, yp) = (scores[j - 1], scores[j], scores[j + 1]);
         let den = ym - 2.0 * y0 + yp;
         if ym.is_finite() && yp.is_finite() && den < 0.0 {
             offset += 0.5 * (ym - yp) / den * step;
         }
     }
-    Some(CoarseOffset {
+    CoarseOffset {
         offset_s: offset,
-        correlation: best,
+        correlation: scores[j],
         rate: 1.0,
-    })
+    }
 }
 
-/// The lag of another stretch of lags correlating at the threshold, at least
-/// [`DISTINCT_OFFSETS_S`] from `best_s`: the log fits the camera there too.
-fn other_match(scores: &[f64], lo: f64, opts: &AlignOptions, best_s: f64) -> Option<f64> {
-    let mut stretches: Vec<(usize, f64)> = Vec::new();
+/// The best lag of each stretch of lags whose `scores` reach `min_correlation`: each stretch
+/// is one way the log fits the camera.
+fn match_peaks(scores: &[f64], min_correlation: f64) -> Vec<usize> {
+    let mut peaks: Vec<usize> = Vec::new();
     let mut inside = false;
     for (j, &s) in scores.iter().enumerate() {
-        let ok = s >= opts.min_correlation;
-        match stretches.last_mut() {
-            Some(top) if ok && inside && s > top.1 => *top = (j, s),
-            _ if ok && !inside => stretches.push((j, s)),
+        let ok = s >= min_correlation;
+        match peaks.last_mut() {
+            Some(top) if ok && inside && s > scores[*top] => *top = j,
+            _ if ok && !inside => peaks.push(j),
             _ => {}
         }
         inside = ok;
     }
-    stretches
-        .into_iter()
-        .map(|(j, _)| lo + j as f64 * opts.coarse_step_s)
-        .find(|lag| (lag - best_s).abs() >= DISTINCT_OFFSETS_S)
+    peaks
 }
 
 /// Robot-clock time each stretch of a rate fit spans, seconds: long enough that its starts,

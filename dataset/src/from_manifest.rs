@@ -37,8 +37,14 @@ fn one_row(
         .count_note()
         .map(|n| format!("{}: {n}", log_path.display()));
     if let Some(why) = log.period_mismatch(opts.robot.period_s) {
+        // Times in milliseconds are the log's unit: another robot file would not mend them.
+        let advice = if log.times_in_milliseconds(opts.robot.period_s) {
+            "; write the log's times in seconds (divide them by 1000)"
+        } else {
+            " (period_s); give the robot's own file with --robot, or a log of this robot"
+        };
         return Err(DatasetError::Mismatch(format!(
-            "{}: {why} (period_s); give the robot's own file with --robot, or a log of this robot",
+            "{}: {why}{advice}",
             log_path.display()
         )));
     }

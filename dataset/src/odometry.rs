@@ -174,7 +174,7 @@ impl OdometryLog {
         let p = self
             .mean_period_s()
             .filter(|p| (p / period_s - 1.0).abs() > PERIOD_TOLERANCE + 1e-9)?;
-        let unit = if (p / period_s / 1000.0 - 1.0).abs() < 0.05 {
+        let unit = if Self::in_milliseconds(p, period_s) {
             " (1000 times that: are the times in milliseconds? they must be in seconds)"
         } else {
             ""
@@ -182,6 +182,17 @@ impl OdometryLog {
         Some(format!(
             "rows are {p:.3} s apart, but the robot logs every {period_s:.3} s{unit}"
         ))
+    }
+
+    /// Whether the log's mean period is `period_s` in milliseconds, so that
+    /// [`Self::period_mismatch`] is the log's unit, which no robot file mends.
+    pub fn times_in_milliseconds(&self, period_s: f64) -> bool {
+        self.mean_period_s()
+            .is_some_and(|p| Self::in_milliseconds(p, period_s))
+    }
+
+    fn in_milliseconds(mean_period_s: f64, period_s: f64) -> bool {
+        (mean_period_s / period_s / 1000.0 - 1.0).abs() < 0.05
     }
 
     /// The first step among rows `first..=last` (0-based) whose interval is off the robot's
@@ -620,6 +631,8 @@ mod tests {
         assert!(every(0.4).period_mismatch(0.2).is_some());
         let ms = every(200.0).period_mismatch(0.2).expect("ms");
         assert!(ms.contains("are the times in milliseconds?"), "{ms}");
+        assert!(every(200.0).times_in_milliseconds(0.2));
+        assert!(!every(0.4).times_in_milliseconds(0.2) && !every(0.2).times_in_milliseconds(0.2));
     }
 
     #[test]
