@@ -4,6 +4,8 @@
 
 mod common;
 
+use std::path::Path;
+
 use common::{fails, odocal, ok, p, succeeded};
 
 #[test]
@@ -402,4 +404,35 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     succeeded(&with_late("0.2"));
     let e = String::from_utf8_lossy(&with_late("-1").stderr).into_owned();
     assert!(e.contains("--max-clock-offset-s -1"), "{e}");
+    // Camera 1 at half the others' frame rate (every other frame of its folder): accepted,
+    // its rate named, and the rows at the fastest rate on camera 0's frames, as many as with
+    // all at 30 frames/s (before: refused, "the arena's cameras must share one frame rate").
+    let half = d.join("half_c1");
+    std::fs::create_dir_all(&half).unwrap();
+    let stamps = std::fs::read_to_string(videos[1].clone() + "/timestamps.csv").unwrap();
+    let kept: Vec<&str> = stamps
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| *i == 0 || i % 2 == 1)
+        .map(|(_, l)| l)
+        .collect();
+    for l in &kept[1..] {
+        let f = l.split_once(',').unwrap().0;
+        std::fs::copy(Path::new(&videos[1]).join(f), half.join(f)).unwrap();
+    }
+    std::fs::write(half.join("timestamps.csv"), kept.join("\n") + "\n").unwrap();
+    let mut a = vec!["track", "--arena", p(&arena), &videos[0], p(&half)];
+    a.extend(videos[2..].iter().map(String::as_str));
+    let out4 = d.join("half.csv");
+    a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out4)]);
+    let said = ok(&a);
+    assert!(
+        said.contains("frame rates 30.000, 15.000, 30.000, 30.000 frames/s")
+            && said.contains(
+                "the fused rows are 30.000 a second (the fastest camera's rate), on its frames"
+            ),
+        "{said}"
+    );
+    let rows = |f: &str| std::fs::read_to_string(d.join(f)).unwrap().lines().count();
+    assert_eq!(rows("half_tag0.csv"), rows("robot_tag0.csv"));
 }

@@ -27,8 +27,8 @@ pub use error::ArenaError;
 pub use file::{ArenaCamera, ArenaFile, Consistency, PairConsistency, ARENA_FORMAT};
 pub use fuse::{
     estimate_clock_offsets, fix_weight, fuse_robot, Agreement, CameraFix, CameraTrack,
-    ClockOffsets, ClockRate, Disagreement, FuseOptions, FusedTrack, Handoff, DISAGREE_SIGMAS,
-    MAX_RATE_PPM, MIN_RATE_SPAN_S,
+    ClockOffsets, ClockRate, Disagreement, FuseGrid, FuseOptions, FusedTrack, Handoff,
+    DISAGREE_SIGMAS, MAX_RATE_PPM, MIN_RATE_SPAN_S,
 };
 pub use graph::{
     build_arena, height_warnings, shared_residual_warnings, solve_arena, ArenaSolution,
@@ -36,8 +36,8 @@ pub use graph::{
 };
 pub use shared::{detect_shared, parse_shared_name, SharedView};
 pub use track::{
-    camera_tracks, check_frame_folders, clock_priors, fuse_all, track_camera, track_cameras,
-    ArenaTracking, CameraResult,
+    camera_tracks, check_frame_folders, clock_priors, frame_period_s, fuse_all, track_camera,
+    track_cameras, ArenaTracking, CameraResult,
 };
 pub use track_file::{
     ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,

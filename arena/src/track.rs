@@ -14,8 +14,8 @@ use odocal_tracker::{open_source, Fix, Outcome, SourceOptions, TrackOptions, Tra
 use crate::fuse::{estimate_clock_offsets, fix_weight, fuse_robot};
 use crate::graph::camera_pose;
 use crate::{
-    ArenaCamera, ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseOptions,
-    FusedTrack,
+    ArenaCamera, ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseGrid,
+    FuseOptions, FusedTrack,
 };
 
 /// One camera's tracking: every selected tag's result.
@@ -102,6 +102,20 @@ pub fn track_cameras(
     }
 }
 
+/// A camera's frame period, seconds: the median interval between its frames (every tag's
+/// records are every frame, fix or gap, so dropped frames do not count); none with fewer
+/// than two frames.
+pub fn frame_period_s(result: &CameraResult) -> Option<f64> {
+    let records = &result.values().next()?.records;
+    let mut dt: Vec<f64> = records
+        .windows(2)
+        .map(|w| w[1].t_s - w[0].t_s)
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    dt.sort_by(f64::total_cmp);
+    dt.get(dt.len() / 2).copied()
+}
+
 /// Every camera's fixes as [`CameraTrack`]s with their fusion weights.
 pub fn camera_tracks(
     arena: &ArenaFile,
@@ -111,6 +125,10 @@ pub fn camera_tracks(
     let mut tracks = Vec::new();
     for (k, per_id) in results.iter().enumerate() {
         let cam = &arena.cameras[k];
+        // Two fixes make a track, and their frames a period.
+        let Some(period_s) = frame_period_s(per_id) else {
+            continue;
+        };
         for (id, result) in per_id {
             let fixes: Vec<CameraFix> = result
                 .records
@@ -125,6 +143,7 @@ pub fn camera_tracks(
                     camera: k,
                     tag_id: *id,
                     fixes,
+                    period_s,
                 });
             }
         }
@@ -224,6 +243,10 @@ pub struct ArenaTracking {
     pub prior_s: Vec<f64>,
     /// One fused trajectory per tag id seen, in id order.
     pub robots: Vec<FusedTrack>,
+    /// Each camera's frame period, seconds ([`frame_period_s`]; none without two frames).
+    pub frame_period_s: Vec<Option<f64>>,
+    /// The fused rows' instants.
+    pub grid: FuseGrid,
     /// Every camera's fixes, for plots.
     pub tracks: Vec<CameraTrack>,
 }
@@ -279,26 +302,33 @@ pub fn fuse_all(
     let prior_s = clock_priors(results, opts.max_offset_s);
     let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts, &prior_s)?;
     // The fused rows fall on the reference camera's frames, its first frame time the grid's
-    // origin (its records are every frame, fix or gap).
-    let opts = &FuseOptions {
-        grid_origin_s: results
+    // origin (its records are every frame, fix or gap), every frame of the fastest camera
+    // that saw a robot: on all the reference camera's frames when it is that fast, or a
+    // whole multiple slower.
+    let grid = FuseGrid {
+        origin_s: results
             .get(offsets.reference)
             .and_then(|per_id| per_id.values().next())
             .and_then(|r| r.records.first())
             .map_or(0.0, |r| r.t_s),
-        ..*opts
+        period_s: tracks
+            .iter()
+            .map(|t| t.period_s)
+            .fold(f64::INFINITY, f64::min),
     };
     let mut ids: Vec<u32> = tracks.iter().map(|t| t.tag_id).collect();
     ids.sort_unstable();
     ids.dedup();
     let robots = ids
         .iter()
-        .map(|id| fuse_robot(*id, &tracks, &offsets, opts))
+        .map(|id| fuse_robot(*id, &tracks, &offsets, opts, &grid))
         .collect::<Result<Vec<_>, _>>()?;
     Ok(ArenaTracking {
         offsets,
         prior_s,
         robots,
+        frame_period_s: results.iter().map(frame_period_s).collect(),
+        grid,
         tracks,
     })
 }

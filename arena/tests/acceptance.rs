@@ -181,7 +181,7 @@ fn arena_meets_the_bounds() {
         &arena,
         &results,
         truth.marker_height_m,
-        &FuseOptions::for_fps(scene.fps),
+        &FuseOptions::default(),
     )
     .unwrap();
     for (k, c) in truth.cameras.iter().enumerate() {
@@ -382,6 +382,28 @@ fn fused_rms(
         .collect()
 }
 
+/// Error/σ RMS per axis of every fused robot against its truth (camera 0's clock).
+fn fused_z_rms(tracking: &odocal_arena::ArenaTracking, truths: &[(u32, Trajectory)]) -> Vec<f64> {
+    tracking
+        .robots
+        .iter()
+        .map(|r| {
+            let own = &truths.iter().find(|(i, _)| *i == r.tag_id).unwrap().1;
+            let z: Vec<f64> = r
+                .trajectory
+                .rows
+                .iter()
+                .flat_map(|row| {
+                    let e = row.pose.position() - own.position_at(row.t_s, 0.01).unwrap();
+                    let s = row.sigma.expect("fused rows carry σ");
+                    [e.x / s.x_m, e.y / s.y_m]
+                })
+                .collect();
+            (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt()
+        })
+        .collect()
+}
+
 /// The same tracking with one camera's frames perturbed in memory.
 fn perturbed_cameras(
     arena: &odocal_arena::ArenaFile,
@@ -391,7 +413,7 @@ fn perturbed_cameras(
     fps: f64,
 ) {
     use odocal_tracker::Outcome;
-    let opts = FuseOptions::for_fps(fps);
+    let opts = FuseOptions::default();
     let retime = |r: &mut odocal_arena::CameraResult, f: &dyn Fn(usize, f64) -> f64| {
         for rec in r.values_mut().flat_map(|t| t.records.iter_mut()) {
             rec.t_s = f(rec.index, rec.t_s);
@@ -445,6 +467,65 @@ fn perturbed_cameras(
     assert!(rms.iter().all(|r| *r <= 1.5e-3), "{rms:?}");
     eprintln!("camera 0 blank: position RMS {rms:?} m on camera 1's clock");
     assert_eq!(tracking.robots.len(), 2);
+    // Cameras at their own frame rates (before: refused, "the arena's cameras must share one
+    // frame rate"): camera 1 at half the others' rate (every other frame dropped), and camera
+    // 0, the arena clock's, at twice the others' (theirs dropped). The rows stay at 30 a second
+    // on camera 0's frames, and every robot's position RMS and error/σ against the truth stay
+    // within 0.3 mm and 1.0 of the one-rate run's, and within the bounds above.
+    let one_rate = fuse_all(arena, results, marker_height_m, &opts).unwrap();
+    let halve = |r: &mut odocal_arena::CameraResult| {
+        for t in r.values_mut() {
+            t.records.retain(|rec| rec.index % 2 == 0);
+        }
+    };
+    let mut slow_1 = results.to_vec();
+    halve(&mut slow_1[1]);
+    let mut fast_0 = results.to_vec();
+    fast_0[1..].iter_mut().for_each(halve);
+    let base = (
+        fused_rms(&one_rate, truths, 0.0),
+        fused_z_rms(&one_rate, truths),
+    );
+    for (name, mixed) in [
+        ("camera 1 at half", &slow_1),
+        ("camera 0 at twice", &fast_0),
+    ] {
+        let tracking = fuse_all(arena, mixed, marker_height_m, &opts).unwrap();
+        let (rms, z) = (
+            fused_rms(&tracking, truths, 0.0),
+            fused_z_rms(&tracking, truths),
+        );
+        eprintln!(
+            "{name} the others' frame rate: position RMS {rms:?} m, error/σ RMS {z:?} (one rate: {:?} m, {:?})",
+            base.0, base.1
+        );
+        assert!(
+            (tracking.grid.period_s * fps - 1.0).abs() < 1e-3,
+            "{:?}",
+            tracking.grid
+        );
+        for (k, r) in tracking.robots.iter().enumerate() {
+            assert!(rms[k] <= (base.0[k] + 3e-4).min(1.5e-3), "{name}: {rms:?}");
+            assert!(
+                z[k] <= base.1[k] + 1.0 && (0.4..=2.5).contains(&z[k]),
+                "{name}: {z:?}"
+            );
+            let plain = &one_rate.robots[k].trajectory.rows;
+            assert!(
+                r.trajectory.rows.len() + 2 >= plain.len(),
+                "{name}: {} rows",
+                r.trajectory.rows.len()
+            );
+            for row in &r.trajectory.rows {
+                let frames = (row.t_s - plain[0].t_s) * fps;
+                assert!(
+                    (frames - frames.round()).abs() < 1e-3,
+                    "{name}: {}",
+                    row.t_s
+                );
+            }
+        }
+    }
     // Epoch timestamps: the fused rows stay on camera 0's frames (before: 24.7 ms off them).
     let epoch = 1_764_000_000.0;
     let mut late = results.to_vec();

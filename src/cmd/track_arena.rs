@@ -332,10 +332,9 @@ fn track_arena(
             }
         }
     }
-    let fps = frame_rate(&results, &videos)?;
     let fuse = FuseOptions {
         max_offset_s: m.max_clock_offset_s,
-        ..FuseOptions::for_fps(fps)
+        ..FuseOptions::default()
     };
     let mut tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
     // The cameras fuse the tags' positions; the robots' are taken off the mount after.
@@ -365,16 +364,7 @@ fn track_arena(
             }
         }
     }
-    say!(
-        "frame rate {fps:.3} frames/s; each camera's clock gets an offset, and a rate where its overlaps span {} s or more",
-        odocal_arena::MIN_RATE_SPAN_S
-    );
-    if tracking.offsets.reference != 0 {
-        say!(
-            "the arena clock is camera {}'s, the first camera that saw a robot; the fused times fall on its frames",
-            tracking.offsets.reference
-        );
-    }
+    say_frame_rates(&tracking);
     say_clocks(&tracking, &videos, m.max_clock_offset_s);
     if tracking.offsets.pairs.is_empty() {
         say!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
@@ -544,43 +534,44 @@ fn say_disagreements(
     }
 }
 
-/// The common frame rate: each camera's median frame interval, which must agree (the fusion
-/// assumes one frame rate for all cameras).
-fn frame_rate(results: &[odocal_arena::CameraResult], videos: &[PathBuf]) -> anyhow::Result<f64> {
-    let mut rates = Vec::new();
-    for (k, per_id) in results.iter().enumerate() {
-        let Some(first) = per_id.values().next() else {
-            bail!(
-                "no selected tag was tracked in {}: check --tags",
-                videos[k].display()
-            );
-        };
-        let mut dt: Vec<f64> = first
-            .records
-            .windows(2)
-            .map(|w| w[1].t_s - w[0].t_s)
-            .filter(|d| *d > 0.0)
-            .collect();
-        dt.sort_by(f64::total_cmp);
-        match dt.get(dt.len() / 2) {
-            Some(d) if d.is_finite() && *d > 0.0 => rates.push(1.0 / d),
-            _ => bail!(
-                "{}: too few frames to tell the frame rate",
-                videos[k].display()
-            ),
-        }
-    }
-    for (k, r) in rates.iter().enumerate() {
-        if (r / rates[0] - 1.0).abs() > 0.005 {
-            bail!(
-                "{} runs at {r:.3} frames/s but {} at {:.3}: the arena's cameras must share one frame rate (set them alike and record again)",
-                videos[k].display(),
-                videos[0].display(),
-                rates[0]
-            );
-        }
-    }
-    Ok(rates[0])
+/// Each camera's frame rate, and the instants the fused rows fall on.
+fn say_frame_rates(tracking: &odocal_arena::ArenaTracking) {
+    let rates: Vec<String> = tracking
+        .frame_period_s
+        .iter()
+        .map(|p| p.map_or("-".to_string(), |p| format!("{:.3}", 1.0 / p)))
+        .collect();
+    say!(
+        "frame rates {} frames/s (cameras 0-{}); each camera's clock gets an offset, and a rate where its overlaps span {} s or more",
+        rates.join(", "),
+        rates.len().saturating_sub(1),
+        odocal_arena::MIN_RATE_SPAN_S
+    );
+    let reference = tracking.offsets.reference;
+    let whose = if reference == 0 {
+        "the first camera's".to_string()
+    } else {
+        format!("camera {reference}'s, the first camera that saw a robot")
+    };
+    // The rows fall on the reference camera's frames when the fastest rate is a whole
+    // multiple of its own.
+    let per_frame = tracking
+        .frame_period_s
+        .get(reference)
+        .copied()
+        .flatten()
+        .map(|p| p / tracking.grid.period_s)
+        .filter(|n| (n - n.round()).abs() < 0.01)
+        .map(f64::round);
+    let placed = match per_frame {
+        Some(n) if n <= 1.0 => "on its frames".to_string(),
+        Some(n) => format!("on its frames and {} between each two", n - 1.0),
+        None => "from its first frame".to_string(),
+    };
+    say!(
+        "the arena clock is {whose}; the fused rows are {:.3} a second (the fastest camera's rate), {placed}",
+        1.0 / tracking.grid.period_s
+    );
 }
 
 /// Each robot's error against the synthetic truth, and the offsets against the true ones.
