@@ -284,22 +284,30 @@ impl<'a> FloorBoards<'a> {
     /// Every corner's reprojection error over its noise (x, y in turn), with camera `camera`
     /// and parameters `p`; NaN where a corner falls behind the camera.
     pub fn weighted_residuals(&self, camera: &CameraModel, p: &[f64]) -> Vec<f64> {
+        self.board_residuals_px(camera, p)
+            .iter()
+            .zip(&self.weight)
+            .flat_map(|(r, w)| r.iter().map(move |e| e * w))
+            .collect()
+    }
+
+    /// Each board's reprojection errors held on the floor of parameters `p`, pixels (x, y in
+    /// turn); NaN where a corner falls behind the camera.
+    pub(crate) fn board_residuals_px(&self, camera: &CameraModel, p: &[f64]) -> Vec<Vec<f64>> {
         let floor = self.floor(p).0;
-        let mut r = Vec::new();
-        for (k, v) in self.views.iter().enumerate() {
-            let pose = floor * self.board_to_floor(p, k);
-            let o = Observation {
-                pose: BoardToCamera(pose),
-                object: &v.object_points,
-                image: &v.corners,
-            };
-            r.extend(
+        self.views
+            .iter()
+            .enumerate()
+            .map(|(k, v)| {
+                let pose = floor * self.board_to_floor(p, k);
+                let o = Observation {
+                    pose: BoardToCamera(pose),
+                    object: &v.object_points,
+                    image: &v.corners,
+                };
                 residuals(camera, &pose, &o)
-                    .iter()
-                    .map(|e| e * self.weight[k]),
-            );
-        }
-        r
+            })
+            .collect()
     }
 
     /// The floor plane of parameters `p`, with the PnP corners' scatter about it (which says

@@ -60,9 +60,10 @@ pub fn held_out_errors(
     model: LensModel,
 ) -> Result<Vec<f64>, CalibError> {
     let folds = FOLDS.min(views.len());
-    if views.len() < 4 {
+    if views.len() < crate::session::AUTO_MIN_VIEWS {
         return Err(CalibError::Input(format!(
-            "judging a lens model on held-out views needs at least 4 views, there are {}",
+            "judging a lens model on held-out views needs at least {} views, there are {}: add views, or give the lens model (--model pinhole5, or fisheye or rational for a wide lens)",
+            crate::session::AUTO_MIN_VIEWS,
             views.len()
         )));
     }

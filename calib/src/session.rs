@@ -303,6 +303,31 @@ fn worst_views(views: &[crate::ViewResidual], n: usize) -> Vec<String> {
         .collect()
 }
 
+/// The fewest views `--model auto` can judge lens models on: each is left out in turn and
+/// located with the calibration of the others, which Zhang's method needs 3 for.
+pub const AUTO_MIN_VIEWS: usize = 4;
+
+/// `choice`, or pinhole5 with a warning in `notes` when `--model auto` has too few views
+/// (`n_views`) to judge lens models on: 3 views calibrate (README), so refusing them for
+/// want of a judgement would stop a user whom OpenCV's default model serves; the two model
+/// steps auto would have taken are counted on `on_step`.
+fn auto_or_pinhole5(
+    choice: ModelChoice,
+    n_views: usize,
+    notes: &mut Vec<String>,
+    on_step: &(dyn Fn() + Sync),
+) -> ModelChoice {
+    if choice != ModelChoice::Auto || n_views >= AUTO_MIN_VIEWS {
+        return choice;
+    }
+    notes.push(format!(
+        "warning: --model auto judges lens models on views left out of the calibration, which needs at least {AUTO_MIN_VIEWS} views, and there are {n_views}: pinhole5 (OpenCV's default model) is calibrated unjudged; add views for the model to be chosen, or give --model fisheye or --model rational for a wide lens"
+    ));
+    on_step();
+    on_step();
+    ModelChoice::Fixed(LensModel::Pinhole5)
+}
+
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
 /// `on_image` is called after each image's detection and after each model's cross-validation
 /// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise).
@@ -381,6 +406,7 @@ pub fn calibrate_session(
             views[0].image
         ));
     }
+    let choice = auto_or_pinhole5(choice, views.len(), &mut notes, on_image);
     let (model, model_comparison, held_out) = match choice {
         ModelChoice::Auto => {
             let scores = compare_models(&views, board, &|_| on_image())?;
@@ -491,13 +517,14 @@ pub fn calibrate_session(
         let boards = FloorBoards::locate(&cal.camera, &fviews, board, corner_sigma_px)?;
         let fitted = boards.fit_parameters(&cal.camera);
         let plane = boards.plane(&fitted);
-        crate::floor_consistency::check_floor_fits_camera(
+        notes.extend(crate::floor_consistency::check_floor_fits_camera(
             &cal.camera,
+            &cal.covariance,
             &boards,
             &fitted,
             &plane,
             cal.rms_px,
-        )?;
+        )?);
         if !CEILING_HEIGHT_M.contains(&plane.camera_height_m) {
             notes.push(format!(
                 "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is --square {} the side of one square in metres? (a square 10 times too large makes every floor distance 10 times too large)",
