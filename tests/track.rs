@@ -1203,6 +1203,47 @@ fn a_tag_off_the_axle_is_named_and_taken_off() {
     }
 }
 
+/// Two recordings joined into one (here one recording's second half played before its first):
+/// the step across the leap the tracker rejected as a jump was taken into the tag-mount fit,
+/// and a straight-mounted tag was named turned (the brief's two joined videos: "+50.2°, give
+/// --tag-yaw 50.2" and "--tag-offset 0.177,0", following which put the track 177 mm and 50°
+/// off; this join: "-2.5°"). Fits over consecutive fixes take their steps within each
+/// continuous run.
+#[test]
+fn steps_across_a_rejected_jump_are_no_motion_of_the_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 90, 1, &["--video", "png"]);
+    let (frames, joined) = (d.join("frames"), d.join("joined"));
+    std::fs::create_dir(&joined).unwrap();
+    for k in 0..90 {
+        std::fs::rename(
+            frames.join(format!("frame_{k:06}.png")),
+            joined.join(format!("frame_{:06}.png", (k + 45) % 90)),
+        )
+        .unwrap();
+    }
+    let report = d.join("report.json");
+    let res = odocal(&[
+        "track",
+        p(&joined),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+        "--fps",
+        "30",
+        "--report",
+        p(&report),
+    ]);
+    succeeded(&res);
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert!(!e.contains("warning"), "{e}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["rejections"]["impossible jump"]["frames"], 3, "{r}");
+}
+
 /// Tracks `dir`'s PNG frames with `extra` options: the warnings, and the position and heading
 /// RMS against its truth.
 fn track_png(dir: &std::path::Path, extra: &[&str]) -> (String, f64, f64) {

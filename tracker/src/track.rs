@@ -40,6 +40,10 @@ use crate::uncertainty::{
 };
 use crate::TrackError;
 
+/// Fixes further apart than this, seconds, are not taken as one motion (the robot may have
+/// done anything between them).
+pub const MAX_CONTINUOUS_S: f64 = 0.5;
+
 /// Tracking settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackOptions {
@@ -1106,6 +1110,35 @@ impl TrackResult {
         let tag = Trajectory::new(rows)
             .map_err(|e| TrackError::Mismatch(format!("frame timestamps: {e}")))?;
         Ok(self.tag_to_robot.robot_trajectory(&tag))
+    }
+
+    /// The fixes in runs of one continuous motion, as ranges of their indices (in
+    /// [`Self::fixes`], and the trajectory's rows). A run ends at a rejected jump (two
+    /// recordings joined, a robot lifted and set down: the step across it is no motion of the
+    /// robot, and its chord alone named a straight-mounted tag turned 50°) and where the fixes
+    /// are more than [`MAX_CONTINUOUS_S`] apart. Fits over consecutive fixes take their steps
+    /// within runs.
+    pub fn continuous_runs(&self) -> Vec<std::ops::Range<usize>> {
+        let mut runs = Vec::new();
+        let (mut start, mut fixes) = (0, 0);
+        let (mut last_s, mut jumped) = (f64::NEG_INFINITY, false);
+        for r in &self.records {
+            match &r.outcome {
+                Outcome::Gap(reason) => jumped |= *reason == GapReason::Jump,
+                Outcome::Fix(f) => {
+                    if fixes > start && (jumped || f.t_s - last_s > MAX_CONTINUOUS_S) {
+                        runs.push(start..fixes);
+                        start = fixes;
+                    }
+                    (last_s, jumped) = (f.t_s, false);
+                    fixes += 1;
+                }
+            }
+        }
+        if fixes > start {
+            runs.push(start..fixes);
+        }
+        runs
     }
 
     /// Runs of frames without a pose.
