@@ -1192,6 +1192,12 @@ impl TrackResult {
         }
         let mut reasons: Vec<(GapReason, Vec<&FrameRecord>)> = by_reason.into_iter().collect();
         reasons.sort_by_key(|(_, frames)| std::cmp::Reverse(frames.len()));
+        // One robot carries one tag: many ids, and the tracked one never with a tag's shape,
+        // are another family's tags (or the floor's texture) read as this one's small codes.
+        // That is said first, and the size the misread corners span is no tag size to give
+        // (a tag36h11 video read as tag16h5 was told "give --tag-size 0.1310", still refused).
+        let wrong_family = self.seen_ids.len() >= FALSE_FAMILY_IDS
+            && reasons.iter().any(|(r, _)| *r == GapReason::BadGeometry);
         let parts: Vec<String> = reasons
             .iter()
             .map(|(reason, frames)| {
@@ -1209,6 +1215,11 @@ impl TrackResult {
                         fmt_opt(margin, 1),
                         opts.min_decision_margin,
                         fmt_opt(median(rej.iter().map(|r| r.hamming as f64).collect()), 0)
+                    ),
+                    GapReason::BadGeometry if wrong_family => format!(
+                        " (median corner reprojection {} px, accepted up to {} px)",
+                        fmt_opt(reproj, 2),
+                        opts.max_reprojection_px,
                     ),
                     GapReason::BadGeometry => format!(
                         " (median corner reprojection {} px, accepted up to {} px: {})",
@@ -1233,22 +1244,16 @@ impl TrackResult {
                 format!("{} {}{figures}", frames.len(), reason.as_str())
             })
             .collect();
-        // One robot carries one tag: many ids, none with a tag's shape, are another family's
-        // tags (or the floor's texture) read as this one's small codes.
-        let family_hint = if self.seen_ids.len() >= FALSE_FAMILY_IDS
-            && reasons
-                .first()
-                .is_some_and(|(r, _)| *r == GapReason::BadGeometry)
-        {
+        let family_hint = if wrong_family {
             format!(
-                "; {} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family (tag36h11 unless the tag says otherwise)",
+                "{} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family (tag36h11 unless the tag says otherwise) before anything else; ",
                 self.seen_ids.len()
             )
         } else {
             String::new()
         };
         format!(
-            "tag {} ({}) was detected but never accepted in {n} frames of {}: {}; {}{family_hint}",
+            "tag {} ({}) was detected but never accepted in {n} frames of {}: {family_hint}{}; {}",
             opts.tag_id,
             opts.family,
             path.display(),
