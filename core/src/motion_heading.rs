@@ -7,7 +7,7 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use crate::pose::wrap_angle;
-use crate::trajectory::Trajectory;
+use crate::trajectory::{Trajectory, TrajectoryRow};
 
 /// A step: the position moved at least this far, metres (tracking noise is fractions of a
 /// millimetre, so its direction is good to a degree).
@@ -41,21 +41,29 @@ impl MotionAgainstHeading {
     /// The straight steps of `trajectory` with its theta read as `theta * theta_scale`
     /// radians (π/180 reads it as degrees).
     pub fn of(trajectory: &Trajectory, theta_scale: f64) -> Self {
-        let rows = &trajectory.rows;
+        Self::of_runs(&[&trajectory.rows], theta_scale)
+    }
+
+    /// As [`Self::of`], over the steps within each of `runs`, stretches of one continuous
+    /// motion: the chord from one run's end to the next one's start is no direction the robot
+    /// drove (two recordings joined, a robot lifted and set down).
+    pub fn of_runs(runs: &[&[TrajectoryRow]], theta_scale: f64) -> Self {
         let mut angles_rad = Vec::new();
-        let mut anchor = 0;
-        for i in 1..rows.len() {
-            let (a, b) = (&rows[anchor].pose, &rows[i].pose);
-            let (dx, dy) = (b.x_m - a.x_m, b.y_m - a.y_m);
-            if dx.hypot(dy) < STEP_M {
-                continue;
+        for rows in runs {
+            let mut anchor = 0;
+            for i in 1..rows.len() {
+                let (a, b) = (&rows[anchor].pose, &rows[i].pose);
+                let (dx, dy) = (b.x_m - a.x_m, b.y_m - a.y_m);
+                if dx.hypot(dy) < STEP_M {
+                    continue;
+                }
+                let turn = wrap_angle(theta_scale * (b.theta_rad - a.theta_rad));
+                if turn.abs() <= STRAIGHT_RAD {
+                    let heading = theta_scale * a.theta_rad + 0.5 * turn;
+                    angles_rad.push(wrap_angle(dy.atan2(dx) - heading));
+                }
+                anchor = i;
             }
-            let turn = wrap_angle(theta_scale * (b.theta_rad - a.theta_rad));
-            if turn.abs() <= STRAIGHT_RAD {
-                let heading = theta_scale * a.theta_rad + 0.5 * turn;
-                angles_rad.push(wrap_angle(dy.atan2(dx) - heading));
-            }
-            anchor = i;
         }
         Self { angles_rad }
     }

@@ -121,6 +121,27 @@ const MIN_STEPS: usize = 10;
 /// Turning needed to judge the distance ahead, radians (90° in all).
 const MIN_TURN_RAD: f64 = std::f64::consts::FRAC_PI_2;
 
+/// The steps of one run of rows for the mount fit: from each step's end to the first row that
+/// moved [`STEP_M`] or turned [`STEP_TURN_RAD`] from it, none over more than [`MAX_STEP_S`].
+fn mount_steps(rows: &[TrajectoryRow]) -> Vec<(&TrajectoryRow, &TrajectoryRow)> {
+    let mut steps = Vec::new();
+    let mut anchor = 0;
+    for i in 1..rows.len() {
+        let (a, b) = (&rows[anchor], &rows[i]);
+        if b.t_s - a.t_s > MAX_STEP_S {
+            anchor = i;
+            continue;
+        }
+        let moved_m = (b.pose.position() - a.pose.position()).norm();
+        let turn = wrap_angle(b.pose.theta_rad - a.pose.theta_rad);
+        if moved_m >= STEP_M || turn.abs() >= STEP_TURN_RAD {
+            steps.push((a, b));
+            anchor = i;
+        }
+    }
+    steps
+}
+
 /// Where a trajectory's point and heading sit on a differential-drive robot, read off the
 /// trajectory alone. Over a step the axle midpoint moves along the robot's mean heading; a
 /// point `a` ahead of it moves `2 a sin(Δθ/2)` further to the left while the robot turns by
@@ -155,25 +176,23 @@ impl MountFit {
 
     /// Fits the mount to every step of `trajectory`; `None` with fewer than 10 steps.
     pub fn of(trajectory: &Trajectory) -> Option<Self> {
-        let rows = &trajectory.rows;
+        Self::of_runs(&[&trajectory.rows])
+    }
+
+    /// Fits the mount to the steps within each of `runs`, stretches of one continuous motion:
+    /// the step from one run's last row to the next run's first is no motion of the robot
+    /// (two recordings joined, a robot lifted and set down), and its chord alone turned a
+    /// straight-driven tag's fit by 50°. `None` with fewer than 10 steps.
+    pub fn of_runs(runs: &[&[TrajectoryRow]]) -> Option<Self> {
         // Sums for the fit of n·z = a·s, with z the step in the heading's frame (u forwards,
         // w to the left), s = 2 sin(Δθ/2) and n = (sin ψ, cos ψ) the robot's left in it.
         let (mut suu, mut suw, mut sww, mut ssu, mut ssw, mut sss) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut su, mut sw) = (0.0, 0.0);
         let mut turned_rad = 0.0;
         let mut steps = 0usize;
-        let mut anchor = 0;
-        for i in 1..rows.len() {
-            let (a, b) = (&rows[anchor], &rows[i]);
-            if b.t_s - a.t_s > MAX_STEP_S {
-                anchor = i;
-                continue;
-            }
+        for (a, b) in runs.iter().flat_map(|rows| mount_steps(rows)) {
             let (dx, dy) = (b.pose.x_m - a.pose.x_m, b.pose.y_m - a.pose.y_m);
             let turn = wrap_angle(b.pose.theta_rad - a.pose.theta_rad);
-            if dx.hypot(dy) < STEP_M && turn.abs() < STEP_TURN_RAD {
-                continue;
-            }
             let (sm, cm) = (a.pose.theta_rad + 0.5 * turn).sin_cos();
             let u = cm * dx + sm * dy;
             let w = -sm * dx + cm * dy;
@@ -188,7 +207,6 @@ impl MountFit {
             sw += w;
             turned_rad += turn.abs();
             steps += 1;
-            anchor = i;
         }
         if steps < MIN_STEPS {
             return None;

@@ -331,7 +331,12 @@ pub fn fix_warnings(
         );
     }
     if let Ok(trajectory) = result.trajectory() {
-        warnings.extend(mount_warnings(&trajectory, &result.tag_to_robot));
+        let runs: Vec<&[odocal_core::TrajectoryRow]> = result
+            .continuous_runs()
+            .into_iter()
+            .map(|r| &trajectory.rows[r])
+            .collect();
+        warnings.extend(mount_warnings_of_runs(&runs, &result.tag_to_robot));
     }
     warnings
 }
@@ -347,6 +352,15 @@ pub fn mount_warnings(
     trajectory: &odocal_core::Trajectory,
     mount: &odocal_core::TagToRobot,
 ) -> Vec<String> {
+    mount_warnings_of_runs(&[&trajectory.rows], mount)
+}
+
+/// [`mount_warnings`] over the steps within each of `runs`, stretches of one continuous
+/// motion (see [`crate::TrackResult::continuous_runs`]).
+pub fn mount_warnings_of_runs(
+    runs: &[&[odocal_core::TrajectoryRow]],
+    mount: &odocal_core::TagToRobot,
+) -> Vec<String> {
     use odocal_core::{wrap_angle, MotionAgainstHeading, MountFit};
     use std::f64::consts::PI;
     let subject = if mount.is_identity() {
@@ -360,7 +374,7 @@ pub fn mount_warnings(
             wrap_angle(yaw_rad).to_degrees()
         )
     };
-    let motion = MotionAgainstHeading::of(trajectory, 1.0);
+    let motion = MotionAgainstHeading::of_runs(runs, 1.0);
     let backwards = motion.line_misfit_rad().is_some()
         && motion.forward_share() <= 1.0 - MotionAgainstHeading::ONE_WAY;
     if backwards {
@@ -371,7 +385,7 @@ pub fn mount_warnings(
             yaw_fix(mount.0.theta_rad + PI)
         )];
     }
-    let Some(fit) = MountFit::of(trajectory) else {
+    let Some(fit) = MountFit::of_runs(runs) else {
         return Vec::new();
     };
     let mut warnings = Vec::new();

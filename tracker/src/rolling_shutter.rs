@@ -77,7 +77,10 @@ impl ShutterEstimate {
             .collect();
         let mut moving = Vec::new();
         let mut intervals = Vec::new();
-        for w in fixes.windows(3) {
+        // A fix's motion is read off the two before it in its own run: across a jump it is
+        // the leap's, metres a frame.
+        let runs = result.continuous_runs();
+        for w in runs.into_iter().flat_map(|r| fixes[r].windows(3)) {
             let [(t0, p0, _), (t1, p1, _), (t2, _, corners)] = w else {
                 continue;
             };

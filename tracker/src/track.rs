@@ -40,6 +40,10 @@ use crate::uncertainty::{
 };
 use crate::TrackError;
 
+/// Fixes further apart than this, seconds, are not taken as one motion (the robot may have
+/// done anything between them).
+pub const MAX_CONTINUOUS_S: f64 = 0.5;
+
 /// Tracking settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackOptions {
@@ -1108,6 +1112,35 @@ impl TrackResult {
         Ok(self.tag_to_robot.robot_trajectory(&tag))
     }
 
+    /// The fixes in runs of one continuous motion, as ranges of their indices (in
+    /// [`Self::fixes`], and the trajectory's rows). A run ends at a rejected jump (two
+    /// recordings joined, a robot lifted and set down: the step across it is no motion of the
+    /// robot, and its chord alone named a straight-mounted tag turned 50°) and where the fixes
+    /// are more than [`MAX_CONTINUOUS_S`] apart. Fits over consecutive fixes take their steps
+    /// within runs.
+    pub fn continuous_runs(&self) -> Vec<std::ops::Range<usize>> {
+        let mut runs = Vec::new();
+        let (mut start, mut fixes) = (0, 0);
+        let (mut last_s, mut jumped) = (f64::NEG_INFINITY, false);
+        for r in &self.records {
+            match &r.outcome {
+                Outcome::Gap(reason) => jumped |= *reason == GapReason::Jump,
+                Outcome::Fix(f) => {
+                    if fixes > start && (jumped || f.t_s - last_s > MAX_CONTINUOUS_S) {
+                        runs.push(start..fixes);
+                        start = fixes;
+                    }
+                    (last_s, jumped) = (f.t_s, false);
+                    fixes += 1;
+                }
+            }
+        }
+        if fixes > start {
+            runs.push(start..fixes);
+        }
+        runs
+    }
+
     /// Runs of frames without a pose.
     pub fn gaps(&self) -> Vec<Gap> {
         let mut gaps: Vec<Gap> = Vec::new();
@@ -1159,6 +1192,12 @@ impl TrackResult {
         }
         let mut reasons: Vec<(GapReason, Vec<&FrameRecord>)> = by_reason.into_iter().collect();
         reasons.sort_by_key(|(_, frames)| std::cmp::Reverse(frames.len()));
+        // One robot carries one tag: many ids, and the tracked one never with a tag's shape,
+        // are another family's tags (or the floor's texture) read as this one's small codes.
+        // That is said first, and the size the misread corners span is no tag size to give
+        // (a tag36h11 video read as tag16h5 was told "give --tag-size 0.1310", still refused).
+        let wrong_family = self.seen_ids.len() >= FALSE_FAMILY_IDS
+            && reasons.iter().any(|(r, _)| *r == GapReason::BadGeometry);
         let parts: Vec<String> = reasons
             .iter()
             .map(|(reason, frames)| {
@@ -1176,6 +1215,11 @@ impl TrackResult {
                         fmt_opt(margin, 1),
                         opts.min_decision_margin,
                         fmt_opt(median(rej.iter().map(|r| r.hamming as f64).collect()), 0)
+                    ),
+                    GapReason::BadGeometry if wrong_family => format!(
+                        " (median corner reprojection {} px, accepted up to {} px)",
+                        fmt_opt(reproj, 2),
+                        opts.max_reprojection_px,
                     ),
                     GapReason::BadGeometry => format!(
                         " (median corner reprojection {} px, accepted up to {} px: {})",
@@ -1200,22 +1244,16 @@ impl TrackResult {
                 format!("{} {}{figures}", frames.len(), reason.as_str())
             })
             .collect();
-        // One robot carries one tag: many ids, none with a tag's shape, are another family's
-        // tags (or the floor's texture) read as this one's small codes.
-        let family_hint = if self.seen_ids.len() >= FALSE_FAMILY_IDS
-            && reasons
-                .first()
-                .is_some_and(|(r, _)| *r == GapReason::BadGeometry)
-        {
+        let family_hint = if wrong_family {
             format!(
-                "; {} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family (tag36h11 unless the tag says otherwise)",
+                "{} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family (tag36h11 unless the tag says otherwise) before anything else; ",
                 self.seen_ids.len()
             )
         } else {
             String::new()
         };
         format!(
-            "tag {} ({}) was detected but never accepted in {n} frames of {}: {}; {}{family_hint}",
+            "tag {} ({}) was detected but never accepted in {n} frames of {}: {family_hint}{}; {}",
             opts.tag_id,
             opts.family,
             path.display(),
