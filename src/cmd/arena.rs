@@ -89,12 +89,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Each calibration's error reaches every camera tied to it through the shared boards;
     // a file without its covariance (an export, or an older odocal) drops that part of
     // every fused σ.
-    let bare: Vec<String> = files
-        .iter()
-        .zip(&args.camera)
-        .filter(|(f, _)| f.covariance.is_none())
-        .map(|(_, p)| p.display().to_string())
-        .collect();
+    let files_where = |skip: usize, pred: &dyn Fn(&CameraFile) -> bool| -> Vec<String> {
+        files
+            .iter()
+            .zip(&args.camera)
+            .skip(skip)
+            .filter(|(f, _)| pred(f))
+            .map(|(_, p)| p.display().to_string())
+            .collect()
+    };
+    let bare = files_where(0, &|f| f.covariance.is_none());
     if !bare.is_empty() {
         tell!(
             "note: {} carr{} no covariance of the intrinsics: the σ of fixes fused through this arena will leave out {} calibration error, which reaches every camera tied to {} through the shared boards; calibrate with `odocal calibrate` (its camera files carry it) for σ that include it",
@@ -107,13 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Without its own floor views a camera's height cannot be checked: another camera's
     // calibration of a like lens fits the shared boards as well, its focal length traded for
     // height (5.8 % too high on the synthetic arena, seeds 1–3, with no other sign).
-    let unchecked: Vec<String> = files
-        .iter()
-        .zip(&args.camera)
-        .skip(1)
-        .filter(|(f, _)| f.floor.is_none())
-        .map(|(_, p)| p.display().to_string())
-        .collect();
+    let unchecked = files_where(1, &|f| f.floor.is_none());
     if !unchecked.is_empty() {
         tell!(
             "note: {} {} no floor views, so the camera's height in the arena cannot be checked against {} own: a calibration of another camera with a like lens would pass unnoticed, its camera placed a few % too high or low; calibrate every camera with --floor to have it checked",
