@@ -208,14 +208,95 @@ fn noisy_views_posed(
     views
 }
 
+/// OpenCV's standard deviations for odocal's solution, built from OpenCV's own derivatives:
+/// projectPoints' Jacobian (rotation vector, translation, fx fy, cx cy, distortion) of every
+/// corner at odocal's intrinsics and board poses, scaled by the residuals there. It follows
+/// calibrateCamera's formula at a point fixed in advance, so it does not hang on the path
+/// OpenCV's own optimiser takes. Returns fx, fy, cx, cy, then the five coefficients.
+fn opencv_jacobian_sigmas(
+    cal: &odocal_calib::Calibration,
+    views: &[BoardView],
+    obj: &[Point3<f64>],
+) -> Vec<f64> {
+    let n_in = 9;
+    let n_params = n_in + 6 * views.len();
+    let n_rows: usize = views.iter().map(|v| 2 * v.corners.len()).sum();
+    let mut jac = nalgebra::DMatrix::<f64>::zeros(n_rows, n_params);
+    let mut ssr = 0.0;
+    let mut row = 0;
+    let d = Mat::from_slice(&cal.camera.distortion.to_opencv())
+        .unwrap()
+        .try_clone()
+        .unwrap();
+    let op: Vector<Point3d> = obj.iter().map(|p| Point3d::new(p.x, p.y, p.z)).collect();
+    for (v, (view, pose)) in views.iter().zip(&cal.poses).enumerate() {
+        let r = pose.0.rotation.scaled_axis();
+        let t = pose.0.translation.vector;
+        let rvec = Mat::from_slice(&[r.x, r.y, r.z])
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        let tvec = Mat::from_slice(&[t.x, t.y, t.z])
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        let mut img = Vector::<core::Point2d>::new();
+        let mut j = Mat::default();
+        calib3d::project_points(
+            &op,
+            &rvec,
+            &tvec,
+            &k_mat(&cal.camera),
+            &d,
+            &mut img,
+            &mut j,
+            0.0,
+        )
+        .unwrap();
+        for (i, (q, c)) in img.iter().zip(&view.corners).enumerate() {
+            ssr += (q.x - c.x).powi(2) + (q.y - c.y).powi(2);
+            for axis in 0..2 {
+                let jr = 2 * i + axis;
+                let at = |col: usize| *j.at_2d::<f64>(jr as i32, col as i32).unwrap();
+                // OpenCV's columns: rvec 0–2, tvec 3–5, fx fy 6–7, cx cy 8–9, distortion 10–.
+                for k in 0..n_in {
+                    jac[(row, k)] = at(6 + k);
+                }
+                for k in 0..6 {
+                    jac[(row, n_in + 6 * v + k)] = at(k);
+                }
+                row += 1;
+            }
+        }
+    }
+    let cov = (jac.transpose() * &jac).try_inverse().unwrap();
+    let sigma2 = ssr / (n_rows - n_params) as f64;
+    (0..n_in).map(|k| (cov[(k, k)] * sigma2).sqrt()).collect()
+}
+
 #[test]
 fn covariance_matches_opencv_standard_deviations() {
     let (cam, _) = lenses().remove(0);
     let board = BoardSpec::checkerboard(9, 6, 0.05);
     let views = noisy_views(&cam, &board, 20, 0.1);
     let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
-    // OpenCV's own standard deviations on the same corners.
     let obj = board_points(&board);
+    let ours: Vec<f64> = [cal.std.fx, cal.std.fy, cal.std.cx, cal.std.cy]
+        .into_iter()
+        .chain(cal.std.distortion.iter().copied().take(5))
+        .collect();
+    let names = ["fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"];
+    // Every parameter against OpenCV's derivatives at odocal's solution.
+    let reference = opencv_jacobian_sigmas(&cal, &views, &obj);
+    for (i, name) in names.iter().enumerate() {
+        let ratio = ours[i] / reference[i];
+        println!(
+            "σ {name}: odocal {:.4e}, from OpenCV's projectPoints Jacobian {:.4e} (ratio {ratio:.4})",
+            ours[i], reference[i]
+        );
+        assert!((ratio - 1.0).abs() < 0.01, "σ {name}: ratio {ratio}");
+    }
+    // And against the standard deviations calibrateCamera itself reports.
     let mut op = Vector::<Vector<core::Point3f>>::new();
     let mut ip = Vector::<Vector<core::Point2f>>::new();
     for v in &views {
@@ -234,9 +315,6 @@ fn covariance_matches_opencv_standard_deviations() {
     let (mut k, mut d) = (Mat::default(), Mat::default());
     let (mut rv, mut tv) = (Vector::<Mat>::new(), Vector::<Mat>::new());
     let (mut si, mut se, mut pv) = (Mat::default(), Mat::default(), Mat::default());
-    // OpenCV's σ fy on these corners once read 0.92 px instead of its usual 0.83 (not seen
-    // again in 20 runs): it is run to convergence rather than stopped at its default 30
-    // iterations, so the reference does not hang on where those stop.
     let converged = core::TermCriteria::new(
         core::TermCriteria_COUNT + core::TermCriteria_EPS,
         500,
@@ -261,31 +339,29 @@ fn covariance_matches_opencv_standard_deviations() {
     // OpenCV scales its covariance by the residual sum of squares over (points − parameters)
     // where each point has two residuals (calibration.cpp: `total - nparams_nz`, total
     // counting points), so its σ are √((2N − n)/(N − n)) too large; odocal divides by the
-    // number of residuals. With that factor the two agree.
+    // number of residuals less the parameters. With that factor the two agree.
     let n_points = (views.len() * obj.len()) as f64;
     let n_params = (9 + 6 * views.len()) as f64;
     let factor = ((2.0 * n_points - n_params) / (n_points - n_params)).sqrt();
     let ocv = si.data_typed::<f64>().unwrap().to_vec();
-    let ours = [cal.std.fx, cal.std.fy, cal.std.cx, cal.std.cy];
-    for (i, name) in ["fx", "fy", "cx", "cy"].iter().enumerate() {
+    println!(
+        "calibrateCamera: K {:?} D {:?}",
+        k.data_typed::<f64>().unwrap(),
+        d.data_typed::<f64>().unwrap()
+    );
+    for (i, name) in names.iter().enumerate() {
         let ratio = ours[i] * factor / ocv[i];
         println!(
-            "σ {name}: odocal {:.4} px, OpenCV {:.4} px (ratio × {factor:.3}: {ratio:.3})",
+            "σ {name}: odocal {:.4e}, calibrateCamera {:.4e} (ratio × {factor:.3}: {ratio:.3})",
             ours[i], ocv[i]
         );
-        assert!(
-            (ratio - 1.0).abs() < 0.05,
-            "σ {name}: {} vs OpenCV {}",
-            ours[i],
-            ocv[i]
-        );
-    }
-    for i in 0..5 {
-        let ratio = cal.std.distortion[i] * factor / ocv[4 + i];
-        assert!(
-            (ratio - 1.0).abs() < 0.05,
-            "σ of coefficient {i}: ratio {ratio}"
-        );
+        // calibrateCamera's σ hang on where its optimiser stops, which differs between
+        // machines: on one they came out 3–4 % lower for the intrinsics and 25 % higher for
+        // k1 on these same corners. The distortion is judged against OpenCV's derivatives
+        // above; the intrinsics here are still close enough to show the √((2N − n)/(N − n)).
+        if i < 4 {
+            assert!((ratio - 1.0).abs() < 0.1, "σ {name}: ratio {ratio}");
+        }
     }
 }
 
