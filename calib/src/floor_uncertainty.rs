@@ -63,13 +63,7 @@ impl FloorReach {
                 self.radius_m, self.off_nadir_deg
             )
         } else if let Some(spread) = self.model_spread_mm {
-            // Far out, where a model's rays graze the floor, models part by metres: the
-            // figure then says only that.
-            let spread = if spread < 1000.0 {
-                format!("{spread:.1} mm")
-            } else {
-                "more than a metre".to_string()
-            };
+            let spread = far_mm(spread, 1);
             if model_given {
                 format!(
                     "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out a lens model that fits the views clearly better maps the floor up to {spread} away from --model's, so it cannot be vouched for there: calibrate with the better-fitting model the warning names",
@@ -83,10 +77,24 @@ impl FloorReach {
             }
         } else {
             format!(
-                "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out 1σ grows to {:.1} mm: add floor views farther out and hand-held views reaching the image's edges",
-                self.radius_m, self.off_nadir_deg, self.worst_sigma_mm
+                "floor mapped {bound} out to {:.2} m from the point under the camera ({:.0}° off the nadir); farther out 1σ grows to {}: add floor views farther out and hand-held views reaching the image's edges",
+                self.radius_m,
+                self.off_nadir_deg,
+                far_mm(self.worst_sigma_mm, 1)
             )
         }
+    }
+}
+
+/// A floor distance in millimetres for people, with `decimals` places, or "more than a
+/// metre": far out, where rays graze the floor (or a lens model turns over and its rays
+/// never reach it), σ and the models' spread run to metres or beyond, and a figure such as
+/// "49106795642.9 mm" says nothing more than that.
+pub fn far_mm(mm: f64, decimals: usize) -> String {
+    if mm < 1000.0 {
+        format!("{mm:.decimals$} mm")
+    } else {
+        "more than a metre".to_string()
     }
 }
 
@@ -454,5 +462,32 @@ mod tests {
             ) && auto.ends_with("or give the lens model (--model)"),
             "{auto}"
         );
+    }
+
+    /// Beyond the vouched floor of a 125° rational lens the model turns over and σ there ran
+    /// to 49106795642.9 mm; that is said as what it means.
+    #[test]
+    fn a_sigma_of_metres_beyond_the_reach_is_said_in_words() {
+        let reach = FloorReach {
+            radius_m: 1.2,
+            off_nadir_deg: 29.0,
+            whole: false,
+            worst_sigma_mm: 49_106_795_642.9,
+            model_spread_mm: None,
+        };
+        let said = reach.sentence(false);
+        assert!(
+            said.contains("farther out 1σ grows to more than a metre: add floor views")
+                && !said.contains("49106795642"),
+            "{said}"
+        );
+        let near = FloorReach {
+            worst_sigma_mm: 36.12,
+            ..reach
+        }
+        .sentence(false);
+        assert!(near.contains("farther out 1σ grows to 36.1 mm:"), "{near}");
+        assert_eq!(far_mm(999.94, 3), "999.940 mm");
+        assert_eq!(far_mm(f64::INFINITY, 3), "more than a metre");
     }
 }

@@ -957,7 +957,9 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             .and_then(|m| m.median_and_max_mm())
         {
             out.push(format!(
-                "  floor position uncertainty (1σ along the worst direction, from the intrinsics' covariance and the floor boards' corner noise): median {median:.3} mm, largest {max:.3} mm over the image where it sees the floor"
+                "  floor position uncertainty (1σ along the worst direction, from the intrinsics' covariance and the floor boards' corner noise): median {}, largest {} over the image where it sees the floor",
+                crate::floor_uncertainty::far_mm(median, 3),
+                crate::floor_uncertainty::far_mm(max, 3)
             ));
         }
         if let Some(r) = f
