@@ -49,6 +49,113 @@ pub fn check_tag_id(family: &str, id: u32, option: &str) -> Result<(), TrackErro
     Ok(())
 }
 
+/// Frames [`read_other_families`] tries at most: the tag reads in nearly every frame of
+/// the right family, so a handful says which it is (each family costs one pass per frame).
+pub const FAMILY_PROBE_FRAMES: usize = 5;
+
+/// A tag read by another family than the one tracked.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FamilyReading {
+    /// The family the tag reads as.
+    pub family: &'static str,
+    /// Its id in that family.
+    pub id: u32,
+    /// Frames in which it read with every bit right.
+    pub frames: usize,
+}
+
+/// What the other families read in a few frames of a video whose tag the tracked family
+/// did not find.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FamilyProbe {
+    /// Frames tried.
+    pub frames_tried: usize,
+    /// The tag those frames show, if another family reads one in at least half of them.
+    pub reading: Option<FamilyReading>,
+}
+
+impl FamilyProbe {
+    /// What to tell the user: the family and id to give, or that no other family reads a tag
+    /// either. `tag_id` is the id given (named again only when the tag's differs).
+    pub fn advice(&self, tag_id: u32) -> String {
+        match &self.reading {
+            Some(r) => format!(
+                "the tag in {} of {} frames tried reads as {} id {} (every bit right): give --family {}{}",
+                r.frames,
+                self.frames_tried,
+                r.family,
+                r.id,
+                r.family,
+                if r.id == tag_id {
+                    String::new()
+                } else {
+                    format!(" --tag-id {}", r.id)
+                }
+            ),
+            None => format!(
+                "no other AprilTag family reads a tag in the {} frames tried either (a tag this library does not know, or one too small, blurred or dark to read)",
+                self.frames_tried
+            ),
+        }
+    }
+}
+
+/// The least Hamming distance between two codes of `family` (the number after "h"): the
+/// more, the less a false reading of it is likely.
+fn family_distance(family: &str) -> u32 {
+    family
+        .rsplit('h')
+        .next()
+        .and_then(|d| d.parse().ok())
+        .unwrap_or(0)
+}
+
+/// Reads `frames` with every AprilTag family but `tracked`, for a video whose tag the
+/// tracked family does not find (or reads only as false, shapeless codes). The tag is the
+/// (family, id) read with every bit right in the most frames, at least half of them; on a
+/// tie, the family whose codes lie farther apart (a small family's codes are read falsely
+/// inside a larger family's tag, the same in every frame of a tag at rest).
+pub fn read_other_families(frames: &[GrayFrame], tracked: &str) -> Result<FamilyProbe, TrackError> {
+    let frames = &frames[..frames.len().min(FAMILY_PROBE_FRAMES)];
+    // (frames read, distance, summed decision margin) per (family, id)
+    let mut tally: std::collections::BTreeMap<(&'static str, u32), (usize, u32, f64)> =
+        Default::default();
+    for (family, _) in FAMILIES.iter().filter(|(f, _)| *f != tracked) {
+        // No bit corrected: a misread of another tag must not pass for this family's, and the
+        // large families' tables for corrections cost more to build than the search.
+        let mut det = TagDetector::new(family, 0, 2.0)?;
+        for frame in frames {
+            let mut ids: Vec<(u32, f32)> = det
+                .detect_raw(frame)?
+                .iter()
+                .filter(|d| d.hamming == 0)
+                .map(|d| (d.id, d.decision_margin))
+                .collect();
+            ids.sort_by_key(|(id, _)| *id);
+            ids.dedup_by_key(|(id, _)| *id);
+            for (id, margin) in ids {
+                let e = tally
+                    .entry((*family, id))
+                    .or_insert((0, family_distance(family), 0.0));
+                e.0 += 1;
+                e.2 += margin as f64;
+            }
+        }
+    }
+    let best = tally
+        .into_iter()
+        .filter(|(_, (n, _, _))| 2 * n >= frames.len() && *n > 0)
+        .max_by(|a, b| {
+            (a.1 .0, a.1 .1)
+                .cmp(&(b.1 .0, b.1 .1))
+                .then(a.1 .2.total_cmp(&b.1 .2))
+        });
+    Ok(FamilyProbe {
+        frames_tried: frames.len(),
+        reading: best.map(|((family, id), (frames, _, _))| FamilyReading { family, id, frames }),
+    })
+}
+
 /// A rectangle of pixels: columns x0..x0+width, rows y0..y0+height.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Roi {
@@ -300,6 +407,79 @@ mod tests {
             e.contains("use tag36h11, tag25h9,") && e.contains(" or tagCustom48h12"),
             "{e}"
         );
+    }
+
+    /// A `family` tag of `id` drawn `cell_px` pixels a cell, on a grey frame with a white
+    /// margin, from the C library's own pattern.
+    fn drawn_tag(family: &str, id: u32, cell_px: usize) -> GrayFrame {
+        use apriltag_sys as sys;
+        // SAFETY: the family is created and freed here by the library's own calls, and its
+        // image read within its width, height and stride before it is freed.
+        let (cells, n) = unsafe {
+            let (make, free): (
+                unsafe extern "C" fn() -> *mut sys::apriltag_family_t,
+                unsafe extern "C" fn(*mut sys::apriltag_family_t),
+            ) = match family {
+                "tag36h11" => (sys::tag36h11_create, sys::tag36h11_destroy),
+                "tag25h9" => (sys::tag25h9_create, sys::tag25h9_destroy),
+                _ => panic!("{family} is not drawn here"),
+            };
+            let f = make();
+            let im = sys::apriltag_to_image(f, id);
+            free(f);
+            let (w, stride) = ((*im).width as usize, (*im).stride as usize);
+            let buf = std::slice::from_raw_parts((*im).buf, stride * w);
+            let cells: Vec<u8> = (0..w * w).map(|k| buf[(k / w) * stride + k % w]).collect();
+            sys::image_u8_destroy(im);
+            (cells, w)
+        };
+        let (margin, side) = (3 * cell_px, n * cell_px);
+        let size = side + 2 * margin;
+        let mut data = vec![200u8; size * size];
+        for y in 0..side {
+            for x in 0..side {
+                let white = cells[(y / cell_px) * n + x / cell_px] > 127;
+                data[(y + margin) * size + x + margin] = if white { 230 } else { 25 };
+            }
+        }
+        GrayFrame {
+            width: size as u32,
+            height: size as u32,
+            data,
+        }
+    }
+
+    /// A tag of another family than the one given is named by family and id, also where a
+    /// smaller family reads false codes inside it; a frame without a tag names none.
+    #[test]
+    fn another_familys_tag_is_named() {
+        let frames = vec![drawn_tag("tag25h9", 3, 6); 3];
+        let probe = read_other_families(&frames, "tag36h11").unwrap();
+        let r = probe.reading.as_ref().unwrap();
+        assert_eq!((r.family, r.id, r.frames), ("tag25h9", 3, 3), "{probe:?}");
+        assert_eq!(probe.frames_tried, 3);
+        let said = probe.advice(0);
+        assert!(
+            said.contains(
+                "reads as tag25h9 id 3 (every bit right): give --family tag25h9 --tag-id 3"
+            ),
+            "{said}"
+        );
+        let frames = vec![drawn_tag("tag36h11", 0, 5); 2];
+        let probe = read_other_families(&frames, "tag16h5").unwrap();
+        let r = probe.reading.as_ref().unwrap();
+        assert_eq!((r.family, r.id), ("tag36h11", 0), "{probe:?}");
+        assert!(probe.advice(0).ends_with("give --family tag36h11"));
+        let blank = GrayFrame {
+            width: 96,
+            height: 96,
+            data: vec![128; 96 * 96],
+        };
+        let probe = read_other_families(&[blank], "tag36h11").unwrap();
+        assert_eq!(probe.reading, None);
+        assert!(probe
+            .advice(0)
+            .starts_with("no other AprilTag family reads a tag in the 1 frames tried"));
     }
 
     #[test]

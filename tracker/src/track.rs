@@ -33,7 +33,7 @@ use odocal_core::{TagToRobot, Trajectory, TrajectoryRow};
 use crate::detect::{Roi, TagDetection, TagDetector};
 use crate::marker_height::TAG_SIDE_TOLERANCE;
 use crate::pose::{planar_pose, pnp_cross_check, PnpCheck};
-use crate::source::{decode_into, Batch, Frame, FrameSource, SourceInfo};
+use crate::source::{decode_into, Batch, Frame, FrameSource, GrayFrame, SourceInfo};
 use crate::uncertainty::{
     calibration_covariance, corner_covariance, corner_covariance_from_sides, expected_residual_px2,
     sigma_of,
@@ -1174,6 +1174,33 @@ impl TrackResult {
     /// that failed (median decision margin and reprojection error of the rejected detections
     /// against the limits in `opts`), and the ids seen.
     pub fn no_fix_message(&self, opts: &TrackOptions, path: &std::path::Path) -> String {
+        self.no_fix_text(opts, path, None)
+    }
+
+    /// Whether a run without a fix may have a wrong --family: the tag's id never seen, or
+    /// many ids, none with a tag's shape.
+    pub fn family_in_doubt(&self, tag_id: u32) -> bool {
+        !self.seen_ids.contains_key(&tag_id) || self.wrong_family()
+    }
+
+    /// One robot carries one tag: many ids, and the tracked one never with a tag's shape,
+    /// are another family's tags (or the floor's texture) read as this one's small codes.
+    fn wrong_family(&self) -> bool {
+        self.seen_ids.len() >= FALSE_FAMILY_IDS
+            && self
+                .records
+                .iter()
+                .any(|r| r.outcome == Outcome::Gap(GapReason::BadGeometry))
+    }
+
+    /// [`Self::no_fix_message`], with what the other families read in a few of the frames
+    /// when the family is in doubt.
+    pub fn no_fix_text(
+        &self,
+        opts: &TrackOptions,
+        path: &std::path::Path,
+        probe: Option<&crate::detect::FamilyProbe>,
+    ) -> String {
         let n = self.records.len();
         let mut by_reason: BTreeMap<GapReason, Vec<&FrameRecord>> = BTreeMap::new();
         for r in &self.records {
@@ -1181,9 +1208,12 @@ impl TrackResult {
                 by_reason.entry(reason).or_default().push(r);
             }
         }
+        let read_as = probe
+            .map(|p| format!(": {}", p.advice(opts.tag_id)))
+            .unwrap_or_default();
         if !self.seen_ids.contains_key(&opts.tag_id) {
             return format!(
-                "tag {} ({}) was never seen in {n} frames of {}; {}: check --tag-id and --family",
+                "tag {} ({}) was never seen in {n} frames of {}; {}: check --tag-id and --family{read_as}",
                 opts.tag_id,
                 opts.family,
                 path.display(),
@@ -1192,12 +1222,10 @@ impl TrackResult {
         }
         let mut reasons: Vec<(GapReason, Vec<&FrameRecord>)> = by_reason.into_iter().collect();
         reasons.sort_by_key(|(_, frames)| std::cmp::Reverse(frames.len()));
-        // One robot carries one tag: many ids, and the tracked one never with a tag's shape,
-        // are another family's tags (or the floor's texture) read as this one's small codes.
-        // That is said first, and the size the misread corners span is no tag size to give
-        // (a tag36h11 video read as tag16h5 was told "give --tag-size 0.1310", still refused).
-        let wrong_family = self.seen_ids.len() >= FALSE_FAMILY_IDS
-            && reasons.iter().any(|(r, _)| *r == GapReason::BadGeometry);
+        // A wrong family is said first, and the size the misread corners span is no tag size
+        // to give (a tag36h11 video read as tag16h5 was told "give --tag-size 0.1310", still
+        // refused).
+        let wrong_family = self.wrong_family();
         let parts: Vec<String> = reasons
             .iter()
             .map(|(reason, frames)| {
@@ -1246,8 +1274,12 @@ impl TrackResult {
             .collect();
         let family_hint = if wrong_family {
             format!(
-                "{} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family (tag36h11 unless the tag says otherwise) before anything else; ",
-                self.seen_ids.len()
+                "{} different ids were seen, none with the tag's shape, where the robot carries one tag: they look like false readings of another family's tag, so check --family {}; ",
+                self.seen_ids.len(),
+                match probe {
+                    Some(p) => format!("before anything else: {}", p.advice(opts.tag_id)),
+                    None => "(tag36h11 unless the tag says otherwise) before anything else".into(),
+                }
             )
         } else {
             String::new()
@@ -1376,7 +1408,7 @@ pub fn track_source(
     // nor the decoder waits for `on_frame` (overlays, progress).
     let (tx, rx) = mpsc::sync_channel::<Batch>(3);
     let (done_tx, done_rx) = mpsc::sync_channel::<Result<Vec<(Frame, FrameRecord)>, TrackError>>(3);
-    let (mut records, seen_ids, final_info) =
+    let (mut records, seen_ids, final_info, kept) =
         std::thread::scope(|scope| -> Result<_, TrackError> {
             let decoder = scope.spawn(move || decode_into(source.as_mut(), tx));
             let path = info.path.clone();
@@ -1409,6 +1441,7 @@ pub fn track_source(
                 Some(tracker.seen_ids().clone())
             });
             let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
+            let mut kept = KeptFrames::new(info.frame_count);
             for batch in done_rx {
                 let batch = batch?;
                 if batch.is_empty() {
@@ -1416,6 +1449,7 @@ pub fn track_source(
                 }
                 for (frame, rec) in batch {
                     on_frame(&frame, &rec)?;
+                    kept.offer(frame, &rec);
                     records.push(rec);
                 }
             }
@@ -1426,7 +1460,7 @@ pub fn track_source(
             let final_info = decoder.join().map_err(|_| {
                 TrackError::bad_input(&info.path, "the frame decoder stopped on a panic")
             })?;
-            Ok((records, seen_ids, final_info))
+            Ok((records, seen_ids, final_info, kept.frames))
         })?;
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
@@ -1440,12 +1474,56 @@ pub fn track_source(
         source: final_info,
     };
     if result.fixes().next().is_none() {
+        // Only a run without a fix pays for reading its frames with the other families.
+        let probe = if result.family_in_doubt(opts.tag_id) {
+            Some(crate::detect::read_other_families(&kept, &opts.family)?)
+        } else {
+            None
+        };
         return Err(TrackError::NoFix {
-            message: result.no_fix_message(opts, &info.path),
+            message: result.no_fix_text(opts, &info.path, probe.as_ref()),
             result: Box::new(result),
         });
     }
     Ok(result)
+}
+
+/// A few frames without a fix, spread over the run, kept for [`crate::detect::read_other_families`]
+/// should the run end without any fix (a wrong --family). A run with fixes keeps at most
+/// these few copies.
+struct KeptFrames {
+    frames: Vec<GrayFrame>,
+    /// Frames between two kept ones.
+    stride: usize,
+    last: Option<usize>,
+}
+
+impl KeptFrames {
+    fn new(frame_count: Option<usize>) -> Self {
+        let stride = frame_count
+            .map(|n| n / crate::detect::FAMILY_PROBE_FRAMES)
+            .unwrap_or(30)
+            .max(1);
+        Self {
+            frames: Vec::new(),
+            stride,
+            last: None,
+        }
+    }
+
+    fn offer(&mut self, frame: Frame, rec: &FrameRecord) {
+        let useful = matches!(
+            rec.outcome,
+            Outcome::Gap(
+                GapReason::NotDetected | GapReason::BadGeometry | GapReason::LowConfidence
+            )
+        );
+        let due = self.last.is_none_or(|i| frame.index >= i + self.stride);
+        if useful && due && self.frames.len() < crate::detect::FAMILY_PROBE_FRAMES {
+            self.last = Some(frame.index);
+            self.frames.push(frame.image);
+        }
+    }
 }
 
 /// Tracks one decoded batch: each frame's record, or a gap when the frame repeats the one

@@ -302,3 +302,34 @@ fn a_second_tag_of_the_id_is_never_followed_and_is_named() {
         o.floor_m
     );
 }
+
+/// A tag36h11 tag tracked with another family gives no fix; the refusal names the family
+/// and id the tag reads as in a few of its frames: tracked as tag16h5 (its small codes
+/// read all over the tag, many ids) and as tag25h9 (never its id 0).
+#[test]
+fn a_wrong_family_names_the_tags_own() {
+    let cfg = SceneConfig::default();
+    let traj = demo_trajectory(nadir(&cfg.floor), 2.0, 0.2, 0.7, 5);
+    let (frames, _) = render(&cfg, &traj, 10.0, 8, 5);
+    for family in ["tag16h5", "tag25h9"] {
+        let opts = TrackOptions {
+            family: family.into(),
+            ..TrackOptions::default()
+        };
+        let src = Box::new(MemorySource::new("synthetic", frames.clone()));
+        let started = std::time::Instant::now();
+        let Err(e) = track_source(src, &cfg.camera, &cfg.floor, &opts, &mut |_, _| Ok(())) else {
+            panic!("{family}: a fix with the wrong family");
+        };
+        let e = e.to_string();
+        println!("{family}: {:.2} s: {e}", started.elapsed().as_secs_f64());
+        assert!(
+            e.contains(
+                "frames tried reads as tag36h11 id 0 (every bit right): give --family tag36h11;"
+            ) || e.ends_with(
+                "frames tried reads as tag36h11 id 0 (every bit right): give --family tag36h11"
+            ),
+            "{e}"
+        );
+    }
+}
