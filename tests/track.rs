@@ -1781,13 +1781,16 @@ fn a_jump_of_the_cameras_clock_is_not_called_dropped_frames() {
     assert_eq!(r["timing"]["clock_jumps"].as_array().map(Vec::len), Some(1));
 }
 
-/// A JPEG frame file cut short (a copy interrupted): OpenCV decodes it without an error, the
-/// missing rows left as whatever memory held. Refused, naming the file and what to do.
+/// Frame files cut short (a copy interrupted) or empty: OpenCV decodes a cut JPEG without an
+/// error, its missing rows grey or leftover memory, and the whole folder was refused for one
+/// such file. Each is left out as a dropped frame and named, the others tracked at their
+/// times; a folder most of whose frames are cut is refused.
 #[test]
-fn a_jpeg_frame_cut_short_is_named() {
+fn a_frame_file_cut_short_is_left_out_and_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     synth_track_with(d, 8, 2, &["--video", "png"]);
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
     let jpegs = d.join("jpegs");
     std::fs::create_dir_all(&jpegs).unwrap();
     let made = std::process::Command::new("ffmpeg")
@@ -1798,24 +1801,69 @@ fn a_jpeg_frame_cut_short_is_named() {
         .status()
         .expect("ffmpeg is needed for this test: `make deps` installs it");
     assert!(made.success());
-    let cut = jpegs.join("frame_000004.jpg");
-    let bytes = std::fs::read(&cut).unwrap();
-    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
-    let res = odocal(&[
-        "track",
-        p(&jpegs),
-        "--camera",
-        p(&d.join("camera.json")),
-        "--out",
-        p(&d.join("t.csv")),
-        "--fps",
-        "30",
-    ]);
+    let names: Vec<String> = (0..8).map(|k| format!("frame_{k:06}.jpg")).collect();
+    let cut_to_half = |path: &std::path::Path| {
+        let bytes = std::fs::read(path).unwrap();
+        std::fs::write(path, &bytes[..bytes.len() / 2]).unwrap();
+    };
+    cut_to_half(&jpegs.join(&names[3]));
+    std::fs::write(jpegs.join(&names[5]), b"").unwrap();
+    let track = |folder: &std::path::Path, extra: &[&str]| {
+        let (out, report) = (d.join("t.csv"), d.join("r.json"));
+        let _ = std::fs::remove_file(&out);
+        let mut args = vec![
+            "track",
+            p(folder),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--out",
+            p(&out),
+            "--report",
+            p(&report),
+        ];
+        args.extend_from_slice(extra);
+        (odocal(&args), out, report)
+    };
+    let (res, out, report) = track(&jpegs, &["--fps", "30"]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("2 frame files could not be decoded whole (frame_000003.jpg (cut short: no JPEG end-of-image marker), frame_000005.jpg (empty (0 bytes))) and were left out as gaps"),
+        "{err}"
+    );
+    let est = Trajectory::read_csv(&out).unwrap();
+    let times: Vec<f64> = est.rows.iter().map(|r| (r.t_s * 30.0).round()).collect();
+    assert_eq!(times, vec![0.0, 1.0, 2.0, 4.0, 6.0, 7.0], "{err}");
+    let (pos_rms, _, n) = errors(&est, &truth);
+    assert!(n == 6 && pos_rms < 0.5e-3, "{n} fixes, {pos_rms} m RMS");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["timing"]["corrupt_frames"], serde_json::json!([3, 5]));
+    assert_eq!(r["timing"]["dropped_frames"], 2);
+
+    // A PNG without its end chunk, in a folder timed by its own timestamps.csv.
+    cut_to_half(&d.join("frames/frame_000006.png"));
+    let (res, out, _) = track(&d.join("frames"), &[]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("1 frame file could not be decoded whole (frame_000006.png (cut short: no PNG end chunk (IEND))) and was left out as a gap"),
+        "{err}"
+    );
+    let est = Trajectory::read_csv(&out).unwrap();
+    let (pos_rms, _, n) = errors(&est, &truth);
+    assert!(n == 7 && pos_rms < 0.5e-3, "{n} fixes, {pos_rms} m RMS");
+
+    // Five of eight cut: no recording is left to track.
+    for name in [&names[0], &names[1], &names[7]] {
+        cut_to_half(&jpegs.join(name));
+    }
+    let (res, out, _) = track(&jpegs, &["--fps", "30"]);
     fails_with(
         &res,
-        "frame_000004.jpg: is not a whole JPEG image (cut short or damaged",
+        "5 of the folder's 8 frames cannot be decoded whole (the first, frame_000000.jpg, is cut short: no JPEG end-of-image marker)",
     );
-    assert!(!d.join("t.csv").exists());
+    assert!(!out.exists());
 }
 
 /// A tag printed 1 % larger than `--tag-size` says (a print scaled to the page): positions

@@ -359,6 +359,90 @@ fn a_container_counting_repeats_is_not_cut_short() {
     );
 }
 
+/// Two complete videos were reported cut short: a Matroska file whose timestamps start late
+/// (remuxed with an offset: it states the segment's end time, 5 s past the frames, as its
+/// duration) and a copy cut from an H.264 MP4 by stream copy (its samples before the cut
+/// point kept, and left out by an edit list); the cut copy's last frames, which the decoder
+/// gives out after the last packet, were also timed from the first packet left out, a cut's
+/// length early. Both hold every frame at its time; the same files truly cut short are still
+/// named.
+#[test]
+fn a_late_start_or_a_copy_cut_by_stream_copy_is_not_cut_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let h264 = d.join("h264.mp4");
+    ffmpeg(&[
+        "-i",
+        p(&d.join("video.avi")),
+        "-c:v",
+        "libx264",
+        "-crf",
+        "12",
+        "-pix_fmt",
+        "yuv420p",
+        p(&h264),
+    ]);
+    let late = d.join("late.mkv");
+    ffmpeg(&[
+        "-i",
+        p(&h264),
+        "-output_ts_offset",
+        "5",
+        "-c",
+        "copy",
+        p(&late),
+    ]);
+    // The moov box first, so that a file cut short still opens.
+    let cut = d.join("cut.mp4");
+    ffmpeg(&[
+        "-ss",
+        "0.2",
+        "-i",
+        p(&h264),
+        "-t",
+        "0.5",
+        "-c",
+        "copy",
+        "-movflags",
+        "+faststart",
+        p(&cut),
+    ]);
+    for (video, from_s) in [(late, 0.0), (cut, 0.2)] {
+        let name = video.file_name().unwrap().to_string_lossy().into_owned();
+        let (mut est, err, report) = track(d, &video, &[]);
+        assert!(!err.contains("cut short"), "{name}: {err}");
+        assert_eq!(report["timing"]["missing_at_end"], 0, "{name}");
+        assert_times_are_ffprobes(&name, &est, &video);
+        // The first frame is the original's at `from_s`.
+        for r in &mut est.rows {
+            r.t_s += from_s;
+        }
+        let (rms, n) = position_rms(&est, &truth);
+        println!(
+            "{name}: {n} frames at their true times, position RMS {:.3} mm",
+            rms * 1e3
+        );
+        assert!(
+            n == est.rows.len() && n >= 14 && rms < 0.5e-3,
+            "{name}: {n} of {} frames at their times, {rms} m",
+            est.rows.len()
+        );
+
+        let bytes = std::fs::read(&video).unwrap();
+        let truncated = d.join(format!("truncated_{name}"));
+        std::fs::write(&truncated, &bytes[..bytes.len() * 3 / 5]).unwrap();
+        let (_, err, report) = track(d, &truncated, &[]);
+        assert!(err.contains("the file looks cut short"), "{name}: {err}");
+        assert!(
+            report["timing"]["missing_at_end"].as_u64().unwrap_or(0) > 2,
+            "{name}: {}",
+            report["timing"]
+        );
+    }
+}
+
 /// A 30 fps recording converted by FFmpeg: to 60 fps each frame is repeated, and H.264 makes the
 /// repeat differ a little, so 36 of 90 repeats were tracked at a time 16.7 ms after their image
 /// (11.3 mm off); to 20 fps every third frame is left out and the rest re-timed on the new

@@ -54,6 +54,9 @@ pub struct TimingReport {
     /// Frames of the file that could not be decoded whole (damaged JPEG data), left out: they
     /// are among the dropped frames.
     pub corrupt_frames: Vec<usize>,
+    /// An image folder's frame files among `corrupt_frames`, each with what is wrong with it.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub corrupt_files: Vec<String>,
     /// Frames without a container timestamp that ffprobe could not time either (the last
     /// frames of a video with B-frames), timed one step after the previous.
     pub extrapolated_times: usize,
@@ -266,6 +269,7 @@ impl TimingReport {
             filled_drops,
             converted_from_fps,
             corrupt_frames: r.source.corrupt_frames.clone(),
+            corrupt_files: r.source.corrupt_files.clone(),
             extrapolated_times: r.source.extrapolated_times,
             missing_at_end,
             overridden_fps,
@@ -379,7 +383,17 @@ impl TimingReport {
                 j.after_s,
             ));
         }
-        if !self.corrupt_frames.is_empty() {
+        if !self.corrupt_files.is_empty() {
+            let n = self.corrupt_files.len();
+            w.push(format!(
+                "{n} frame {} could not be decoded whole ({}{}) and {} left out as {}; a frame decoded in part holds grey or leftover rows where its data is missing, and a tag there would be read wrong",
+                if n == 1 { "file" } else { "files" },
+                self.corrupt_files.iter().take(5).cloned().collect::<Vec<_>>().join(", "),
+                if n > 5 { ", …" } else { "" },
+                if n == 1 { "was" } else { "were" },
+                if n == 1 { "a gap" } else { "gaps" },
+            ));
+        } else if !self.corrupt_frames.is_empty() {
             let list: Vec<String> = self
                 .corrupt_frames
                 .iter()

@@ -127,6 +127,9 @@ pub struct SourceInfo {
     /// Frames of the file that could not be decoded whole (their JPEG data is cut or
     /// damaged), by index: left out, so the timeline has a gap there.
     pub corrupt_frames: Vec<usize>,
+    /// An image folder's frame files among [`Self::corrupt_frames`], in its order, each with
+    /// what is wrong with it ("frame_000042.jpg (cut short: no JPEG end-of-image marker)").
+    pub corrupt_files: Vec<String>,
 }
 
 /// Whether `bytes` hold a whole JPEG image: its start-of-image marker first and its
@@ -304,6 +307,7 @@ impl MemorySource {
                 extrapolated_times: 0,
                 overridden_fps: None,
                 corrupt_frames: Vec::new(),
+                corrupt_files: Vec::new(),
                 container_fps: None,
                 container_times_s: None,
                 display_rotation: None,

@@ -28,10 +28,12 @@ pub struct VideoSource {
     /// Time of the last frame and the last step forward, seconds.
     last_t_s: f64,
     last_step_s: f64,
-    /// The presentation times of the stream's packets from the first, sorted, seconds: read
-    /// by ffprobe for the frames OpenCV gives no time (None until one comes, empty when
-    /// ffprobe cannot tell).
+    /// The presentation times of the stream's packets, on the frames' timeline (seconds from
+    /// the first frame), sorted: read by ffprobe for the frames OpenCV gives no time (None
+    /// until one comes, empty when ffprobe cannot tell).
     packet_times_s: Option<Vec<f64>>,
+    /// What ffprobe reads of the stream and its container (None without ffprobe).
+    probe: Option<StreamProbe>,
 }
 
 struct SendCapture(videoio::VideoCapture);
@@ -66,19 +68,51 @@ impl VideoSource {
             ));
         }
         let mut src = Self::open_capture(path, opts, true)?;
-        refuse_interlaced(path)?;
+        // Without ffprobe, interlacing goes unchecked and OpenCV's frame count stands.
+        let probe = probe_stream(path);
+        if let Some(probe) = &probe {
+            refuse_interlaced(path, probe)?;
+        }
+        src.probe = probe.clone();
         src.pending = src.read_batch(2)?;
         if src.raw_jpeg && src.pending.len() == 2 && src.no_timestamps {
             // OpenCV gives no timestamps for undecoded packets of this container (AVI):
             // decode in FFmpeg instead, which does (beside --fps too: they show the drops).
             src = Self::open_capture(path, opts, false)?;
+            src.probe = probe;
             src.pending = src.read_batch(1)?;
         }
         let Some(first) = src.pending.first() else {
             return Err(TrackError::bad_input(path, "the video contains no frames"));
         };
         (src.info.width, src.info.height) = (first.image.width, first.image.height);
+        src.info.frame_count = src.frame_count_from_first();
         Ok(src)
+    }
+
+    /// The frames the container holds from the first frame read on: OpenCV's count, unless the
+    /// container's stated end of the stream holds fewer frame steps after the first frame.
+    /// OpenCV counts from the stream's samples or from the container's duration, and both can
+    /// hold more than the frames decoded: an MP4 cut by stream copy keeps the samples before
+    /// its cut point, which its edit list leaves out (122 samples for 92 frames), and a
+    /// Matroska file whose timestamps start late states the segment's end time as its duration
+    /// (10 s for 5 s of frames that start at 5 s). Either made a complete video look cut short.
+    /// A file truly cut keeps both its sample count and its stated end, so it still looks so.
+    fn frame_count_from_first(&self) -> Option<usize> {
+        let counted = self.info.frame_count?;
+        let (Some(end_s), Some(first_s), Some(fps)) = (
+            self.probe.as_ref().and_then(StreamProbe::stream_end_s),
+            self.first_pts_s,
+            self.info.container_fps,
+        ) else {
+            return Some(counted);
+        };
+        let stated = ((end_s - first_s) * fps).round();
+        Some(if stated >= 1.0 && stated < counted as f64 {
+            stated as usize
+        } else {
+            counted
+        })
     }
 
     fn open_capture(path: &Path, opts: &SourceOptions, try_raw: bool) -> Result<Self, TrackError> {
@@ -137,6 +171,7 @@ impl VideoSource {
                 kind: format!("video {fourcc}"),
                 extrapolated_times: 0,
                 corrupt_frames: Vec::new(),
+                corrupt_files: Vec::new(),
                 container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
                 container_times_s: None,
                 display_rotation: (rotate_deg.rem_euclid(360) != 0)
@@ -170,6 +205,7 @@ impl VideoSource {
             last_t_s: 0.0,
             last_step_s: 1.0 / fps,
             packet_times_s: None,
+            probe: None,
         })
     }
 
@@ -248,7 +284,17 @@ impl VideoSource {
     /// last would shift them).
     fn drained_frame_time(&mut self) -> f64 {
         if self.packet_times_s.is_none() {
-            self.packet_times_s = Some(packet_times_s(&self.info.path).unwrap_or_default());
+            let times = packet_times_s(&self.info.path).unwrap_or_default();
+            // OpenCV times a frame from the stream's start time, and frame times count from
+            // the first frame's; without the start time, from the first packet shown.
+            let origin = match (
+                self.probe.as_ref().and_then(|p| p.stream_start_s),
+                self.first_pts_s,
+            ) {
+                (Some(start), Some(first)) => start + first,
+                _ => times.first().copied().unwrap_or(0.0),
+            };
+            self.packet_times_s = Some(times.into_iter().map(|t| t - origin).collect());
         }
         let last = self.last_t_s;
         let next = self
@@ -347,45 +393,126 @@ impl FrameSource for VideoSource {
     }
 }
 
-/// The presentation times of the first video stream's packets in `path`, from the first and
-/// sorted, seconds, read by FFmpeg's ffprobe (OpenCV does not give a packet's time); None
-/// when ffprobe is not installed or cannot read them.
+/// The presentation times of the first video stream's packets in `path` that the decoder
+/// shows, sorted, seconds on the container's clock, read by FFmpeg's ffprobe (OpenCV does not
+/// give a packet's time); None when ffprobe is not installed or cannot read them. Packets an
+/// MP4's edit list leaves out (flagged D, the frames before the cut point of a copy cut from a
+/// longer video) are not shown, and counting them put the last frames a cut's length early.
 fn packet_times_s(path: &Path) -> Option<Vec<f64>> {
     let out = std::process::Command::new("ffprobe")
         .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .args(["packet=pts_time", "-of", "csv=p=0"])
+        .args(["packet=pts_time,flags", "-of", "csv=p=0"])
         .arg(path)
         .output()
         .ok()?;
     if !out.status.success() {
         return None;
     }
-    let mut times: Vec<f64> = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter_map(|l| l.trim().trim_end_matches(',').parse().ok())
-        .collect();
+    let mut times = shown_packet_times_s(&String::from_utf8_lossy(&out.stdout));
     times.sort_by(f64::total_cmp);
-    let first = *times.first()?;
-    Some(times.into_iter().map(|t| t - first).collect())
+    Some(times)
+}
+
+/// The times of ffprobe's `pts_time,flags` packet rows that are not flagged discarded (D).
+fn shown_packet_times_s(csv: &str) -> Vec<f64> {
+    csv.lines()
+        .filter_map(|l| {
+            let (pts, flags) = l.trim().split_once(',').unwrap_or((l.trim(), ""));
+            if flags.contains('D') {
+                return None;
+            }
+            pts.parse().ok()
+        })
+        .collect()
+}
+
+/// What FFmpeg's ffprobe reads of a video's first video stream and of its container.
+#[derive(Debug, Clone, Default, PartialEq)]
+struct StreamProbe {
+    /// FFmpeg's name of the container format ("matroska,webm", "mov,mp4,m4a,3gp,3g2,mj2").
+    format_name: String,
+    /// The stream's field order ("progressive", "tt", …).
+    field_order: Option<String>,
+    /// The stream's start time, seconds on the container's clock: OpenCV times frames from it.
+    stream_start_s: Option<f64>,
+    /// The stream's duration, seconds (after an MP4's edit list).
+    stream_duration_s: Option<f64>,
+    /// The container's start time, seconds.
+    format_start_s: Option<f64>,
+    /// The container's duration, seconds.
+    format_duration_s: Option<f64>,
+}
+
+impl StreamProbe {
+    /// Reads ffprobe's JSON of `stream=…:format=…`.
+    fn parse(json: &str) -> Option<Self> {
+        let v: serde_json::Value = serde_json::from_str(json).ok()?;
+        let stream = v.get("streams")?.get(0)?;
+        let format = v.get("format");
+        let num = |o: Option<&serde_json::Value>, key: &str| -> Option<f64> {
+            o?.get(key)?
+                .as_str()?
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+        };
+        let text = |o: Option<&serde_json::Value>, key: &str| -> Option<String> {
+            Some(o?.get(key)?.as_str()?.to_string())
+        };
+        Some(Self {
+            format_name: text(format, "format_name").unwrap_or_default(),
+            field_order: text(Some(stream), "field_order"),
+            stream_start_s: num(Some(stream), "start_time"),
+            stream_duration_s: num(Some(stream), "duration"),
+            format_start_s: num(format, "start_time"),
+            format_duration_s: num(format, "duration"),
+        })
+    }
+
+    /// Where the container says the stream ends, seconds from the stream's start time (the
+    /// origin of OpenCV's frame times). The stream's own duration when stated (MP4, AVI,
+    /// MPEG-TS), else the container's. Matroska counts its timestamps from the segment's start
+    /// and states the segment's duration, which is so the end time, however late the first
+    /// frame; FFmpeg's other demuxers give the duration from the container's start time.
+    fn stream_end_s(&self) -> Option<f64> {
+        if let Some(d) = self.stream_duration_s {
+            return Some(d);
+        }
+        let duration = self.format_duration_s?;
+        let stream_start = self.stream_start_s.unwrap_or(0.0);
+        if self.format_name.split(',').any(|f| f == "matroska") {
+            Some(duration - stream_start)
+        } else {
+            Some(self.format_start_s.unwrap_or(stream_start) + duration - stream_start)
+        }
+    }
+}
+
+/// ffprobe's reading of `path`'s first video stream and its container; None when ffprobe is
+/// not installed or cannot read the file.
+fn probe_stream(path: &Path) -> Option<StreamProbe> {
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+        .args(["stream=field_order,start_time,duration:format=format_name,start_time,duration"])
+        .args(["-of", "json"])
+        .arg(path)
+        .output()
+        .ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    StreamProbe::parse(&String::from_utf8_lossy(&out.stdout))
 }
 
 /// Refuses a video whose stream says it is interlaced (field order tt, bb, tb or bt): each
 /// frame holds two fields taken half a frame apart, a moving tag's rows alternate between
 /// two places, and its fixes came out 2.5 mm RMS off with σ 4.7 times too small, unsaid.
 /// One frame per field, deinterlaced by FFmpeg, tracks as a progressive video does (0.09 mm).
-/// Unchecked when ffprobe is not installed.
-fn refuse_interlaced(path: &Path) -> Result<(), TrackError> {
-    let Ok(out) = std::process::Command::new("ffprobe")
-        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .args(["stream=field_order", "-of", "csv=p=0"])
-        .arg(path)
-        .output()
-    else {
+fn refuse_interlaced(path: &Path, probe: &StreamProbe) -> Result<(), TrackError> {
+    let Some(order) = probe.field_order.as_deref() else {
         return Ok(());
     };
-    let text = String::from_utf8_lossy(&out.stdout);
-    let order = text.trim().trim_end_matches(',');
-    if !out.status.success() || !matches!(order, "tt" | "bb" | "tb" | "bt") {
+    if !matches!(order, "tt" | "bb" | "tb" | "bt") {
         return Ok(());
     }
     let stem = path
@@ -400,4 +527,46 @@ fn refuse_interlaced(path: &Path) -> Result<(), TrackError> {
             progressive.display()
         ),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn probe(json: &str) -> StreamProbe {
+        StreamProbe::parse(json).unwrap()
+    }
+
+    #[test]
+    fn the_stream_ends_where_its_container_says_from_the_stream_start() {
+        // Matroska, timestamps from 5 s: the segment's duration is its end time.
+        let mkv = probe(
+            r#"{"streams":[{"field_order":"progressive","start_time":"5.000000"}],
+                "format":{"format_name":"matroska,webm","start_time":"5.000000","duration":"10.000000"}}"#,
+        );
+        assert_eq!(mkv.field_order.as_deref(), Some("progressive"));
+        assert_eq!(mkv.stream_end_s(), Some(5.0));
+        // MP4 from 5 s: the stream's own duration, whatever the container's.
+        let mp4 = probe(
+            r#"{"streams":[{"start_time":"5.000000","duration":"5.000000"}],
+                "format":{"format_name":"mov,mp4,m4a,3gp,3g2,mj2","start_time":"5.000000","duration":"10.000000"}}"#,
+        );
+        assert_eq!(mp4.stream_end_s(), Some(5.0));
+        // MPEG-TS without a stream duration: FFmpeg's duration runs from the container start.
+        let ts = probe(
+            r#"{"streams":[{"start_time":"6.400000"}],
+                "format":{"format_name":"mpegts","start_time":"6.000000","duration":"5.400000"}}"#,
+        );
+        assert!((ts.stream_end_s().unwrap() - 5.0).abs() < 1e-9);
+        let none = probe(r#"{"streams":[{}],"format":{"format_name":"avi"}}"#);
+        assert_eq!(none.stream_end_s(), None);
+        assert!(StreamProbe::parse(r#"{"streams":[]}"#).is_none());
+        assert!(StreamProbe::parse("not json").is_none());
+    }
+
+    #[test]
+    fn packets_an_edit_list_leaves_out_have_no_time() {
+        let csv = "-1.000000,KD\n-0.966667,_D\n0.000000,__\n0.066667,__\n0.033333,K_,\nN/A,__\n";
+        assert_eq!(shown_packet_times_s(csv), vec![0.0, 0.066667, 0.033333]);
+    }
 }
