@@ -424,8 +424,34 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     let mut a = vec!["track", "--arena", p(&arena), &videos[0], p(&half)];
     a.extend(videos[2..].iter().map(String::as_str));
     let out4 = d.join("half.csv");
+    let summary = d.join("half-track.json");
     a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out4)]);
+    a.extend(["--arena-report", p(&summary)]);
     let said = ok(&a);
+    // Each camera's frame rate is kept in the summary (before: no file said them).
+    let file = odocal_arena::ArenaTrackFile::load(&summary).unwrap();
+    let rates: Vec<(usize, f64)> = file
+        .frame_rates
+        .iter()
+        .map(|r| (r.camera, r.frames_per_s))
+        .collect();
+    assert!(
+        rates.len() == 4
+            && rates
+                .iter()
+                .zip([30.0, 15.0, 30.0, 30.0])
+                .enumerate()
+                .all(|(k, ((c, f), want))| *c == k && (f - want).abs() < 0.01),
+        "{rates:?}"
+    );
+    // A summary written before the rates were kept still reads, with none.
+    let mut old: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    old.as_object_mut().unwrap().remove("frame_rates");
+    let old_path = d.join("old-track.json");
+    std::fs::write(&old_path, old.to_string()).unwrap();
+    let old = odocal_arena::ArenaTrackFile::load(&old_path).unwrap();
+    assert!(old.frame_rates.is_empty() && old.robots == file.robots);
     assert!(
         said.contains("frame rates 30.000, 15.000, 30.000, 30.000 frames/s")
             && said.contains(

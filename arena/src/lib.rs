@@ -40,5 +40,6 @@ pub use track::{
     track_cameras, ArenaTracking, CameraResult,
 };
 pub use track_file::{
-    ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,
+    ArenaTrackFile, FrameRateEntry, FusedRow, HandoffEntry, OffsetEntry, RobotEntry,
+    ARENA_TRACK_FORMAT,
 };
