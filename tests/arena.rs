@@ -424,8 +424,34 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     let mut a = vec!["track", "--arena", p(&arena), &videos[0], p(&half)];
     a.extend(videos[2..].iter().map(String::as_str));
     let out4 = d.join("half.csv");
+    let summary = d.join("half-track.json");
     a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out4)]);
+    a.extend(["--arena-report", p(&summary)]);
     let said = ok(&a);
+    // Each camera's frame rate is kept in the summary (before: no file said them).
+    let file = odocal_arena::ArenaTrackFile::load(&summary).unwrap();
+    let rates: Vec<(usize, f64)> = file
+        .frame_rates
+        .iter()
+        .map(|r| (r.camera, r.frames_per_s))
+        .collect();
+    assert!(
+        rates.len() == 4
+            && rates
+                .iter()
+                .zip([30.0, 15.0, 30.0, 30.0])
+                .enumerate()
+                .all(|(k, ((c, f), want))| *c == k && (f - want).abs() < 0.01),
+        "{rates:?}"
+    );
+    // A summary written before the rates were kept still reads, with none.
+    let mut old: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    old.as_object_mut().unwrap().remove("frame_rates");
+    let old_path = d.join("old-track.json");
+    std::fs::write(&old_path, old.to_string()).unwrap();
+    let old = odocal_arena::ArenaTrackFile::load(&old_path).unwrap();
+    assert!(old.frame_rates.is_empty() && old.robots == file.robots);
     assert!(
         said.contains("frame rates 30.000, 15.000, 30.000, 30.000 frames/s")
             && said.contains(
@@ -435,4 +461,87 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     );
     let rows = |f: &str| std::fs::read_to_string(d.join(f)).unwrap().lines().count();
     assert_eq!(rows("half_tag0.csv"), rows("robot_tag0.csv"));
+}
+
+/// One camera's video turned 180° (the recorder flipped it) is named with its video and the
+/// way to turn it back, exit code 2 (before: "camera 2 never saw a robot at the same time as a
+/// camera tied to the first …", blaming its clock offset); turned 90° (its width and height
+/// swapped), named as turned too (before: "use the camera.json calibrated for this camera at
+/// this resolution").
+#[test]
+fn a_camera_video_turned_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&[
+        "synth",
+        "arena",
+        "--out",
+        p(d),
+        "--frames",
+        "20",
+        "--calib-views",
+        "6",
+        "--width",
+        "960",
+        "--height",
+        "540",
+    ]);
+    let cameras: Vec<String> = (0..4)
+        .map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string())
+        .collect();
+    let arena = d.join("arena.json");
+    let mut args = vec!["arena", "--camera"];
+    args.extend(cameras.iter().map(String::as_str));
+    let shared = d.join("shared");
+    args.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    ok(&args);
+    let turn = |name: &str, f: &dyn Fn(&image::DynamicImage) -> image::DynamicImage| {
+        let to = d.join(name);
+        std::fs::create_dir_all(&to).unwrap();
+        for e in std::fs::read_dir(d.join("video_c2")).unwrap() {
+            let e = e.unwrap();
+            if e.file_name() == "timestamps.csv" {
+                std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+            } else {
+                f(&image::open(e.path()).unwrap())
+                    .save(to.join(e.file_name()))
+                    .unwrap();
+            }
+        }
+        to
+    };
+    let track = |c2: &Path| {
+        let v: Vec<String> = (0..4)
+            .map(|k| match k {
+                2 => p(c2).to_string(),
+                _ => p(&d.join(format!("video_c{k}"))).to_string(),
+            })
+            .collect();
+        let mut a = vec!["track", "--arena", p(&arena)];
+        a.extend(v.iter().map(String::as_str));
+        let out = d.join("robot.csv");
+        a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out)]);
+        let o = odocal(&a);
+        assert!(!d.join("robot_tag0.csv").exists());
+        o
+    };
+    let half = turn("half_c2", &|i| i.rotate180());
+    let o = track(&half);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains(&format!("{} (camera 2) looks turned 180°", half.display()))
+            && e.contains("hflip,vflip")
+            && !e.contains("never saw a robot"),
+        "{e}"
+    );
+    let quarter = turn("quarter_c2", &|i| i.rotate90());
+    let o = track(&quarter);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains(&format!("{} (camera 2) is 540×960", quarter.display()))
+            && e.contains("looks turned 90°"),
+        "{e}"
+    );
 }

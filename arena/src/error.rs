@@ -20,4 +20,8 @@ pub enum ArenaError {
     /// The data do not support the result (the figure that fails, and its limit).
     #[error("{0}")]
     Refused(String),
+    /// A camera's video is turned half a turn against its calibration (named by its index;
+    /// [`crate::TurnedCamera::message`] names it by its video).
+    #[error("{0}")]
+    Turned(crate::TurnedCamera),
 }

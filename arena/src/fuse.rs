@@ -1013,6 +1013,48 @@ fn agreement(grid: &[(f64, Vec<Part>)]) -> Agreement {
         .iter()
         .flat_map(|(_, parts)| judge(parts).into_iter().map(|(_, d, z)| (d, z)))
         .collect();
+    agreement_of(&all)
+}
+
+/// How camera `camera`'s fixes of every robot compare with the other cameras' fused pose at
+/// the same instants, before any camera is left out: the figures, and how many of its
+/// comparisons lie beyond [`DISAGREE_SIGMAS`] (beyond `opts.max_pair_rms_m` where the fixes
+/// carry no σ).
+pub(crate) fn camera_agreement(
+    camera: usize,
+    tracks: &[CameraTrack],
+    offsets: &ClockOffsets,
+    opts: &FuseOptions,
+    on: &FuseGrid,
+) -> (Agreement, usize) {
+    let mut ids: Vec<u32> = tracks
+        .iter()
+        .filter(|t| t.camera == camera)
+        .map(|t| t.tag_id)
+        .collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let all: Vec<(f64, f64)> = ids
+        .into_iter()
+        .flat_map(|id| grid(id, tracks, offsets, opts, on))
+        .filter(|(_, parts)| parts.len() >= 2)
+        .filter_map(|(_, parts)| apart(&parts, camera))
+        .collect();
+    let beyond = all
+        .iter()
+        .filter(|(d, z)| {
+            if z.is_nan() {
+                *d > opts.max_pair_rms_m
+            } else {
+                *z > DISAGREE_SIGMAS
+            }
+        })
+        .count();
+    (agreement_of(&all), beyond)
+}
+
+/// [`Agreement`] of comparisons (metres, σ).
+fn agreement_of(all: &[(f64, f64)]) -> Agreement {
     let n = all.len().max(1) as f64;
     Agreement {
         fixes: all.len(),

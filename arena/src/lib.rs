@@ -14,6 +14,8 @@
 //! image's border, so a robot handed from one view to the next does not jump. Each fix's σ
 //! carries the calibrations' uncertainty through the arena fit (every camera's intrinsics
 //! covariance moves the fitted poses), and the fusion does not average that part down.
+//! A camera whose video is turned 180° against its calibration is named ([`TurnedCamera`])
+//! rather than blamed on its clock.
 
 mod error;
 mod file;
@@ -22,6 +24,7 @@ mod graph;
 mod shared;
 pub mod track;
 mod track_file;
+mod turned;
 
 pub use error::ArenaError;
 pub use file::{ArenaCamera, ArenaFile, Consistency, PairConsistency, ARENA_FORMAT};
@@ -40,5 +43,7 @@ pub use track::{
     track_cameras, ArenaTracking, CameraResult,
 };
 pub use track_file::{
-    ArenaTrackFile, FusedRow, HandoffEntry, OffsetEntry, RobotEntry, ARENA_TRACK_FORMAT,
+    ArenaTrackFile, FrameRateEntry, FusedRow, HandoffEntry, OffsetEntry, RobotEntry,
+    ARENA_TRACK_FORMAT,
 };
+pub use turned::TurnedCamera;

@@ -11,8 +11,9 @@ use odocal_core::PoseSigma;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{open_source, Fix, Outcome, SourceOptions, TrackOptions, TrackResult};
 
-use crate::fuse::{estimate_clock_offsets, fix_weight, fuse_robot};
+use crate::fuse::{camera_agreement, estimate_clock_offsets, fix_weight, fuse_robot};
 use crate::graph::camera_pose;
+use crate::turned::{turned_fix, TurnedCamera, AGREE_SHARE, DISAGREE_SHARE};
 use crate::{
     ArenaCamera, ArenaError, ArenaFile, CameraFix, CameraTrack, ClockOffsets, FuseGrid,
     FuseOptions, FusedTrack,
@@ -31,6 +32,19 @@ pub fn track_camera(
 ) -> Result<CameraResult, ArenaError> {
     let cam = &arena.cameras[k];
     let source = open_source(video, &SourceOptions::default())?;
+    let (w, h) = (cam.calibration.camera.width, cam.calibration.camera.height);
+    let info = source.info();
+    // Width and height swapped: a camera's picture turned a quarter, which no other
+    // calibration at another resolution explains as well.
+    if w != h && (info.width, info.height) == (h, w) {
+        return Err(ArenaError::Input(format!(
+            "{} (camera {k}) is {}×{}, camera file {}'s {w}×{h} turned a quarter: the video looks turned 90°; turn it back with ffmpeg -vf transpose=1 or transpose=2 (whichever puts the image as the calibration views were taken; each image of a frame folder alike), or recalibrate that camera on turned views and run `odocal arena` again",
+            video.display(),
+            info.width,
+            info.height,
+            cam.source
+        )));
+    }
     Ok(track_source_multi(
         source,
         &cam.calibration.camera,
@@ -122,6 +136,17 @@ pub fn camera_tracks(
     results: &[CameraResult],
     marker_height_m: f64,
 ) -> Vec<CameraTrack> {
+    tracks_turning(arena, results, marker_height_m, None)
+}
+
+/// [`camera_tracks`] with camera `turned`'s fixes as they are with its image turned half a
+/// turn ([`turned_fix`]).
+fn tracks_turning(
+    arena: &ArenaFile,
+    results: &[CameraResult],
+    marker_height_m: f64,
+    turned: Option<usize>,
+) -> Vec<CameraTrack> {
     let mut tracks = Vec::new();
     for (k, per_id) in results.iter().enumerate() {
         let cam = &arena.cameras[k];
@@ -134,6 +159,8 @@ pub fn camera_tracks(
                 .records
                 .iter()
                 .filter_map(|r| match &r.outcome {
+                    Outcome::Fix(f) if turned == Some(k) => turned_fix(cam, f, marker_height_m)
+                        .map(|f| camera_fix(cam, &f, marker_height_m)),
                     Outcome::Fix(f) => Some(camera_fix(cam, f, marker_height_m)),
                     Outcome::Gap(_) => None,
                 })
@@ -300,22 +327,45 @@ pub fn fuse_all(
 ) -> Result<ArenaTracking, ArenaError> {
     let tracks = camera_tracks(arena, results, marker_height_m);
     let prior_s = clock_priors(results, opts.max_offset_s);
-    let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts, &prior_s)?;
-    // The fused rows fall on the reference camera's frames, its first frame time the grid's
-    // origin (its records are every frame, fix or gap), every frame of the fastest camera
-    // that saw a robot: on all the reference camera's frames when it is that fast, or a
-    // whole multiple slower.
-    let grid = FuseGrid {
-        origin_s: results
-            .get(offsets.reference)
-            .and_then(|per_id| per_id.values().next())
-            .and_then(|r| r.records.first())
-            .map_or(0.0, |r| r.t_s),
-        period_s: tracks
-            .iter()
-            .map(|t| t.period_s)
-            .fold(f64::INFINITY, f64::min),
+    let cameras = arena.cameras.len();
+    let saw: Vec<usize> = (0..cameras)
+        .filter(|&k| tracks.iter().any(|t| t.camera == k))
+        .collect();
+    let turned = |suspects: &[usize], recorded: &dyn Fn(usize) -> Option<f64>| {
+        suspects.iter().find_map(|&k| {
+            turned_camera(
+                arena,
+                results,
+                marker_height_m,
+                opts,
+                &prior_s,
+                k,
+                recorded(k),
+            )
+        })
     };
+    let offsets = match estimate_clock_offsets(&tracks, cameras, opts, &prior_s) {
+        Ok(o) => o,
+        // A camera that lines up with no other at any offset may be turned: every camera is
+        // a suspect, since the first one turned leaves all the others unplaced.
+        Err(e) => return Err(turned(&saw, &|_| None).map_or(e, ArenaError::Turned)),
+    };
+    let grid = fuse_grid(results, &offsets, &tracks);
+    // A turned camera placed in time (a robot near its image centre, whose mirror lands
+    // close by) disagrees with the others wherever else it sees a robot.
+    let disagreeing: Vec<(usize, f64)> = saw
+        .iter()
+        .filter_map(|&k| {
+            let (a, beyond) = camera_agreement(k, &tracks, &offsets, opts, &grid);
+            let share = beyond as f64 / a.fixes.max(1) as f64;
+            (share > DISAGREE_SHARE).then_some((k, a.rms_m))
+        })
+        .collect();
+    let suspects: Vec<usize> = disagreeing.iter().map(|(k, _)| *k).collect();
+    let rms_of = |k: usize| disagreeing.iter().find(|(c, _)| *c == k).map(|(_, m)| *m);
+    if let Some(t) = turned(&suspects, &rms_of) {
+        return Err(ArenaError::Turned(t));
+    }
     let mut ids: Vec<u32> = tracks.iter().map(|t| t.tag_id).collect();
     ids.sort_unstable();
     ids.dedup();
@@ -330,5 +380,56 @@ pub fn fuse_all(
         frame_period_s: results.iter().map(frame_period_s).collect(),
         grid,
         tracks,
+    })
+}
+
+/// The fused rows' instants: on the reference camera's frames, its first frame time the
+/// grid's origin (its records are every frame, fix or gap), every frame of the fastest camera
+/// that saw a robot: on all the reference camera's frames when it is that fast, or a whole
+/// multiple slower.
+fn fuse_grid(results: &[CameraResult], offsets: &ClockOffsets, tracks: &[CameraTrack]) -> FuseGrid {
+    FuseGrid {
+        origin_s: results
+            .get(offsets.reference)
+            .and_then(|per_id| per_id.values().next())
+            .and_then(|r| r.records.first())
+            .map_or(0.0, |r| r.t_s),
+        period_s: tracks
+            .iter()
+            .map(|t| t.period_s)
+            .fold(f64::INFINITY, f64::min),
+    }
+}
+
+/// Camera `k` as turned half a turn, when with its fixes turned back ([`turned_fix`]) the
+/// clocks fit, it is placed in time, and its fixes agree with the other cameras' fused pose
+/// (at least `opts.min_matches` comparisons, at most [`AGREE_SHARE`] of them beyond
+/// [`crate::DISAGREE_SIGMAS`]). `recorded_rms_m`: its fixes' RMS distance from the others' as
+/// recorded, none where they were never placed.
+fn turned_camera(
+    arena: &ArenaFile,
+    results: &[CameraResult],
+    marker_height_m: f64,
+    opts: &FuseOptions,
+    prior_s: &[f64],
+    k: usize,
+    recorded_rms_m: Option<f64>,
+) -> Option<TurnedCamera> {
+    let tracks = tracks_turning(arena, results, marker_height_m, Some(k));
+    let offsets = estimate_clock_offsets(&tracks, arena.cameras.len(), opts, prior_s).ok()?;
+    if offsets.sigma_s.get(k).is_none_or(|s| s.is_nan()) {
+        return None;
+    }
+    let grid = fuse_grid(results, &offsets, &tracks);
+    let (a, beyond) = camera_agreement(k, &tracks, &offsets, opts, &grid);
+    let share = beyond as f64 / a.fixes.max(1) as f64;
+    let agrees = a.fixes >= opts.min_matches && share <= AGREE_SHARE;
+    agrees.then_some(TurnedCamera {
+        camera: k,
+        compared: a.fixes,
+        turned_rms_m: a.rms_m,
+        turned_sigmas_rms: a.sigmas_rms,
+        recorded_rms_m,
+        max_offset_s: opts.max_offset_s,
     })
 }

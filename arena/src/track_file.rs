@@ -29,6 +29,16 @@ pub struct OffsetEntry {
     pub origin_s: f64,
 }
 
+/// One camera's frame rate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FrameRateEntry {
+    /// The camera's index in the arena.
+    pub camera: usize,
+    /// Its frame rate, frames/s: one over the median interval between its frames
+    /// ([`crate::frame_period_s`]).
+    pub frames_per_s: f64,
+}
+
 /// One fused pose and the camera that weighed most in it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FusedRow {
@@ -81,6 +91,10 @@ pub struct ArenaTrackFile {
     pub offsets: Vec<OffsetEntry>,
     /// RMS distance between simultaneous fixes of two cameras after the offsets, millimetres.
     pub offset_fit_rms_mm: f64,
+    /// Every camera's frame rate (the cameras may run at different rates; a camera with fewer
+    /// than two frames has none). Empty in files written before it was kept.
+    #[serde(default)]
+    pub frame_rates: Vec<FrameRateEntry>,
     /// The robots.
     pub robots: Vec<RobotEntry>,
 }
@@ -102,6 +116,17 @@ impl ArenaTrackFile {
                 })
                 .collect(),
             offset_fit_rms_mm: tracking.offsets.rms_m * 1e3,
+            frame_rates: tracking
+                .frame_period_s
+                .iter()
+                .enumerate()
+                .filter_map(|(camera, p)| {
+                    p.map(|p| FrameRateEntry {
+                        camera,
+                        frames_per_s: 1.0 / p,
+                    })
+                })
+                .collect(),
             robots: tracking
                 .robots
                 .iter()

@@ -6,7 +6,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use odocal_arena::{fuse_all, track_cameras, ArenaFile, ArenaTrackFile, ClockRate, FuseOptions};
+use odocal_arena::{
+    fuse_all, track_cameras, ArenaError, ArenaFile, ArenaTrackFile, ClockRate, FuseOptions,
+};
 use odocal_calib::CameraFile;
 use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
@@ -336,7 +338,16 @@ fn track_arena(
         max_offset_s: m.max_clock_offset_s,
         ..FuseOptions::default()
     };
-    let mut tracking = fuse_all(&arena, &results, opts.marker_height_m, &fuse)?;
+    let mut tracking =
+        fuse_all(&arena, &results, opts.marker_height_m, &fuse).map_err(|e| match e {
+            ArenaError::Turned(t) => match videos.get(t.camera) {
+                Some(v) => {
+                    anyhow::anyhow!(t.message(&format!("{} (camera {})", v.display(), t.camera)))
+                }
+                None => ArenaError::Turned(t).into(),
+            },
+            e => e.into(),
+        })?;
     // The cameras fuse the tags' positions; the robots' are taken off the mount after.
     for r in &mut tracking.robots {
         r.trajectory = opts.tag_to_robot.robot_trajectory(&r.trajectory);
