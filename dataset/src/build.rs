@@ -7,6 +7,7 @@ use crate::align::{
     clock_rate, coarse_offset, refine_offset, AlignOptions, ClockRate, CoarseOffset,
 };
 use crate::error::DatasetError;
+use crate::glitch::LostStep;
 use crate::kinematics::{RunOdometry, WheelGeometry};
 use crate::odometry::{OdometryLog, WheelRevs, STEP_TOLERANCE_PERIODS};
 use crate::segment::{split_runs, RunSegment};
@@ -270,7 +271,7 @@ pub fn process_recording(
     rec: &Recording,
     opts: &BuildOptions,
 ) -> Result<Vec<RunOutcome>, DatasetError> {
-    process_recording_at(rec, opts, coarse_of(rec, opts))
+    process_recording_at(rec, opts, coarse_of(rec, opts), &[])
 }
 
 /// The clock of a whole recording: its coarse offset (speed-profile cross-correlation) and,
@@ -302,11 +303,13 @@ pub(crate) fn coarse_of(
     Ok(CoarseOffset { rate: r.rate, ..c })
 }
 
-/// [`process_recording`] with the recording's coarse offset already found.
+/// [`process_recording`] with the recording's coarse offset already found; a run across a step
+/// of `lost` (the log's glitches, see [`crate::glitch`]) is rejected with its reason.
 pub(crate) fn process_recording_at(
     rec: &Recording,
     opts: &BuildOptions,
     coarse: Result<CoarseOffset, DatasetError>,
+    lost: &[LostStep],
 ) -> Result<Vec<RunOutcome>, DatasetError> {
     let reject =
         |id: String, reason: String| RunOutcome::Rejected(RejectedRun { run_id: id, reason });
@@ -338,6 +341,16 @@ pub(crate) fn process_recording_at(
     let mut out = Vec::with_capacity(segs.len());
     for (j, seg) in segs.iter().enumerate() {
         let id = name(j);
+        if let Some(step) = lost.iter().find(|s| s.touches(seg.start_row, seg.end_row)) {
+            out.push(reject(
+                id,
+                format!(
+                    "{}: the run's travel across it is unknown (the recording's other runs are kept)",
+                    step.reason
+                ),
+            ));
+            continue;
+        }
         if coarse.correlation < opts.align.min_correlation {
             out.push(reject(
                 id,

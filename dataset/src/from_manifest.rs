@@ -11,6 +11,7 @@ use odocal_core::Trajectory;
 use crate::build::{
     assemble, coarse_of, process_recording_at, BuildOptions, Recording, RunOutcome,
 };
+use crate::glitch::{mend_glitches, LogGlitches, LostStep};
 use crate::manifest::{Manifest, ManifestRow};
 use crate::odometry::OdometryLog;
 use crate::oracle::OracleFile;
@@ -22,20 +23,28 @@ use crate::DatasetError;
 /// row and the video's resolved path in, the trajectory or a message out.
 pub type VideoTracker<'a> = dyn Fn(&ManifestRow, &Path) -> Result<Trajectory, String> + Sync + 'a;
 
-/// A row's runs, and the note on what reading its log took out of it.
-type RowOutcome = (Vec<RunOutcome>, Option<String>);
+/// A row's runs, and the notes on what reading its log took out of it.
+type RowOutcome = (Vec<RunOutcome>, Vec<String>);
 
+/// A row's log (glitches mended) and camera trajectory, once both are read: what the search
+/// for swapped pairs compares.
+type RowPair = Option<(OdometryLog, Trajectory)>;
+
+/// Processes one row; `pair` receives its log and trajectory once both are read.
 fn one_row(
     m: &Manifest,
     row: &ManifestRow,
     track: Option<&VideoTracker>,
     opts: &BuildOptions,
+    pair: &mut RowPair,
 ) -> Result<RowOutcome, DatasetError> {
     let log_path = m.resolve(&row.odometry);
     let log = OdometryLog::read_csv(&log_path)?;
-    let note = log
+    let mut notes: Vec<String> = log
         .count_note()
-        .map(|n| format!("{}: {n}", log_path.display()));
+        .map(|n| format!("{}: {n}", log_path.display()))
+        .into_iter()
+        .collect();
     if let Some(why) = log.period_mismatch(opts.robot.period_s) {
         // Times in milliseconds are the log's unit: another robot file would not mend them.
         let advice = if log.times_in_milliseconds(opts.robot.period_s) {
@@ -48,27 +57,60 @@ fn one_row(
             log_path.display()
         )));
     }
-    // A glitch in the log spoils its recording alone, and is found before any tracking.
-    if let Some(why) = log.implausible_step(&opts.robot) {
-        // Counted as the runs it holds, as the runs of a recording are counted otherwise.
-        let runs = match opts.layout {
-            Layout::StraightRuns => crate::segment::split_runs(&log, opts.min_gap_s).len(),
-            Layout::Windows(_) => 1,
-        };
-        let rejected = (0..runs.max(1))
-            .map(|j| {
-                RunOutcome::Rejected(crate::sample::RejectedRun {
-                    run_id: if runs > 1 {
-                        format!("{}.{}", row.id, j + 1)
-                    } else {
-                        row.id.clone()
-                    },
-                    reason: format!("{}: {why}", log_path.display()),
+    // Glitches are found before any tracking. A few spoil the runs or windows across them
+    // alone; impossible steps everywhere are the log's unit or the robot file, and spoil the
+    // whole recording.
+    let runs_of = |log: &OdometryLog| match opts.layout {
+        Layout::StraightRuns => crate::segment::split_runs(log, opts.min_gap_s),
+        Layout::Windows(_) => Vec::new(),
+    };
+    let mended = match mend_glitches(&log, &opts.robot) {
+        LogGlitches::Mended(m) => m,
+        LogGlitches::Everywhere(why) => {
+            // Counted as the runs it holds, as the runs of a recording are counted otherwise.
+            let runs = match opts.layout {
+                Layout::StraightRuns => runs_of(&log).len(),
+                Layout::Windows(_) => 1,
+            };
+            let rejected = (0..runs.max(1))
+                .map(|j| {
+                    RunOutcome::Rejected(crate::sample::RejectedRun {
+                        run_id: if runs > 1 {
+                            format!("{}.{}", row.id, j + 1)
+                        } else {
+                            row.id.clone()
+                        },
+                        reason: format!("{}: {why}", log_path.display()),
+                    })
                 })
-            })
-            .collect();
-        return Ok((rejected, note));
+                .collect();
+            return Ok((rejected, notes));
+        }
+    };
+    let at_log = |what: &str| format!("{}: {what}", log_path.display());
+    notes.extend(mended.mended.iter().map(|m| at_log(m)));
+    let segments = runs_of(&mended.log);
+    for step in &mended.lost {
+        if matches!(opts.layout, Layout::StraightRuns)
+            && !segments
+                .iter()
+                .any(|s| step.touches(s.start_row, s.end_row))
+        {
+            notes.push(at_log(&format!(
+                "{}; no run spans it: the counts after it are read on from the rows before it",
+                step.reason
+            )));
+        }
     }
+    let lost: Vec<LostStep> = mended
+        .lost
+        .iter()
+        .map(|s| LostStep {
+            row: s.row,
+            reason: at_log(&s.reason),
+        })
+        .collect();
+    let log = mended.log;
     let traj = match (&row.trajectory, &row.video, track) {
         (Some(t), _, _) => Trajectory::read_csv(&m.resolve(t))?,
         (None, Some(v), Some(track)) => {
@@ -102,6 +144,7 @@ fn one_row(
             }
         )));
     }
+    *pair = Some((log.clone(), traj.clone()));
     if let Some(why) = crate::units::unit_mismatch(&log, &traj, &opts.robot) {
         return Err(DatasetError::Mismatch(format!(
             "run \"{}\" ({}): {why}",
@@ -142,10 +185,10 @@ fn one_row(
         return mismatch(why);
     }
     let runs = match opts.layout {
-        Layout::StraightRuns => process_recording_at(&rec, opts, coarse),
-        Layout::Windows(w) => window_samples_at(&rec, opts, &w, coarse),
+        Layout::StraightRuns => process_recording_at(&rec, opts, coarse, &lost),
+        Layout::Windows(w) => window_samples_at(&rec, opts, &w, coarse, &lost),
     }?;
-    Ok((runs, note))
+    Ok((runs, notes))
 }
 
 /// Why `camera` cannot be the trajectory of the robot that wrote `log`, judged on the
@@ -163,6 +206,40 @@ pub fn trajectory_mismatch(
         let coarse = crate::align::coarse_offset(log, &revs, &geom, camera, align, "").ok()?;
         crate::turn_sides::turn_mismatch(log, camera, robot, align, &coarse)
     })
+}
+
+/// Whether `camera` may be the trajectory of the robot that wrote `log`: no unit mismatch, no
+/// [`trajectory_mismatch`], and a clock offset at which their speed profiles correlate as
+/// `align` asks.
+pub fn log_fits_camera(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &crate::RobotParams,
+    align: &crate::align::AlignOptions,
+) -> bool {
+    if crate::units::unit_mismatch(log, camera, robot).is_some()
+        || mismatch_before_alignment(log, camera, robot).is_some()
+    {
+        return false;
+    }
+    let revs = log.wheel_revs(robot);
+    let geom = crate::kinematics::WheelGeometry::nominal(robot);
+    crate::align::coarse_offset(log, &revs, &geom, camera, align, "").is_ok_and(|c| {
+        c.correlation >= align.min_correlation
+            && crate::turn_sides::turn_mismatch(log, camera, robot, align, &c).is_none()
+    })
+}
+
+/// The other of `n` recordings that recording `i` is swapped with: `i`'s log does not fit its
+/// own camera, nor the other's log its own, while each fits the other's camera (`fits(a, b)`:
+/// recording `a`'s log fits recording `b`'s camera, as [`log_fits_camera`] judges). Two logs,
+/// or two trajectories or videos, given to each other's rows: each pair on its own reads as a
+/// log of another robot or a camera that lost its clock, until the pairs are tried.
+pub fn swapped_with(n: usize, i: usize, fits: impl Fn(usize, usize) -> bool) -> Option<usize> {
+    if fits(i, i) {
+        return None;
+    }
+    (0..n).find(|&j| j != i && fits(i, j) && fits(j, i) && !fits(j, j))
 }
 
 /// The checks of [`trajectory_mismatch`] that need no clock offset: times that are not
@@ -189,15 +266,16 @@ pub fn build_from_manifest(
     on_row: &(dyn Fn() + Sync),
 ) -> Result<Dataset, DatasetError> {
     use rayon::prelude::*;
+    type Done = (Result<RowOutcome, DatasetError>, RowPair);
     let work = |row: &ManifestRow| {
-        let r = one_row(m, row, track, opts);
+        let mut pair = None;
+        let r = one_row(m, row, track, opts, &mut pair);
         on_row();
-        r
+        (r, pair)
     };
-    let results: Vec<Result<RowOutcome, DatasetError>> = if track.is_some() {
+    let results: Vec<Done> = if track.is_some() {
         let next = AtomicUsize::new(0);
-        let mut slots: Vec<Option<Result<RowOutcome, DatasetError>>> =
-            (0..m.runs.len()).map(|_| None).collect();
+        let mut slots: Vec<Option<Done>> = (0..m.runs.len()).map(|_| None).collect();
         let done = Mutex::new(&mut slots);
         std::thread::scope(|scope| {
             for _ in 0..threads.clamp(1, m.runs.len().max(1)) {
@@ -216,19 +294,20 @@ pub fn build_from_manifest(
             .zip(&m.runs)
             .map(|(r, row)| {
                 r.unwrap_or_else(|| {
-                    Err(DatasetError::Mismatch(format!(
-                        "run \"{}\" was not processed",
-                        row.id
-                    )))
+                    let e = DatasetError::Mismatch(format!("run \"{}\" was not processed", row.id));
+                    (Err(e), None)
                 })
             })
             .collect()
     } else {
         m.runs.par_iter().map(work).collect()
     };
+    if let Some(why) = swapped_pair(m, &results, opts) {
+        return Err(DatasetError::Mismatch(why));
+    }
     let mut outcomes = Vec::with_capacity(results.len());
     let mut notes = Vec::new();
-    for r in results {
+    for (r, _) in results {
         let (runs, note) = r?;
         outcomes.push(runs);
         notes.extend(note);
@@ -240,6 +319,60 @@ pub fn build_from_manifest(
         ds.feature_rule = WINDOW_RULE.to_string();
     }
     Ok(ds)
+}
+
+/// The message on the first two rows of `m` whose logs (or cameras) are each other's
+/// ([`swapped_with`]), among the rows that gave no sample: their own pairings refused or every
+/// run rejected, each on its own for a reason that does not name the other.
+fn swapped_pair(
+    m: &Manifest,
+    results: &[(Result<RowOutcome, DatasetError>, RowPair)],
+    opts: &BuildOptions,
+) -> Option<String> {
+    let suspects: Vec<(usize, &OdometryLog, &Trajectory)> = results
+        .iter()
+        .enumerate()
+        .filter_map(|(i, (r, pair))| {
+            let (log, camera) = pair.as_ref()?;
+            let sampled = r
+                .as_ref()
+                .is_ok_and(|(runs, _)| runs.iter().any(|o| matches!(o, RunOutcome::Sample(_))));
+            (!sampled).then_some((i, log, camera))
+        })
+        .collect();
+    let fits = |a: usize, b: usize| {
+        log_fits_camera(suspects[a].1, suspects[b].2, &opts.robot, &opts.align)
+    };
+    let (a, b) =
+        (0..suspects.len()).find_map(|a| swapped_with(suspects.len(), a, fits).map(|b| (a, b)))?;
+    let (i, j) = (suspects[a].0, suspects[b].0);
+    let (x, y) = (&m.runs[i], &m.runs[j]);
+    let camera = |r: &ManifestRow| {
+        if r.video.is_some() {
+            "video"
+        } else {
+            "trajectory"
+        }
+    };
+    let cameras = if x.video.is_some() && y.video.is_some() {
+        "videos"
+    } else {
+        "trajectories"
+    };
+    let (pi, pj) = (m.place_of(i), m.place_of(j));
+    let places = match (pi.strip_prefix("line "), pj.strip_prefix("line ")) {
+        (Some(li), Some(lj)) => format!("lines {li} and {lj}"),
+        _ => format!("{pi} and {pj}"),
+    };
+    Some(format!(
+        "{}'s log matches {}'s {} and {}'s log matches {}'s: the two logs (or the two {cameras}) are swapped in {} {places}; swap them back",
+        x.id,
+        y.id,
+        camera(y),
+        y.id,
+        x.id,
+        m.source_name(),
+    ))
 }
 
 /// The dataset's errors against a synthetic experiment's truth.

@@ -6,6 +6,7 @@ pub mod build;
 pub mod counter_wrap;
 pub mod error;
 mod from_manifest;
+pub mod glitch;
 pub mod heading;
 pub mod kinematics;
 pub mod manifest;
@@ -25,8 +26,8 @@ pub use build::{
 };
 pub use error::DatasetError;
 pub use from_manifest::{
-    build_from_manifest, errors_against_truth, trajectory_mismatch, TruthErrors, VideoTracker,
-    TRUTH_MISMATCH_M, TRUTH_MISMATCH_S,
+    build_from_manifest, errors_against_truth, log_fits_camera, swapped_with, trajectory_mismatch,
+    TruthErrors, VideoTracker, TRUTH_MISMATCH_M, TRUTH_MISMATCH_S,
 };
 pub use kinematics::{dead_reckon, RunOdometry, WheelGeometry};
 pub use manifest::{Manifest, ManifestRow};

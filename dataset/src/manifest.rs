@@ -78,6 +78,12 @@ pub struct Manifest {
     /// Notes for people, ignored.
     #[serde(default, skip_serializing)]
     pub description: Note,
+    /// The file it was read from (empty when made in memory), for messages.
+    #[serde(skip)]
+    source: PathBuf,
+    /// Each row's line in a CSV file (none for JSON), for messages.
+    #[serde(skip)]
+    lines: Vec<u64>,
 }
 
 impl Manifest {
@@ -90,6 +96,30 @@ impl Manifest {
             comment: Note,
             notes: Note,
             description: Note,
+            source: PathBuf::new(),
+            lines: Vec::new(),
+        }
+    }
+
+    /// Where row `i` is written, for a message: its line of a CSV manifest, or its place
+    /// and id in a JSON one.
+    pub fn place_of(&self, i: usize) -> String {
+        match self.lines.get(i) {
+            Some(&l) if l > 0 => format!("line {l}"),
+            _ => format!(
+                "run {} (\"{}\")",
+                i + 1,
+                self.runs.get(i).map_or("", |r| r.id.as_str())
+            ),
+        }
+    }
+
+    /// The file the manifest was read from, as given (\"the manifest\" when made in memory).
+    pub fn source_name(&self) -> String {
+        if self.source.as_os_str().is_empty() {
+            "the manifest".into()
+        } else {
+            self.source.display().to_string()
         }
     }
 
@@ -109,20 +139,19 @@ impl Manifest {
             (m, (0..n).map(|_| 0).collect())
         };
         m.base_dir = base;
-        m.check(&name, &lines)?;
+        m.source = path.to_path_buf();
+        m.lines = lines;
+        m.check(&name)?;
         Ok(m)
     }
 
-    fn check(&self, name: &str, lines: &[u64]) -> Result<(), DatasetError> {
+    fn check(&self, name: &str) -> Result<(), DatasetError> {
         if self.runs.is_empty() {
             return Err(DatasetError::content(name, "the manifest lists no runs"));
         }
         let mut seen = HashSet::new();
         for (i, r) in self.runs.iter().enumerate() {
-            let at = match lines.get(i) {
-                Some(&l) if l > 0 => format!("line {l}"),
-                _ => format!("run {} (\"{}\")", i + 1, r.id),
-            };
+            let at = self.place_of(i);
             let bad = |msg: String| DatasetError::content(name, format!("{at}: {msg}"));
             if r.id.trim().is_empty() {
                 return Err(bad("empty run id".into()));
@@ -440,8 +469,9 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.to_string(), "m.csv:2:4: \"fast\" is not a number");
-        let (m, l) = parse_csv("id,trajectory,odometry\nr1,a,b\nr1,c,d\n", "m.csv").unwrap();
-        let e = m.check("m.csv", &l).unwrap_err();
+        let (mut m, l) = parse_csv("id,trajectory,odometry\nr1,a,b\nr1,c,d\n", "m.csv").unwrap();
+        m.lines = l;
+        let e = m.check("m.csv").unwrap_err();
         assert!(e
             .to_string()
             .contains("line 3: run id \"r1\" appears twice"));

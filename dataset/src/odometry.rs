@@ -461,34 +461,64 @@ impl OdometryLog {
         if let Some(reset) = self.counter_reset() {
             return Some(reset);
         }
-        let revs = self.wheel_revs(robot);
-        let circ = std::f64::consts::PI * robot.wheel_diameter_m;
-        (1..revs.t_s.len()).find_map(|k| {
-            let dt = revs.t_s[k] - revs.t_s[k - 1];
-            (0..2).find_map(|w| {
-                let v = (revs.rev[k][w] - revs.rev[k - 1][w]) * circ / dt;
-                (v.abs() > MAX_WHEEL_SPEED_MPS).then(|| {
-                    let (side, column) = [("left", &self.left), ("right", &self.right)][w];
-                    let what = match self.kind {
-                        LogKind::Ticks => format!(
-                            "goes from {} to {} ticks",
-                            column[k - 1], column[k]
-                        ),
-                        LogKind::Speeds => format!("reads {} m/s", column[k]),
-                    };
-                    // A speed log's speeds use neither robot parameter: its unit is the
-                    // suspect, not the robot file.
-                    let suspects = match self.kind {
-                        LogKind::Ticks => "a glitch or a reset counter in the log, or ticks_per_rev and wheel_diameter_m not the robot's?",
-                        LogKind::Speeds => "a glitch in the log, or speeds not in m/s? mm/s read 1000 times too fast",
-                    };
-                    format!(
-                        "rows {} and {}: the {side} wheel {what}, {:.1} m/s over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
-                        k + 1,
-                        k + 2,
-                        v.abs()
-                    )
-                })
+        (1..self.len()).find_map(|k| self.too_fast_at(k, robot))
+    }
+
+    /// Every step of [`Self::implausible_step`] but counts beyond any counter (whose steps
+    /// are too fast anyway), as the row it ends at (0-based) and what is wrong with it: a
+    /// counter reset's step is named as one.
+    pub fn implausible_steps(&self, robot: &RobotParams) -> Vec<(usize, String)> {
+        let mut resets = self.counter_resets().into_iter().peekable();
+        (1..self.len())
+            .filter_map(|k| {
+                let reset = resets.next_if(|(r, _)| *r == k).map(|(_, why)| why);
+                reset
+                    .or_else(|| self.too_fast_at(k, robot))
+                    .map(|why| (k, why))
+            })
+            .collect()
+    }
+
+    /// The travel of wheel `w` (0 left, 1 right) over the step ending at row `k` (k ≥ 1),
+    /// metres on the nominal wheel.
+    pub fn step_travel_m(&self, k: usize, w: usize, robot: &RobotParams) -> f64 {
+        let column = [&self.left, &self.right][w];
+        match self.kind {
+            LogKind::Ticks => {
+                (column[k] - column[k - 1]) / robot.ticks_per_rev
+                    * std::f64::consts::PI
+                    * robot.wheel_diameter_m
+            }
+            LogKind::Speeds => column[k] * (self.t_s[k] - self.t_s[k - 1]),
+        }
+    }
+
+    /// What is wrong with the step ending at row `k` (k ≥ 1) when a wheel's surface moves
+    /// faster than [`MAX_WHEEL_SPEED_MPS`] over it (its rows numbered as the file's lines).
+    pub fn too_fast_at(&self, k: usize, robot: &RobotParams) -> Option<String> {
+        let dt = self.t_s[k] - self.t_s[k - 1];
+        (0..2).find_map(|w| {
+            let v = self.step_travel_m(k, w, robot) / dt;
+            (v.abs() > MAX_WHEEL_SPEED_MPS).then(|| {
+                let (side, column) = [("left", &self.left), ("right", &self.right)][w];
+                let what = match self.kind {
+                    LogKind::Ticks => {
+                        format!("goes from {} to {} ticks", column[k - 1], column[k])
+                    }
+                    LogKind::Speeds => format!("reads {} m/s", column[k]),
+                };
+                // A speed log's speeds use neither robot parameter: its unit is the
+                // suspect, not the robot file.
+                let suspects = match self.kind {
+                    LogKind::Ticks => "a glitch or a reset counter in the log, or ticks_per_rev and wheel_diameter_m not the robot's?",
+                    LogKind::Speeds => "a glitch in the log, or speeds not in m/s? mm/s read 1000 times too fast",
+                };
+                format!(
+                    "rows {} and {}: the {side} wheel {what}, {:.1} m/s over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
+                    k + 1,
+                    k + 2,
+                    v.abs()
+                )
             })
         })
     }
@@ -500,8 +530,14 @@ impl OdometryLog {
     /// only spoiled the alignment ("speed-profile correlation 0.30") or the model's domain.
     /// A wheel driven backwards counts down step by step, and a wrap is unwrapped before.
     pub fn counter_reset(&self) -> Option<String> {
+        self.counter_resets().into_iter().next().map(|(_, why)| why)
+    }
+
+    /// Every step of [`Self::counter_reset`], as the row it ends at (0-based) and what is
+    /// wrong with it.
+    pub fn counter_resets(&self) -> Vec<(usize, String)> {
         if self.kind != LogKind::Ticks {
-            return None;
+            return Vec::new();
         }
         let n = self.len();
         // The wheel's largest step on either side of row k's.
@@ -521,24 +557,29 @@ impl OdometryLog {
             (c[k] - c[k - 1]).abs() > RESET_STEPS * around(c, k) + RESET_SLACK_TICKS
                 && c[k].abs() <= around(c, k) + 1.0
         };
-        let k = (1..n).find(|&k| reset_at(&self.left, k) || reset_at(&self.right, k))?;
-        let line = k + 2;
-        let drops: Vec<String> = [(TICKS_HEADER[1], &self.left), (TICKS_HEADER[2], &self.right)]
-            .into_iter()
-            .filter(|(_, c)| reset_at(c, k))
-            .map(|(name, c)| {
-                format!(
-                    "{name} drops from {} to {} in one step where the wheel moves {} ticks a step around it",
-                    c[k - 1],
-                    c[k],
-                    around(c, k)
-                )
+        (1..n)
+            .filter(|&k| reset_at(&self.left, k) || reset_at(&self.right, k))
+            .map(|k| {
+                let line = k + 2;
+                let drops: Vec<String> =
+                    [(TICKS_HEADER[1], &self.left), (TICKS_HEADER[2], &self.right)]
+                        .into_iter()
+                        .filter(|(_, c)| reset_at(c, k))
+                        .map(|(name, c)| {
+                            format!(
+                                "{name} drops from {} to {} in one step where the wheel moves {} ticks a step around it",
+                                c[k - 1],
+                                c[k],
+                                around(c, k)
+                            )
+                        })
+                        .collect();
+                (k, format!(
+                    "line {line}: {}: the counter was reset (motor board restarted?); the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
+                    drops.join(", and ")
+                ))
             })
-            .collect();
-        Some(format!(
-            "line {line}: {}: the counter was reset (motor board restarted?); the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
-            drops.join(", and ")
-        ))
+            .collect()
     }
 
     /// Cumulative wheel revolutions relative to the first row. Speeds are converted with the

@@ -64,15 +64,17 @@ pub fn window_samples(
     opts: &BuildOptions,
     w: &WindowOptions,
 ) -> Result<Vec<RunOutcome>, DatasetError> {
-    window_samples_at(rec, opts, w, coarse_of(rec, opts))
+    window_samples_at(rec, opts, w, coarse_of(rec, opts), &[])
 }
 
-/// [`window_samples`] with the recording's coarse offset already found.
+/// [`window_samples`] with the recording's coarse offset already found; a window across a step
+/// of `lost` (the log's glitches, see [`crate::glitch`]) is rejected with its reason.
 pub(crate) fn window_samples_at(
     rec: &Recording,
     opts: &BuildOptions,
     w: &WindowOptions,
     coarse: Result<CoarseOffset, DatasetError>,
+    lost: &[crate::glitch::LostStep],
 ) -> Result<Vec<RunOutcome>, DatasetError> {
     if w.steps == 0 || w.stride == 0 {
         return Err(DatasetError::Mismatch(
@@ -124,6 +126,16 @@ pub(crate) fn window_samples_at(
     while k + w.steps < n {
         let rows = k..=k + w.steps;
         k += w.stride;
+        if let Some(step) = lost.iter().find(|s| s.touches(*rows.start(), *rows.end())) {
+            out.push(RunOutcome::Rejected(RejectedRun {
+                run_id: format!("{}.w{:04}", rec.id, rows.start()),
+                reason: format!(
+                    "{}: the window's travel across it is unknown (the recording's other windows are kept)",
+                    step.reason
+                ),
+            }));
+            continue;
+        }
         let t = &revs.t_s[rows.clone()];
         let rev: Vec<[f64; 2]> = revs.rev[rows.clone()]
             .iter()

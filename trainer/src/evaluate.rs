@@ -175,25 +175,6 @@ pub fn truth_distance(
 /// during the motion (two 12-count ticks a 200 ms step are 0.11 m/s on a 4.3 cm wheel).
 const BOUNDARY_MOTION_MPS: f64 = 0.1;
 
-/// The other recording whose trajectory `r`'s log fits while `r`'s trajectory fits its log:
-/// two runs' trajectories swapped in the manifest (UMBMark squares driven the other way round
-/// turn against each other's wheels, which reads as swapped wheel columns until the pairs are
-/// tried; swapping the columns as told then passed, with figures 2 to 3 times off).
-fn swapped_with<'a>(
-    recordings: &'a [PathRecording],
-    r: &PathRecording,
-    robot: &RobotParams,
-    align: &odocal_dataset::align::AlignOptions,
-) -> Option<&'a str> {
-    let fits = |log: &PathRecording, camera: &PathRecording| {
-        odocal_dataset::trajectory_mismatch(&log.log, &camera.camera, robot, align).is_none()
-    };
-    recordings
-        .iter()
-        .find(|o| o.id != r.id && fits(r, o) && fits(o, r))
-        .map(|o| o.id.as_str())
-}
-
 /// Judges `methods` (name, reckoner) on `recordings` of `robot`. With `squares`, the
 /// recordings are UMBMark squares (each must turn by one full turn one way or the other) and
 /// every method gets Borenstein's figures.
@@ -207,7 +188,7 @@ pub fn evaluate_paths(
         return Err(TrainError::Dataset("no recordings to evaluate".into()));
     }
     let mut runs = Vec::with_capacity(recordings.len());
-    for r in recordings {
+    for (i, r) in recordings.iter().enumerate() {
         let cam = &r.camera;
         let (t0, t1) = (cam.start_s(), cam.end_s());
         let start = rest_pose(cam.rows_between(t0, t0 + REST_SPAN_S), &r.id, "start")?;
@@ -248,7 +229,15 @@ pub fn evaluate_paths(
         if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot)
             .or_else(|| odocal_dataset::trajectory_mismatch(&r.log, &r.camera, robot, &align))
         {
-            let swap = swapped_with(recordings, r, robot, &align).map_or(String::new(), |o| {
+            // UMBMark squares driven the other way round turn against each other's wheels,
+            // which reads as swapped wheel columns until the pairs are tried (swapping the
+            // columns as told then passed, with figures 2 to 3 times off).
+            let fits = |a: usize, b: usize| {
+                let (log, camera) = (&recordings[a].log, &recordings[b].camera);
+                odocal_dataset::log_fits_camera(log, camera, robot, &align)
+            };
+            let swap = odocal_dataset::swapped_with(recordings.len(), i, fits).map_or(String::new(), |o| {
+                let o = &recordings[o].id;
                 format!(" This log and {o}'s trajectory fit, as do {o}'s log and this trajectory: the manifest pairs each with the other's; swap {}'s and {o}'s trajectories back", r.id)
             });
             return Err(TrainError::Dataset(format!("{}: {why}{swap}", r.id)));
