@@ -1536,6 +1536,15 @@ fn cli_a_mapped_reflector_gone_from_a_symmetric_room_is_named() {
         ),
         "{stderr}"
     );
+    // The refusal names the gone reflector as the cause, as the warning does, rather than
+    // advising to add a landmark beside it.
+    assert!(
+        stderr.contains(&format!(
+            "nothing was written: landmark 31 at (10.00, 4.30) m of {} was not seen in 25 of the 26 scans it should have been in view in; with it gone the landmarks repeat themselves (a symmetric layout); put it back, or remove it from the map and add one that breaks the symmetry",
+            s(&plus)
+        )) && !stderr.contains("add or move a landmark"),
+        "{stderr}"
+    );
     // Not one landmark of the room as mapped is named.
     assert_eq!(stderr.matches("warning: landmark").count(), 1, "{stderr}");
 }
