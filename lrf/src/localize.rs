@@ -3,10 +3,9 @@
 
 use std::path::PathBuf;
 
-use nalgebra::{Matrix2, Matrix3, Vector2};
-use odocal_core::Pose2;
+use nalgebra::{Matrix2, Vector2};
 
-use crate::pose_fit::{fit_pose_weighted, Observation};
+use crate::pose_fit::{fit_pose_weighted, pose_shift, Observation};
 use crate::pose_log::{PoseLog, PoseLogRow};
 use crate::scan::{read_scans_csv, Scan, SensorConfig};
 use crate::scan_track::ScanTracker;
@@ -376,6 +375,13 @@ pub fn check_beam_step(loc: &Localizer, scans: &[Scan]) -> Option<String> {
 /// each scan on its own. Scans without a time stamp are timed at `index / rate_hz`. A pose
 /// refers to its scan's time, the first beam's. `on_scan` is called after each scan (for a
 /// progress bar).
+///
+/// Landmarks moved since the map was made ([`MovedLandmark`]) are found from the poses'
+/// residuals, and then every scan is localised again with a map without them: a moved
+/// landmark does not only pull the poses that match it, it steers the tracking (the
+/// associations, the motion the sweeps are de-skewed with), so poses fitted again from the
+/// first pass's matches stayed up to 37 mm (6.6σ) off. A scan the second pass leaves without
+/// a pose keeps the first pass's, its σ widened by what the moved landmarks' offsets did to it.
 pub fn localize_scans(
     loc: &Localizer,
     scans: &[Scan],
@@ -383,6 +389,81 @@ pub fn localize_scans(
     global_only: bool,
     on_scan: &dyn Fn(),
 ) -> Localized {
+    let mut first = localize_pass(loc, scans, rate_hz, global_only, on_scan);
+    let (mut moved, kept) = moved_landmarks(loc, &mut first.log, &first.fitted, &first.deskewed);
+    let ids: Vec<u32> = moved.iter().map(|m| m.id).collect();
+    let again = loc
+        .map
+        .without(&ids)
+        .filter(|_| !ids.is_empty())
+        .map(|map| Localizer::new(map, loc.cfg));
+    let Some(again) = again else {
+        widen_kept(loc, &mut first.log, &first.fitted, &kept, &moved);
+        return first.localized(moved);
+    };
+    let mut second = localize_pass(&again, scans, rate_hz, global_only, &|| {});
+    // A landmark moved by less than the others hid behind their pull.
+    let (more, kept_again) =
+        moved_landmarks(&again, &mut second.log, &second.fitted, &second.deskewed);
+    widen_kept(&again, &mut second.log, &second.fitted, &kept_again, &more);
+    // The first pass's poses were pulled towards the moved landmarks, and their residuals with
+    // them (38 mm for reflectors moved 50): measured at the second pass's poses, the offsets
+    // are the landmarks' own.
+    for m in &mut moved {
+        let l = loc.map.landmarks.iter().position(|x| x.id == m.id);
+        if let Some(better) =
+            l.and_then(|l| residual_mean(loc, &second.log, &first.fitted, &second.deskewed, l))
+        {
+            *m = better;
+        }
+    }
+    widen_kept(loc, &mut first.log, &first.fitted, &kept, &moved);
+    let ok = |r: &PoseLogRow| r.status == Status::Ok && r.pose.is_some();
+    for k in 0..second.log.rows.len() {
+        if !ok(&second.log.rows[k]) && ok(&first.log.rows[k]) {
+            second.log.rows[k] = first.log.rows[k].clone();
+            second.deskewed[k] = first.deskewed[k];
+        }
+    }
+    moved.extend(more);
+    second.localized(moved)
+}
+
+/// One pass of [`localize_scans`] over the scans, before moved landmarks are looked for.
+struct Pass {
+    log: PoseLog,
+    /// Per row: its scan was de-skewed with a tracked motion.
+    deskewed: Vec<bool>,
+    /// Per row: its scan's sweep, seconds.
+    sweeps_s: Vec<f64>,
+    /// The matches of every `ok` pose, (row, landmark, observation), by row.
+    fitted: Vec<(usize, usize, Observation)>,
+    n_repeated: usize,
+    unseen: Vec<(u32, usize, usize)>,
+}
+
+impl Pass {
+    /// The pass's poses, with the σ of those left with their sweep's skew widened.
+    fn localized(mut self, moved: Vec<MovedLandmark>) -> Localized {
+        let skewed = widen_skewed(&mut self.log, &self.deskewed, &self.sweeps_s);
+        Localized {
+            log: self.log,
+            skewed,
+            n_repeated: self.n_repeated,
+            unseen: self.unseen,
+            moved,
+        }
+    }
+}
+
+/// Every scan localised against `loc`'s map as it is (see [`localize_scans`]).
+fn localize_pass(
+    loc: &Localizer,
+    scans: &[Scan],
+    rate_hz: f64,
+    global_only: bool,
+    on_scan: &dyn Fn(),
+) -> Pass {
     let mut tracker = ScanTracker::new(loc);
     let mut rows = Vec::with_capacity(scans.len());
     let mut deskewed = Vec::with_capacity(scans.len());
@@ -459,14 +540,13 @@ pub fn localize_scans(
     if !global_only {
         deskew_track_starts(loc, scans, &mut log, &mut deskewed, &mut fitted);
     }
-    let moved = moved_landmarks(loc, &mut log, &fitted, &deskewed);
-    let skewed = widen_skewed(&mut log, &deskewed, &sweeps_s);
-    Localized {
+    Pass {
         log,
-        skewed,
+        deskewed,
+        sweeps_s,
+        fitted,
         n_repeated,
         unseen: views.unseen(loc),
-        moved,
     }
 }
 
@@ -506,16 +586,19 @@ pub struct MovedLandmark {
 /// mean far beyond both its standard error and the map's σ: moved after the map was made (a
 /// reflector re-stuck 5 cm along its wall left poses 40 mm, 10σ, off). The most biased one is
 /// taken first and the poses that matched it fitted again without it: a moved landmark pulls
-/// the poses, and with them the residuals of the landmarks seen beside it.
+/// the poses, and with them the residuals of the landmarks seen beside it. Also returns the
+/// rows that matched a moved landmark and keep their pose, too few others left to fit it
+/// again ([`widen_kept`] says by how much they may be off).
 fn moved_landmarks(
     loc: &Localizer,
     log: &mut PoseLog,
     fitted: &[(usize, usize, Observation)],
     deskewed: &[bool],
-) -> Vec<MovedLandmark> {
+) -> (Vec<MovedLandmark>, Vec<usize>) {
     let map_sigma_m = loc.map.position_sigma_m.unwrap_or(loc.cfg.map_sigma_m);
-    let original: Vec<_> = log.rows.iter().map(|r| (r.pose, r.pose_cov)).collect();
+    let original = log.rows.clone();
     let mut moved: Vec<usize> = Vec::new();
+    let mut kept = Vec::new();
     loop {
         let worst = (0..loc.map.landmarks.len())
             .filter(|l| !moved.contains(l))
@@ -530,33 +613,52 @@ fn moved_landmarks(
             });
         let Some((l, _)) = worst else { break };
         moved.push(l);
-        refit_without(loc, log, fitted, &moved, &original);
+        kept = refit_without(loc, log, fitted, &moved, &original);
     }
-    let out: Vec<MovedLandmark> = moved
+    let out = moved
         .iter()
         .filter_map(|&l| residual_mean(loc, log, fitted, deskewed, l))
         .collect();
-    // A pose left with too few landmarks to fit again keeps its pose, and its σ takes in the
-    // offsets of the moved landmarks it matched.
+    (out, kept)
+}
+
+/// Widens the σ of the `kept` rows of `fitted` (poses that matched a `moved` landmark and
+/// could not be fitted again without it) by how far the moved landmarks' offsets pull the pose,
+/// in heading too: the offsets alone, added to the position's σ, left such poses 3.8σ off in
+/// heading.
+fn widen_kept(
+    loc: &Localizer,
+    log: &mut PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    kept: &[usize],
+    moved: &[MovedLandmark],
+) {
     for_each_row(fitted, |k, row| {
-        if log.rows[k].pose != original[k].0 {
+        let Some(pose) = log.rows[k].pose.filter(|_| kept.contains(&k)) else {
             return;
-        }
-        if let Some(cov) = log.rows[k].pose_cov.as_mut() {
-            for (_, l, _) in row {
-                if let Some(m) = out.iter().find(|m| m.id == loc.map.landmarks[*l].id) {
-                    let o = m.offset_m * m.offset_m.transpose();
-                    let mut w = cov.fixed_view_mut::<2, 2>(0, 0);
-                    w += o;
-                }
-            }
+        };
+        let offsets: Vec<Vector2<f64>> = row
+            .iter()
+            .map(|(_, l, _)| {
+                let id = loc.map.landmarks[*l].id;
+                moved
+                    .iter()
+                    .find(|m| m.id == id)
+                    .map_or(Vector2::zeros(), |m| m.offset_m)
+            })
+            .collect();
+        let obs: Vec<Observation> = row.iter().map(|(_, _, o)| *o).collect();
+        if let (Some(cov), Some(shift)) = (
+            log.rows[k].pose_cov.as_mut(),
+            pose_shift(&pose, &obs, &offsets),
+        ) {
+            *cov += shift * shift.transpose();
         }
     });
-    out
 }
 
 /// The mean of landmark `l`'s residuals (detection minus mapped position, map frame) at the
-/// `deskewed` poses of `fitted` (one not de-skewed carries its sweep's skew in its residuals,
+/// `deskewed` `ok` poses of `fitted` (one not de-skewed carries its sweep's skew in its residuals,
 /// which is no landmark's), None when matched in fewer than [`MIN_BIAS_SCANS`] scans.
 fn residual_mean(
     loc: &Localizer,
@@ -567,7 +669,7 @@ fn residual_mean(
 ) -> Option<MovedLandmark> {
     let r: Vec<Vector2<f64>> = fitted
         .iter()
-        .filter(|f| f.1 == l && deskewed[f.0])
+        .filter(|f| f.1 == l && deskewed[f.0] && log.rows[f.0].status == Status::Ok)
         .filter_map(|(k, _, o)| Some(log.rows[*k].pose?.isometry() * o.sensor - o.landmark))
         .collect();
     let n = r.len();
@@ -603,34 +705,47 @@ fn for_each_row(
     }
 }
 
-/// Fits again from its `original` pose, without the `moved` landmarks, every pose of `fitted`
-/// that matched one and keeps enough others to fit.
+/// Fits again from its `original` row, without the `moved` landmarks, every pose of `fitted`
+/// that matched one and keeps enough others to fit; the others keep (or get back) their
+/// original row and are returned.
 fn refit_without(
     loc: &Localizer,
     log: &mut PoseLog,
     fitted: &[(usize, usize, Observation)],
     moved: &[usize],
-    original: &[(Option<Pose2>, Option<Matrix3<f64>>)],
-) {
+    original: &[PoseLogRow],
+) -> Vec<usize> {
+    let mut kept = Vec::new();
     for_each_row(fitted, |k, row| {
         let rest: Vec<Observation> = row
             .iter()
             .filter(|(_, l, _)| !moved.contains(l))
             .map(|(_, _, o)| *o)
             .collect();
-        let (Some(pose), true) = (original[k].0, rest.len() < row.len()) else {
+        let (Some(pose), true) = (original[k].pose, rest.len() < row.len()) else {
             return;
         };
-        if rest.len() < loc.cfg.min_matches {
-            return;
-        }
-        if let Some((p, cov)) = fit_pose_weighted(pose, &rest) {
-            let r = &mut log.rows[k];
-            r.pose = Some(p);
-            r.pose_cov = Some(cov);
-            r.n_landmarks = rest.len();
+        let refit = if rest.len() < loc.cfg.min_matches {
+            None
+        } else {
+            fit_pose_weighted(pose, &rest)
+        };
+        let r = &mut log.rows[k];
+        match refit {
+            Some((p, cov)) => {
+                r.pose = Some(p);
+                r.pose_cov = Some(cov);
+                r.n_landmarks = rest.len();
+            }
+            // A row fitted again without the first moved landmark but not without the second
+            // is the original's: its σ is widened for both.
+            None => {
+                *r = original[k].clone();
+                kept.push(k);
+            }
         }
     });
+    kept
 }
 
 /// A landmark missed in at least this many scans, and in [`MIN_UNSEEN_SHARE`] of those it was

@@ -354,6 +354,46 @@ impl Map {
         }
         let pos: Vec<Point2<f64>> = landmarks.iter().map(|l| l.position).collect();
         check_extent(&pos, n).map_err(err)?;
+        Map::build(
+            landmarks,
+            file.walls.clone(),
+            file.reflector_width_m,
+            file.position_sigma_m,
+        )
+        .map_err(err)
+    }
+
+    /// The same map without the landmarks `ids` (moved since it was made, say), None when
+    /// fewer than 3 would be left to fix a pose.
+    pub fn without(&self, ids: &[u32]) -> Option<Map> {
+        let landmarks: Vec<Landmark> = self
+            .landmarks
+            .iter()
+            .filter(|l| !ids.contains(&l.id))
+            .cloned()
+            .collect();
+        if landmarks.len() < 3 {
+            return None;
+        }
+        Map::build(
+            landmarks,
+            self.walls.clone(),
+            self.reflector_width_m,
+            self.position_sigma_m,
+        )
+        .ok()
+    }
+
+    /// The map's sorted relations and grid for checked `landmarks`; an error names two
+    /// landmarks at one place.
+    fn build(
+        landmarks: Vec<Landmark>,
+        walls: Vec<[f64; 4]>,
+        reflector_width_m: f64,
+        position_sigma_m: Option<f64>,
+    ) -> Result<Map, String> {
+        let n = landmarks.len();
+        let pos: Vec<Point2<f64>> = landmarks.iter().map(|l| l.position).collect();
         // Edges per landmark, sorted by distance (the source's map structure).
         let mut edge_start = Vec::with_capacity(n + 1);
         let (mut edge_to, mut edge_dist, mut edge_dir) = (Vec::new(), Vec::new(), Vec::new());
@@ -370,10 +410,10 @@ impl Map {
             e.sort_by(|a, b| a.0.total_cmp(&b.0));
             if let Some(first) = e.first() {
                 if first.0 < 0.01 {
-                    return Err(err(format!(
+                    return Err(format!(
                         "landmarks id {} and id {} are {:.4} m apart (duplicates?); remove one or fix its position",
                         landmarks[i].id, landmarks[first.1 as usize].id, first.0
-                    )));
+                    ));
                 }
             }
             for (d, j, a) in e {
@@ -396,9 +436,9 @@ impl Map {
         let grid = Grid::new(&pos, GRID_CELL_M.max(span_m / 500.0));
         Ok(Map {
             landmarks,
-            walls: file.walls.clone(),
-            reflector_width_m: file.reflector_width_m,
-            position_sigma_m: file.position_sigma_m,
+            walls,
+            reflector_width_m,
+            position_sigma_m,
             edge_start,
             edge_to,
             edge_dist,

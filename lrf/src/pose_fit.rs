@@ -91,6 +91,23 @@ pub(crate) fn fit_pose_weighted(
     Some((pose, cov))
 }
 
+/// How far the pose fitted from `obs` at `pose` (x, y, θ; m, m, rad) moves when the landmark of
+/// observation `i` lies `offsets[i]` (map frame, metres) from where the map puts it: to first
+/// order, the information-weighted mean of the offsets' pulls. The pose a moved landmark
+/// pulled, kept because too few others are left to fit it again, is off by about this much.
+pub(crate) fn pose_shift(
+    pose: &Pose2,
+    obs: &[Observation],
+    offsets: &[Vector2<f64>],
+) -> Option<Vector3<f64>> {
+    let mut g = Vector3::zeros();
+    for (o, d) in obs.iter().zip(offsets) {
+        let (_, j, w) = linearise(pose, o)?;
+        g += j.transpose() * w * d;
+    }
+    Some(pose_information(pose, obs)?.cholesky()?.solve(&g))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -207,7 +207,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     };
     // Said before any refusal: a reflector gone from a symmetric room leaves every scan
     // ambiguous.
-    for (id, n, missed) in unseen {
+    for &(id, n, missed) in &unseen {
         tell!(
             "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
             a.map.display()
@@ -258,6 +258,26 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 a.map.display(),
                 a.map.display(),
                 why_lost()
+            );
+        }
+        // A mapped reflector never seen is the likely cause: with it gone the room repeats
+        // itself, and adding a landmark would leave the gone one in the map.
+        if let Some(&(id, n, missed)) = unseen.first() {
+            let at = loc
+                .map
+                .landmarks
+                .iter()
+                .find(|l| l.id == id)
+                .map_or_else(String::new, |l| {
+                    format!(" at ({:.2}, {:.2}) m", l.position.x, l.position.y)
+                });
+            anyhow::bail!(
+                "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so nothing was written: landmark {id}{at} of {} was not seen in {missed} of the {n} scans it should have been in view in; with it gone the landmarks repeat themselves (a symmetric layout); put it back, or remove it from the map and add one that breaks the symmetry (`odocal lrf check-map {}`)",
+                log.rows.len(),
+                count(Status::Ambiguous),
+                count(Status::Lost),
+                a.map.display(),
+                a.map.display()
             );
         }
         // Ambiguous scans fit the map in several places equally well: the layout repeats
