@@ -98,10 +98,14 @@ impl VideoSource {
     /// Matroska file whose timestamps start late states the segment's end time as its duration
     /// (10 s for 5 s of frames that start at 5 s). Either made a complete video look cut short.
     /// A file truly cut keeps both its sample count and its stated end, so it still looks so.
+    /// Other containers keep OpenCV's count: an AVI cut short keeps its header's frame count,
+    /// while FFmpeg estimates its duration from the bytes left (2.5 s of a 5 s file cut in
+    /// half), which would hide the cut.
     fn frame_count_from_first(&self) -> Option<usize> {
         let counted = self.info.frame_count?;
+        let probe = self.probe.as_ref().filter(|p| p.states_its_end());
         let (Some(end_s), Some(first_s), Some(fps)) = (
-            self.probe.as_ref().and_then(StreamProbe::stream_end_s),
+            probe.and_then(StreamProbe::stream_end_s),
             self.first_pts_s,
             self.info.container_fps,
         ) else {
@@ -467,6 +471,14 @@ impl StreamProbe {
             format_start_s: num(format, "start_time"),
             format_duration_s: num(format, "duration"),
         })
+    }
+
+    /// Whether the container states where its stream ends (MP4/MOV and Matroska), rather
+    /// than FFmpeg estimating it from the file's size.
+    fn states_its_end(&self) -> bool {
+        self.format_name
+            .split(',')
+            .any(|f| f == "matroska" || f == "mov" || f == "mp4")
     }
 
     /// Where the container says the stream ends, seconds from the stream's start time (the
