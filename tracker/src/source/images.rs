@@ -325,7 +325,7 @@ mod tests {
         let f = dir.path().join("a.png");
         let mut whole = encoded(".png");
         // Large enough that its head and tail are read apart.
-        whole.splice(33..33, std::iter::repeat(0u8).take(3000));
+        whole.splice(33..33, std::iter::repeat_n(0u8, 3000));
         std::fs::write(&f, &whole).unwrap();
         assert_eq!(file_cut_short(&f).unwrap(), None);
         std::fs::write(&f, &whole[..2000]).unwrap();
