@@ -819,9 +819,12 @@ fn a_far_out_view_does_not_choose_the_lens_model() {
     );
 }
 
-/// A 70° lens calibrated as a fisheye: the fisheye calibration of the other views cannot
-/// locate one view at all, while pinhole5 predicts every view left out within its fit. The
-/// warning named the views ("do not fit one camera", "inf % worse"); it names the model.
+/// A 70° lens calibrated as a fisheye: on some machines OpenCV's fisheye calibration of the
+/// other views cannot locate one view at all (on others it fits them all to 0.05 px), while
+/// pinhole5 predicts every view left out within its fit. The warning named the views ("do
+/// not fit one camera", "inf % worse"); where a view is not predicted it names the model.
+/// The message itself is asserted whatever OpenCV does, in the calib crate's
+/// `an_unlocated_view_another_model_predicts_blames_the_model`.
 #[test]
 fn a_held_out_misfit_another_model_predicts_blames_the_model() {
     let dir = tempfile::tempdir().unwrap();
@@ -847,12 +850,16 @@ fn a_held_out_misfit_another_model_predicts_blames_the_model() {
         String::from_utf8_lossy(&res.stdout),
         String::from_utf8_lossy(&res.stderr)
     );
-    assert!(
-        said.contains("the fisheye lens model does not predict these views")
-            && said.contains("yet the pinhole5 model predicts every view left out")
-            && said.contains("calibrate with --model pinhole5"),
-        "{said}"
-    );
+    if said.contains("could not be located at all")
+        || said.contains("left out of the calibration is predicted")
+    {
+        assert!(
+            said.contains("the fisheye lens model does not predict these views")
+                && said.contains("yet the pinhole5 model predicts every view left out")
+                && said.contains("calibrate with --model pinhole5"),
+            "{said}"
+        );
+    }
     assert!(
         !said.contains("do not fit one camera") && !said.contains("inf") && !said.contains("NaN"),
         "{said}"
