@@ -232,13 +232,10 @@ fn bad_arena_inputs_give_one_line() {
     assert!(!d.join("arena.json").exists() && !d.join("t.csv").exists());
 }
 
-/// An arena run where no robot is accepted (a tag size half the real one) is refused with the
-/// reason and its figures, not ended with exit 0 and no file; a selected tag no camera saw is
-/// named. The true camera files stand in for calibrations (the accuracy is tested elsewhere).
-#[test]
-fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// A small synthetic arena (four cameras, 20 frames at 960×540) in `d`, and the `odocal arena`
+/// arguments tying its true camera files into `arena.json` there (the calibrations' accuracy
+/// is tested elsewhere): the arena file's path and the arguments.
+fn small_arena(d: &Path) -> (std::path::PathBuf, Vec<String>) {
     ok(&[
         "synth",
         "arena",
@@ -253,14 +250,27 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "--height",
         "540",
     ]);
-    let cameras: Vec<String> = (0..4)
-        .map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string())
-        .collect();
     let arena = d.join("arena.json");
-    let mut args = vec!["arena", "--camera"];
-    args.extend(cameras.iter().map(String::as_str));
-    let shared = d.join("shared");
-    args.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    let mut args: Vec<String> = vec!["arena".into(), "--camera".into()];
+    args.extend((0..4).map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string()));
+    args.extend([
+        "--shared".into(),
+        p(&d.join("shared")).to_string(),
+        "--out".into(),
+        p(&arena).to_string(),
+    ]);
+    (arena, args)
+}
+
+/// An arena run where no robot is accepted (a tag size half the real one) is refused with the
+/// reason and its figures, not ended with exit 0 and no file; a selected tag no camera saw is
+/// named. The true camera files stand in for calibrations (the accuracy is tested elsewhere).
+#[test]
+fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (arena, args) = small_arena(d);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     // A square ten times the board's: the failure names --square beside its other causes.
     let mut wrong = args.clone();
     wrong.extend(["--square", "0.7"]);
@@ -284,7 +294,8 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     assert!(!e.contains("no floor views"), "{e}");
     // A camera file without floor views: its height cannot be checked, which is said.
     let mut bare: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&cameras[2]).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(d.join("cam2/camera_true.json")).unwrap())
+            .unwrap();
     bare.as_object_mut().unwrap().remove("floor");
     let bare_path = d.join("cam2_without_floor.json");
     std::fs::write(&bare_path, bare.to_string()).unwrap();
@@ -472,28 +483,8 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
 fn a_camera_video_turned_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&[
-        "synth",
-        "arena",
-        "--out",
-        p(d),
-        "--frames",
-        "20",
-        "--calib-views",
-        "6",
-        "--width",
-        "960",
-        "--height",
-        "540",
-    ]);
-    let cameras: Vec<String> = (0..4)
-        .map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string())
-        .collect();
-    let arena = d.join("arena.json");
-    let mut args = vec!["arena", "--camera"];
-    args.extend(cameras.iter().map(String::as_str));
-    let shared = d.join("shared");
-    args.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    let (arena, args) = small_arena(d);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     ok(&args);
     let turn = |name: &str, f: &dyn Fn(&image::DynamicImage) -> image::DynamicImage| {
         let to = d.join(name);
