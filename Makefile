@@ -38,7 +38,7 @@ demo-arena: deps
 	  --arena-track $(ARENA_OUT)/arena-track.json --out $(ARENA_OUT)/report.html
 
 test: deps
-	$(CARGO) test --workspace
+	$(CARGO) test --workspace --no-fail-fast
 
 lint: deps
 	$(CARGO) fmt --all -- --check
