@@ -59,6 +59,17 @@ pub enum LogGlitches {
     Everywhere(String),
 }
 
+/// `log` with its garbled readings read between their neighbours, and a note on each, when
+/// they are all its impossible steps; else `log` as it is (no notes), for the log checks to
+/// refuse. A model applied to a whole log (`correct`, `evaluate`) can read around a garbled
+/// count, but not across a step whose travel is lost.
+pub fn mend_garbled_readings(log: &OdometryLog, robot: &RobotParams) -> (OdometryLog, Vec<String>) {
+    match mend_glitches(log, robot) {
+        LogGlitches::Mended(m) if m.lost.is_empty() && !m.mended.is_empty() => (m.log, m.mended),
+        _ => (log.clone(), Vec::new()),
+    }
+}
+
 /// Finds the glitches of `log` (see the module's documentation).
 pub fn mend_glitches(log: &OdometryLog, robot: &RobotParams) -> LogGlitches {
     let mut out = log.clone();

@@ -41,6 +41,10 @@ fn robot_and_log(
     if let Some(n) = log.count_note() {
         tell!("note: {}: {n}", args.log.display());
     }
+    let (log, mended) = odocal_dataset::glitch::mend_garbled_readings(&log, &robot);
+    for m in mended {
+        tell!("odocal: warning: {}: {m}", args.log.display());
+    }
     Ok((robot, log))
 }
 

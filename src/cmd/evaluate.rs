@@ -45,13 +45,26 @@ pub struct Args {
     pub allow_extrapolation: bool,
 }
 
-/// The recordings of a manifest, with a note on each log whose encoder counts were unwrapped.
-fn read_recordings(manifest: &std::path::Path) -> anyhow::Result<Vec<PathRecording>> {
-    let recs = PathRecording::read_manifest(&Manifest::read(manifest)?)?;
-    for r in &recs {
+/// The recordings of a manifest, with a note on each log whose encoder counts were unwrapped,
+/// and a warning on each garbled reading read between its neighbours (as `dataset` does).
+fn read_recordings(
+    manifest: &std::path::Path,
+    robot: &RobotParams,
+) -> anyhow::Result<Vec<PathRecording>> {
+    let mut recs = PathRecording::read_manifest(&Manifest::read(manifest)?)?;
+    for r in &mut recs {
         if let Some(n) = r.log.count_note() {
             tell!("note: run \"{}\": {n}", r.id);
         }
+        let (log, mended) = odocal_dataset::glitch::mend_garbled_readings(&r.log, robot);
+        for m in mended {
+            tell!(
+                "odocal: warning: run \"{}\" ({}): {m}",
+                r.id,
+                r.log_file.display()
+            );
+        }
+        r.log = log;
     }
     Ok(recs)
 }
@@ -158,7 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut methods: Vec<(String, Reckoner)> =
         vec![("raw odometry".into(), Reckoner::Geometry(nominal))];
     if let (Some(cal), Some(side)) = (&args.umbmark_calibration, args.umbmark_m) {
-        let recs = read_recordings(cal)?;
+        let recs = read_recordings(cal, &robot)?;
         let ev = evaluate_paths(
             &recs,
             &robot,
@@ -216,7 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(k) = truth {
         methods.push(("oracle (true kinematics)".into(), Reckoner::Truth(k)));
     }
-    let recs = read_recordings(&args.manifest)?;
+    let recs = read_recordings(&args.manifest, &robot)?;
     if let (Some(p), Some(f)) = (&args.truth, &truth_file) {
         match odocal_trainer::evaluate::truth_distance(&recs, f) {
             (Some(rms), _) if rms > TRUTH_MISMATCH_M => tell!(

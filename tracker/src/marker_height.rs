@@ -107,6 +107,20 @@ const TAG_SIDE_SHIFT_OVER_SIGMA: f64 = 3.0;
 /// mapping's (a size, height or focal length scales every square alike).
 const LENS_SIDE_SPREAD: f64 = 0.003;
 
+/// Corners moving at most this far between frames, pixels, leave the square's side as it
+/// is at rest: a smear no longer than this (the exposure is at most a frame period) moves
+/// each edge's fitted line by less than the noise (80.002 mm for an 80 mm tag smeared 1.5–2.5
+/// px; 79.84 mm, −0.2 %, at 4.5–6 px).
+pub const STILL_MOTION_PX: f64 = 2.5;
+
+/// Fixes this still are enough to judge the side on them alone.
+const STILL_FIXES: usize = 20;
+
+/// How much a smear beyond [`STILL_MOTION_PX`] may shrink the side, share per pixel: the
+/// −0.2 % at 4.5–6 px, rounded up, taking the motion between frames for the smear (an
+/// exposure shorter than the frame period smears less).
+const BLUR_SHRINK_PER_PX: f64 = 0.001;
+
 /// The side of the tag's black square on the marker plane, as the fixes' corners span it.
 /// The planar fit holds the square at `--tag-size` and takes the height from
 /// `--marker-height`, so a side off has three causes that differ in what they do to the
@@ -140,6 +154,11 @@ pub struct TagSide {
     pub inner: (f64, f64),
     /// The same over the third farthest from the image centre.
     pub outer: (f64, f64),
+    /// How much a smear may have shrunk the side judged, as a share: 0 when it is judged on
+    /// fixes whose corners move at most [`STILL_MOTION_PX`] between frames (or on few
+    /// fixes); else, judged on the slowest third, the fastest third's shortfall scaled to
+    /// the slowest's motion beyond that, and at most [`BLUR_SHRINK_PER_PX`] per pixel of it.
+    pub blur_shrink: f64,
 }
 
 impl TagSide {
@@ -155,20 +174,60 @@ impl TagSide {
         let fixes: Vec<_> = result.fixes().map(|(_, f)| f).collect();
         let step = fixes.len().div_ceil(MAX_SAMPLES).max(1);
         let centre = Point2::new(camera.width as f64 / 2.0, camera.height as f64 / 2.0);
-        // (distance of the tag from the image centre in pixels, side in metres)
-        let mut by_radius: Vec<(f64, f64)> = fixes
-            .iter()
+        // (corner motion between frames in pixels per frame, distance of the tag from the
+        // image centre in pixels, side in metres)
+        let mut all: Vec<(f64, f64, f64)> = motion_between_frames(result)
+            .into_iter()
+            .zip(&fixes)
             .step_by(step)
-            .filter_map(|f| {
+            .filter_map(|(m, f)| {
                 let p = planar_pose(camera, floor, &f.corners_px, tag_size_m, marker_height_m)?;
                 let c = f
                     .corners_px
                     .iter()
                     .fold(Point2::origin(), |s, q| s + q.coords / 4.0);
-                Some(((c - centre).norm(), p.size_m))
+                Some((m.unwrap_or(f64::INFINITY), (c - centre).norm(), p.size_m))
             })
-            .filter(|(_, s)| s.is_finite())
+            .filter(|(_, _, s)| s.is_finite())
             .collect();
+        // A tag smeared by its motion during the exposure spans a smaller square: the side
+        // is judged on the still fixes when there are enough, else on the slowest third,
+        // whose shortfall a smear explains as far as the fastest third's says it does.
+        all.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let still = all.iter().filter(|x| x.0 <= STILL_MOTION_PX).count();
+        let third = all.len() / 3;
+        let (judged, blur_shrink) = if still >= STILL_FIXES || third < STILL_FIXES {
+            let n = if still >= STILL_FIXES {
+                still
+            } else {
+                all.len()
+            };
+            (&all[..n], 0.0)
+        } else {
+            let motion_and_side = |part: &[(f64, f64, f64)]| {
+                let mut m: Vec<f64> = part.iter().map(|x| x.0).filter(|m| m.is_finite()).collect();
+                let mut s: Vec<f64> = part.iter().map(|x| x.2).collect();
+                let m = if m.is_empty() {
+                    f64::INFINITY
+                } else {
+                    median(&mut m)
+                };
+                (m, median(&mut s))
+            };
+            let (slow_px, slow_side) = motion_and_side(&all[..third]);
+            let (fast_px, fast_side) = motion_and_side(&all[all.len() - third..]);
+            let beyond = |m: f64| (m - STILL_MOTION_PX).max(0.0);
+            let shrink = if fast_px.is_finite() && beyond(fast_px) > 0.0 {
+                ((slow_side - fast_side) / tag_size_m).max(0.0) * beyond(slow_px) / beyond(fast_px)
+            } else {
+                0.0
+            };
+            (
+                &all[..third],
+                shrink.min(BLUR_SHRINK_PER_PX * beyond(slow_px)),
+            )
+        };
+        let mut by_radius: Vec<(f64, f64)> = judged.iter().map(|x| (x.1, x.2)).collect();
         if by_radius.is_empty() {
             return None;
         }
@@ -208,6 +267,7 @@ impl TagSide {
             position_sigma_m: median(&mut sigmas),
             inner,
             outer,
+            blur_shrink,
         })
     }
 
@@ -235,7 +295,10 @@ impl TagSide {
         // seen (D − δ)/D as large, is δ/D of that distance).
         let share = (1.0 - 1.0 / ratio).abs();
         let off = (ratio - 1.0).abs();
+        // A side short by no more than a smear at the fixes' motion explains is not judged:
+        // the tag never held still long enough to measure it.
         if off <= TAG_SIDE_TOLERANCE
+            || (ratio < 1.0 && off <= self.blur_shrink + TAG_SIDE_TOLERANCE)
             || off * tag_size_m <= TAG_SIDE_SIGNIFICANCE * self.side_sigma_m
             || share * self.distance_m.0 <= TAG_SIDE_SHIFT_OVER_SIGMA * self.position_sigma_m
         {
@@ -257,6 +320,36 @@ impl TagSide {
             self.position_sigma_m * 1e3,
         ))
     }
+}
+
+/// For each of `result`'s fixes in order, the largest distance any of its corners moved to
+/// the fix in the frame before or after, pixels per frame (None for a fix with no fix within
+/// two frames either side).
+fn motion_between_frames(result: &TrackResult) -> Vec<Option<f64>> {
+    let fixes: Vec<_> = result.fixes().map(|(r, f)| (r.index, f)).collect();
+    let per_frame = |a: &(usize, &crate::Fix), b: &(usize, &crate::Fix)| {
+        let frames = a.0.abs_diff(b.0);
+        (1..=2).contains(&frames).then(|| {
+            a.1.corners_px
+                .iter()
+                .zip(&b.1.corners_px)
+                .map(|(p, q)| (p - q).norm())
+                .fold(0.0, f64::max)
+                / frames as f64
+        })
+    };
+    (0..fixes.len())
+        .map(|i| {
+            let before = i
+                .checked_sub(1)
+                .and_then(|j| per_frame(&fixes[j], &fixes[i]));
+            let after = fixes.get(i + 1).and_then(|n| per_frame(&fixes[i], n));
+            match (before, after) {
+                (Some(a), Some(b)) => Some(a.max(b)),
+                (a, b) => a.or(b),
+            }
+        })
+        .collect()
 }
 
 /// The point on the floor under the camera.
