@@ -1079,6 +1079,69 @@ fn synth_calib_blur_is_checked() {
     }
 }
 
+/// The simulated paths are a lab's: a square of 1e300 m ran the simulator until it gave up
+/// ("plan 'umbmark-cw' never ended (check gains and speeds)"), a speed of 1e300 m/s wrote
+/// squares driven at whatever the motors reached, and a tour area of 1e300 m failed inside
+/// the planner. Each is named as the option it is, with the range, and nothing is written.
+#[test]
+fn synth_paths_beyond_a_lab_and_a_small_robot_are_refused() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let out = d.path().join("e");
+    for (paths, option, value) in [
+        ("umbmark", "--square-m", "1e300"),
+        ("umbmark", "--square-m", "25"),
+        ("umbmark", "--square-speed", "1e300"),
+        ("umbmark", "--square-speed", "6"),
+        ("tours", "--tour-area-m", "1e300"),
+    ] {
+        refused(
+            d.path(),
+            &[
+                "synth",
+                "experiment",
+                "--out",
+                p(&out),
+                "--runs",
+                "2",
+                "--frames",
+                "none",
+                "--paths",
+                paths,
+                option,
+                value,
+            ],
+            &[
+                &format!("{option} {value}"),
+                "at most 20 m",
+                "at most 5 m/s",
+            ],
+        );
+    }
+    // A speed list in the simulator's file beyond a small robot's is refused the same way.
+    let config = d.path().join("fast.json");
+    std::fs::write(
+        &config,
+        r#"{"format": "odocal.robotsim/1", "protocol": {"speeds_mps": [0.5, 50.0]}}"#,
+    )
+    .unwrap();
+    refused(
+        d.path(),
+        &[
+            "synth",
+            "experiment",
+            "--out",
+            p(&out),
+            "--runs",
+            "2",
+            "--frames",
+            "none",
+            "--config",
+            p(&config),
+        ],
+        &["speeds_mps", "at most 5 m/s"],
+    );
+}
+
 /// ChArUco options are checked before any image is read, and a ChArUco set calibrated with
 /// the wrong board or dictionary names what it found instead of calibrating on nonsense.
 #[test]

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use odocal_core::Pose2;
 use odocal_dataset::manifest::{Manifest, ManifestRow};
+use odocal_dataset::odometry::MAX_WHEEL_SPEED_MPS;
 use odocal_dataset::oracle::{OracleFile, OracleRun, TrueKinematics};
 use odocal_dataset::{DatasetError, WheelGeometry};
 use rayon::prelude::*;
@@ -28,6 +29,10 @@ use rand_chacha::ChaCha8Rng;
 
 /// The `format` tag of truth/experiment.json.
 pub const EXPERIMENT_TRUTH_FORMAT: &str = "odocal.experiment-truth/1";
+
+/// Longest side of a square or tour area the simulator drives, metres: a lab's floor (UMBMark
+/// drives 4 m squares).
+pub const MAX_PATH_SIDE_M: f64 = 20.0;
 
 /// What goes wrong while simulating an experiment.
 #[derive(Debug, Error)]
@@ -286,18 +291,17 @@ pub fn simulate_experiment(
     if s.paths != PathKind::Straight && (per > 1 || s.frames == Frames::Video) {
         return Err(ExperimentError::Settings("--paths tours|umbmark drive one plan per recording and leave the camera's 3 x 1.7 m view: use --runs-per-recording 1 and --frames none".into()));
     }
-    if !(s.square_side_m.is_finite()
+    if !((0.0..=MAX_PATH_SIDE_M).contains(&s.square_side_m)
         && s.square_side_m > 0.0
-        && s.square_speed_mps.is_finite()
         && s.square_speed_mps > 0.0
-        && s.tour_area_m.is_finite()
-        && s.tour_area_m >= 1.0
+        && s.square_speed_mps <= MAX_WHEEL_SPEED_MPS
+        && (1.0..=MAX_PATH_SIDE_M).contains(&s.tour_area_m)
         && s.tour_legs > 0)
     {
-        return Err(ExperimentError::Settings(
-            "--square-m and --square-speed must be > 0, --tour-area-m >= 1 and --tour-legs >= 1"
-                .into(),
-        ));
+        return Err(ExperimentError::Settings(format!(
+            "--square-m {:?} m, --square-speed {:?} m/s, --tour-area-m {:?} m, --tour-legs {}: the square's side must be above 0 and the tour's area at least 1 m, both at most {MAX_PATH_SIDE_M} m (a lab's floor), the speed above 0 and at most {MAX_WHEEL_SPEED_MPS} m/s (a small robot's), and a tour at least 1 leg",
+            s.square_side_m, s.square_speed_mps, s.tour_area_m, s.tour_legs
+        )));
     }
     if s.video == VideoFormat::Png {
         return Err(ExperimentError::Settings(

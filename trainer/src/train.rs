@@ -27,6 +27,10 @@ pub const HIDDEN_RANGE: std::ops::RangeInclusive<usize> = 1..=64;
 /// nearly doubles the crate's QR per epoch (sweep 10.0 s instead of 17.1 s wall on 2 cores).
 pub const DEFAULT_WEIGHT_DECAY: f64 = 0.0;
 
+/// Largest weight decay taken: each sample's normalised residuals are of order 1, so a
+/// penalty this heavy outweighs the fit of any dataset odocal trains on.
+pub const MAX_WEIGHT_DECAY: f64 = 1000.0;
+
 /// LM early stopping: epochs without validation improvement before stopping. MATLAB's
 /// trainlm uses 6; with ~20 validation runs the best epoch is typically 1-3, and 6 spent
 /// 4 more QR factorisations per training for the same cross-validated error (131-run
@@ -144,9 +148,9 @@ impl TrainSettings {
                 self.val_fraction
             )));
         }
-        if !(self.weight_decay >= 0.0 && self.weight_decay.is_finite()) {
+        if !(self.weight_decay >= 0.0 && self.weight_decay <= MAX_WEIGHT_DECAY) {
             return Err(TrainError::Settings(format!(
-                "weight decay {} must be a finite number >= 0",
+                "weight decay {} must be between 0 and {MAX_WEIGHT_DECAY} (normalised units; a heavier penalty holds every weight at zero, a model that predicts the training's mean end whatever the log says)",
                 self.weight_decay
             )));
         }

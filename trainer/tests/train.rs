@@ -462,3 +462,26 @@ fn runs_driven_both_ways_are_corrected_as_runs_driven_one_way() {
         );
     }
 }
+
+/// A weight decay so heavy that it holds every weight at zero (1e300 trained a model that
+/// predicts the training's mean end, with no word under --no-cv) is refused, as is one
+/// that is no number; the values in use pass.
+#[test]
+fn a_weight_decay_beyond_any_fit_is_refused() {
+    for (decay, ok) in [
+        (0.0, true),
+        (0.3, true),
+        (odocal_trainer::train::MAX_WEIGHT_DECAY, true),
+        (1e300, false),
+        (f64::NAN, false),
+        (-0.1, false),
+    ] {
+        let mut s = TrainSettings::new(8, Method::Lm);
+        s.weight_decay = decay;
+        let got = s.validate();
+        assert_eq!(got.is_ok(), ok, "{decay}: {got:?}");
+        if let Err(e) = got {
+            assert!(e.to_string().contains("weight decay"), "{e}");
+        }
+    }
+}

@@ -2,6 +2,7 @@
 //! controller, the experiment protocol and the camera timing, each checked for physical sense.
 
 use super::*;
+use odocal_dataset::odometry::MAX_WHEEL_SPEED_MPS;
 
 /// The `format` tag of simulator configuration files.
 pub const ROBOT_SIM_FORMAT: &str = "odocal.robotsim/1";
@@ -310,9 +311,9 @@ impl RobotSimConfig {
                 .protocol
                 .speeds_mps
                 .iter()
-                .any(|v| !(v.is_finite() && *v > 0.0))
+                .any(|v| !(v.is_finite() && *v > 0.0 && *v <= MAX_WHEEL_SPEED_MPS))
         {
-            return bad("speeds_mps must be a non-empty list of positive speeds");
+            return bad(&format!("speeds_mps must be a non-empty list of speeds above 0 and at most {MAX_WHEEL_SPEED_MPS} m/s (a small robot's wheels turn no faster, and odocal dataset takes a faster step for a glitch)"));
         }
         let ranges = [
             self.protocol.pre_roll_s,
