@@ -339,6 +339,29 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(d.join("robot_tag0.csv").exists() && !d.join("robot_tag9.csv").exists());
+    // A wrong --family found no tag and said only "check --tags and --family": the first
+    // video's frames are read with the other families, and the robot's tag named.
+    let family_out = d.join("family.csv");
+    let mut a = vec!["track", "--arena", p(&arena)];
+    a.extend(videos.iter().map(String::as_str));
+    a.extend([
+        "--tags",
+        "0,3",
+        "--tag-size",
+        "0.16",
+        "--family",
+        "tag25h9",
+        "--out",
+        p(&family_out),
+    ]);
+    let o = odocal(&a);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("no selected tag was seen")
+            && e.contains("reads as tag36h11 id 0 (every bit right): give --family tag36h11"),
+        "{e}"
+    );
     // Two cameras' videos given in each other's place: each is mapped through the other's
     // calibration, no robot lines up, and the order is named.
     let mut swapped = videos.clone();

@@ -270,8 +270,30 @@ fn why_no_fix(
             ids.sort_unstable();
             ids.dedup();
             let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
+            // A tag of another family is read in no frame, or as shapeless false codes: a few
+            // frames of the first video are read with the other families, as `track` does.
+            let family = videos
+                .first()
+                .and_then(|v| {
+                    odocal_tracker::detect::probe_video_families(v, &SourceOptions::default(), &opts.family)
+                        .ok()
+                        .map(|p| (v, p))
+                })
+                .and_then(|(v, p)| {
+                    let r = p.reading?;
+                    Some(format!(
+                        "; the tag in {} of {} frames tried of {} reads as {} id {} (every bit right): give --family {}",
+                        r.frames,
+                        p.frames_tried,
+                        v.display(),
+                        r.family,
+                        r.id,
+                        r.family
+                    ))
+                })
+                .unwrap_or_default();
             format!(
-                "no selected tag was seen in any frame of the {} video(s) (ids seen: {}); check --tags and --family",
+                "no selected tag was seen in any frame of the {} video(s) (ids seen: {}); check --tags and --family{family}",
                 videos.len(),
                 if ids.is_empty() { "none".into() } else { ids.join(", ") }
             )

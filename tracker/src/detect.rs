@@ -156,6 +156,36 @@ pub fn read_other_families(frames: &[GrayFrame], tracked: &str) -> Result<Family
     })
 }
 
+/// [`read_other_families`] on [`FAMILY_PROBE_FRAMES`] frames spread over the video or frame
+/// folder at `path`: for a run whose frames were not kept (an arena's cameras are tracked
+/// for several tags at once), read again only when no selected tag was seen at all.
+pub fn probe_video_families(
+    path: &std::path::Path,
+    opts: &crate::SourceOptions,
+    tracked: &str,
+) -> Result<FamilyProbe, TrackError> {
+    let mut source = crate::open_source(path, opts)?;
+    let stride = source
+        .info()
+        .frame_count
+        .map_or(30, |n| n / FAMILY_PROBE_FRAMES)
+        .max(1);
+    let mut frames = Vec::new();
+    while frames.len() < FAMILY_PROBE_FRAMES {
+        let batch = source.next_batch(16)?;
+        if batch.is_empty() {
+            break;
+        }
+        frames.extend(
+            batch
+                .into_iter()
+                .filter(|f| f.index % stride == 0)
+                .map(|f| f.image),
+        );
+    }
+    read_other_families(&frames, tracked)
+}
+
 /// A rectangle of pixels: columns x0..x0+width, rows y0..y0+height.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Roi {
