@@ -1160,7 +1160,7 @@ fn cli_laser_poses_as_a_trajectory() {
     let (n_ok, z, h, worst, stderr) = run("deskewed", &[]);
     assert!(n_ok >= 100, "{n_ok} ok");
     assert!((0.6..=1.6).contains(&z), "error/σ RMS {z:.2}");
-    assert!((0.6..=1.6).contains(&h), "heading error/σ RMS {h:.2}");
+    assert!((0.6..=1.3).contains(&h), "heading error/σ RMS {h:.2}");
     // The first de-skewed pose of the track was 8.3σ off, de-skewed with the motion from a
     // pose left with its sweep's skew.
     assert!(worst <= 3.5, "a pose {worst:.1}σ off");
@@ -1557,6 +1557,42 @@ fn cli_a_mapped_reflector_gone_from_a_symmetric_room_is_named() {
 /// 37.6 mm (7.3σ) off: the pair had steered the tracking (the good landmarks beside them
 /// dropped as outliers, the motion the sweeps were de-skewed with). The same map unmoved names
 /// none.
+/// A robot whose turn rate changes (10°/s² on seed 2, t = 12–16 s) left its poses 4–6σ off
+/// in heading for a second at a time (heading error/σ RMS 1.34 over the track, worst 6.2):
+/// each sweep was de-skewed with the turn rate from the pose before to the scan's own fit,
+/// half a scan period late and pulled by that fit's own error. With the turn rate between
+/// the neighbours, every pose is within 4σ and the heading's σ is right.
+#[test]
+fn cli_a_changing_turn_rate_leaves_no_pose_off_its_sigma() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf_with(d, 2, 300, &[]);
+    let (traj, truth) = (d.join("traj.csv"), d.join("truth.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&d.join("scans.csv")),
+        "--out",
+        s(&d.join("poses.csv")),
+        "--trajectory",
+        s(&traj),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (z, h, worst, at) = error_over_sigma(&traj, &truth);
+    println!("error/σ RMS {z:.2} (x, y), {h:.2} (heading), worst {worst:.1} at t = {at} s");
+    assert!(
+        (0.7..=1.15).contains(&z) && (0.8..=1.15).contains(&h),
+        "error/σ RMS {z:.2}, heading {h:.2}"
+    );
+    assert!(worst <= 4.0, "the pose at t = {at} s is {worst:.1}σ off");
+}
+
 #[test]
 fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1612,7 +1648,7 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     let (stdout, stderr) = run(&moved);
     assert!(
         stderr.contains(&format!(
-            "warning: landmark 8 of {} sits 45 mm from its mapped position along (0.01, -1.00) in 52 scans (σ of that mean 0.9 mm): was it moved after mapping? The poses that matched it were fitted again without it",
+            "warning: landmark 8 of {} sits 46 mm from its mapped position along (0.01, -1.00) in 53 scans (σ of that mean 0.9 mm): was it moved after mapping? The poses that matched it were fitted again without it",
             s(&moved)
         )),
         "{stderr}"
@@ -1627,7 +1663,7 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     // Every pose is as good as its σ says, over the whole track.
     assert!(stdout.contains("297 ok, 0 ambiguous, 3 lost"), "{stdout}");
     assert!(
-        stdout.contains("position RMS 4.5 mm (Cramér–Rao bound 6.9 mm, ratio 0.66), max 18.8 mm"),
+        stdout.contains("position RMS 4.4 mm (Cramér–Rao bound 6.9 mm, ratio 0.64), max 18.6 mm"),
         "{stdout}"
     );
     let (z, h, worst, at) = error_over_sigma(&traj, &truth);

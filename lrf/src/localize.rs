@@ -539,6 +539,7 @@ fn localize_pass(
     let mut log = PoseLog { rows };
     if !global_only {
         deskew_track_starts(loc, scans, &mut log, &mut deskewed, &mut fitted);
+        deskew_centred(loc, scans, &mut log, &deskewed, &mut fitted);
     }
     Pass {
         log,
@@ -876,6 +877,72 @@ fn deskew_track_starts(
         add_fitted(fitted, k, &h);
     }
     // The rows' matches together, as [`moved_landmarks`] takes them.
+    fitted.sort_by_key(|f| f.0);
+}
+
+/// The two poses either side of a scan must lie within this time of each other for their
+/// motion to stand for the motion during its sweep, seconds (two scan periods at 10 Hz, with
+/// room for a scan lost between them).
+const MAX_CENTRED_SPAN_S: f64 = 0.35;
+
+/// Fits every de-skewed pose again with the turn rate between the poses before and after it.
+/// While tracking, a sweep is de-skewed with the motion from the pose before to the scan's own
+/// fit, which is the turn rate half a scan period before the sweep began, and which carries
+/// the fit's own error into its de-skew (pulling it towards the pose before: a smoothing its
+/// σ do not know). A robot whose turn rate changes by 10°/s² then left its poses 4–6σ off in
+/// heading for a second at a time (`synth lrf --seed 2`, t = 12–16 s). The turn rate between
+/// the neighbours is the one at the scan's time and owes nothing to its fit. The translation
+/// keeps the motion from the pose before: a small robot's speed changes slowly, and the
+/// neighbours' would add their noise.
+fn deskew_centred(
+    loc: &Localizer,
+    scans: &[Scan],
+    log: &mut PoseLog,
+    deskewed: &[bool],
+    fitted: &mut Vec<(usize, usize, Observation)>,
+) {
+    let ok = |r: &PoseLogRow| r.status == Status::Ok && r.pose.is_some();
+    let before: Vec<Option<odocal_core::Pose2>> = log
+        .rows
+        .iter()
+        .zip(deskewed)
+        .map(|(r, &d)| if ok(r) && d { r.pose } else { None })
+        .collect();
+    let rows = &mut log.rows;
+    for k in 1..rows.len().saturating_sub(1) {
+        let (Some(p), Some(pa), Some(pb)) = (before[k], before[k - 1], before[k + 1]) else {
+            continue;
+        };
+        let dt = rows[k + 1].t_s - rows[k - 1].t_s;
+        if !(dt > 1e-6 && dt <= MAX_CENTRED_SPAN_S)
+            || loc.cfg.sensor.beam_interval_s(&scans[k]) <= 0.0
+        {
+            continue;
+        }
+        let dt_back = rows[k].t_s - rows[k - 1].t_s;
+        if dt_back <= 1e-6 {
+            continue;
+        }
+        let vel = [
+            (p.x_m - pa.x_m) / dt_back,
+            (p.y_m - pa.y_m) / dt_back,
+            odocal_core::wrap_angle(pb.theta_rad - pa.theta_rad) / dt,
+        ];
+        let dets = crate::scan_track::deskewed(&loc.detections(&scans[k]), vel, &p);
+        let Some(h) = loc.track(&scans[k], &dets, p, 0.03, 0.01) else {
+            continue;
+        };
+        if h.matches.len() < rows[k].n_landmarks {
+            continue;
+        }
+        let r = &mut rows[k];
+        r.pose = Some(h.pose);
+        r.pose_cov = h.cov;
+        r.n_landmarks = h.matches.len();
+        r.score = h.score;
+        fitted.retain(|f| f.0 != k);
+        add_fitted(fitted, k, &h);
+    }
     fitted.sort_by_key(|f| f.0);
 }
 
