@@ -66,10 +66,41 @@ impl FileError {
     }
 }
 
-/// Reads a whole text file, mapping the error to [`FileError::Io`] with the file's name.
+/// Reads a whole text file, mapping the error to [`FileError::Io`] with the file's name; a
+/// file that is not text (a video or an image given in a CSV's or JSON's place) is named as
+/// such, not as a stream without valid UTF-8.
 pub fn read_text(path: &std::path::Path) -> Result<String, FileError> {
-    std::fs::read_to_string(path).map_err(|source| FileError::Io {
-        path: path.display().to_string(),
-        source,
+    std::fs::read_to_string(path).map_err(|source| {
+        if source.kind() == std::io::ErrorKind::InvalidData {
+            FileError::content(
+                &path.display().to_string(),
+                "this is not a text file (binary data: a video, an image or an archive?); give the CSV or JSON file asked for",
+            )
+        } else {
+            FileError::Io {
+                path: path.display().to_string(),
+                source,
+            }
+        }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A video given where a camera.json or a CSV belongs is named as not text.
+    #[test]
+    fn a_binary_file_is_named_as_not_text() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("video.avi");
+        std::fs::write(&path, [b'R', b'I', b'F', b'F', 0xff, 0xfe, 0x00, 0x80]).expect("write");
+        let e = read_text(&path).expect_err("binary").to_string();
+        assert!(
+            e.ends_with("video.avi: this is not a text file (binary data: a video, an image or an archive?); give the CSV or JSON file asked for"),
+            "{e}"
+        );
+        std::fs::write(&path, "t,x\n").expect("write");
+        assert_eq!(read_text(&path).expect("text"), "t,x\n");
+    }
 }
