@@ -1087,6 +1087,12 @@ fn synth_calib_blur_is_checked() {
 fn synth_paths_beyond_a_lab_and_a_small_robot_are_refused() {
     let d = tempfile::tempdir().expect("tempdir");
     let out = d.path().join("e");
+    let experiment = |extra: &[&str], needles: &[&str]| {
+        let mut args = vec!["synth", "experiment", "--out", p(&out)];
+        args.extend(["--runs", "2", "--frames", "none"]);
+        args.extend(extra);
+        refused(d.path(), &args, needles);
+    };
     for (paths, option, value) in [
         ("umbmark", "--square-m", "1e300"),
         ("umbmark", "--square-m", "25"),
@@ -1094,22 +1100,8 @@ fn synth_paths_beyond_a_lab_and_a_small_robot_are_refused() {
         ("umbmark", "--square-speed", "6"),
         ("tours", "--tour-area-m", "1e300"),
     ] {
-        refused(
-            d.path(),
-            &[
-                "synth",
-                "experiment",
-                "--out",
-                p(&out),
-                "--runs",
-                "2",
-                "--frames",
-                "none",
-                "--paths",
-                paths,
-                option,
-                value,
-            ],
+        experiment(
+            &["--paths", paths, option, value],
             &[
                 &format!("{option} {value}"),
                 "at most 20 m",
@@ -1124,22 +1116,7 @@ fn synth_paths_beyond_a_lab_and_a_small_robot_are_refused() {
         r#"{"format": "odocal.robotsim/1", "protocol": {"speeds_mps": [0.5, 50.0]}}"#,
     )
     .unwrap();
-    refused(
-        d.path(),
-        &[
-            "synth",
-            "experiment",
-            "--out",
-            p(&out),
-            "--runs",
-            "2",
-            "--frames",
-            "none",
-            "--config",
-            p(&config),
-        ],
-        &["speeds_mps", "at most 5 m/s"],
-    );
+    experiment(&["--config", p(&config)], &["speeds_mps", "at most 5 m/s"]);
 }
 
 /// ChArUco options are checked before any image is read, and a ChArUco set calibrated with

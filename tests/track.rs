@@ -1867,6 +1867,23 @@ fn a_frame_file_cut_short_is_left_out_and_named() {
     assert!(!out.exists());
 }
 
+/// Tracks `video` with the camera file of `d` and `--tag-size size`, and returns what it
+/// said on standard error.
+fn track_with_tag_size(d: &std::path::Path, video: &std::path::Path, size: &str) -> String {
+    let res = odocal(&[
+        "track",
+        p(video),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--tag-size",
+        size,
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    succeeded(&res);
+    String::from_utf8_lossy(&res.stderr).into_owned()
+}
+
 /// A tag smeared by its motion spans a smaller square (80.00 mm at rest, 79.84 mm smeared
 /// 4.5–6 px), and a robot that never stood still had its right tag size called 0.12 % off
 /// ("… or the marker sits at 0.0774 m") on a 16 ms exposure at 0.5–0.7 m/s. The side is now
@@ -1892,20 +1909,7 @@ fn a_tag_smeared_by_its_motion_is_no_tag_size_error() {
             "0.7",
         ],
     );
-    let track = |size: &str| {
-        let res = odocal(&[
-            "track",
-            p(&d.join("frames")),
-            "--camera",
-            p(&d.join("camera.json")),
-            "--tag-size",
-            size,
-            "--out",
-            p(&d.join("t.csv")),
-        ]);
-        succeeded(&res);
-        String::from_utf8_lossy(&res.stderr).into_owned()
-    };
+    let track = |size: &str| track_with_tag_size(d, &d.join("frames"), size);
     let said = track("0.08");
     assert!(!said.contains("black square"), "{said}");
     let said = track("0.0808");
@@ -1928,20 +1932,7 @@ fn a_tag_size_a_percent_off_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     synth_track_with(d, 40, 4, &["--video", "avi"]);
-    let track = |size: &str| {
-        let res = odocal(&[
-            "track",
-            p(&d.join("video.avi")),
-            "--camera",
-            p(&d.join("camera.json")),
-            "--tag-size",
-            size,
-            "--out",
-            p(&d.join("t.csv")),
-        ]);
-        succeeded(&res);
-        String::from_utf8_lossy(&res.stderr).into_owned()
-    };
+    let track = |size: &str| track_with_tag_size(d, &d.join("video.avi"), size);
     let said = track("0.0808");
     assert!(
         said.contains("the tag's black square spans 80.0")

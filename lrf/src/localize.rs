@@ -848,7 +848,7 @@ fn deskew_track_starts(
         let (Some(&i), Some(&j)) = (next.first(), next.get(1)) else {
             continue;
         };
-        let (Some(p), Some(pi), Some(pj)) = (rows[k].pose, rows[i].pose, rows[j].pose) else {
+        let (Some(pi), Some(pj)) = (rows[i].pose, rows[j].pose) else {
             continue;
         };
         let dt = rows[j].t_s - rows[i].t_s;
@@ -860,24 +860,42 @@ fn deskew_track_starts(
             (pj.y_m - pi.y_m) / dt,
             odocal_core::wrap_angle(pj.theta_rad - pi.theta_rad) / dt,
         ];
-        let dets = crate::scan_track::deskewed(&loc.detections(&scans[k]), vel, &p);
-        let Some(h) = loc.track(&scans[k], &dets, p, 0.03, 0.01) else {
-            continue;
-        };
-        if h.matches.len() < rows[k].n_landmarks {
-            continue;
+        if refit_deskewed(loc, &scans[k], k, &mut rows[k], fitted, vel) {
+            deskewed[k] = true;
         }
-        let r = &mut rows[k];
-        r.pose = Some(h.pose);
-        r.pose_cov = h.cov;
-        r.n_landmarks = h.matches.len();
-        r.score = h.score;
-        deskewed[k] = true;
-        fitted.retain(|f| f.0 != k);
-        add_fitted(fitted, k, &h);
     }
     // The rows' matches together, as [`moved_landmarks`] takes them.
     fitted.sort_by_key(|f| f.0);
+}
+
+/// Fits `row` (scan `k`, `scan`) again from its pose with its detections de-skewed for the
+/// sensor moving at `vel` (map frame: m/s, m/s, rad/s), and keeps that fit, with its matches
+/// in `fitted`, when it uses as many landmarks as the row did; returns whether it was kept.
+fn refit_deskewed(
+    loc: &Localizer,
+    scan: &Scan,
+    k: usize,
+    row: &mut PoseLogRow,
+    fitted: &mut Vec<(usize, usize, Observation)>,
+    vel: [f64; 3],
+) -> bool {
+    let Some(p) = row.pose else {
+        return false;
+    };
+    let dets = crate::scan_track::deskewed(&loc.detections(scan), vel, &p);
+    let Some(h) = loc.track(scan, &dets, p, 0.03, 0.01) else {
+        return false;
+    };
+    if h.matches.len() < row.n_landmarks {
+        return false;
+    }
+    row.pose = Some(h.pose);
+    row.pose_cov = h.cov;
+    row.n_landmarks = h.matches.len();
+    row.score = h.score;
+    fitted.retain(|f| f.0 != k);
+    add_fitted(fitted, k, &h);
+    true
 }
 
 /// The two poses either side of a scan must lie within this time of each other for their
@@ -928,20 +946,7 @@ fn deskew_centred(
             (p.y_m - pa.y_m) / dt_back,
             odocal_core::wrap_angle(pb.theta_rad - pa.theta_rad) / dt,
         ];
-        let dets = crate::scan_track::deskewed(&loc.detections(&scans[k]), vel, &p);
-        let Some(h) = loc.track(&scans[k], &dets, p, 0.03, 0.01) else {
-            continue;
-        };
-        if h.matches.len() < rows[k].n_landmarks {
-            continue;
-        }
-        let r = &mut rows[k];
-        r.pose = Some(h.pose);
-        r.pose_cov = h.cov;
-        r.n_landmarks = h.matches.len();
-        r.score = h.score;
-        fitted.retain(|f| f.0 != k);
-        add_fitted(fitted, k, &h);
+        refit_deskewed(loc, &scans[k], k, &mut rows[k], fitted, vel);
     }
     fitted.sort_by_key(|f| f.0);
 }
