@@ -184,8 +184,12 @@ fn detection_covariances_match_the_simulated_errors() {
                 };
                 let lm = &loc.map.landmarks[l];
                 let normal = lm.facing.map(|f| to_sensor * f);
-                let (centre, cov) =
-                    d.strip_centre(normal, loc.map.reflector_width_m, &loc.cfg.sensor);
+                let (centre, cov) = d.strip_centre(
+                    normal,
+                    lm.half_fov_rad,
+                    loc.map.reflector_width_m,
+                    &loc.cfg.sensor,
+                );
                 let e = centre - iso.inverse() * lm.position;
                 let w: Matrix2<f64> = cov.try_inverse().expect("covariance is invertible");
                 let nees = e.dot(&(w * e));

@@ -566,8 +566,12 @@ impl Localizer {
             .map(|&(k, l)| {
                 let lm = &self.map.landmarks[l];
                 let normal = lm.facing.map(|f| to_sensor * f);
-                let (centre, cov) =
-                    dets[k].strip_centre(normal, self.map.reflector_width_m, &self.cfg.sensor);
+                let (centre, cov) = dets[k].strip_centre(
+                    normal,
+                    lm.half_fov_rad,
+                    self.map.reflector_width_m,
+                    &self.cfg.sensor,
+                );
                 Observation {
                     sensor: centre,
                     landmark: lm.position,
