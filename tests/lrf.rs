@@ -1652,7 +1652,7 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     let (stdout, stderr) = run(&moved);
     assert!(
         stderr.contains(&format!(
-            "warning: landmark 8 of {} sits 46 mm from its mapped position along (0.01, -1.00) in 53 scans (σ of that mean 0.9 mm): was it moved after mapping? The poses that matched it were fitted again without it",
+            "warning: landmark 8 of {} sits 46 mm from its mapped position along (0.01, -1.00) in 53 scans (σ of that mean 0.9 mm): was it moved after mapping? Every scan was localised again with the map without it",
             s(&moved)
         )),
         "{stderr}"
