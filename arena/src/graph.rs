@@ -381,7 +381,14 @@ fn disagreement(
         }
     }
     let Some(rest) = rest.filter(|f| f.consistency.rms_mm <= AGREE_MM) else {
-        return generic;
+        return turned_camera(models, first_floor, camera_paths, shared, board)
+            .map_or(generic, |(k, agree_mm)| {
+                format!(
+                    "the cameras put the shared boards' corners {:.1} mm apart (RMS; refused above {REFUSE_RMS_MM} mm): camera {k}'s images ({}) number the board's corners from the other end, as images turned about 180° from the first camera's do (OpenCV numbers a checkerboard's corners from the one nearest the image's top-left); with its numbering turned back the cameras agree within {agree_mm:.2} mm. Take the shared views with a ChArUco board (--target charuco), whose corners every camera names alike, or with the cameras mounted turned alike (within 45°)",
+                    all.rms_mm,
+                    camera_paths[k].display()
+                )
+            });
     };
     out.sort_unstable();
     let kept_views = kept(&out);
@@ -448,6 +455,48 @@ fn disagreement(
         rest.consistency.rms_mm,
         found.join("; ")
     )
+}
+
+/// The camera whose shared images, numbered from the other end, make every camera agree
+/// within [`AGREE_MM`] (a camera turned about 180° from the others), with that agreement in
+/// millimetres; None for a ChArUco board (its corners are named, not numbered) or when no
+/// camera does.
+fn turned_camera(
+    models: &[CameraModel],
+    first_floor: FloorToCamera,
+    camera_paths: &[&Path],
+    shared: &[SharedView],
+    board: &BoardSpec,
+) -> Option<(usize, f64)> {
+    if board.target != odocal_calib::BoardTarget::Checkerboard {
+        return None;
+    }
+    (0..models.len())
+        .into_par_iter()
+        .filter_map(|k| {
+            let turned: Vec<SharedView> = shared
+                .iter()
+                .map(|s| {
+                    let mut s = s.clone();
+                    for (_, bv) in s.views.iter_mut().filter(|(c, _)| *c == k) {
+                        bv.corners.reverse();
+                    }
+                    s
+                })
+                .collect();
+            let f = fit_graph(
+                models,
+                first_floor,
+                camera_paths,
+                &turned,
+                board,
+                TRIAL_PATIENCE,
+            )
+            .ok()?;
+            Some((k, f.consistency.rms_mm))
+        })
+        .filter(|(_, rms_mm)| *rms_mm <= AGREE_MM)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 /// How far apart two places of one board put it: the farthest of its outer corners, metres.
@@ -1063,22 +1112,46 @@ mod tests {
 
     #[test]
     fn corners_numbered_the_other_way_round_are_refused() {
-        let (cams, poses, mut shared) = scene();
-        // Camera 1 numbers one board's corners from the other end (a camera turned 180°).
-        let (_, bv) = shared
-            .iter_mut()
-            .flat_map(|s| s.views.iter_mut())
-            .find(|(k, _)| *k == 1)
-            .unwrap();
-        bv.corners.reverse();
+        let (cams, poses, shared) = scene();
         let paths = [
             Path::new("a.json"),
             Path::new("b.json"),
             Path::new("c.json"),
         ];
-        let e = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD)
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("number the corners alike"), "{e}");
+        let refusal = |shared: &[SharedView]| {
+            solve_arena(&files(&cams, &poses), &paths, shared, &BOARD)
+                .unwrap_err()
+                .to_string()
+        };
+        // One image of camera 1 numbers its board's corners from the other end (that image
+        // turned 180°): its view is named.
+        let mut one = shared.clone();
+        let (_, bv) = one
+            .iter_mut()
+            .flat_map(|s| s.views.iter_mut())
+            .find(|(k, _)| *k == 1)
+            .unwrap();
+        bv.corners.reverse();
+        let e = refusal(&one);
+        assert!(
+            e.contains("but without one view") && e.contains("turned alike"),
+            "{e}"
+        );
+        // Every image of camera 1 does (a camera mounted turned 180° from the first): the
+        // camera is named, not a view, and not its clock or calibration.
+        let mut all = shared.clone();
+        for (_, bv) in all
+            .iter_mut()
+            .flat_map(|s| s.views.iter_mut())
+            .filter(|(k, _)| *k == 1)
+        {
+            bv.corners.reverse();
+        }
+        let e = refusal(&all);
+        assert!(
+            e.contains("camera 1's images (b.json) number the board's corners from the other end")
+                && e.contains("with its numbering turned back the cameras agree within"),
+            "{e}"
+        );
     }
 }
