@@ -1886,10 +1886,9 @@ fn track_with_tag_size(d: &std::path::Path, video: &std::path::Path, size: &str)
 
 /// A tag smeared by its motion spans a smaller square (80.00 mm at rest, 79.84 mm smeared
 /// 4.5–6 px), and a robot that never stood still had its right tag size called 0.12 % off
-/// ("… or the marker sits at 0.0774 m") on a 16 ms exposure at 0.5–0.7 m/s. The side is now
-/// judged on fixes moving at most 2.5 px between frames when there are 20, else on the
-/// slowest third with what the fastest third's shortfall says a smear takes off: the
-/// right size says nothing, and a size 1 % off is still named.
+/// ("… or the marker sits at 0.0774 m") on a 16 ms exposure at 0.5–0.7 m/s. A short side is
+/// now judged with its shortfall below the still fixes' side (or the slowest third's) given
+/// back: the right size says nothing, and a size 1 % off is still named.
 #[test]
 fn a_tag_smeared_by_its_motion_is_no_tag_size_error() {
     let dir = tempfile::tempdir().unwrap();

@@ -113,7 +113,7 @@ const LENS_SIDE_SPREAD: f64 = 0.003;
 /// px; 79.84 mm, −0.2 %, at 4.5–6 px).
 pub const STILL_MOTION_PX: f64 = 2.5;
 
-/// Fixes this still are enough to judge the side on them alone.
+/// Fixes this still are enough to give the side without a smear.
 const STILL_FIXES: usize = 20;
 
 /// How much a smear beyond [`STILL_MOTION_PX`] may shrink the side, share per pixel: the
@@ -154,10 +154,11 @@ pub struct TagSide {
     pub inner: (f64, f64),
     /// The same over the third farthest from the image centre.
     pub outer: (f64, f64),
-    /// How much a smear may have shrunk the side judged, as a share: 0 when it is judged on
-    /// fixes whose corners move at most [`STILL_MOTION_PX`] between frames (or on few
-    /// fixes); else, judged on the slowest third, the fastest third's shortfall scaled to
-    /// the slowest's motion beyond that, and at most [`BLUR_SHRINK_PER_PX`] per pixel of it.
+    /// How much a smear shrank the median side, as a share: how far it falls short of the
+    /// side of the fixes whose corners move at most [`STILL_MOTION_PX`] between frames (when
+    /// there are [`STILL_FIXES`] of them; else of the slowest third, from 3 × that many
+    /// fixes), at most [`BLUR_SHRINK_PER_PX`] per pixel of the fixes' median motion beyond
+    /// [`STILL_MOTION_PX`].
     pub blur_shrink: f64,
 }
 
@@ -190,44 +191,32 @@ impl TagSide {
             })
             .filter(|(_, _, s)| s.is_finite())
             .collect();
-        // A tag smeared by its motion during the exposure spans a smaller square: the side
-        // is judged on the still fixes when there are enough, else on the slowest third,
-        // whose shortfall a smear explains as far as the fastest third's says it does.
+        // A tag smeared by its motion during the exposure spans a smaller square. The side
+        // without a smear is the still fixes' when there are enough, else the slowest
+        // third's; where the whole run's side falls short of it, a smear took that off.
         all.sort_by(|a, b| a.0.total_cmp(&b.0));
         let still = all.iter().filter(|x| x.0 <= STILL_MOTION_PX).count();
         let third = all.len() / 3;
-        let (judged, blur_shrink) = if still >= STILL_FIXES || third < STILL_FIXES {
-            let n = if still >= STILL_FIXES {
-                still
-            } else {
-                all.len()
-            };
-            (&all[..n], 0.0)
-        } else {
-            let motion_and_side = |part: &[(f64, f64, f64)]| {
-                let mut m: Vec<f64> = part.iter().map(|x| x.0).filter(|m| m.is_finite()).collect();
-                let mut s: Vec<f64> = part.iter().map(|x| x.2).collect();
-                let m = if m.is_empty() {
-                    f64::INFINITY
-                } else {
-                    median(&mut m)
-                };
-                (m, median(&mut s))
-            };
-            let (slow_px, slow_side) = motion_and_side(&all[..third]);
-            let (fast_px, fast_side) = motion_and_side(&all[all.len() - third..]);
-            let beyond = |m: f64| (m - STILL_MOTION_PX).max(0.0);
-            let shrink = if fast_px.is_finite() && beyond(fast_px) > 0.0 {
-                ((slow_side - fast_side) / tag_size_m).max(0.0) * beyond(slow_px) / beyond(fast_px)
-            } else {
-                0.0
-            };
-            (
-                &all[..third],
-                shrink.min(BLUR_SHRINK_PER_PX * beyond(slow_px)),
-            )
+        let side_of = |part: &[(f64, f64, f64)]| {
+            let mut s: Vec<f64> = part.iter().map(|x| x.2).collect();
+            median(&mut s)
         };
-        let mut by_radius: Vec<(f64, f64)> = judged.iter().map(|x| (x.1, x.2)).collect();
+        let mut motions: Vec<f64> = all.iter().map(|x| x.0).filter(|m| m.is_finite()).collect();
+        let blur_shrink = if all.is_empty() || motions.is_empty() {
+            0.0
+        } else {
+            let unsmeared = if still >= STILL_FIXES {
+                side_of(&all[..still])
+            } else if third >= STILL_FIXES {
+                side_of(&all[..third])
+            } else {
+                side_of(&all)
+            };
+            let shortfall = ((unsmeared - side_of(&all)) / tag_size_m).max(0.0);
+            let beyond_px = (median(&mut motions) - STILL_MOTION_PX).max(0.0);
+            shortfall.min(BLUR_SHRINK_PER_PX * beyond_px)
+        };
+        let mut by_radius: Vec<(f64, f64)> = all.iter().map(|x| (x.1, x.2)).collect();
         if by_radius.is_empty() {
             return None;
         }
@@ -289,16 +278,19 @@ impl TagSide {
                 self.fixes,
             ));
         }
-        let ratio = self.side_m / tag_size_m;
+        // A smear shortens the square: a short side is judged with what it took off given back.
+        let side_m = if self.side_m < tag_size_m {
+            self.side_m + self.blur_shrink * tag_size_m
+        } else {
+            self.side_m
+        };
+        let ratio = side_m / tag_size_m;
         // A height or focal length off by the side's share moves a fix by that share of its
         // distance from the point under the camera (the parallax of a marker higher by δ,
         // seen (D − δ)/D as large, is δ/D of that distance).
         let share = (1.0 - 1.0 / ratio).abs();
         let off = (ratio - 1.0).abs();
-        // A side short by no more than a smear at the fixes' motion explains is not judged:
-        // the tag never held still long enough to measure it.
         if off <= TAG_SIDE_TOLERANCE
-            || (ratio < 1.0 && off <= self.blur_shrink + TAG_SIDE_TOLERANCE)
             || off * tag_size_m <= TAG_SIDE_SIGNIFICANCE * self.side_sigma_m
             || share * self.distance_m.0 <= TAG_SIDE_SHIFT_OVER_SIGMA * self.position_sigma_m
         {
@@ -307,12 +299,12 @@ impl TagSide {
         let height_m = marker_height_m + self.camera_above_marker_m * (1.0 - 1.0 / ratio);
         Some(format!(
             "the tag's black square spans {:.2} mm on the marker plane (median of {} fixes, ± {:.3} %), {:+.2} % from --tag-size {:.2} mm. Either the size is off (a print scaled to fit the page; measure the square and give --tag-size {:.4}): positions are then right, but every fix's σ takes the misfit for noise and is too large; or the marker sits at {:.4} m, not --marker-height {marker_height_m:.4} m, or the camera file's focal length is not this image's (a video scaled or zoomed after recording), either of which moves every fix by {:.2} % of its distance from the point under the camera, {:.1} mm for the typical fix and up to {:.1} mm, against a typical σ of {:.2} mm; or the camera file does not map this image at all (another camera's calibration, or an image cropped or shifted after recording), which moves the fixes by an amount the square's size cannot tell",
-            self.side_m * 1e3,
+            side_m * 1e3,
             self.fixes,
             100.0 * self.side_sigma_m / tag_size_m,
             (ratio - 1.0) * 100.0,
             tag_size_m * 1e3,
-            self.side_m,
+            side_m,
             height_m,
             100.0 * share,
             share * self.distance_m.0 * 1e3,
