@@ -740,50 +740,73 @@ mod tests {
         assert_eq!(extract_detections(&wide, &cfg, 0.08).len(), 1);
     }
 
+    /// A noise-free sensor for the strip tests.
+    fn exact_sensor() -> SensorConfig {
+        SensorConfig {
+            sigma_range_m: 1e-4,
+            sigma_angle_rad: 1e-6,
+            ..SensorConfig::default()
+        }
+    }
+
+    /// 200 beams from −0.6 rad of `cfg`'s step, a wall 5 m away, and a strip of `width_m`
+    /// whose outward normal is `normal` centred at `centre`: the beams that meet it read its
+    /// range, bright within `half_fov_rad` of its normal and dim beyond (the strip's acceptance
+    /// cone). Returns the scan and the beams on the strip.
+    fn strip_scan(
+        cfg: &SensorConfig,
+        normal: Vector2<f64>,
+        centre: Point2<f64>,
+        width_m: f64,
+        half_fov_rad: f64,
+    ) -> (Scan, Vec<usize>) {
+        let along = Vector2::new(-normal.y, normal.x);
+        let n_beams = 200;
+        let angles: Vec<f64> = (0..n_beams)
+            .map(|k| -0.6 + k as f64 * cfg.step_rad)
+            .collect();
+        let mut scan = Scan {
+            id: 0,
+            t_s: None,
+            angles_rad: angles.clone(),
+            // A wall behind the strip, within range: the beams beside the strip show where
+            // it ends.
+            ranges_m: vec![5.0; n_beams],
+            intensities: vec![0.1; n_beams],
+            reversed: false,
+        };
+        let mut hits = Vec::new();
+        for (k, a) in angles.iter().enumerate() {
+            let w = Vector2::new(a.cos(), a.sin());
+            // The beam meets the strip's line at range t, at s along it from the centre.
+            let t = normal.dot(&centre.coords) / normal.dot(&w);
+            let s = along.dot(&(w * t - centre.coords));
+            if s.abs() <= 0.5 * width_m {
+                scan.ranges_m[k] = t;
+                let bright = (-normal.dot(&w)).acos() <= half_fov_rad;
+                scan.intensities[k] = if bright { 0.9 } else { 0.25 };
+                hits.push(k);
+            }
+        }
+        (scan, hits)
+    }
+
     /// Noise-free beams on a strip 3 m away at 60° incidence, slid along its own line in small
     /// steps: the error of the strip centre along the strip stays within the interval the model
     /// gives, its variance is the model's, and with the beams beyond one end replaced by a
     /// nearer occluder the centre is still found (the centroid of the hits would miss it).
     #[test]
     fn strip_centre_error_is_the_models() {
-        let cfg = SensorConfig {
-            sigma_range_m: 1e-4,
-            sigma_angle_rad: 1e-6,
-            ..SensorConfig::default()
-        };
+        let cfg = exact_sensor();
         let width = 0.08;
         let normal = Vector2::new(-(60f64.to_radians().cos()), 60f64.to_radians().sin());
         let along = Vector2::new(-normal.y, normal.x);
-        let n_beams = 200;
-        let angles: Vec<f64> = (0..n_beams)
-            .map(|k| -0.6 + k as f64 * cfg.step_rad)
-            .collect();
         let (mut e2, mut model, mut trials) = (0.0, 0.0, 0);
         for occluded in [false, true] {
             for shift in 0..400 {
                 let centre = Point2::new(3.0, 0.0) + along * (shift as f64 * 1e-4);
-                let mut scan = Scan {
-                    id: 0,
-                    t_s: None,
-                    angles_rad: angles.clone(),
-                    // A wall 2 m behind the strip, within range: the beams beside the strip show
-                    // where it ends.
-                    ranges_m: vec![5.0; n_beams],
-                    intensities: vec![0.1; n_beams],
-                    reversed: false,
-                };
-                let mut hits = Vec::new();
-                for (k, a) in angles.iter().enumerate() {
-                    let w = Vector2::new(a.cos(), a.sin());
-                    // The beam meets the strip's line at range t, at s along it from the centre.
-                    let t = normal.dot(&centre.coords) / normal.dot(&w);
-                    let s = along.dot(&(w * t - centre.coords));
-                    if s.abs() <= 0.5 * width {
-                        scan.ranges_m[k] = t;
-                        scan.intensities[k] = 0.9;
-                        hits.push(k);
-                    }
-                }
+                let (mut scan, hits) =
+                    strip_scan(&cfg, normal, centre, width, std::f64::consts::PI);
                 if occluded {
                     // Something 1 m nearer covers the strip from its middle on.
                     for &k in &hits[hits.len() / 2..] {
@@ -822,45 +845,18 @@ mod tests {
     /// now within 3σ wherever the strip is slid along its line.
     #[test]
     fn a_strip_at_the_edge_of_its_cone_is_not_cut_by_its_dim_beams() {
-        let cfg = SensorConfig {
-            sigma_range_m: 1e-4,
-            sigma_angle_rad: 1e-6,
-            ..SensorConfig::default()
-        };
+        let cfg = exact_sensor();
         let (width, half_fov) = (0.08, 75f64.to_radians());
         let normal = Vector2::new(-(half_fov.cos()), half_fov.sin());
         let along = Vector2::new(-normal.y, normal.x);
-        let n_beams = 200;
-        let angles: Vec<f64> = (0..n_beams)
-            .map(|k| -0.6 + k as f64 * cfg.step_rad)
-            .collect();
         let mut worst: f64 = 0.0;
         for (range, shift) in [0.6, 0.8, 1.0, 1.5]
             .into_iter()
             .flat_map(|r| (0..200).map(move |k| (r, k)))
         {
             let centre = Point2::new(range, 0.0) + along * (shift as f64 * 2e-4);
-            let mut scan = Scan {
-                id: 0,
-                t_s: None,
-                angles_rad: angles.clone(),
-                ranges_m: vec![5.0; n_beams],
-                intensities: vec![0.1; n_beams],
-                reversed: false,
-            };
-            let mut bright = 0;
-            for (k, a) in angles.iter().enumerate() {
-                let w = Vector2::new(a.cos(), a.sin());
-                let t = normal.dot(&centre.coords) / normal.dot(&w);
-                let s = along.dot(&(w * t - centre.coords));
-                if s.abs() <= 0.5 * width {
-                    scan.ranges_m[k] = t;
-                    let incidence = (-normal.dot(&w)).acos();
-                    scan.intensities[k] = if incidence <= half_fov { 0.9 } else { 0.25 };
-                    bright += usize::from(incidence <= half_fov);
-                }
-            }
-            if bright == 0 {
+            let (scan, hits) = strip_scan(&cfg, normal, centre, width, half_fov);
+            if hits.iter().all(|&k| scan.intensities[k] < 0.5) {
                 continue;
             }
             let dets = extract_detections(&scan, &cfg, width);
