@@ -77,9 +77,10 @@ pub struct SimulatedRecording {
 }
 
 impl SimulatedRecording {
-    /// Log times, seconds on the robot clock.
+    /// Log times, seconds on the robot clock, to the microsecond a robot's clock counts in
+    /// (so a log reads "3.8", not the product's "3.8000000000000003").
     pub fn log_time_s(&self, row: &TickRow) -> f64 {
-        row.index as f64 * self.log_period_s
+        (row.index as f64 * self.log_period_s * 1e6).round() / 1e6
     }
 
     /// True pose at a robot-clock time (linear interpolation); None outside or while carried.

@@ -243,6 +243,19 @@ mod tests {
     }
 
     #[test]
+    fn log_times_are_written_as_a_robot_clock_counts_them() {
+        let rec = simulate_recording(&RobotSimConfig::default(), &[0.5], 7, 3).unwrap();
+        let csv = rec.odometry_log().unwrap().to_csv();
+        // 19 × 0.2 s is 3.8000000000000003 as a product; a log reads 3.8.
+        assert!(csv.lines().any(|l| l.starts_with("3.8,")), "{csv}");
+        for line in csv.lines().skip(1) {
+            let t = line.split(',').next().unwrap_or_default();
+            let decimals = t.split('.').nth(1).map_or(0, str::len);
+            assert!(decimals <= 6, "log time {t} has {decimals} decimals");
+        }
+    }
+
+    #[test]
     fn heading_oscillates_and_runs_are_split_by_carries() {
         let cfg = RobotSimConfig::default();
         let rec = simulate_recording(&cfg, &[0.2, 0.7], 1, 0).unwrap();
