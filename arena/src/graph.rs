@@ -61,6 +61,19 @@ pub struct ArenaSolution {
     /// Each camera's joint covariance of its pose correction and its intrinsics
     /// ([`crate::ArenaCamera::pose_covariance`]).
     pub pose_covariance: Vec<Option<DMatrix<f64>>>,
+    /// Cameras whose shared images numbered the checkerboard's corners from the other end
+    /// (mounted turned about 180° from the first camera), read with their numbering turned
+    /// back.
+    pub renumbered: Vec<Renumbered>,
+}
+
+/// A camera whose checkerboard corners were read numbered from the other end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Renumbered {
+    /// The camera's index.
+    pub camera: usize,
+    /// How far apart the cameras put the shared corners as its images numbered them, mm RMS.
+    pub numbered_as_recorded_mm: f64,
 }
 
 /// A board lying face up on the floor at (x, y) turned by `yaw_rad`: its z axis points into
@@ -104,16 +117,40 @@ pub fn solve_arena(
     }
     let first_floor = *cameras[0].require_floor(camera_paths[0])?;
     let models: Vec<CameraModel> = cameras.iter().map(|c| c.camera).collect();
-    let fit = fit_graph(&models, first_floor, camera_paths, shared, board, PATIENCE)?;
+    let mut fit = fit_graph(&models, first_floor, camera_paths, shared, board, PATIENCE)?;
+    let mut renumbered = Vec::new();
     if fit.consistency.rms_mm > REFUSE_RMS_MM {
-        return Err(ArenaError::Refused(disagreement(
-            &models,
-            first_floor,
-            camera_paths,
-            shared,
-            board,
-            &fit,
-        )));
+        // A camera mounted turned 180° from the first numbers every checkerboard's corners
+        // from the other end; both numberings are the same board, and the one that makes the
+        // cameras agree is the board as it lay.
+        let turned_back = turned_camera(&models, first_floor, camera_paths, shared, board)
+            .and_then(|(k, _)| {
+                let f = fit_graph(
+                    &models,
+                    first_floor,
+                    camera_paths,
+                    &numbered_back(shared, k),
+                    board,
+                    PATIENCE,
+                )
+                .ok()?;
+                (f.consistency.rms_mm <= REFUSE_RMS_MM).then_some((k, f))
+            });
+        let Some((k, f)) = turned_back else {
+            return Err(ArenaError::Refused(disagreement(
+                &models,
+                first_floor,
+                camera_paths,
+                shared,
+                board,
+                &fit,
+            )));
+        };
+        renumbered.push(Renumbered {
+            camera: k,
+            numbered_as_recorded_mm: fit.consistency.rms_mm,
+        });
+        fit = f;
     }
     let GraphFit {
         cams,
@@ -150,7 +187,22 @@ pub fn solve_arena(
         consistency,
         pairs,
         pose_covariance,
+        renumbered,
     })
+}
+
+/// The shared views with camera `k`'s checkerboard corners numbered from the other end.
+fn numbered_back(shared: &[SharedView], k: usize) -> Vec<SharedView> {
+    shared
+        .iter()
+        .map(|s| {
+            let mut s = s.clone();
+            for (_, bv) in s.views.iter_mut().filter(|(c, _)| *c == k) {
+                bv.corners.reverse();
+            }
+            s
+        })
+        .collect()
 }
 
 /// The pose graph fitted to some shared views, before any judgement of it.
@@ -381,14 +433,7 @@ fn disagreement(
         }
     }
     let Some(rest) = rest.filter(|f| f.consistency.rms_mm <= AGREE_MM) else {
-        return turned_camera(models, first_floor, camera_paths, shared, board)
-            .map_or(generic, |(k, agree_mm)| {
-                format!(
-                    "the cameras put the shared boards' corners {:.1} mm apart (RMS; refused above {REFUSE_RMS_MM} mm): camera {k}'s images ({}) number the board's corners from the other end, as images turned about 180° from the first camera's do (OpenCV numbers a checkerboard's corners from the one nearest the image's top-left); with its numbering turned back the cameras agree within {agree_mm:.2} mm. Take the shared views with a ChArUco board (--target charuco), whose corners every camera names alike, or with the cameras mounted turned alike (within 45°)",
-                    all.rms_mm,
-                    camera_paths[k].display()
-                )
-            });
+        return generic;
     };
     out.sort_unstable();
     let kept_views = kept(&out);
@@ -474,21 +519,11 @@ fn turned_camera(
     (0..models.len())
         .into_par_iter()
         .filter_map(|k| {
-            let turned: Vec<SharedView> = shared
-                .iter()
-                .map(|s| {
-                    let mut s = s.clone();
-                    for (_, bv) in s.views.iter_mut().filter(|(c, _)| *c == k) {
-                        bv.corners.reverse();
-                    }
-                    s
-                })
-                .collect();
             let f = fit_graph(
                 models,
                 first_floor,
                 camera_paths,
-                &turned,
+                &numbered_back(shared, k),
                 board,
                 TRIAL_PATIENCE,
             )
@@ -1111,7 +1146,7 @@ mod tests {
     }
 
     #[test]
-    fn corners_numbered_the_other_way_round_are_refused() {
+    fn corners_numbered_the_other_way_round_are_named_or_turned_back() {
         let (cams, poses, shared) = scene();
         let paths = [
             Path::new("a.json"),
@@ -1137,8 +1172,8 @@ mod tests {
             e.contains("but without one view") && e.contains("turned alike"),
             "{e}"
         );
-        // Every image of camera 1 does (a camera mounted turned 180° from the first): the
-        // camera is named, not a view, and not its clock or calibration.
+        // Every image of camera 1 does (a camera mounted turned 180° from the first): that
+        // camera's numbering is turned back, and the arena is the one its true numbering gives.
         let mut all = shared.clone();
         for (_, bv) in all
             .iter_mut()
@@ -1147,11 +1182,28 @@ mod tests {
         {
             bv.corners.reverse();
         }
-        let e = refusal(&all);
+        let fs = files(&cams, &poses);
+        let right = solve_arena(&fs, &paths, &shared, &BOARD).unwrap();
+        let turned = solve_arena(&fs, &paths, &all, &BOARD).unwrap();
+        assert_eq!(right.renumbered, vec![]);
+        assert_eq!(turned.renumbered.len(), 1);
+        assert_eq!(turned.renumbered[0].camera, 1);
         assert!(
-            e.contains("camera 1's images (b.json) number the board's corners from the other end")
-                && e.contains("with its numbering turned back the cameras agree within"),
-            "{e}"
+            turned.renumbered[0].numbered_as_recorded_mm > REFUSE_RMS_MM,
+            "{:?}",
+            turned.renumbered
+        );
+        for k in 0..3 {
+            let apart_m = (turned.arena_to_camera[k].0.inverse().translation.vector
+                - right.arena_to_camera[k].0.inverse().translation.vector)
+                .norm();
+            assert!(apart_m < 1e-6, "camera {k} {apart_m} m from its place");
+        }
+        assert!(
+            (turned.consistency.rms_mm - right.consistency.rms_mm).abs() < 1e-6,
+            "{} vs {} mm",
+            turned.consistency.rms_mm,
+            right.consistency.rms_mm
         );
     }
 }

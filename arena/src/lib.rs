@@ -34,7 +34,7 @@ pub use fuse::{
     DISAGREE_SIGMAS, MAX_RATE_PPM, MIN_RATE_SPAN_S,
 };
 pub use graph::{
-    build_arena, height_warnings, shared_residual_warnings, solve_arena, ArenaSolution,
+    build_arena, height_warnings, shared_residual_warnings, solve_arena, ArenaSolution, Renumbered,
     SharedObservation, REFUSE_RMS_MM,
 };
 pub use shared::{detect_shared, parse_shared_name, SharedView};
