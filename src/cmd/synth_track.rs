@@ -54,6 +54,15 @@ pub struct Args {
     /// Angle from the robot's front to the tag's x axis, degrees counter-clockwise.
     #[arg(long, default_value_t = 0.0, value_name = "DEG")]
     pub tag_yaw: f64,
+    /// Tilt of the tag plate on the robot, degrees: its front edge (the tag's +x side) raised,
+    /// as a tag glued a little off flat (the tracker takes the tag as level).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "DEG",
+        allow_hyphen_values = true
+    )]
+    pub tag_tilt: f64,
     /// Also write mocap.csv: the robot's true pose as a motion-capture system at this rate
     /// (Hz) records it, its samples falling between the camera's frames. `track --truth
     /// mocap.csv` judges each fix by the truth interpolated at its time.
@@ -226,6 +235,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.tag_offset.left_m,
             args.tag_yaw,
         )?,
+        tag_tilt_deg: args.tag_tilt,
         effects,
         mocap_hz: args.mocap_hz,
     };

@@ -705,6 +705,7 @@ fn write_video(
                     tag_size_m: scene.tag_size_m,
                     marker_height_m: truth.marker_height_m,
                     body_radius_m: 0.08,
+                    tag_tilt_rad: 0.0,
                 },
                 ..SceneConfig::default()
             };

@@ -43,6 +43,8 @@ pub struct TrackScene {
     pub tag_id: u32,
     /// Where the tag sits on the robot; the truth is the robot's (its axle midpoint).
     pub tag_to_robot: TagToRobot,
+    /// The tag plate's tilt on the robot, degrees (its +x edge raised; 0: level).
+    pub tag_tilt_deg: f64,
     /// What a real camera adds (all off by default).
     pub effects: CameraEffects,
     /// Rate of the motion-capture truth written to mocap.csv, Hz (none: not written).
@@ -89,6 +91,8 @@ struct SceneInfo {
     tag_offset_m: [f64; 2],
     /// The tag's x axis from the robot's front, degrees counter-clockwise.
     tag_yaw_deg: f64,
+    /// The tag plate's tilt on the robot, degrees (its +x edge raised).
+    tag_tilt_deg: f64,
     exposure_s: f64,
     noise_sigma: f32,
     speed_min_mps: f64,
@@ -138,6 +142,12 @@ impl TrackScene {
                 m.x_m,
                 m.y_m,
                 m.theta_rad.to_degrees()
+            ));
+        }
+        if self.tag_tilt_deg.is_nan() || self.tag_tilt_deg.abs() > 10.0 {
+            return bad(format!(
+                "--tag-tilt {}: the simulated tag plate is tilted on the robot by at most 10°",
+                self.tag_tilt_deg
             ));
         }
         if !(self.fps > 0.0 && self.fps.is_finite()) {
@@ -231,6 +241,7 @@ pub fn write_track_scene(
     s.check()?;
     let mut cfg = SceneConfig::default();
     cfg.robot.tag_id = s.tag_id;
+    cfg.robot.tag_tilt_rad = s.tag_tilt_deg.to_radians();
     cfg.exposure_s = s.exposure_s;
     cfg.sensor.noise_sigma = s.noise_sigma;
     cfg.effects = s.effects;
@@ -333,6 +344,7 @@ pub fn write_track_scene(
             marker_height_m: cfg.robot.marker_height_m,
             tag_offset_m: [mount.0.x_m, mount.0.y_m],
             tag_yaw_deg: mount.0.theta_rad.to_degrees(),
+            tag_tilt_deg: s.tag_tilt_deg,
             exposure_s: cfg.exposure_s,
             noise_sigma: s.noise_sigma,
             speed_min_mps: s.speed_min_mps,

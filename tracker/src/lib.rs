@@ -17,6 +17,7 @@ mod repeats;
 mod report;
 pub mod rolling_shutter;
 pub mod source;
+pub mod tag_tilt;
 pub mod timing;
 pub mod track;
 pub mod uncertainty;

@@ -460,7 +460,26 @@ pub fn tag_shape_warnings(
     } else {
         None
     };
-    [height, side, shear].into_iter().flatten().collect()
+    // The tilt is read from the tags' corners as the camera file maps them: a wrong size or
+    // height leaves it, and a shear named by the rolling-shutter check would repeat it.
+    let tilt = if shear.is_none() {
+        crate::tag_tilt::TagTilt::of(
+            result,
+            &camera.camera,
+            floor,
+            options.tag_size_m,
+            options.marker_height_m,
+        )
+        .map(|t| t.warnings())
+        .unwrap_or_default()
+    } else {
+        Vec::new()
+    };
+    [height, side, shear]
+        .into_iter()
+        .flatten()
+        .chain(tilt)
+        .collect()
 }
 
 /// Silences FFmpeg's and OpenCV's own complaints about bad files (unless the user set their

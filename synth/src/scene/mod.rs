@@ -97,6 +97,9 @@ pub struct RobotLook {
     pub marker_height_m: f64,
     /// Radius of the robot's round body, metres.
     pub body_radius_m: f64,
+    /// Tilt of the tag plate on the robot, radians: its front edge (the tag's +x side) raised
+    /// by this about the tag's y axis through its centre (0: level, as the tracker assumes).
+    pub tag_tilt_rad: f64,
 }
 
 /// A ceiling-camera scene description.
@@ -171,6 +174,7 @@ impl Default for SceneConfig {
                 tag_size_m: 0.08,
                 marker_height_m: 0.08,
                 body_radius_m: 0.06,
+                tag_tilt_rad: 0.0,
             },
             exposure_s: 0.004,
             motion_samples: 5,

@@ -1,0 +1,411 @@
+//! Whether the camera still looks at the floor it was calibrated over. The planar pose takes
+//! the floor plane from the camera file, so a camera turned on its mount since (or an image
+//! shifted or cropped after recording, which is the same to the mapping) moves every fix by
+//! centimetres while each fix still fits its corners. solvePnP on the same corners gives the
+//! tag's own plane, and a level tag on a level floor reads level: over a run its tilt
+//! against the calibrated floor is known to a few thousandths of a degree.
+//!
+//! A tag not quite flat on the robot tilts too, but its tilt turns with the robot, while a
+//! camera's stays put on the floor: each fix's tilt is fitted as a part fixed in the floor
+//! frame plus a part fixed in the robot's, which a run that turns tells apart.
+
+use nalgebra::{Matrix2x4, Matrix4, Vector2, Vector4};
+use odocal_calib::{CameraModel, FloorToCamera};
+
+use crate::pose::pnp_tag_to_floor;
+use crate::TrackResult;
+
+/// Fixes sampled, evenly over the run.
+const MAX_SAMPLES: usize = 600;
+
+/// Fewer fixes than this say nothing about a tilt of a tenth of a degree.
+const MIN_FIXES: usize = 30;
+
+/// A tilt fixed in the floor frame beyond this is named, degrees: a camera turned so moves
+/// the fixes under a 2.2 m ceiling by about 8 mm (0.1° is 3.8 mm). Floors are not planes
+/// either, and the floor under the robot may slope against the calibrated one by about this.
+pub const CAMERA_TILT_WARN_DEG: f64 = 0.2;
+
+/// A tilt that the run's headings cannot assign to the camera or to the tag is named beyond
+/// this, degrees: a tag glued a little off flat reads so, and does no harm.
+pub const UNSEPARATED_TILT_WARN_DEG: f64 = 1.0;
+
+/// A tag tilted on the robot is named when it turns the farthest fix's heading by more than
+/// this, degrees: about three times a fix's heading σ from a 2.2 m ceiling.
+pub const TAG_TILT_HEADING_WARN_DEG: f64 = 0.1;
+
+/// A tag tilted on the robot is named only beyond this, degrees: a smear reads as a tilt on
+/// the robot too, the faster edge of a turning tag shrinking more (0.27° at 16 ms exposure
+/// and 0.5–0.7 m/s, corners smeared 4.5–6 px).
+pub const TAG_TILT_WARN_DEG: f64 = 0.5;
+
+/// A tilt is the run's, not its noise, beyond this many standard errors.
+const SIGNIFICANCE: f64 = 5.0;
+
+/// The floor-fixed part is told apart from the tag's when its standard error is at most this
+/// many times that of the plain mean tilt (runs that turn through a quarter turn or more).
+const SEPARABLE_SE_RATIO: f64 = 3.0;
+
+/// Residuals beyond this many robust σ are fixes whose PnP took the mirror solution.
+const OUTLIER_SIGMAS: f64 = 5.0;
+
+/// The tag's tilt against the calibrated floor over a run, in the floor frame (x, y: the
+/// components of the tag's upward normal, radians for small tilts).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TagTilt {
+    /// The tilt fixed in the floor frame (the camera's, or the floor's slope), radians.
+    pub floor_fixed_rad: Vector2<f64>,
+    /// Standard error of `floor_fixed_rad`'s length, radians.
+    pub floor_fixed_se_rad: f64,
+    /// Whether the run's headings told the floor-fixed tilt from the tag's on the robot
+    /// (else `floor_fixed_rad` holds both).
+    pub separated: bool,
+    /// The tag's tilt on the robot, radians in the tag's frame (x along its heading); None
+    /// when the run's headings do not tell it apart.
+    pub tag_on_robot_rad: Option<Vector2<f64>>,
+    /// Standard error of `tag_on_robot_rad`'s length, radians.
+    pub tag_on_robot_se_rad: f64,
+    /// Fixes the fit used.
+    pub fixes: usize,
+    /// The side of the tag's black square, metres.
+    pub tag_size_m: f64,
+    /// The camera's height above the marker plane, metres.
+    pub camera_above_marker_m: f64,
+    /// The farthest fix from the point under the camera, metres.
+    pub reach_m: f64,
+}
+
+impl TagTilt {
+    /// The tilt of `result`'s fixes by solvePnP through `camera` over `floor`, the tag's black
+    /// square `tag_size_m` on a side (None with fewer than 30 fixes solvePnP can place).
+    pub fn of(
+        result: &TrackResult,
+        camera: &CameraModel,
+        floor: &FloorToCamera,
+        tag_size_m: f64,
+        marker_height_m: f64,
+    ) -> Option<Self> {
+        let fixes: Vec<_> = result.fixes().map(|(_, f)| f).collect();
+        let step = fixes.len().div_ceil(MAX_SAMPLES).max(1);
+        let samples: Vec<Sample> = fixes
+            .iter()
+            .step_by(step)
+            .filter_map(|f| {
+                let tag = pnp_tag_to_floor(camera, floor, &f.corners_px, tag_size_m).ok()?;
+                let n = tag.rotation * nalgebra::Vector3::z();
+                // The tag faces the camera: its normal is taken pointing up.
+                let n = if n.z < 0.0 { -n } else { n };
+                let tilt = Vector2::new(n.x, n.y);
+                (tilt.iter().all(|v| v.is_finite()) && f.pose.theta_rad.is_finite()).then_some(
+                    Sample {
+                        tilt,
+                        heading_rad: f.pose.theta_rad,
+                    },
+                )
+            })
+            .collect();
+        if samples.len() < MIN_FIXES {
+            return None;
+        }
+        let camera_in_floor = floor.0.inverse().translation.vector;
+        let camera_above_marker_m = camera_in_floor.z - marker_height_m;
+        let nadir = nalgebra::Point2::new(camera_in_floor.x, camera_in_floor.y);
+        let reach_m = fixes
+            .iter()
+            .map(|f| (f.pose.position() - nadir).norm())
+            .fold(0.0, f64::max);
+        // A first fit's residuals give the noise and the fixes whose PnP took the mirror
+        // solution.
+        let first = fit(&samples, true, None).or_else(|| fit(&samples, false, None))?;
+        let spread = robust_sigma(&samples, &first);
+        let kept: Vec<Sample> = samples
+            .iter()
+            .filter(|s| {
+                let r = s.tilt - first.predict(s.heading_rad);
+                (r.x / spread.x).abs() <= OUTLIER_SIGMAS && (r.y / spread.y).abs() <= OUTLIER_SIGMAS
+            })
+            .copied()
+            .collect();
+        let separated = |set: &[Sample]| -> Option<(TiltFit, bool)> {
+            let mean = fit(set, false, Some(spread))?;
+            Some(
+                match fit(set, true, Some(spread))
+                    .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad)
+                {
+                    Some(both) => (both, true),
+                    None => (mean, false),
+                },
+            )
+        };
+        if kept.len() < MIN_FIXES {
+            return None;
+        }
+        let (all, separated_all) = separated(&kept)?;
+        let tag_on_robot = separated_all.then_some((all.robot_rad, all.robot_se_rad));
+        Some(Self {
+            floor_fixed_rad: all.floor_rad,
+            floor_fixed_se_rad: all.floor_se_rad,
+            separated: separated_all,
+            tag_on_robot_rad: tag_on_robot.map(|t| t.0),
+            tag_on_robot_se_rad: tag_on_robot.map_or(f64::INFINITY, |t| t.1),
+            fixes: kept.len(),
+            tag_size_m,
+            camera_above_marker_m,
+            reach_m,
+        })
+    }
+
+    /// The warnings the tilt gives: a camera that no longer looks at the floor it was
+    /// calibrated over, and a tag tilted on the robot enough to turn the headings.
+    pub fn warnings(&self) -> Vec<String> {
+        [self.camera_warning(), self.tag_warning()]
+            .into_iter()
+            .flatten()
+            .collect()
+    }
+
+    /// How far a tag tilted on the robot turns the heading at the farthest fix, radians: its
+    /// raised edge sits nearer the camera and moves outward in the image by the parallax, its
+    /// low edge inward.
+    pub fn heading_bias_rad(&self) -> Option<f64> {
+        let tilt = self.tag_on_robot_rad?.norm();
+        Some(tilt * self.reach_m / self.camera_above_marker_m.max(1e-3))
+    }
+
+    /// A warning when the tag on the robot is tilted enough to turn the farthest fix's heading
+    /// by more than [`TAG_TILT_HEADING_WARN_DEG`].
+    fn tag_warning(&self) -> Option<String> {
+        let on_robot = self.tag_on_robot_rad?;
+        let bias_deg = self.heading_bias_rad()?.to_degrees();
+        if bias_deg <= TAG_TILT_HEADING_WARN_DEG
+            || on_robot.norm().to_degrees() <= TAG_TILT_WARN_DEG
+            || on_robot.norm() <= SIGNIFICANCE * self.tag_on_robot_se_rad
+        {
+            return None;
+        }
+        // The normal leans towards the plate's low edge; the tag's x axis is its heading.
+        let low_deg = on_robot.y.atan2(on_robot.x).to_degrees();
+        let edge = match low_deg {
+            d if d.abs() <= 45.0 => "the edge its heading points to",
+            d if d.abs() >= 135.0 => "the edge behind its heading",
+            d if d > 0.0 => "its left edge (its heading pointing ahead)",
+            _ => "its right edge (its heading pointing ahead)",
+        };
+        Some(format!(
+            "the tag is tilted {:.2}° ± {:.3}° on the robot, lowest at {edge} ({} fixes by solvePnP; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; lay the tag flat on the robot (a shim of about {:.1} mm under that edge of the {:.0} mm plate's black square)",
+            on_robot.norm().to_degrees(),
+            self.tag_on_robot_se_rad.to_degrees(),
+            self.fixes,
+            self.floor_fixed_rad.norm().to_degrees(),
+            self.reach_m,
+            on_robot.norm().tan() * self.tag_size_m * 1e3,
+            self.tag_size_m * 1e3,
+        ))
+    }
+
+    /// A warning when the floor-fixed tilt says the camera no longer looks at the floor it was
+    /// calibrated over (or, unseparated, when the tag or the camera is tilted beyond a degree).
+    fn camera_warning(&self) -> Option<String> {
+        let tilt_rad = self.floor_fixed_rad.norm();
+        let tilt_deg = tilt_rad.to_degrees();
+        let limit_deg = if self.separated {
+            CAMERA_TILT_WARN_DEG
+        } else {
+            UNSEPARATED_TILT_WARN_DEG
+        };
+        if tilt_deg <= limit_deg || tilt_rad <= SIGNIFICANCE * self.floor_fixed_se_rad {
+            return None;
+        }
+        // The floor frame's direction the tag's normal leans towards.
+        let towards_deg = self
+            .floor_fixed_rad
+            .y
+            .atan2(self.floor_fixed_rad.x)
+            .to_degrees();
+        let shift_mm = self.camera_above_marker_m * tilt_rad.tan() * 1e3;
+        // A camera turned by δ maps a floor point at angle θ off the nadir to θ + δ: distances
+        // there scale by about 1 + 2 tan θ · δ.
+        let scale_pct = 200.0 * self.reach_m / self.camera_above_marker_m.max(1e-3) * tilt_rad;
+        let consequence = format!(
+            "every fix is about {shift_mm:.0} mm off and distances are scaled by up to {scale_pct:.2} % at the farthest fix ({:.2} m from the point under the camera)",
+            self.reach_m
+        );
+        Some(match self.separated {
+            true => format!(
+                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes by solvePnP; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives)",
+                self.floor_fixed_se_rad.to_degrees(),
+                self.fixes,
+            ),
+            false => format!(
+                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes by solvePnP), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`). A run in which the robot turns through a quarter turn or more tells the two apart",
+                self.floor_fixed_se_rad.to_degrees(),
+                self.fixes,
+            ),
+        })
+    }
+}
+
+/// A fitted tilt: the floor-fixed part, its standard error, and the robot-fixed part (zero
+/// in a fit without it).
+#[derive(Debug, Clone, Copy)]
+struct TiltFit {
+    floor_rad: Vector2<f64>,
+    floor_se_rad: f64,
+    robot_rad: Vector2<f64>,
+    robot_se_rad: f64,
+}
+
+/// One fix's tilt: the tag's upward normal's floor-frame x and y, and the tag's heading.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    tilt: Vector2<f64>,
+    heading_rad: f64,
+}
+
+impl TiltFit {
+    fn predict(&self, heading_rad: f64) -> Vector2<f64> {
+        let (s, c) = heading_rad.sin_cos();
+        self.floor_rad
+            + Vector2::new(
+                c * self.robot_rad.x - s * self.robot_rad.y,
+                s * self.robot_rad.x + c * self.robot_rad.y,
+            )
+    }
+}
+
+/// Least squares of `tilt = floor + R(heading) robot` (or `tilt = floor`), each component
+/// weighted by its noise `sigma` (unit weights without it; then the standard error is not
+/// used).
+fn fit(samples: &[Sample], with_robot: bool, sigma: Option<Vector2<f64>>) -> Option<TiltFit> {
+    let w = sigma.unwrap_or(Vector2::new(1.0, 1.0));
+    let mut normal = Matrix4::<f64>::zeros();
+    let mut rhs = Vector4::<f64>::zeros();
+    for Sample {
+        tilt: t,
+        heading_rad: th,
+        ..
+    } in samples
+    {
+        let (s, c) = th.sin_cos();
+        let r = if with_robot { 1.0 } else { 0.0 };
+        let a = Matrix2x4::new(1.0, 0.0, r * c, -r * s, 0.0, 1.0, r * s, r * c);
+        for row in 0..2 {
+            let ar = a.row(row).transpose() / w[row];
+            normal += ar * ar.transpose();
+            rhs += ar * (t[row] / w[row]);
+        }
+    }
+    if !with_robot {
+        // The robot part is not in the model: pin it at zero.
+        normal[(2, 2)] = 1.0;
+        normal[(3, 3)] = 1.0;
+    }
+    let cov = normal.try_inverse()?;
+    let p = cov * rhs;
+    let floor_rad = Vector2::new(p[0], p[1]);
+    let robot_rad = Vector2::new(p[2], p[3]);
+    let out = TiltFit {
+        floor_rad,
+        floor_se_rad: se_along(&cov.fixed_view::<2, 2>(0, 0).into_owned(), &floor_rad),
+        robot_rad,
+        robot_se_rad: se_along(&cov.fixed_view::<2, 2>(2, 2).into_owned(), &robot_rad),
+    };
+    out.floor_rad
+        .iter()
+        .chain(out.robot_rad.iter())
+        .all(|v| v.is_finite())
+        .then_some(out)
+}
+
+/// The standard error of a tilt along its own direction, which is what its length's is.
+fn se_along(cov: &nalgebra::Matrix2<f64>, tilt: &Vector2<f64>) -> f64 {
+    let dir = if tilt.norm() > 0.0 {
+        tilt.normalize()
+    } else {
+        Vector2::new(1.0, 0.0)
+    };
+    (dir.transpose() * cov * dir)[0].max(0.0).sqrt()
+}
+
+/// Each component's noise from the median absolute residual of `fit`, radians.
+fn robust_sigma(samples: &[Sample], fit: &TiltFit) -> Vector2<f64> {
+    let mut out = Vector2::zeros();
+    for k in 0..2 {
+        let mut r: Vec<f64> = samples
+            .iter()
+            .map(|s| (s.tilt - fit.predict(s.heading_rad))[k].abs())
+            .collect();
+        r.sort_by(f64::total_cmp);
+        // A floor so the weights stay finite on noiseless corners.
+        out[k] = (1.4826 * r[r.len() / 2]).max(1e-6);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Normal};
+
+    /// Tilts of a camera turned by `camera` and a tag tilted by `tag` (radians), read at the
+    /// given headings with 0.1° of noise per component.
+    fn samples(camera: Vector2<f64>, tag: Vector2<f64>, headings: &[f64]) -> Vec<Sample> {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let noise = Normal::new(0.0, 0.1f64.to_radians()).unwrap();
+        let truth = TiltFit {
+            floor_rad: camera,
+            floor_se_rad: 0.0,
+            robot_rad: tag,
+            robot_se_rad: 0.0,
+        };
+        headings
+            .iter()
+            .map(|&th| {
+                let n = Vector2::new(noise.sample(&mut rng), noise.sample(&mut rng));
+                Sample {
+                    tilt: truth.predict(th) + n,
+                    heading_rad: th,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_turning_run_sets_the_tags_tilt_apart_from_the_cameras() {
+        let camera = Vector2::new(0.3f64.to_radians(), 0.0);
+        let tag = Vector2::new(-1.5f64.to_radians(), 0.0);
+        let turning: Vec<f64> = (0..300).map(|i| f64::from(i) * 0.021).collect();
+        let s = samples(camera, tag, &turning);
+        let sigma = robust_sigma(&s, &fit(&s, true, None).unwrap());
+        let mean = fit(&s, false, Some(sigma)).unwrap();
+        let both = fit(&s, true, Some(sigma)).unwrap();
+        assert!(both.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
+        let se = both.floor_se_rad;
+        assert!((both.floor_rad - camera).norm() < 4.0 * se, "{both:?}");
+        assert!(
+            (both.robot_rad - tag).norm() < 4.0 * both.robot_se_rad,
+            "{both:?}"
+        );
+        // 0.1° over 300 fixes: the camera's part to about 0.01°.
+        assert!(se.to_degrees() < 0.012, "{}", se.to_degrees());
+        // The plain mean cannot: the tag's tilt turns through every heading and averages out
+        // only over whole turns.
+        let straight: Vec<f64> = (0..300).map(|i| 0.4 + f64::from(i) * 1e-4).collect();
+        let s = samples(camera, tag, &straight);
+        let sigma = robust_sigma(&s, &fit(&s, false, None).unwrap());
+        let mean = fit(&s, false, Some(sigma)).unwrap();
+        let both = fit(&s, true, Some(sigma));
+        assert!(
+            both.is_none_or(|b| b.floor_se_rad > SEPARABLE_SE_RATIO * mean.floor_se_rad),
+            "{both:?}"
+        );
+        // What a straight run reads is the sum of the two.
+        let sum = camera + nalgebra::Rotation2::new(0.415) * tag;
+        assert!(
+            (mean.floor_rad - sum).norm() < 4.0 * mean.floor_se_rad,
+            "{mean:?}"
+        );
+    }
+}
