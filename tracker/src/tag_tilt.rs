@@ -232,12 +232,12 @@ impl TagTilt {
         );
         Some(match self.separated {
             true => format!(
-                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes by solvePnP; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives)",
+                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes by solvePnP; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives; for an arena camera, then `odocal arena` again)",
                 self.floor_fixed_se_rad.to_degrees(),
                 self.fixes,
             ),
             false => format!(
-                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes by solvePnP), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`). A run in which the robot turns through a quarter turn or more tells the two apart",
+                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes by solvePnP), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`; for an arena camera, then `odocal arena` again). A run in which the robot turns through a quarter turn or more tells the two apart",
                 self.floor_fixed_se_rad.to_degrees(),
                 self.fixes,
             ),
