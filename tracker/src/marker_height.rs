@@ -345,7 +345,7 @@ fn motion_between_frames(result: &TrackResult) -> Vec<Option<f64>> {
 }
 
 /// The point on the floor under the camera.
-fn nadir(floor: &FloorToCamera) -> Point2<f64> {
+pub(crate) fn nadir(floor: &FloorToCamera) -> Point2<f64> {
     let camera_in_floor = floor.0.inverse().translation.vector;
     Point2::new(camera_in_floor.x, camera_in_floor.y)
 }

@@ -109,7 +109,7 @@ impl TagTilt {
         }
         let camera_in_floor = floor.0.inverse().translation.vector;
         let camera_above_marker_m = camera_in_floor.z - marker_height_m;
-        let nadir = nalgebra::Point2::new(camera_in_floor.x, camera_in_floor.y);
+        let nadir = crate::marker_height::nadir(floor);
         let reach_m = fixes
             .iter()
             .map(|f| (f.pose.position() - nadir).norm())
