@@ -123,20 +123,20 @@ pub fn solve_arena(
         // A camera mounted turned 180° from the first numbers every checkerboard's corners
         // from the other end; both numberings are the same board, and the one that makes the
         // cameras agree is the board as it lay.
-        let turned_back = turned_camera(&models, first_floor, camera_paths, shared, board)
-            .and_then(|(k, _)| {
+        let turned_back = turned_cameras(&models, first_floor, camera_paths, shared, board)
+            .and_then(|(set, _)| {
                 let f = fit_graph(
                     &models,
                     first_floor,
                     camera_paths,
-                    &numbered_back(shared, k),
+                    &numbered_back(shared, &set),
                     board,
                     PATIENCE,
                 )
                 .ok()?;
-                (f.consistency.rms_mm <= REFUSE_RMS_MM).then_some((k, f))
+                (f.consistency.rms_mm <= REFUSE_RMS_MM).then_some((set, f))
             });
-        let Some((k, f)) = turned_back else {
+        let Some((set, f)) = turned_back else {
             return Err(ArenaError::Refused(disagreement(
                 &models,
                 first_floor,
@@ -146,10 +146,13 @@ pub fn solve_arena(
                 &fit,
             )));
         };
-        renumbered.push(Renumbered {
-            camera: k,
-            numbered_as_recorded_mm: fit.consistency.rms_mm,
-        });
+        renumbered = set
+            .into_iter()
+            .map(|camera| Renumbered {
+                camera,
+                numbered_as_recorded_mm: fit.consistency.rms_mm,
+            })
+            .collect();
         fit = f;
     }
     let GraphFit {
@@ -191,13 +194,14 @@ pub fn solve_arena(
     })
 }
 
-/// The shared views with camera `k`'s checkerboard corners numbered from the other end.
-fn numbered_back(shared: &[SharedView], k: usize) -> Vec<SharedView> {
+/// The shared views with the checkerboard corners of the `cameras` numbered from the other
+/// end.
+fn numbered_back(shared: &[SharedView], cameras: &[usize]) -> Vec<SharedView> {
     shared
         .iter()
         .map(|s| {
             let mut s = s.clone();
-            for (_, bv) in s.views.iter_mut().filter(|(c, _)| *c == k) {
+            for (_, bv) in s.views.iter_mut().filter(|(c, _)| cameras.contains(c)) {
                 bv.corners.reverse();
             }
             s
@@ -502,36 +506,52 @@ fn disagreement(
     )
 }
 
-/// The camera whose shared images, numbered from the other end, make every camera agree
-/// within [`AGREE_MM`] (a camera turned about 180° from the others), with that agreement in
-/// millimetres; None for a ChArUco board (its corners are named, not numbered) or when no
-/// camera does.
-fn turned_camera(
+/// Sets of the other cameras tried turned, at most: every set up to seven cameras (63 fits),
+/// beyond that sets of one and two.
+const TURNED_SETS_ALL_UP_TO: usize = 6;
+
+/// The cameras whose shared images, numbered from the other end, make every camera agree
+/// within [`AGREE_MM`] (cameras turned about 180° from the first), fewest first, with that
+/// agreement in millimetres; None for a ChArUco board (its corners are named, not numbered)
+/// or when no set does.
+fn turned_cameras(
     models: &[CameraModel],
     first_floor: FloorToCamera,
     camera_paths: &[&Path],
     shared: &[SharedView],
     board: &BoardSpec,
-) -> Option<(usize, f64)> {
+) -> Option<(Vec<usize>, f64)> {
     if board.target != odocal_calib::BoardTarget::Checkerboard {
         return None;
     }
-    (0..models.len())
-        .into_par_iter()
-        .filter_map(|k| {
-            let f = fit_graph(
-                models,
-                first_floor,
-                camera_paths,
-                &numbered_back(shared, k),
-                board,
-                TRIAL_PATIENCE,
-            )
-            .ok()?;
-            Some((k, f.consistency.rms_mm))
-        })
-        .filter(|(_, rms_mm)| *rms_mm <= AGREE_MM)
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+    // The first camera is the one the others are turned from.
+    let others = models.len().saturating_sub(1);
+    let largest = if others <= TURNED_SETS_ALL_UP_TO {
+        others
+    } else {
+        2
+    };
+    (1..=largest).find_map(|size| {
+        let sets: Vec<Vec<usize>> = (1u64..(1u64 << others.min(63)))
+            .filter(|bits| bits.count_ones() as usize == size)
+            .map(|bits| (1..=others).filter(|k| bits >> (k - 1) & 1 == 1).collect())
+            .collect();
+        sets.into_par_iter()
+            .filter_map(|set| {
+                let f = fit_graph(
+                    models,
+                    first_floor,
+                    camera_paths,
+                    &numbered_back(shared, &set),
+                    board,
+                    TRIAL_PATIENCE,
+                )
+                .ok()?;
+                Some((set, f.consistency.rms_mm))
+            })
+            .filter(|(_, rms_mm)| *rms_mm <= AGREE_MM)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    })
 }
 
 /// How far apart two places of one board put it: the farthest of its outer corners, metres.
@@ -1205,5 +1225,23 @@ mod tests {
             turned.consistency.rms_mm,
             right.consistency.rms_mm
         );
+        // Cameras 1 and 2 both mounted turned from the first: both are read back.
+        let mut two = shared.clone();
+        for (_, bv) in two
+            .iter_mut()
+            .flat_map(|s| s.views.iter_mut())
+            .filter(|(k, _)| *k != 0)
+        {
+            bv.corners.reverse();
+        }
+        let turned = solve_arena(&fs, &paths, &two, &BOARD).unwrap();
+        let named: Vec<usize> = turned.renumbered.iter().map(|r| r.camera).collect();
+        assert_eq!(named, vec![1, 2]);
+        for k in 0..3 {
+            let apart_m = (turned.arena_to_camera[k].0.inverse().translation.vector
+                - right.arena_to_camera[k].0.inverse().translation.vector)
+                .norm();
+            assert!(apart_m < 1e-6, "camera {k} {apart_m} m from its place");
+        }
     }
 }
