@@ -126,28 +126,19 @@ impl TagTilt {
             })
             .copied()
             .collect();
-        let separated = |set: &[Sample]| -> Option<(TiltFit, bool)> {
-            let mean = fit(set, false, Some(spread))?;
-            Some(
-                match fit(set, true, Some(spread))
-                    .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad)
-                {
-                    Some(both) => (both, true),
-                    None => (mean, false),
-                },
-            )
-        };
         if kept.len() < MIN_FIXES {
             return None;
         }
-        let (all, separated_all) = separated(&kept)?;
-        let tag_on_robot = separated_all.then_some((all.robot_rad, all.robot_se_rad));
+        let mean = fit(&kept, false, Some(spread))?;
+        let both = fit(&kept, true, Some(spread))
+            .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
+        let all = both.unwrap_or(mean);
         Some(Self {
             floor_fixed_rad: all.floor_rad,
             floor_fixed_se_rad: all.floor_se_rad,
-            separated: separated_all,
-            tag_on_robot_rad: tag_on_robot.map(|t| t.0),
-            tag_on_robot_se_rad: tag_on_robot.map_or(f64::INFINITY, |t| t.1),
+            separated: both.is_some(),
+            tag_on_robot_rad: both.map(|b| b.robot_rad),
+            tag_on_robot_se_rad: both.map_or(f64::INFINITY, |b| b.robot_se_rad),
             fixes: kept.len(),
             tag_size_m,
             camera_above_marker_m,
