@@ -2043,8 +2043,20 @@ fn a_camera_turned_since_calibration_and_a_tag_off_flat_are_told_apart() {
         succeeded(&res);
         String::from_utf8_lossy(&res.stderr).into_owned()
     };
-    let said = track(&d.join("camera.json"));
-    println!("tag tilted 1.5°: {said}");
+    let out = d.join("t.csv");
+    let track_with = |camera: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["track", p(&video), "--camera", p(camera), "--out", p(&out)];
+        args.extend(extra);
+        let res = odocal(&args);
+        succeeded(&res);
+        let said = String::from_utf8_lossy(&res.stderr).into_owned();
+        let est = Trajectory::read_csv(&out).unwrap();
+        let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+        let (_, heading_rad, _) = errors(&est, &truth);
+        (said, heading_rad.to_degrees())
+    };
+    let (said, tilted_heading_deg) = track_with(&d.join("camera.json"), &[]);
+    println!("tag tilted 1.5°: {said}\nheading RMS {tilted_heading_deg:.3}°");
     let tag_deg = number_after(&said, "the tag is tilted ");
     assert!((tag_deg - 1.5).abs() < 0.05, "{said}");
     assert!(
@@ -2057,6 +2069,45 @@ fn a_camera_turned_since_calibration_and_a_tag_off_flat_are_told_apart() {
         !said.contains("against the camera file's floor plane"),
         "{said}"
     );
+    assert!(tilted_heading_deg > 0.15, "{tilted_heading_deg}°");
+    // The tilt the warning gives, given back: each corner met at its own height takes the
+    // headings to a level tag's (0.03° RMS) and the warning away. The renderer raises the
+    // plate's front edge, so it falls 1.5° toward −x.
+    let advised = said
+        .split("give --tag-tilt ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .unwrap_or_else(|| panic!("--tag-tilt in {said}"))
+        .to_string();
+    let x_deg: f64 = advised.split(',').next().unwrap().parse().unwrap();
+    assert!((x_deg + 1.5).abs() < 0.05, "{said}");
+    let (said, given_heading_deg) = track_with(&d.join("camera.json"), &["--tag-tilt", &advised]);
+    println!("--tag-tilt {advised}: {said}\nheading RMS {given_heading_deg:.3}°");
+    assert!(
+        given_heading_deg < 0.05,
+        "{given_heading_deg}° with {advised}"
+    );
+    assert!(!said.contains("tilted"), "{said}");
+    // Half of it given: the rest is named, with the whole to give.
+    let (said, _) = track_with(&d.join("camera.json"), &["--tag-tilt", "-0.75,0"]);
+    assert!(said.contains("taken off the --tag-tilt given"), "{said}");
+    assert!(
+        (number_after(&said, "give --tag-tilt ") + 1.5).abs() < 0.05,
+        "{said}"
+    );
+    let leaning = odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("leaning.csv")),
+        "--tag-tilt",
+        "-20,0",
+    ]);
+    fails_with(&leaning, "--tag-tilt -20,0");
+    assert!(!d.join("leaning.csv").exists());
+    track_with(&d.join("camera.json"), &[]);
     let right = Trajectory::read_csv(&d.join("t.csv")).unwrap();
     let turned = d.join("turned.json");
     camera_turned(&d.join("camera.json"), &turned, 0.3);

@@ -36,6 +36,41 @@ impl std::fmt::Display for TagOffset {
     }
 }
 
+/// How the tag's plate leans on the robot: the degrees by which it falls toward the tag's x
+/// axis (its heading) and toward its y axis.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct TagTiltDeg {
+    /// Fall toward the tag's x axis, degrees (positive: the edge its heading points to is
+    /// lower).
+    pub x_deg: f64,
+    /// Fall toward the tag's y axis, degrees (positive: its left edge is lower).
+    pub y_deg: f64,
+}
+
+impl std::str::FromStr for TagTiltDeg {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        let nums: Option<Vec<f64>> = parts.iter().map(|p| p.parse().ok()).collect();
+        match nums.as_deref() {
+            Some(&[x_deg, y_deg]) if x_deg.is_finite() && y_deg.is_finite() => {
+                Ok(Self { x_deg, y_deg })
+            }
+            _ => Err(
+                "give the tag's tilt on the robot as X,Y: the degrees its plate falls toward the tag's x axis (its heading) and toward its y axis (-1.5,0 for a plate whose back edge is 1.5° lower), as `track` prints it"
+                    .into(),
+            ),
+        }
+    }
+}
+
+impl std::fmt::Display for TagTiltDeg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{},{}", self.x_deg, self.y_deg)
+    }
+}
+
 /// The tag's options on the command line.
 #[derive(clap::Args, Clone, Debug)]
 pub struct TagArgs {
@@ -72,6 +107,16 @@ pub struct TagArgs {
     /// tag's x axis points to the robot's left). The trajectory's heading is then the robot's.
     #[arg(long, default_value_t = 0.0, value_name = "DEG")]
     pub tag_yaw: f64,
+    /// How the tag's plate leans on the robot: X,Y, the degrees it falls toward the tag's x axis
+    /// (its heading) and toward its y axis. Each corner's ray is then met at the corner's own
+    /// height; `track` warns with the figure when a tilt that turns the headings is not given.
+    #[arg(
+        long,
+        default_value = "0,0",
+        allow_hyphen_values = true,
+        value_name = "X,Y"
+    )]
+    pub tag_tilt: TagTiltDeg,
 }
 
 /// The tag's options alone, for their defaults.
@@ -95,6 +140,9 @@ impl TagArgs {
         }
         if self.tag_offset != d.tag_offset {
             out.push(format!("--tag-offset {}", self.tag_offset));
+        }
+        if self.tag_tilt != d.tag_tilt {
+            out.push(format!("--tag-tilt {}", self.tag_tilt));
         }
         for (name, v, dv) in [
             ("--tag-yaw", self.tag_yaw, d.tag_yaw),
@@ -127,6 +175,10 @@ impl TagArgs {
                 self.tag_offset.left_m,
                 self.tag_yaw,
             )?,
+            tag_tilt_rad: nalgebra::Vector2::new(
+                self.tag_tilt.x_deg.to_radians(),
+                self.tag_tilt.y_deg.to_radians(),
+            ),
             ..opts
         })
     }

@@ -179,6 +179,50 @@ mod tests {
     }
 
     #[test]
+    fn a_tilted_plate_given_its_tilt_gives_the_level_plates_pose() {
+        // A plate turned rigidly about its centre (at the marker height) so that it falls
+        // 2° toward its x axis and 1° toward its y axis: the corners' places come from the
+        // rotation, not from the small-angle heights `flatten` takes.
+        let (cam, floor) = setup();
+        let (fall_x, fall_y) = (2f64.to_radians(), 1f64.to_radians());
+        let plate = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), fall_x)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -fall_y);
+        let h = 0.08;
+        for pose in [Pose2::new(0.9, 0.5, 0.7), Pose2::new(-1.1, 0.6, -2.9)] {
+            let mut c = tag_model(0.08).map(|m| {
+                let on_plate = plate * Vector3::new(m.x, m.y, 0.0);
+                let q = pose.transform_point(&Point2::new(on_plate.x, on_plate.y));
+                cam.floor_to_pixel(&floor, &q, h + on_plate.z).unwrap()
+            });
+            let as_seen = c;
+            let level = planar_pose(&cam, &floor, &c, 0.08, h).unwrap();
+            let turned_rad = wrap_angle(level.pose.theta_rad - pose.theta_rad);
+            assert!(turned_rad.abs() > 2e-3, "{level:?}");
+            let opts = crate::TrackOptions {
+                tag_tilt_rad: nalgebra::Vector2::new(fall_x, fall_y),
+                ..Default::default()
+            };
+            crate::track::flatten(&cam, &floor, &opts, &mut c);
+            let p = planar_pose(&cam, &floor, &c, 0.08, h).unwrap();
+            assert!((p.pose.position() - pose.position()).norm() < 1e-6, "{p:?}");
+            // Leaning both ways, the plate's square seen from above is sheared by the
+            // product of the two falls (about sin 2° sin 1° / 2 = 0.017° of heading), which
+            // the heights alone leave; the level plate's reading was 0.17° off.
+            let left_rad = wrap_angle(p.pose.theta_rad - pose.theta_rad).abs();
+            assert!(left_rad < 0.5 * fall_x.sin() * fall_y.sin() * 1.1, "{p:?}");
+            assert!(left_rad < 0.15 * turned_rad.abs(), "{p:?}");
+            // solvePnP then reads the plate as near level: what it still reads is the
+            // square's cosine shortening, which a perspective view tells from a tilt only
+            // in part.
+            let tilt = |c: &[Point2<f64>; 4]| {
+                let pnp = pnp_tag_to_floor(&cam, &floor, c, 0.08).unwrap();
+                (pnp.rotation * Vector3::z()).z.clamp(-1.0, 1.0).acos()
+            };
+            assert!(tilt(&c) < 0.1 * tilt(&as_seen), "{} rad", tilt(&c));
+        }
+    }
+
+    #[test]
     fn a_wrong_marker_height_shows_in_the_fit() {
         // Corners of a tag at 0.12 m read as if at 0.08 m: the square comes out
         // too large, which the rigid fit's residual shows.

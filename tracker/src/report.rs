@@ -463,15 +463,9 @@ pub fn tag_shape_warnings(
     // The tilt is read from the tags' corners as the camera file maps them: a wrong size or
     // height leaves it, and a shear named by the rolling-shutter check would repeat it.
     let tilt = if shear.is_none() {
-        crate::tag_tilt::TagTilt::of(
-            result,
-            &camera.camera,
-            floor,
-            options.tag_size_m,
-            options.marker_height_m,
-        )
-        .map(|t| t.warnings())
-        .unwrap_or_default()
+        crate::tag_tilt::TagTilt::of(result, &camera.camera, floor, options)
+            .map(|t| t.warnings())
+            .unwrap_or_default()
     } else {
         Vec::new()
     };

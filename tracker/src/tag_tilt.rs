@@ -13,7 +13,7 @@ use nalgebra::{Matrix2x4, Matrix4, Vector2, Vector4};
 use odocal_calib::{CameraModel, FloorToCamera};
 
 use crate::pose::pnp_tag_to_floor;
-use crate::TrackResult;
+use crate::{TrackOptions, TrackResult};
 
 /// Fixes sampled, evenly over the run.
 const MAX_SAMPLES: usize = 600;
@@ -65,6 +65,9 @@ pub struct TagTilt {
     pub tag_on_robot_rad: Option<Vector2<f64>>,
     /// Standard error of `tag_on_robot_rad`'s length, radians.
     pub tag_on_robot_se_rad: f64,
+    /// The tilt on the robot given (`--tag-tilt`, [`TrackOptions::tag_tilt_rad`]), radians:
+    /// the fixes' corners were taken off it, so `tag_on_robot_rad` is what it left.
+    pub given_rad: Vector2<f64>,
     /// Fixes the fit used.
     pub fixes: usize,
     /// The side of the tag's black square, metres.
@@ -76,15 +79,15 @@ pub struct TagTilt {
 }
 
 impl TagTilt {
-    /// The tilt of `result`'s fixes by solvePnP through `camera` over `floor`, the tag's black
-    /// square `tag_size_m` on a side (None with fewer than 30 fixes solvePnP can place).
+    /// The tilt of `result`'s fixes by solvePnP through `camera` over `floor`, the tag as
+    /// `options` give it (None with fewer than 30 fixes solvePnP can place).
     pub fn of(
         result: &TrackResult,
         camera: &CameraModel,
         floor: &FloorToCamera,
-        tag_size_m: f64,
-        marker_height_m: f64,
+        options: &TrackOptions,
     ) -> Option<Self> {
+        let (tag_size_m, marker_height_m) = (options.tag_size_m, options.marker_height_m);
         let fixes: Vec<_> = result.fixes().map(|(_, f)| f).collect();
         let step = fixes.len().div_ceil(MAX_SAMPLES).max(1);
         let samples: Vec<Sample> = fixes
@@ -139,6 +142,7 @@ impl TagTilt {
             separated: both.is_some(),
             tag_on_robot_rad: both.map(|b| b.robot_rad),
             tag_on_robot_se_rad: both.map_or(f64::INFINITY, |b| b.robot_se_rad),
+            given_rad: options.tag_tilt_rad,
             fixes: kept.len(),
             tag_size_m,
             camera_above_marker_m,
@@ -174,23 +178,31 @@ impl TagTilt {
         {
             return None;
         }
-        // The normal leans towards the plate's low edge; the tag's x axis is its heading.
-        let low_deg = on_robot.y.atan2(on_robot.x).to_degrees();
-        let edge = match low_deg {
-            d if d.abs() <= 45.0 => "the edge its heading points to",
-            d if d.abs() >= 135.0 => "the edge behind its heading",
-            d if d > 0.0 => "its left edge (its heading pointing ahead)",
-            _ => "its right edge (its heading pointing ahead)",
+        let subject = if self.given_rad == Vector2::zeros() {
+            "the tag"
+        } else {
+            "the tag, taken off the --tag-tilt given,"
         };
+        // The normal's lean along an axis is the plate's fall towards it (sin against tan:
+        // 0.5 % apart at 10°); what the fixes show adds to what was given.
+        let total_rad = self.given_rad + on_robot.map(f64::asin);
+        let advised_deg = total_rad.map(f64::to_degrees);
+        let shim = format!(
+            "a shim of about {:.1} mm under {} of the {:.0} mm plate's black square",
+            total_rad.norm().tan() * self.tag_size_m * 1e3,
+            lowest_edge(&total_rad),
+            self.tag_size_m * 1e3,
+        );
         Some(format!(
-            "the tag is tilted {:.2}° ± {:.3}° on the robot, lowest at {edge} ({} fixes by solvePnP; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; lay the tag flat on the robot (a shim of about {:.1} mm under that edge of the {:.0} mm plate's black square)",
+            "{subject} is tilted {:.2}° ± {:.3}° on the robot, lowest at {} ({} fixes by solvePnP; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; give --tag-tilt {:.2},{:.2} (degrees the plate falls toward the tag's x axis, its heading, and toward its y axis) so each corner is met at its own height, or lay the tag flat on the robot ({shim})",
             on_robot.norm().to_degrees(),
             self.tag_on_robot_se_rad.to_degrees(),
+            lowest_edge(&on_robot),
             self.fixes,
             self.floor_fixed_rad.norm().to_degrees(),
             self.reach_m,
-            on_robot.norm().tan() * self.tag_size_m * 1e3,
-            self.tag_size_m * 1e3,
+            advised_deg.x,
+            advised_deg.y,
         ))
     }
 
@@ -233,6 +245,17 @@ impl TagTilt {
                 self.fixes,
             ),
         })
+    }
+}
+
+/// The edge of the tag a lean `tilt` (the normal's, or the plate's fall, in the tag's frame,
+/// x along its heading) lowers.
+fn lowest_edge(tilt: &Vector2<f64>) -> &'static str {
+    match tilt.y.atan2(tilt.x).to_degrees() {
+        d if d.abs() <= 45.0 => "the edge its heading points to",
+        d if d.abs() >= 135.0 => "the edge behind its heading",
+        d if d > 0.0 => "its left edge (its heading pointing ahead)",
+        _ => "its right edge (its heading pointing ahead)",
     }
 }
 

@@ -90,7 +90,16 @@ pub struct TrackOptions {
     /// Where the tag sits on the robot. Fixes are the tag's poses; the trajectory is the
     /// robot's (its axle midpoint, heading forwards), as the wheel odometry is.
     pub tag_to_robot: TagToRobot,
+    /// How the tag's plate leans on the robot: the angles, radians, by which it falls toward
+    /// its own x axis and toward its y axis (zero: laid flat). Each corner then sits
+    /// `−x·tan(x angle) − y·tan(y angle)` above the marker height, x and y its place on the
+    /// tag, and its ray is met there.
+    pub tag_tilt_rad: nalgebra::Vector2<f64>,
 }
+
+/// A tag tilted more than this on the robot is refused, degrees: the planar pose takes each
+/// corner's height from the tilt given, and a plate leaning further is no marker plane.
+pub const MAX_TAG_TILT_DEG: f64 = 10.0;
 
 impl TrackOptions {
     /// These options with `camera`'s calibration uncertainty (camera.json's intrinsics
@@ -139,6 +148,13 @@ impl TrackOptions {
                 m.theta_rad.to_degrees()
             ));
         }
+        let tilt_deg = self.tag_tilt_rad.map(f64::to_degrees);
+        if !tilt_deg.iter().all(|a| a.abs() <= MAX_TAG_TILT_DEG) {
+            return bad(format!(
+                "--tag-tilt {},{}: the tag's plate falls toward its x and y axes by a few degrees at most ({MAX_TAG_TILT_DEG}° each); a plate leaning further is no level marker, so lay it flat",
+                tilt_deg.x, tilt_deg.y
+            ));
+        }
         let lever_m = m.x_m.hypot(m.y_m);
         if !(lever_m.is_finite() && lever_m <= MAX_TAG_OFFSET_M) {
             return bad(format!(
@@ -184,6 +200,7 @@ impl Default for TrackOptions {
             max_turn_rate_rad_s: 8.0,
             pnp_cross_check: false,
             tag_to_robot: TagToRobot::IDENTITY,
+            tag_tilt_rad: nalgebra::Vector2::zeros(),
         }
     }
 }
@@ -870,6 +887,7 @@ impl Tracker {
         // the shear with: their misfit is shear, not noise, and stays out of the pool.
         let sheared = self.opts.rolling_shutter_s != 0.0 && self.history.len() < 2;
         self.unshear(&mut d);
+        flatten(&self.camera, &self.floor, &self.opts, &mut d.corners_px);
         let o = &self.opts;
         let planar = planar_pose(
             &self.camera,
@@ -1067,6 +1085,36 @@ pub(crate) fn unshear(
         let r = *c - centre;
         let vc = v + nalgebra::Vector2::new(-r.y, r.x) * omega;
         *c -= vc * ((c.y - centre.y) / rows * readout_s);
+    }
+}
+
+/// `corners_px` of a tag whose plate leans by `opts.tag_tilt_rad` moved to where the same
+/// corners would be seen on a level plate at the marker height: each corner's ray is met at
+/// the corner's own height, and that floor point seen at the marker height. Every later step
+/// (the planar pose, its σ, the checks of the tag's shape and tilt) then takes the plate as
+/// level, as it is built to. A corner whose ray misses is left as detected.
+pub(crate) fn flatten(
+    camera: &CameraModel,
+    floor: &FloorToCamera,
+    opts: &TrackOptions,
+    corners_px: &mut [Point2<f64>; 4],
+) {
+    if opts.tag_tilt_rad == nalgebra::Vector2::zeros() {
+        return;
+    }
+    let slope = opts.tag_tilt_rad.map(f64::tan);
+    let h = opts.marker_height_m;
+    for (c, m) in corners_px
+        .iter_mut()
+        .zip(crate::pose::tag_model(opts.tag_size_m))
+    {
+        let above_m = -(m.x * slope.x + m.y * slope.y);
+        if let Some(level) = camera
+            .pixel_to_floor(floor, c, h + above_m)
+            .and_then(|q| camera.floor_to_pixel(floor, &q, h))
+        {
+            *c = level;
+        }
     }
 }
 
