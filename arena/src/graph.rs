@@ -61,18 +61,18 @@ pub struct ArenaSolution {
     /// Each camera's joint covariance of its pose correction and its intrinsics
     /// ([`crate::ArenaCamera::pose_covariance`]).
     pub pose_covariance: Vec<Option<DMatrix<f64>>>,
-    /// Cameras whose shared images numbered the checkerboard's corners from the other end
+    /// The cameras whose shared images numbered the checkerboard's corners from the other end
     /// (mounted turned about 180° from the first camera), read with their numbering turned
-    /// back.
-    pub renumbered: Vec<Renumbered>,
+    /// back; None when every camera's numbering was taken as recorded.
+    pub renumbered: Option<Renumbered>,
 }
 
-/// A camera whose checkerboard corners were read numbered from the other end.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The cameras whose checkerboard corners were read numbered from the other end.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Renumbered {
-    /// The camera's index.
-    pub camera: usize,
-    /// How far apart the cameras put the shared corners as its images numbered them, mm RMS.
+    /// The cameras' indices, in order.
+    pub cameras: Vec<usize>,
+    /// How far apart the cameras put the shared corners as the images numbered them, mm RMS.
     pub numbered_as_recorded_mm: f64,
 }
 
@@ -118,13 +118,13 @@ pub fn solve_arena(
     let first_floor = *cameras[0].require_floor(camera_paths[0])?;
     let models: Vec<CameraModel> = cameras.iter().map(|c| c.camera).collect();
     let mut fit = fit_graph(&models, first_floor, camera_paths, shared, board, PATIENCE)?;
-    let mut renumbered = Vec::new();
+    let mut renumbered = None;
     if fit.consistency.rms_mm > REFUSE_RMS_MM {
         // A camera mounted turned 180° from the first numbers every checkerboard's corners
         // from the other end; both numberings are the same board, and the one that makes the
         // cameras agree is the board as it lay.
         let turned_back = turned_cameras(&models, first_floor, camera_paths, shared, board)
-            .and_then(|(set, _)| {
+            .and_then(|set| {
                 let f = fit_graph(
                     &models,
                     first_floor,
@@ -146,13 +146,10 @@ pub fn solve_arena(
                 &fit,
             )));
         };
-        renumbered = set
-            .into_iter()
-            .map(|camera| Renumbered {
-                camera,
-                numbered_as_recorded_mm: fit.consistency.rms_mm,
-            })
-            .collect();
+        renumbered = Some(Renumbered {
+            cameras: set,
+            numbered_as_recorded_mm: fit.consistency.rms_mm,
+        });
         fit = f;
     }
     let GraphFit {
@@ -511,16 +508,16 @@ fn disagreement(
 const TURNED_SETS_ALL_UP_TO: usize = 6;
 
 /// The cameras whose shared images, numbered from the other end, make every camera agree
-/// within [`AGREE_MM`] (cameras turned about 180° from the first), fewest first, with that
-/// agreement in millimetres; None for a ChArUco board (its corners are named, not numbered)
-/// or when no set does.
+/// within [`AGREE_MM`] (cameras turned about 180° from the first), fewest first (of sets as
+/// few, the one that agrees best); None for a ChArUco board (its corners are named, not
+/// numbered) or when no set does.
 fn turned_cameras(
     models: &[CameraModel],
     first_floor: FloorToCamera,
     camera_paths: &[&Path],
     shared: &[SharedView],
     board: &BoardSpec,
-) -> Option<(Vec<usize>, f64)> {
+) -> Option<Vec<usize>> {
     if board.target != odocal_calib::BoardTarget::Checkerboard {
         return None;
     }
@@ -551,6 +548,7 @@ fn turned_cameras(
             })
             .filter(|(_, rms_mm)| *rms_mm <= AGREE_MM)
             .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(set, _)| set)
     })
 }
 
@@ -1205,13 +1203,12 @@ mod tests {
         let fs = files(&cams, &poses);
         let right = solve_arena(&fs, &paths, &shared, &BOARD).unwrap();
         let turned = solve_arena(&fs, &paths, &all, &BOARD).unwrap();
-        assert_eq!(right.renumbered, vec![]);
-        assert_eq!(turned.renumbered.len(), 1);
-        assert_eq!(turned.renumbered[0].camera, 1);
+        assert_eq!(right.renumbered, None);
+        let renumbered = turned.renumbered.clone().unwrap();
+        assert_eq!(renumbered.cameras, vec![1]);
         assert!(
-            turned.renumbered[0].numbered_as_recorded_mm > REFUSE_RMS_MM,
-            "{:?}",
-            turned.renumbered
+            renumbered.numbered_as_recorded_mm > REFUSE_RMS_MM,
+            "{renumbered:?}"
         );
         for k in 0..3 {
             let apart_m = (turned.arena_to_camera[k].0.inverse().translation.vector
@@ -1235,8 +1232,7 @@ mod tests {
             bv.corners.reverse();
         }
         let turned = solve_arena(&fs, &paths, &two, &BOARD).unwrap();
-        let named: Vec<usize> = turned.renumbered.iter().map(|r| r.camera).collect();
-        assert_eq!(named, vec![1, 2]);
+        assert_eq!(turned.renumbered.map(|r| r.cameras), Some(vec![1, 2]));
         for k in 0..3 {
             let apart_m = (turned.arena_to_camera[k].0.inverse().translation.vector
                 - right.arena_to_camera[k].0.inverse().translation.vector)

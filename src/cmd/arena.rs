@@ -120,11 +120,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if unchecked.len() == 1 { "its" } else { "their" },
         );
     }
-    for r in &solution.renumbered {
+    for (r, &camera) in solution
+        .renumbered
+        .iter()
+        .flat_map(|r| r.cameras.iter().map(move |c| (r, c)))
+    {
         tell!(
             "note: camera {} ({}): its shared images number the board's corners from the other end, as images turned about 180° from the first camera's do (OpenCV numbers a checkerboard's corners from the one nearest the image's top-left): as numbered the cameras put the shared corners {:.1} mm apart (RMS), so they were read with that camera's numbering turned back, and agree within {:.2} mm; a camera mounted turned needs nothing more, and a ChArUco board (--target charuco) names its corners alike in every camera",
-            r.camera,
-            paths[r.camera].display(),
+            camera,
+            paths[camera].display(),
             r.numbered_as_recorded_mm,
             solution.consistency.rms_mm
         );
