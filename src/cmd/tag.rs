@@ -4,6 +4,15 @@
 use odocal_core::{TagToRobot, TagYawError};
 use odocal_tracker::TrackOptions;
 
+/// Two finite numbers written `A,B`.
+fn finite_pair(s: &str) -> Option<(f64, f64)> {
+    let nums: Option<Vec<f64>> = s.split(',').map(|p| p.trim().parse().ok()).collect();
+    match nums.as_deref() {
+        Some(&[a, b]) if a.is_finite() && b.is_finite() => Some((a, b)),
+        _ => None,
+    }
+}
+
 /// Where the tag's centre sits on the robot, metres ahead of and to the left of the midpoint
 /// of its wheel axle.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -18,11 +27,9 @@ impl std::str::FromStr for TagOffset {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-        let nums: Option<Vec<f64>> = parts.iter().map(|p| p.parse().ok()).collect();
-        match nums.as_deref() {
-            Some(&[ahead_m, left_m]) => Ok(Self { ahead_m, left_m }),
-            _ => Err(
+        match finite_pair(s) {
+            Some((ahead_m, left_m)) => Ok(Self { ahead_m, left_m }),
+            None => Err(
                 "give the tag's centre as AHEAD,LEFT in metres from the midpoint of the wheel axle (0.12,0 for 12 cm ahead; -0.05,0.02 for 5 cm behind and 2 cm to the left)"
                     .into(),
             ),
@@ -51,13 +58,9 @@ impl std::str::FromStr for TagTiltDeg {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-        let nums: Option<Vec<f64>> = parts.iter().map(|p| p.parse().ok()).collect();
-        match nums.as_deref() {
-            Some(&[x_deg, y_deg]) if x_deg.is_finite() && y_deg.is_finite() => {
-                Ok(Self { x_deg, y_deg })
-            }
-            _ => Err(
+        match finite_pair(s) {
+            Some((x_deg, y_deg)) => Ok(Self { x_deg, y_deg }),
+            None => Err(
                 "give the tag's tilt on the robot as X,Y: the degrees its plate falls toward the tag's x axis (its heading) and toward its y axis (-1.5,0 for a plate whose back edge is 1.5° lower), as `track` prints it"
                     .into(),
             ),
