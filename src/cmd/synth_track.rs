@@ -104,6 +104,10 @@ pub struct CameraArgs {
     /// Uneven light: the gain changes across the image from 1 − g to 1 + g.
     #[arg(long)]
     pub gradient: Option<f64>,
+    /// The camera's tone curve: each pixel is written as 255 · (linear / 255)^(1 / G), as
+    /// cameras encode their output for display (2.2 is about sRGB's; 1 keeps it linear).
+    #[arg(long, value_name = "G")]
+    pub tone_gamma: Option<f64>,
     /// The tag is printed on paper: print contrast --paper-contrast, a soft specular
     /// highlight of the room's lamp of --paper-gloss.
     #[arg(long)]
@@ -192,6 +196,7 @@ impl CameraArgs {
             paper,
             occlusion_s: self.occlusion_s.unwrap_or(preset.occlusion_s),
             drop_rate: self.drop_rate.unwrap_or(preset.drop_rate),
+            tone_gamma: self.tone_gamma.unwrap_or(preset.tone_gamma),
             h264_bitrate_kbps: self.bitrate_kbps.or(if format == VideoFormat::Mp4 {
                 preset.h264_bitrate_kbps
             } else {

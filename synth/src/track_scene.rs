@@ -68,6 +68,7 @@ struct EffectsInfo {
     paper_gloss: Option<f64>,
     occlusion_s: f64,
     drop_rate: f64,
+    tone_gamma: f64,
     h264_bitrate_kbps: Option<f64>,
     blur_step_px: Option<f64>,
     /// Frames missing from the video.
@@ -312,6 +313,7 @@ pub fn write_track_scene(
         paper_gloss: e.paper.map(|p| p.gloss),
         occlusion_s: e.occlusion_s,
         drop_rate: e.drop_rate,
+        tone_gamma: e.tone_gamma,
         h264_bitrate_kbps: e.h264_bitrate_kbps,
         blur_step_px: e.blur_step_px,
         dropped_frames: truths

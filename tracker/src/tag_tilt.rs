@@ -1,18 +1,25 @@
 //! Whether the camera still looks at the floor it was calibrated over. The planar pose takes
 //! the floor plane from the camera file, so a camera turned on its mount since (or an image
 //! shifted or cropped after recording, which is the same to the mapping) moves every fix by
-//! centimetres while each fix still fits its corners. solvePnP on the same corners gives the
-//! tag's own plane, and a level tag on a level floor reads level: over a run its tilt
-//! against the calibrated floor is known to a few thousandths of a degree.
+//! centimetres while each fix still fits its corners. A level square on the floor the file
+//! describes is seen with edges in directions the file foretells; a plane tilted against it
+//! turns them (its raised side nearer the camera, its edges converge the other way): over a
+//! run the tilt against the calibrated floor is known to a few hundredths of a degree.
+//!
+//! Only the edges' directions are read, not their lengths or the square's size: a camera's
+//! tone curve or a motion smear moves each edge of the black square inward by a fraction of
+//! a pixel, which leaves every edge's direction as it was but makes a square read by its
+//! side lengths (as solvePnP reads it) tilted by degrees.
 //!
 //! A tag not quite flat on the robot tilts too, but its tilt turns with the robot, while a
 //! camera's stays put on the floor: each fix's tilt is fitted as a part fixed in the floor
 //! frame plus a part fixed in the robot's, which a run that turns tells apart.
 
-use nalgebra::{Matrix2x4, Matrix4, Vector2, Vector4};
+use nalgebra::{Matrix2, Matrix4, Matrix4x2, Point2, Vector2, Vector4};
 use odocal_calib::{CameraModel, FloorToCamera};
+use odocal_core::{wrap_angle, Pose2};
 
-use crate::pose::pnp_tag_to_floor;
+use crate::pose::tag_model;
 use crate::{TrackOptions, TrackResult};
 
 /// Fixes sampled, evenly over the run.
@@ -34,10 +41,11 @@ pub const UNSEPARATED_TILT_WARN_DEG: f64 = 1.0;
 /// this, degrees: about three times a fix's heading σ from a 2.2 m ceiling.
 pub const TAG_TILT_HEADING_WARN_DEG: f64 = 0.1;
 
-/// A tag tilted on the robot is named only beyond this, degrees: a smear reads as a tilt on
-/// the robot too, the faster edge of a turning tag shrinking more (0.27° at 16 ms exposure
-/// and 0.5–0.7 m/s, corners smeared 4.5–6 px).
-pub const TAG_TILT_WARN_DEG: f64 = 0.5;
+/// A tag tilted on the robot is named only beyond this, degrees: a smear turns the edges a
+/// little too, the faster side of a turning tag smeared more, and a camera's tone curve
+/// moves a smeared edge the more the longer its smear (0.09° at 16 ms exposure and 0.5–0.7
+/// m/s, corners smeared 4.5–6 px; 0.41° ± 0.07° so under a 2.2 tone curve).
+pub const TAG_TILT_WARN_DEG: f64 = 0.75;
 
 /// A tilt is the run's, not its noise, beyond this many standard errors.
 const SIGNIFICANCE: f64 = 5.0;
@@ -46,8 +54,12 @@ const SIGNIFICANCE: f64 = 5.0;
 /// many times that of the plain mean tilt (runs that turn through a quarter turn or more).
 const SEPARABLE_SE_RATIO: f64 = 3.0;
 
-/// Residuals beyond this many robust σ are fixes whose PnP took the mirror solution.
+/// Fixes whose edges miss the fit by more than this many robust σ (RMS) are left out: a
+/// corner caught on something else.
 const OUTLIER_SIGMAS: f64 = 5.0;
+
+/// Tilt step of the edges' derivatives, radians.
+const TILT_STEP_RAD: f64 = 1e-4;
 
 /// The tag's tilt against the calibrated floor over a run, in the floor frame (x, y: the
 /// components of the tag's upward normal, radians for small tilts).
@@ -79,8 +91,8 @@ pub struct TagTilt {
 }
 
 impl TagTilt {
-    /// The tilt of `result`'s fixes by solvePnP through `camera` over `floor`, the tag as
-    /// `options` give it (None with fewer than 30 fixes solvePnP can place).
+    /// The tilt of `result`'s fixes through `camera` over `floor`, the tag as `options` give
+    /// it, from its edges' directions (None with fewer than 30 fixes to read).
     pub fn of(
         result: &TrackResult,
         camera: &CameraModel,
@@ -94,16 +106,13 @@ impl TagTilt {
             .iter()
             .step_by(step)
             .filter_map(|f| {
-                let tag = pnp_tag_to_floor(camera, floor, &f.corners_px, tag_size_m).ok()?;
-                let n = tag.rotation * nalgebra::Vector3::z();
-                // The tag faces the camera: its normal is taken pointing up.
-                let n = if n.z < 0.0 { -n } else { n };
-                let tilt = Vector2::new(n.x, n.y);
-                (tilt.iter().all(|v| v.is_finite()) && f.pose.theta_rad.is_finite()).then_some(
-                    Sample {
-                        tilt,
-                        heading_rad: f.pose.theta_rad,
-                    },
+                Sample::of(
+                    f.pose,
+                    &f.corners_px,
+                    camera,
+                    floor,
+                    tag_size_m,
+                    marker_height_m,
                 )
             })
             .collect();
@@ -117,16 +126,12 @@ impl TagTilt {
             .iter()
             .map(|f| (f.pose.position() - nadir).norm())
             .fold(0.0, f64::max);
-        // A first fit's residuals give the noise and the fixes whose PnP took the mirror
-        // solution.
+        // A first fit's residuals give the noise and the fixes whose corners went astray.
         let first = fit(&samples, true, None).or_else(|| fit(&samples, false, None))?;
         let spread = robust_sigma(&samples, &first);
         let kept: Vec<Sample> = samples
             .iter()
-            .filter(|s| {
-                let r = s.tilt - first.predict(s.heading_rad);
-                (r.x / spread.x).abs() <= OUTLIER_SIGMAS && (r.y / spread.y).abs() <= OUTLIER_SIGMAS
-            })
+            .filter(|s| s.misfit_rad(&first) <= OUTLIER_SIGMAS * spread)
             .copied()
             .collect();
         if kept.len() < MIN_FIXES {
@@ -194,7 +199,7 @@ impl TagTilt {
             self.tag_size_m * 1e3,
         );
         Some(format!(
-            "{subject} is tilted {:.2}° ± {:.3}° on the robot, lowest at {} ({} fixes by solvePnP; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; give --tag-tilt {:.2},{:.2} (degrees the plate falls toward the tag's x axis, its heading, and toward its y axis) so each corner is met at its own height, or lay the tag flat on the robot ({shim})",
+            "{subject} is tilted {:.2}° ± {:.3}° on the robot, lowest at {} ({} fixes' edge directions; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; give --tag-tilt {:.2},{:.2} (degrees the plate falls toward the tag's x axis, its heading, and toward its y axis) so each corner is met at its own height, or lay the tag flat on the robot ({shim})",
             on_robot.norm().to_degrees(),
             self.tag_on_robot_se_rad.to_degrees(),
             lowest_edge(&on_robot),
@@ -233,16 +238,31 @@ impl TagTilt {
             "every fix is about {shift_mm:.0} mm off and distances are scaled by up to {scale_pct:.2} % at the farthest fix ({:.2} m from the point under the camera)",
             self.reach_m
         );
+        // A tilt given with --tag-tilt was taken off the corners: a wrong one reads here.
+        let given_clause = if self.given_rad == Vector2::zeros() {
+            (String::new(), String::new())
+        } else {
+            let g = self.given_rad.map(f64::to_degrees);
+            (
+                ", taken off the --tag-tilt given,".to_string(),
+                format!(
+                    " as --tag-tilt {:.2},{:.2} says it lies (track without it to see the tilt the fixes show)",
+                    g.x, g.y
+                ),
+            )
+        };
         Some(match self.separated {
             true => format!(
-                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes by solvePnP; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives; for an arena camera, then `odocal arena` again)",
+                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes' edge directions; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives; for an arena camera, then `odocal arena` again)",
                 self.floor_fixed_se_rad.to_degrees(),
                 self.fixes,
             ),
             false => format!(
-                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes by solvePnP), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`; for an arena camera, then `odocal arena` again). A run in which the robot turns through a quarter turn or more tells the two apart",
+                "the tag{} reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes' edge directions), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot{}; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`; for an arena camera, then `odocal arena` again). A run in which the robot turns through a quarter turn or more tells the two apart",
+                given_clause.0,
                 self.floor_fixed_se_rad.to_degrees(),
                 self.fixes,
+                given_clause.1,
             ),
         })
     }
@@ -269,45 +289,110 @@ struct TiltFit {
     robot_se_rad: f64,
 }
 
-/// One fix's tilt: the tag's upward normal's floor-frame x and y, and the tag's heading.
-#[derive(Debug, Clone, Copy)]
-struct Sample {
-    tilt: Vector2<f64>,
-    heading_rad: f64,
-}
-
 impl TiltFit {
+    /// The tilt in the floor frame of a tag heading `heading_rad`.
     fn predict(&self, heading_rad: f64) -> Vector2<f64> {
-        let (s, c) = heading_rad.sin_cos();
-        self.floor_rad
-            + Vector2::new(
-                c * self.robot_rad.x - s * self.robot_rad.y,
-                s * self.robot_rad.x + c * self.robot_rad.y,
-            )
+        self.floor_rad + rotation(heading_rad) * self.robot_rad
     }
 }
 
-/// Least squares of `tilt = floor + R(heading) robot` (or `tilt = floor`), each component
-/// weighted by its noise `sigma` (unit weights without it; then the standard error is not
+fn rotation(heading_rad: f64) -> Matrix2<f64> {
+    let (s, c) = heading_rad.sin_cos();
+    Matrix2::new(c, -s, s, c)
+}
+
+/// One fix: how its four edges turn from the directions a level square at its pose would
+/// show (radians, less their mean, which the pose's heading takes up), how they turn with
+/// a tilt of the tag's plane (its upward normal's floor-frame x and y, radians), and the
+/// tag's heading.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    turned_rad: Vector4<f64>,
+    per_tilt: Matrix4x2<f64>,
+    heading_rad: f64,
+}
+
+impl Sample {
+    fn of(
+        pose: Pose2,
+        corners_px: &[Point2<f64>; 4],
+        camera: &CameraModel,
+        floor: &FloorToCamera,
+        tag_size_m: f64,
+        marker_height_m: f64,
+    ) -> Option<Self> {
+        let on_floor = tag_model(tag_size_m).map(|m| pose.transform_point(&m));
+        let centre = pose.position();
+        // The edges' directions of the square at `pose` on a plane tilted by `tilt`: the
+        // plane falls the way its normal leans.
+        let edges = |tilt: Vector2<f64>| -> Option<Vector4<f64>> {
+            let mut px = [Point2::origin(); 4];
+            for (p, q) in px.iter_mut().zip(&on_floor) {
+                let above_m = -tilt.dot(&(q - centre));
+                *p = camera.floor_to_pixel(floor, q, marker_height_m + above_m)?;
+            }
+            Some(directions(&px))
+        };
+        let level = edges(Vector2::zeros())?;
+        let seen = directions(corners_px);
+        let turned_rad = centred(seen.zip_map(&level, |a, b| wrap_angle(a - b)));
+        let mut per_tilt = Matrix4x2::zeros();
+        for k in 0..2 {
+            let mut step = Vector2::zeros();
+            step[k] = TILT_STEP_RAD;
+            let d = edges(step)?.zip_map(&edges(-step)?, |a, b| wrap_angle(a - b));
+            per_tilt.set_column(k, &centred(d / (2.0 * TILT_STEP_RAD)));
+        }
+        let ok = turned_rad
+            .iter()
+            .chain(per_tilt.iter())
+            .all(|v| v.is_finite())
+            && pose.theta_rad.is_finite();
+        ok.then_some(Self {
+            turned_rad,
+            per_tilt,
+            heading_rad: pose.theta_rad,
+        })
+    }
+
+    /// RMS of the edges' turns left by `fit`, radians.
+    fn misfit_rad(&self, fit: &TiltFit) -> f64 {
+        (self.turned_rad - self.per_tilt * fit.predict(self.heading_rad)).norm() / 2.0
+    }
+}
+
+/// The directions of a quadrilateral's four edges, radians.
+fn directions(corners: &[Point2<f64>; 4]) -> Vector4<f64> {
+    Vector4::from_fn(|j, _| {
+        let d = corners[(j + 1) % 4] - corners[j];
+        d.y.atan2(d.x)
+    })
+}
+
+/// `v` less its mean.
+fn centred(v: Vector4<f64>) -> Vector4<f64> {
+    v.add_scalar(-v.mean())
+}
+
+/// Least squares of `turned = per_tilt · (floor + R(heading) robot)` (or without the robot
+/// part), the edges' noise `sigma` radians (1 without it; then the standard errors are not
 /// used).
-fn fit(samples: &[Sample], with_robot: bool, sigma: Option<Vector2<f64>>) -> Option<TiltFit> {
-    let w = sigma.unwrap_or(Vector2::new(1.0, 1.0));
+fn fit(samples: &[Sample], with_robot: bool, sigma: Option<f64>) -> Option<TiltFit> {
+    let w = sigma.unwrap_or(1.0);
     let mut normal = Matrix4::<f64>::zeros();
     let mut rhs = Vector4::<f64>::zeros();
-    for Sample {
-        tilt: t,
-        heading_rad: th,
-        ..
-    } in samples
-    {
-        let (s, c) = th.sin_cos();
-        let r = if with_robot { 1.0 } else { 0.0 };
-        let a = Matrix2x4::new(1.0, 0.0, r * c, -r * s, 0.0, 1.0, r * s, r * c);
-        for row in 0..2 {
-            let ar = a.row(row).transpose() / w[row];
-            normal += ar * ar.transpose();
-            rhs += ar * (t[row] / w[row]);
-        }
+    for s in samples {
+        let r = if with_robot {
+            rotation(s.heading_rad)
+        } else {
+            Matrix2::zeros()
+        };
+        let mut a = nalgebra::Matrix4::<f64>::zeros();
+        a.fixed_view_mut::<4, 2>(0, 0).copy_from(&s.per_tilt);
+        a.fixed_view_mut::<4, 2>(0, 2).copy_from(&(s.per_tilt * r));
+        let a = a / w;
+        normal += a.transpose() * a;
+        rhs += a.transpose() * (s.turned_rad / w);
     }
     if !with_robot {
         // The robot part is not in the model: pin it at zero.
@@ -332,7 +417,7 @@ fn fit(samples: &[Sample], with_robot: bool, sigma: Option<Vector2<f64>>) -> Opt
 }
 
 /// The standard error of a tilt along its own direction, which is what its length's is.
-fn se_along(cov: &nalgebra::Matrix2<f64>, tilt: &Vector2<f64>) -> f64 {
+fn se_along(cov: &Matrix2<f64>, tilt: &Vector2<f64>) -> f64 {
     let dir = if tilt.norm() > 0.0 {
         tilt.normalize()
     } else {
@@ -341,19 +426,22 @@ fn se_along(cov: &nalgebra::Matrix2<f64>, tilt: &Vector2<f64>) -> f64 {
     (dir.transpose() * cov * dir)[0].max(0.0).sqrt()
 }
 
-/// Each component's noise from the median absolute residual of `fit`, radians.
-fn robust_sigma(samples: &[Sample], fit: &TiltFit) -> Vector2<f64> {
-    let mut out = Vector2::zeros();
-    for k in 0..2 {
-        let mut r: Vec<f64> = samples
-            .iter()
-            .map(|s| (s.tilt - fit.predict(s.heading_rad))[k].abs())
-            .collect();
-        r.sort_by(f64::total_cmp);
-        // A floor so the weights stay finite on noiseless corners.
-        out[k] = (1.4826 * r[r.len() / 2]).max(1e-6);
+/// The edges' noise from the median absolute turn `fit` leaves, radians (each fix's four
+/// turns less their mean keep three of four degrees of freedom).
+fn robust_sigma(samples: &[Sample], fit: &TiltFit) -> f64 {
+    let mut r: Vec<f64> = samples
+        .iter()
+        .flat_map(|s| {
+            let left = s.turned_rad - s.per_tilt * fit.predict(s.heading_rad);
+            left.iter().map(|v| v.abs()).collect::<Vec<_>>()
+        })
+        .collect();
+    if r.is_empty() {
+        return f64::NAN;
     }
-    out
+    r.sort_by(f64::total_cmp);
+    // A floor so the weights stay finite on noiseless corners.
+    (1.4826 * r[r.len() / 2] * (4.0f64 / 3.0).sqrt()).max(1e-9)
 }
 
 #[cfg(test)]
@@ -363,11 +451,12 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
 
-    /// Tilts of a camera turned by `camera` and a tag tilted by `tag` (radians), read at the
-    /// given headings with 0.1° of noise per component.
+    /// Edge turns of a camera turned by `camera` and a tag tilted by `tag` (radians), read at
+    /// the given headings with 0.05° of noise per edge; each fix's edges turn with the tilt
+    /// as a square's do 1 m off the point under a 2 m high camera.
     fn samples(camera: Vector2<f64>, tag: Vector2<f64>, headings: &[f64]) -> Vec<Sample> {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let noise = Normal::new(0.0, 0.1f64.to_radians()).unwrap();
+        let noise = Normal::new(0.0, 0.05f64.to_radians()).unwrap();
         let truth = TiltFit {
             floor_rad: camera,
             floor_se_rad: 0.0,
@@ -377,9 +466,11 @@ mod tests {
         headings
             .iter()
             .map(|&th| {
-                let n = Vector2::new(noise.sample(&mut rng), noise.sample(&mut rng));
+                let per_tilt = Matrix4x2::new(0.5, 0.1, -0.1, 0.5, -0.5, -0.1, 0.1, -0.5);
+                let n = centred(Vector4::from_fn(|_, _| noise.sample(&mut rng)));
                 Sample {
-                    tilt: truth.predict(th) + n,
+                    turned_rad: per_tilt * truth.predict(th) + n,
+                    per_tilt,
                     heading_rad: th,
                 }
             })
@@ -393,6 +484,7 @@ mod tests {
         let turning: Vec<f64> = (0..300).map(|i| f64::from(i) * 0.021).collect();
         let s = samples(camera, tag, &turning);
         let sigma = robust_sigma(&s, &fit(&s, true, None).unwrap());
+        assert!((sigma.to_degrees() / 0.05 - 1.0).abs() < 0.15, "{sigma}");
         let mean = fit(&s, false, Some(sigma)).unwrap();
         let both = fit(&s, true, Some(sigma)).unwrap();
         assert!(both.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
@@ -402,7 +494,7 @@ mod tests {
             (both.robot_rad - tag).norm() < 4.0 * both.robot_se_rad,
             "{both:?}"
         );
-        // 0.1° over 300 fixes: the camera's part to about 0.01°.
+        // 0.05° on each edge over 300 fixes: the camera's part to about 0.01°.
         assert!(se.to_degrees() < 0.012, "{}", se.to_degrees());
         // The plain mean cannot: the tag's tilt turns through every heading and averages out
         // only over whole turns.
@@ -420,6 +512,66 @@ mod tests {
         assert!(
             (mean.floor_rad - sum).norm() < 4.0 * mean.floor_se_rad,
             "{mean:?}"
+        );
+    }
+
+    /// The edges' directions alone carry the tilt: a square whose every edge is moved inward,
+    /// as a tone curve or a smear moves a black square's, turns no edge; a tilted plane does.
+    #[test]
+    fn edges_moved_inward_turn_no_edge_and_a_tilt_does() {
+        let mut camera = CameraModel::from_hfov(1280, 720, 70.0);
+        camera.distortion = odocal_calib::Distortion::pinhole5(-0.1, 0.04, 3e-4, -2e-4, 0.0);
+        let down = nalgebra::UnitQuaternion::from_axis_angle(
+            &nalgebra::Vector3::x_axis(),
+            std::f64::consts::PI,
+        );
+        let at = nalgebra::Vector3::new(0.1, -0.2, 2.2);
+        let floor = FloorToCamera(nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::from(-(down * at)),
+            down,
+        ));
+        let pose = odocal_core::Pose2::new(0.9, 0.4, 0.6);
+        let level = tag_model(0.08).map(|m| {
+            camera
+                .floor_to_pixel(&floor, &pose.transform_point(&m), 0.08)
+                .unwrap()
+        });
+        // Each edge line moved 0.3 px toward the square's centre; the corners are where the
+        // moved lines meet.
+        let centre = level.iter().fold(Vector2::zeros(), |s, p| s + p.coords) / 4.0;
+        let lines: Vec<(Vector2<f64>, Vector2<f64>)> = (0..4)
+            .map(|j| {
+                let (a, b) = (level[j].coords, level[(j + 1) % 4].coords);
+                let along = (b - a).normalize();
+                let mut inward = Vector2::new(-along.y, along.x);
+                if inward.dot(&(centre - a)) < 0.0 {
+                    inward = -inward;
+                }
+                (a + inward * 0.3, along)
+            })
+            .collect();
+        let shrunk: [Point2<f64>; 4] = std::array::from_fn(|k| {
+            // Corner k is where edge k−1 (ending there) meets edge k (starting there).
+            let (p, u) = lines[(k + 3) % 4];
+            let (q, v) = lines[k];
+            let t = Matrix2::from_columns(&[u, -v]).try_inverse().unwrap() * (q - p);
+            Point2::from(p + u * t[0])
+        });
+        assert!((shrunk[0] - level[0]).norm() > 0.3, "{shrunk:?}");
+        let s = Sample::of(pose, &shrunk, &camera, &floor, 0.08, 0.08).unwrap();
+        assert!(s.turned_rad.norm() < 1e-4, "{s:?}");
+        // A plane tilted 0.5°: its edges turn by what the derivatives foretell.
+        let tilt = Vector2::new(0.0, 0.5f64.to_radians());
+        let tilted = tag_model(0.08).map(|m| {
+            let q = pose.transform_point(&m);
+            let above_m = -tilt.dot(&(q - pose.position()));
+            camera.floor_to_pixel(&floor, &q, 0.08 + above_m).unwrap()
+        });
+        let s = Sample::of(pose, &tilted, &camera, &floor, 0.08, 0.08).unwrap();
+        assert!(s.turned_rad.norm() > 1e-3, "{s:?}");
+        assert!(
+            (s.turned_rad - s.per_tilt * tilt).norm() < 0.02 * s.turned_rad.norm(),
+            "{s:?}"
         );
     }
 }

@@ -92,6 +92,10 @@ pub struct CameraEffects {
     /// H.264 bitrate for an MP4 video, kbit/s, encoded by FFmpeg's libx264 as a camera would
     /// (`None`: OpenCV's writer at its default quality).
     pub h264_bitrate_kbps: Option<f64>,
+    /// The camera's tone curve: a pixel's 8-bit value is `255 · (v / 255)^(1 / tone_gamma)`
+    /// for the linear value `v` (gain, lighting and noise applied), as a camera encodes its
+    /// output for display; 1 keeps the output linear, 2.2 is about sRGB's.
+    pub tone_gamma: f64,
 }
 
 impl Default for CameraEffects {
@@ -113,6 +117,7 @@ impl Default for CameraEffects {
             occlusion_s: 0.0,
             drop_rate: 0.0,
             h264_bitrate_kbps: None,
+            tone_gamma: 1.0,
         }
     }
 }
@@ -155,6 +160,7 @@ impl CameraEffects {
             occlusion_s: 1.0,
             drop_rate: 0.01,
             h264_bitrate_kbps: Some(4000.0),
+            tone_gamma: 1.0,
         }
     }
 
@@ -250,6 +256,12 @@ impl CameraEffects {
                 "--occlusion-s {}: shorter than two frames; use at least {:.3} s",
                 self.occlusion_s,
                 2.0 * period_s
+            ));
+        }
+        if !(self.tone_gamma.is_finite() && (1.0..=3.0).contains(&self.tone_gamma)) {
+            return bad(format!(
+                "--tone-gamma {}: a camera's tone curve has a gamma of 1 (linear) to 3 (2.2 is about sRGB's)",
+                self.tone_gamma
             ));
         }
         if !(self.drop_rate.is_finite() && (0.0..=0.5).contains(&self.drop_rate)) {
