@@ -269,12 +269,30 @@ fn file_identity(path: &Path) -> Option<PathBuf> {
     if let Ok(c) = std::fs::canonicalize(path) {
         return Some(c);
     }
-    let name = path.file_name()?;
-    let parent = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    std::fs::canonicalize(parent).ok().map(|d| d.join(name))
+    // The deepest folder of the path that exists, resolved; the rest (folders the command
+    // will create, and the file) applied to it as written, `..` included: `new/../x.csv` is
+    // `x.csv` once `new` is made.
+    for ancestor in path.ancestors().skip(1) {
+        let existing = if ancestor.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            ancestor
+        };
+        let Ok(mut id) = std::fs::canonicalize(existing) else {
+            continue;
+        };
+        for part in path.strip_prefix(ancestor).ok()?.components() {
+            match part {
+                std::path::Component::ParentDir => {
+                    id.pop();
+                }
+                std::path::Component::CurDir => {}
+                other => id.push(other),
+            }
+        }
+        return Some(id);
+    }
+    None
 }
 
 /// A progress bar for `len` items of work, hidden when stderr is not a terminal.

@@ -396,6 +396,24 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
         &["is the same file as the argument", "scans.csv"],
     );
     assert_eq!(std::fs::read(&scans_copy).expect("read"), before);
+    // Through a folder that does not exist yet: the folder would be made and the input
+    // replaced.
+    let through_new = format!("{}/not-yet/../scans.csv", p(dir));
+    refused(
+        dir,
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            p(&map),
+            p(&scans_copy),
+            "--out",
+            &through_new,
+        ],
+        &["is the same file as the argument", "scans.csv"],
+    );
+    assert_eq!(std::fs::read(&scans_copy).expect("read"), before);
+    assert!(!dir.join("not-yet").exists());
     let exp_dir = dir.join("exp");
     let poses = dir.join("poses.csv");
     refused(
