@@ -116,8 +116,9 @@ pub fn numeric_row<const N: usize>(
 }
 
 /// 1-based line number of the record starting at byte offset `byte` in `text` (the offset
-/// the csv crate gives can point at blank lines before the record).
-fn line_of_byte(text: &str, byte: u64) -> u64 {
+/// the csv crate gives can point at blank lines before the record). The csv crate's own line
+/// count runs one short after a CRLF line.
+pub fn line_of_byte(text: &str, byte: u64) -> u64 {
     let bytes = text.as_bytes();
     let mut end = (byte as usize).min(bytes.len());
     while end < bytes.len() && matches!(bytes[end], b'\n' | b'\r') {
@@ -128,6 +129,7 @@ fn line_of_byte(text: &str, byte: u64) -> u64 {
 
 /// Maps a csv crate error to a positioned parse error.
 pub fn csv_error(name: &str, e: &csv::Error) -> FileError {
+    // The error carries no text to count lines in; its record's line stands.
     let line = e.position().map(|p| p.line()).unwrap_or(0);
     FileError::parse(name, line, 1, format!("malformed CSV: {e}"))
 }

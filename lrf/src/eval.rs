@@ -102,11 +102,14 @@ pub fn read_truth_csv(path: &Path) -> Result<LaserTruth, LrfError> {
     for rec in rdr.records() {
         let rec = rec.map_err(|e| {
             err(
-                e.position().map(|p| p.line() as usize).unwrap_or(0),
+                e.position()
+                    .map_or(0, |p| odocal_core::line_of_byte(&text, p.byte()) as usize),
                 format!("{e}"),
             )
         })?;
-        let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
+        let line = rec
+            .position()
+            .map_or(0, |p| odocal_core::line_of_byte(&text, p.byte()) as usize);
         let num = |c: usize| -> Result<f64, LrfError> {
             let s = rec.get(c).unwrap_or("");
             s.parse::<f64>()

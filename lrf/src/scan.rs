@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use nalgebra::{Matrix2, Point2, Rotation2, Vector2};
-use odocal_core::Pose2;
+use odocal_core::{line_of_byte, Pose2};
 
 use crate::sweep::Sweep;
 use crate::LrfError;
@@ -504,10 +504,14 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
     let mut n_reversed = 0;
     for rec in rdr.records() {
         let rec = rec.map_err(|e| {
-            let line = e.position().map(|p| p.line() as usize).unwrap_or(0);
+            let line = e
+                .position()
+                .map_or(0, |p| line_of_byte(text, p.byte()) as usize);
             err(line, "-", format!("malformed CSV row: {e}"))
         })?;
-        let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
+        let line = rec
+            .position()
+            .map_or(0, |p| line_of_byte(text, p.byte()) as usize);
         let num = |c: usize, cname: &str| -> Result<f64, LrfError> {
             let s = rec.get(c).unwrap_or("");
             s.parse::<f64>()
@@ -970,6 +974,16 @@ mod tests {
     fn rejects_bad_values_with_position() {
         let e = parse_scans_csv(
             "angle,range,intensity\n0.0,1.0,0.1\n0.01,NaN,0.1\n",
+            "s.csv",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().starts_with("s.csv, line 3, column range"),
+            "{e}"
+        );
+        // The same lines ended as Windows ends them.
+        let e = parse_scans_csv(
+            "angle,range,intensity\r\n0.0,1.0,0.1\r\n0.01,NaN,0.1\r\n",
             "s.csv",
         )
         .unwrap_err();
