@@ -642,6 +642,40 @@ fn one_id_in_tags_is_tag_id_with_its_report_and_truth() {
     );
 }
 
+/// With `--tags all`, a tag that came into view part way through had a timeline that started
+/// there, and its run was called cut short ("the container announces 30 frames but only 20
+/// were read … the file looks cut short"). Every tag's timeline is the video's.
+#[test]
+fn a_tag_that_comes_into_view_late_is_no_file_cut_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    synth_track_with(&a, 30, 1, &["--video", "png"]);
+    synth_track_with(&b, 30, 1, &["--video", "png", "--tag-id", "5"]);
+    // The first ten frames show tag 5, the rest tag 0.
+    for k in 0..10 {
+        let name = format!("frame_{k:06}.png");
+        std::fs::copy(b.join("frames").join(&name), a.join("frames").join(&name)).unwrap();
+    }
+    let out = dir.path().join("t.csv");
+    let res = odocal(&[
+        "track",
+        p(&a.join("frames")),
+        "--camera",
+        p(&a.join("camera.json")),
+        "--tags",
+        "all",
+        "--out",
+        p(&out),
+    ]);
+    succeeded(&res);
+    let said = String::from_utf8_lossy(&res.stderr);
+    assert!(!said.contains("cut short"), "{said}");
+    let late = Trajectory::read_csv(&dir.path().join("t_tag0.csv")).unwrap();
+    // A tag not yet followed is looked for every third frame.
+    assert!((17..=20).contains(&late.rows.len()), "{}", late.rows.len());
+    assert!(late.rows[0].t_s > 0.3, "{}", late.rows[0].t_s);
+}
+
 /// Several tags' tracking kept a dropped frame's slot filled with the next frame's image (a
 /// constant-frame-rate conversion) as a fix a frame early (15 mm at the robot's speed) and
 /// left the image's own slot out, where one tag's tracking places it at its slot: every

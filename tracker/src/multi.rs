@@ -79,8 +79,9 @@ struct IdState {
     repeated: RepeatedFixes,
 }
 
-/// Tracks every selected tag through a source in one pass; one [`TrackResult`] per id
-/// (records from the frame its tracker started; an id with no fix is kept, with its gaps).
+/// Tracks every selected tag through a source in one pass; one [`TrackResult`] per id, with a
+/// record of every frame of the source (a tag first seen part way in has gaps before; an id
+/// with no fix is kept, with its gaps).
 /// `on_frame` is called once per frame.
 pub fn track_source_multi(
     mut source: Box<dyn FrameSource>,
@@ -119,6 +120,9 @@ pub fn track_source_multi(
         opts.search_decimate.max(1.0),
     )?;
     let mut seen: BTreeMap<u32, usize> = BTreeMap::new();
+    // Every frame so far as a gap, for a tag first seen part way in: its timeline is the
+    // video's, not one that starts where it came into view (which read as a file cut short).
+    let mut before_seen: Vec<FrameRecord> = Vec::new();
     let (tx, rx) = mpsc::sync_channel::<Batch>(3);
     let final_info = std::thread::scope(|scope| -> Result<_, TrackError> {
         let decoder = scope.spawn(move || decode_into(source.as_mut(), tx));
@@ -168,9 +172,14 @@ pub fn track_source_multi(
                 if *selection == TagSelection::All {
                     for id in &found {
                         if !states.contains_key(id) {
-                            states.insert(*id, new_state(*id)?);
+                            let mut state = new_state(*id)?;
+                            state.records = before_seen.clone();
+                            states.insert(*id, state);
                         }
                     }
+                }
+                if *selection == TagSelection::All {
+                    before_seen.push(gap(frame, unusable.unwrap_or(GapReason::NotDetected)));
                 }
                 for (id, s) in states.iter_mut() {
                     let mut rec = match unusable {
