@@ -1139,4 +1139,45 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
         e.contains("This log and run002's trajectory fit, as do run002's log and this trajectory: the manifest pairs each with the other's; swap run001's and run002's trajectories back"),
         "{e}"
     );
+    // Held-out tours swapped alike turn the same way round: they were judged (every method
+    // about 20 % of path off, against 2 %) until each log was asked to follow its trajectory.
+    let tours = dir.path().join("held-out");
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "tours",
+        "--tour-legs",
+        "4",
+        "--runs",
+        "3",
+        "--frames",
+        "none",
+        "--seed",
+        "9",
+        "--out",
+        p(&tours),
+    ]);
+    let (one, two) = (
+        tours.join("runs/run001.trajectory.csv"),
+        tours.join("runs/run002.trajectory.csv"),
+    );
+    let swap = tours.join("runs/swap.csv");
+    std::fs::rename(&one, &swap).unwrap();
+    std::fs::rename(&two, &one).unwrap();
+    std::fs::rename(&swap, &two).unwrap();
+    let e = fails(&[
+        "evaluate",
+        p(&tours.join("manifest.json")),
+        "--model",
+        &model,
+    ]);
+    assert!(
+        e.contains("run001: its wheels do not follow the trajectory's motion at any clock offset"),
+        "{e}"
+    );
+    assert!(
+        e.contains("swap run001's and run002's trajectories back"),
+        "{e}"
+    );
 }

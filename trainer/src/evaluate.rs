@@ -226,8 +226,17 @@ pub fn evaluate_paths(
             )));
         }
         let align = odocal_dataset::align::AlignOptions::default();
+        // A log whose wheels do not follow its trajectory at any clock offset is another
+        // recording's (two tours' logs swapped passed every other check, and judged every
+        // method 20 % off); `dataset` refuses such a row alike.
+        let unfollowed = || {
+            (!odocal_dataset::log_fits_camera(&r.log, &r.camera, robot, &align)).then(|| {
+                "its wheels do not follow the trajectory's motion at any clock offset: is the trajectory another recording's, or the log another robot's?".to_string()
+            })
+        };
         if let Some(why) = odocal_dataset::units::unit_mismatch(&r.log, &r.camera, robot)
             .or_else(|| odocal_dataset::trajectory_mismatch(&r.log, &r.camera, robot, &align))
+            .or_else(unfollowed)
         {
             // UMBMark squares driven the other way round turn against each other's wheels,
             // which reads as swapped wheel columns until the pairs are tried (swapping the
