@@ -282,6 +282,22 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!arena.exists());
+    // A --board that is not the board's: named from the first image in a second or two (a
+    // board too small found part of the board in each camera, read as cameras 75 mm apart
+    // after a search of about 20 s per image).
+    for (given, said) in [
+        (
+            "8x5",
+            "shows a 9x6 board, not the 8x5 of --board: pass --board 9x6",
+        ),
+        ("3x3", "3x3 of --board: count its INNER corners"),
+    ] {
+        let mut wrong = args.clone();
+        wrong.extend(["--board", given]);
+        let e = fails(&wrong);
+        assert!(e.contains(said), "{e}");
+    }
+    assert!(!arena.exists());
     // The true camera files carry no covariance: the σ that leave it out are named.
     let o = odocal(&args);
     succeeded(&o);

@@ -93,10 +93,47 @@ pub fn detect_shared(
         .iter()
         .map(|f| parse_shared_name(f, cameras).map(|(v, k)| (f.clone(), v, k)))
         .collect::<Result<Vec<_>, _>>()?;
-    let detections = named
-        .par_iter()
+    // A --board typo costs the classic detector tens of seconds per image, and the arena
+    // then misreads the corners it finds: the first image is looked at quickly first.
+    if let Some(seen) = named
+        .first()
+        .filter(|(f, ..)| odocal_calib::charuco::markers_seen(f).is_none())
+        .and_then(|(f, ..)| odocal_calib::detect::quick_board_size_check(f, board))
+    {
+        return Err(ArenaError::Input(seen.refusal(&named[0].0, board)));
+    }
+    let mut detections = named
+        .iter()
+        .take(1)
         .map(|(f, v, k)| detect_file(f, board).map(|d| (v.clone(), *k, d)))
         .collect::<Result<Vec<_>, _>>()?;
+    // A --board short of the real one finds part of the board, a different part in each
+    // camera, which the arena then read as cameras 75 mm apart.
+    if let Some((_, _, Detection::Found(first))) = detections.first() {
+        let larger = (!board.is_charuco())
+            .then(|| {
+                odocal_calib::detect::larger_board_around(
+                    Path::new(&first.image),
+                    board,
+                    &first.corners,
+                )
+            })
+            .flatten();
+        if let Some(size) = larger {
+            let (c, r) = odocal_calib::detect::oriented_like(size, board);
+            return Err(ArenaError::Input(format!(
+                "{} shows a board of at least {c}x{r} inner corners, but --board {}x{} finds only part of it (a different part in each camera, which puts the cameras apart by squares): count the board's INNER corners (one fewer than the squares along each side) and pass them as --board",
+                first.image, board.cols, board.rows
+            )));
+        }
+    }
+    detections.extend(
+        named
+            .par_iter()
+            .skip(1)
+            .map(|(f, v, k)| detect_file(f, board).map(|d| (v.clone(), *k, d)))
+            .collect::<Result<Vec<_>, _>>()?,
+    );
     let mut notes = Vec::new();
     let mut by_view: BTreeMap<String, Vec<(usize, BoardView)>> = BTreeMap::new();
     for (view, k, d) in detections {

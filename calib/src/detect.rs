@@ -636,7 +636,7 @@ pub fn quick_board_size_check(path: &Path, board: &BoardSpec) -> Option<BoardSiz
 
 /// `size` with its sides in the order `board` gives its own (OpenCV finds a board either way
 /// round).
-pub(crate) fn oriented_like(size: (u32, u32), board: &BoardSpec) -> (u32, u32) {
+pub fn oriented_like(size: (u32, u32), board: &BoardSpec) -> (u32, u32) {
     let (a, b) = size;
     if (a >= b) == (board.cols >= board.rows) {
         (a, b)
@@ -652,6 +652,28 @@ pub struct BoardSizeSeen {
     pub size: (u32, u32),
     /// Whether a board of that size was found; else the board is at least that large.
     pub confirmed: bool,
+}
+
+impl BoardSizeSeen {
+    /// The one-line refusal of `--board` for `image`, which shows this board instead.
+    pub fn refusal(&self, image: &Path, board: &BoardSpec) -> String {
+        let (c, r) = self.size;
+        if self.confirmed {
+            format!(
+                "{} shows a {c}x{r} board, not the {}x{} of --board: pass --board {c}x{r} (--board counts INNER corners: one fewer than the squares along each side)",
+                image.display(),
+                board.cols,
+                board.rows
+            )
+        } else {
+            format!(
+                "{} shows a board of at least {c}x{r} inner corners, not the {}x{} of --board: count its INNER corners (one fewer than the squares along each side) and pass them as --board",
+                image.display(),
+                board.cols,
+                board.rows
+            )
+        }
+    }
 }
 
 /// The size of the board `gray` shows when it is not `board`'s, oriented like `board`.

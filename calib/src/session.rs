@@ -355,22 +355,7 @@ pub fn calibrate_session(
         None
     };
     if let Some(seen) = quick {
-        let (c, r) = seen.size;
-        return Err(CalibError::Input(if seen.confirmed {
-            format!(
-                "{} shows a {c}x{r} board, not the {}x{} of --board: pass --board {c}x{r} (--board counts INNER corners: one fewer than the squares along each side)",
-                images[0].display(),
-                board.cols,
-                board.rows
-            )
-        } else {
-            format!(
-                "{} shows a board of at least {c}x{r} inner corners, not the {}x{} of --board: count its INNER corners (one fewer than the squares along each side) and pass them as --board",
-                images[0].display(),
-                board.cols,
-                board.rows
-            )
-        }));
+        return Err(CalibError::Input(seen.refusal(&images[0], board)));
     }
     let detections = detect_all(images, board, on_image)?;
     let (views, mut skipped, sizes) = split(detections);
