@@ -1179,6 +1179,31 @@ fn cli_laser_poses_as_a_trajectory() {
             && stderr.contains("drop it to de-skew them"),
         "{stderr}"
     );
+    // A single scan has no motion to de-skew it by, nor a neighbour to widen its σ by: its
+    // heading was 22 times its σ off in silence.
+    let (header, rows) = scan_rows(d);
+    let one = rewrite_scans(&d.join("one.csv"), &header, &rows, &|scan| {
+        if scan[0][0] == rows[0][0] {
+            scan.iter().map(|r| r.join(",")).collect()
+        } else {
+            Vec::new()
+        }
+    });
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&one),
+        "--out",
+        s(&d.join("one.poses.csv")),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("1 of 1 poses could not be de-skewed and have no pose beside them"),
+        "{stderr}"
+    );
 }
 
 /// The `ok` count and the position RMS, mm, that `lrf localize --truth` prints.

@@ -981,6 +981,9 @@ pub struct Skewed {
     pub n_widened: usize,
     /// The largest motion over a sweep among them, metres and radians.
     pub max_sweep_motion: (f64, f64),
+    /// Poses not de-skewed with no `ok` neighbour to tell the sensor's motion by (a single
+    /// scan, or one alone among lost scans): their σ leave out whatever the sensor moved.
+    pub n_motion_unknown: usize,
 }
 
 /// Widens the covariance of every pose whose scan was not de-skewed by the motion over half its
@@ -996,6 +999,7 @@ fn widen_skewed(log: &mut PoseLog, deskewed: &[bool], sweeps_s: &[f64]) -> Optio
         n_poses: 0,
         n_widened: 0,
         max_sweep_motion: (0.0, 0.0),
+        n_motion_unknown: 0,
     };
     for (j, &k) in ok.iter().enumerate() {
         if deskewed[k] || sweeps_s[k] <= 0.0 {
@@ -1011,6 +1015,7 @@ fn widen_skewed(log: &mut PoseLog, deskewed: &[bool], sweeps_s: &[f64]) -> Optio
                 gap(a).total_cmp(&gap(b))
             });
         let (Some(&n), Some(p)) = (nearest, log.rows[k].pose) else {
+            skewed.n_motion_unknown += 1;
             continue;
         };
         let Some(q) = log.rows[n].pose else { continue };
@@ -1036,5 +1041,5 @@ fn widen_skewed(log: &mut PoseLog, deskewed: &[bool], sweeps_s: &[f64]) -> Optio
             *cov += widening;
         }
     }
-    (skewed.n_poses > 0).then_some(skewed)
+    (skewed.n_poses > 0 || skewed.n_motion_unknown > 0).then_some(skewed)
 }

@@ -363,10 +363,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         }
     );
     // The first scan of a track carries its skew in its σ alone: one pose in many needs no word.
-    if let Some(w) =
-        skewed.filter(|w| w.n_widened > 0 && (a.global_only || w.n_widened * 10 > n_ok))
+    if let Some(w) = skewed
+        .as_ref()
+        .filter(|w| w.n_widened > 0 && (a.global_only || w.n_widened * 10 > n_ok))
     {
-        warn_skewed(&w, a.global_only);
+        warn_skewed(w, a.global_only);
+    }
+    if let Some(w) = skewed.as_ref().filter(|w| w.n_motion_unknown > 0) {
+        tell!(
+            "warning: {} of {n_ok} poses could not be de-skewed and have no pose beside them to tell how far the sensor moved during their sweeps (a single scan, or one alone among lost scans): if the sensor moved, each is off by up to half its motion over a sweep, which its σ leaves out; localise it among the scans around it, or, if the scanner takes all beams at once or stood still, give --sweep-s 0",
+            w.n_motion_unknown
+        );
     }
     if n_repeated > 0 {
         tell!(
