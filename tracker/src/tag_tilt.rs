@@ -102,9 +102,9 @@ impl TagTilt {
         let (tag_size_m, marker_height_m) = (options.tag_size_m, options.marker_height_m);
         let fixes: Vec<_> = result.fixes().map(|(_, f)| f).collect();
         let step = fixes.len().div_ceil(MAX_SAMPLES).max(1);
-        let samples: Vec<Sample> = fixes
+        let sampled: Vec<_> = fixes.iter().step_by(step).collect();
+        let edges: Vec<Sample> = sampled
             .iter()
-            .step_by(step)
             .filter_map(|f| {
                 Sample::of(
                     f.pose,
@@ -116,9 +116,10 @@ impl TagTilt {
                 )
             })
             .collect();
-        if samples.len() < MIN_FIXES {
-            return None;
-        }
+        let pnp: Vec<Sample> = sampled
+            .iter()
+            .filter_map(|f| Sample::of_pnp(f.pose, &f.corners_px, camera, floor, tag_size_m))
+            .collect();
         let camera_in_floor = floor.0.inverse().translation.vector;
         let camera_above_marker_m = camera_in_floor.z - marker_height_m;
         let nadir = crate::marker_height::nadir(floor);
@@ -126,29 +127,29 @@ impl TagTilt {
             .iter()
             .map(|f| (f.pose.position() - nadir).norm())
             .fold(0.0, f64::max);
-        // A first fit's residuals give the noise and the fixes whose corners went astray.
-        let first = fit(&samples, true, None).or_else(|| fit(&samples, false, None))?;
-        let spread = robust_sigma(&samples, &first);
-        let kept: Vec<Sample> = samples
-            .iter()
-            .filter(|s| s.misfit_rad(&first) <= OUTLIER_SIGMAS * spread)
-            .copied()
-            .collect();
-        if kept.len() < MIN_FIXES {
-            return None;
-        }
-        let mean = fit(&kept, false, Some(spread))?;
-        let both = fit(&kept, true, Some(spread))
-            .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
-        let all = both.unwrap_or(mean);
+        // Each reading has its blind spot: solvePnP weighs the square's side lengths, which a
+        // tone curve or a smear shortens by a fraction of a pixel (a level tag read 2.41°
+        // tilted); the edges' directions alone carry little of a tilt near the point under
+        // the camera, where a small bias in them (a straight run keeps every edge at one
+        // angle to the pixel grid) read 2.37°. A tilt is taken as far as both see it.
+        let by_edges = RunFit::of(&edges)?;
+        let by_pnp = RunFit::of(&pnp)?;
+        let (all, separated) = match (by_edges.both, by_pnp.both) {
+            (Some(a), Some(b)) => (a.least(&b), true),
+            _ => (by_edges.mean.least(&by_pnp.mean), false),
+        };
         Some(Self {
             floor_fixed_rad: all.floor_rad,
             floor_fixed_se_rad: all.floor_se_rad,
-            separated: both.is_some(),
-            tag_on_robot_rad: both.map(|b| b.robot_rad),
-            tag_on_robot_se_rad: both.map_or(f64::INFINITY, |b| b.robot_se_rad),
+            separated,
+            tag_on_robot_rad: separated.then_some(all.robot_rad),
+            tag_on_robot_se_rad: if separated {
+                all.robot_se_rad
+            } else {
+                f64::INFINITY
+            },
             given_rad: options.tag_tilt_rad,
-            fixes: kept.len(),
+            fixes: by_edges.fixes.min(by_pnp.fixes),
             tag_size_m,
             camera_above_marker_m,
             reach_m,
@@ -296,6 +297,65 @@ impl TiltFit {
     }
 }
 
+/// A run's tilt fitted from one kind of reading: the plain mean, and the floor-fixed and
+/// tag-fixed parts when the run's headings tell them apart.
+struct RunFit {
+    mean: TiltFit,
+    both: Option<TiltFit>,
+    fixes: usize,
+}
+
+impl RunFit {
+    /// None with fewer than [`MIN_FIXES`] readings.
+    fn of(samples: &[Sample]) -> Option<Self> {
+        if samples.len() < MIN_FIXES {
+            return None;
+        }
+        // A first fit's residuals give the noise and the fixes whose corners went astray (or
+        // whose solvePnP took the mirror solution).
+        let first = fit(samples, true, None).or_else(|| fit(samples, false, None))?;
+        let spread = robust_sigma(samples, &first);
+        let kept: Vec<Sample> = samples
+            .iter()
+            .filter(|s| s.misfit_rad(&first) <= OUTLIER_SIGMAS * spread)
+            .copied()
+            .collect();
+        if kept.len() < MIN_FIXES {
+            return None;
+        }
+        let mean = fit(&kept, false, Some(spread))?;
+        let both = fit(&kept, true, Some(spread))
+            .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
+        Some(Self {
+            mean,
+            both,
+            fixes: kept.len(),
+        })
+    }
+}
+
+impl TiltFit {
+    /// Each part as far as both fits see it: the smaller of the two, with its standard error.
+    fn least(&self, other: &TiltFit) -> TiltFit {
+        let (floor_rad, floor_se_rad) = if self.floor_rad.norm() <= other.floor_rad.norm() {
+            (self.floor_rad, self.floor_se_rad)
+        } else {
+            (other.floor_rad, other.floor_se_rad)
+        };
+        let (robot_rad, robot_se_rad) = if self.robot_rad.norm() <= other.robot_rad.norm() {
+            (self.robot_rad, self.robot_se_rad)
+        } else {
+            (other.robot_rad, other.robot_se_rad)
+        };
+        TiltFit {
+            floor_rad,
+            floor_se_rad,
+            robot_rad,
+            robot_se_rad,
+        }
+    }
+}
+
 fn rotation(heading_rad: f64) -> Matrix2<f64> {
     let (s, c) = heading_rad.sin_cos();
     Matrix2::new(c, -s, s, c)
@@ -310,6 +370,9 @@ struct Sample {
     turned_rad: Vector4<f64>,
     per_tilt: Matrix4x2<f64>,
     heading_rad: f64,
+    /// Readings in `turned_rad` (the rest are zero), and the degrees of freedom they keep.
+    rows: usize,
+    dof: f64,
 }
 
 impl Sample {
@@ -352,12 +415,37 @@ impl Sample {
             turned_rad,
             per_tilt,
             heading_rad: pose.theta_rad,
+            rows: 4,
+            dof: 3.0,
         })
     }
 
-    /// RMS of the edges' turns left by `fit`, radians.
+    /// One fix read by solvePnP (IPPE_SQUARE): the tag's upward normal's floor-frame x and y.
+    fn of_pnp(
+        pose: Pose2,
+        corners_px: &[Point2<f64>; 4],
+        camera: &CameraModel,
+        floor: &FloorToCamera,
+        tag_size_m: f64,
+    ) -> Option<Self> {
+        let tag = crate::pose::pnp_tag_to_floor(camera, floor, corners_px, tag_size_m).ok()?;
+        let n = tag.rotation * nalgebra::Vector3::z();
+        // The tag faces the camera: its normal is taken pointing up.
+        let n = if n.z < 0.0 { -n } else { n };
+        let ok = n.x.is_finite() && n.y.is_finite() && pose.theta_rad.is_finite();
+        ok.then_some(Self {
+            turned_rad: Vector4::new(n.x, n.y, 0.0, 0.0),
+            per_tilt: Matrix4x2::new(1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0),
+            heading_rad: pose.theta_rad,
+            rows: 2,
+            dof: 2.0,
+        })
+    }
+
+    /// RMS of the readings left by `fit`, radians.
     fn misfit_rad(&self, fit: &TiltFit) -> f64 {
-        (self.turned_rad - self.per_tilt * fit.predict(self.heading_rad)).norm() / 2.0
+        let left = self.turned_rad - self.per_tilt * fit.predict(self.heading_rad);
+        (left.norm_squared() / self.dof).sqrt()
     }
 }
 
@@ -426,14 +514,18 @@ fn se_along(cov: &Matrix2<f64>, tilt: &Vector2<f64>) -> f64 {
     (dir.transpose() * cov * dir)[0].max(0.0).sqrt()
 }
 
-/// The edges' noise from the median absolute turn `fit` leaves, radians (each fix's four
-/// turns less their mean keep three of four degrees of freedom).
+/// The readings' noise from the median absolute residual `fit` leaves, radians (each fix's
+/// four edge turns less their mean keep three of four degrees of freedom).
 fn robust_sigma(samples: &[Sample], fit: &TiltFit) -> f64 {
     let mut r: Vec<f64> = samples
         .iter()
         .flat_map(|s| {
             let left = s.turned_rad - s.per_tilt * fit.predict(s.heading_rad);
-            left.iter().map(|v| v.abs()).collect::<Vec<_>>()
+            let scale = (s.rows as f64 / s.dof).sqrt();
+            left.iter()
+                .take(s.rows)
+                .map(|v| v.abs() * scale)
+                .collect::<Vec<_>>()
         })
         .collect();
     if r.is_empty() {
@@ -441,7 +533,7 @@ fn robust_sigma(samples: &[Sample], fit: &TiltFit) -> f64 {
     }
     r.sort_by(f64::total_cmp);
     // A floor so the weights stay finite on noiseless corners.
-    (1.4826 * r[r.len() / 2] * (4.0f64 / 3.0).sqrt()).max(1e-9)
+    (1.4826 * r[r.len() / 2]).max(1e-9)
 }
 
 #[cfg(test)]
@@ -472,6 +564,8 @@ mod tests {
                     turned_rad: per_tilt * truth.predict(th) + n,
                     per_tilt,
                     heading_rad: th,
+                    rows: 4,
+                    dof: 3.0,
                 }
             })
             .collect()
