@@ -229,7 +229,49 @@ fn bad_arena_inputs_give_one_line() {
         p(&d.join("t.csv")),
     ]);
     assert!(e.contains("odocal.arena/1"), "{e}");
+    // --camera beside --arena was ignored without a word.
+    let res = odocal(&[
+        "track",
+        "--arena",
+        p(&bogus),
+        "v0",
+        "v1",
+        "--camera",
+        p(&cam.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert_eq!(res.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&res.stderr).contains("cannot be used with"));
+    // A --shared path that is not there is named so, not blamed on its name.
+    let e = fails(&[
+        "arena",
+        "--camera",
+        p(&cam.join("camera.json")),
+        p(&copy_of_second(d, &cam)),
+        "--board",
+        "9x6",
+        "--square",
+        "0.07",
+        "--shared",
+        p(&d.join("no-such-folder")),
+        "--out",
+        p(&d.join("arena.json")),
+    ]);
+    assert!(e.contains("no-such-folder: no such file or folder"), "{e}");
     assert!(!d.join("arena.json").exists() && !d.join("t.csv").exists());
+}
+
+/// A second camera file for the arena checks: `cam`'s with its focal length changed, so
+/// the two are not one calibration.
+fn copy_of_second(d: &Path, cam: &Path) -> std::path::PathBuf {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cam.join("camera.json")).unwrap()).unwrap();
+    let fx = v["camera"]["intrinsics"]["fx"].as_f64().unwrap();
+    v["camera"]["intrinsics"]["fx"] = serde_json::json!(fx * 1.05);
+    let path = d.join("second.json");
+    std::fs::write(&path, v.to_string()).unwrap();
+    path
 }
 
 /// A small synthetic arena (four cameras, 20 frames at 960×540) in `d`, and the `odocal arena`

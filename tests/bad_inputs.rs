@@ -1095,6 +1095,26 @@ fn synth_calib_blur_is_checked() {
         ]);
         assert!(e.contains("--blur") && e.contains("0 to 20 pixels"), "{e}");
     }
+    // A narrow camera whose floor holds no whole board wrote "0 floor views" with exit 0,
+    // and its calibration had no floor for `track`.
+    let e = fails(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&d.path().join("c")),
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--views",
+        "3",
+        "--floor-views",
+        "2",
+        "--hfov",
+        "30",
+    ]);
+    assert!(e.contains("could place none of the 2 floor views"), "{e}");
+    assert!(!d.path().join("c").exists());
 }
 
 /// The simulated paths are a lab's: a square of 1e300 m ran the simulator until it gave up

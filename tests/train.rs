@@ -121,6 +121,16 @@ fn a_net_left_at_its_starting_weights_is_warned() {
             epoch == 0,
             "seed {seed}, epoch {epoch}: {stderr}"
         );
+        // `correct` with that model says so too (it took it silently).
+        let log = dir.path().join("exp/runs/run001.odometry.csv");
+        let res = common::odocal(&["correct", "--model", p(&model), p(&log)]);
+        assert!(res.status.success());
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(
+            stderr.contains("its net kept epoch 0, its random initialisation"),
+            epoch == 0,
+            "seed {seed}, epoch {epoch}: {stderr}"
+        );
         epochs.push(epoch);
     }
     assert!(epochs.contains(&0), "{epochs:?}");

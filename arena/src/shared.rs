@@ -67,8 +67,13 @@ fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>, ArenaError> {
                 .collect();
             files.sort();
             out.extend(files);
-        } else {
+        } else if p.exists() {
             out.push(p.clone());
+        } else {
+            return Err(ArenaError::Input(format!(
+                "--shared {}: no such file or folder; give the shared views' images, or the folder that holds them",
+                p.display()
+            )));
         }
     }
     Ok(out)

@@ -126,6 +126,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return correct_path(&args);
     }
     let model = ModelFile::read(&args.model)?;
+    if let Some(w) = model.untrained_warning(&args.model.display().to_string()) {
+        tell!("odocal: warning: {w}");
+    }
     let (robot, log) = robot_and_log(&args, model.robot)?;
     let run = model
         .correct_log(

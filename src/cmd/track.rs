@@ -24,7 +24,12 @@ pub struct Args {
     /// Video file (MP4/H.264, MJPG AVI, anything FFmpeg reads) or a folder of PNG/JPEG frames.
     pub video: PathBuf,
     /// camera.json with the floor plane (from `odocal calibrate`).
-    #[arg(long, required_unless_present = "arena", default_value = "none")]
+    #[arg(
+        long,
+        required_unless_present = "arena",
+        conflicts_with = "arena",
+        default_value = "none"
+    )]
     pub camera: PathBuf,
     #[command(flatten)]
     pub tag: super::tag::TagArgs,

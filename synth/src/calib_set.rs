@@ -117,6 +117,19 @@ pub fn write_calib_set(
             scene.height
         )));
     }
+    // A narrow view of the floor from the ceiling holds no whole board: a calibration from
+    // these views would have no floor, which `track` needs. (Some placed of more asked is
+    // said by the count written.)
+    if scene.floor_views > 0 && truth.floor_views.is_empty() {
+        return Err(CalibSetError::Settings(format!(
+            "could place none of the {} floor views in a {}x{} image: the floor a {}° camera sees from {} m holds no whole board there; give a wider --hfov, a smaller --square, or --floor-views 0",
+            scene.floor_views,
+            scene.width,
+            scene.height,
+            scene.hfov_deg,
+            scene.camera_height_m,
+        )));
+    }
     std::fs::create_dir_all(out).map_err(|e| CalibSetError::Write {
         path: out.display().to_string(),
         reason: e.to_string(),

@@ -164,6 +164,25 @@ impl ModelFile {
         }
     }
 
+    /// A warning when training kept a net's random initialisation (epoch 0, which `train`
+    /// named when it wrote the file): that net's corrections are no better than chance.
+    pub fn untrained_warning(&self, name: &str) -> Option<String> {
+        let forward = self.best_epoch == 0;
+        let backward = self
+            .backward_net
+            .as_ref()
+            .is_some_and(|b| b.best_epoch == 0);
+        let which = match (forward, backward, self.backward_net.is_some()) {
+            (true, true, _) | (true, false, false) => "its net",
+            (true, false, true) => "its net of runs driven forwards",
+            (false, true, _) => "its net of runs driven backwards",
+            (false, false, _) => return None,
+        };
+        Some(format!(
+            "{name}: {which} kept epoch 0, its random initialisation (no epoch of training bettered it on the validation runs): its corrections are no better than chance; train again with more runs or another --seed, and use the model when `train` no longer names epoch 0"
+        ))
+    }
+
     /// Reads model.json (see [`ModelFile::parse`]).
     pub fn read(path: &std::path::Path) -> Result<Self, TrainError> {
         let text = odocal_core::read_text(path)?;
