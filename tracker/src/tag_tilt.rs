@@ -2,14 +2,15 @@
 //! the floor plane from the camera file, so a camera turned on its mount since (or an image
 //! shifted or cropped after recording, which is the same to the mapping) moves every fix by
 //! centimetres while each fix still fits its corners. A level square on the floor the file
-//! describes is seen with edges in directions the file foretells; a plane tilted against it
-//! turns them (its raised side nearer the camera, its edges converge the other way): over a
-//! run the tilt against the calibrated floor is known to a few hundredths of a degree.
+//! describes reads level; a plane tilted against it does not: over a run the tilt against
+//! the calibrated floor is known to a few hundredths of a degree.
 //!
-//! Only the edges' directions are read, not their lengths or the square's size: a camera's
-//! tone curve or a motion smear moves each edge of the black square inward by a fraction of
-//! a pixel, which leaves every edge's direction as it was but makes a square read by its
-//! side lengths (as solvePnP reads it) tilted by degrees.
+//! Each fix's tilt is read twice, each reading with its blind spot. solvePnP weighs the
+//! square's side lengths, which a camera's tone curve or a motion smear shortens by a
+//! fraction of a pixel (edges moved inward). The directions of the four edges alone keep no
+//! such offset, but carry little of a tilt near the point under the camera, where a small
+//! bias in them (a straight run keeps every edge at one angle to the pixel grid) reads as
+//! degrees. A tilt is taken as far as both readings see it.
 //!
 //! A tag not quite flat on the robot tilts too, but its tilt turns with the robot, while a
 //! camera's stays put on the floor: each fix's tilt is fitted as a part fixed in the floor
@@ -200,7 +201,7 @@ impl TagTilt {
             self.tag_size_m * 1e3,
         );
         Some(format!(
-            "{subject} is tilted {:.2}° ± {:.3}° on the robot, lowest at {} ({} fixes' edge directions; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; give --tag-tilt {:.2},{:.2} (degrees the plate falls toward the tag's x axis, its heading, and toward its y axis) so each corner is met at its own height, or lay the tag flat on the robot ({shim})",
+            "{subject} is tilted {:.2}° ± {:.3}° on the robot, lowest at {} ({} fixes, by solvePnP and by the edges' directions; the run's turns set it apart from a tilt of the camera or floor, {:.2}°): the raised edge sits nearer the camera and moves outward in the image, which turns the tracked heading by up to {bias_deg:.2}° at the farthest fix ({:.2} m from the point under the camera) and not in its σ, while the positions hold; give --tag-tilt {:.2},{:.2} (degrees the plate falls toward the tag's x axis, its heading, and toward its y axis) so each corner is met at its own height, or lay the tag flat on the robot ({shim})",
             on_robot.norm().to_degrees(),
             self.tag_on_robot_se_rad.to_degrees(),
             lowest_edge(&on_robot),
@@ -254,12 +255,12 @@ impl TagTilt {
         };
         Some(match self.separated {
             true => format!(
-                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes' edge directions; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives; for an arena camera, then `odocal arena` again)",
+                "the tag reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame) whichever way the robot heads ({} fixes, by solvePnP and by the edges' directions; a tilt of the tag on the robot turns with it and is set apart): the camera has turned on its mount since its floor was calibrated, the image was shifted or cropped after recording, or the floor where the robot drives slopes that much against the floor calibrated; if the camera turned, {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`, the floor board where the robot drives; for an arena camera, then `odocal arena` again)",
                 self.floor_fixed_se_rad.to_degrees(),
                 self.fixes,
             ),
             false => format!(
-                "the tag{} reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes' edge directions), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot{}; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`; for an arena camera, then `odocal arena` again). A run in which the robot turns through a quarter turn or more tells the two apart",
+                "the tag{} reads tilted {tilt_deg:.2}° ± {:.3}° against the camera file's floor plane (leaning towards {towards_deg:.0}° in the floor frame; {} fixes, by solvePnP and by the edges' directions), and the run's headings do not tell a tag off flat on the robot from a camera turned since its floor was calibrated: check that the tag lies flat on the robot{}; if it does, the camera has turned and {consequence}: calibrate the floor again with the camera as it is now (`odocal calibrate --floor`; for an arena camera, then `odocal arena` again). A run in which the robot turns through a quarter turn or more tells the two apart",
                 given_clause.0,
                 self.floor_fixed_se_rad.to_degrees(),
                 self.fixes,
