@@ -127,6 +127,31 @@ pub fn line_of_byte(text: &str, byte: u64) -> u64 {
     bytes[..end].iter().filter(|&&b| b == b'\n').count() as u64 + 1
 }
 
+/// The lines of a text, for the line numbers of many byte offsets: [`line_of_byte`] counts
+/// from the start each time, which over every record of a large file is quadratic.
+pub struct LineIndex<'a> {
+    text: &'a [u8],
+    newlines: Vec<usize>,
+}
+
+impl<'a> LineIndex<'a> {
+    /// Indexes `text`'s line ends.
+    pub fn new(text: &'a str) -> Self {
+        let text = text.as_bytes();
+        let newlines = (0..text.len()).filter(|&i| text[i] == b'\n').collect();
+        Self { text, newlines }
+    }
+
+    /// [`line_of_byte`] of the indexed text.
+    pub fn line_of_byte(&self, byte: u64) -> u64 {
+        let mut end = (byte as usize).min(self.text.len());
+        while end < self.text.len() && matches!(self.text[end], b'\n' | b'\r') {
+            end += 1;
+        }
+        self.newlines.partition_point(|&i| i < end) as u64 + 1
+    }
+}
+
 /// Maps a csv crate error to a positioned parse error.
 pub fn csv_error(name: &str, e: &csv::Error) -> FileError {
     // The error carries no text to count lines in; its record's line stands.

@@ -85,6 +85,7 @@ pub fn read_truth_csv(path: &Path) -> Result<LaserTruth, LrfError> {
         path: name.clone(),
         source,
     })?;
+    let lines = odocal_core::LineIndex::new(&text);
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(text.as_bytes());
@@ -103,13 +104,13 @@ pub fn read_truth_csv(path: &Path) -> Result<LaserTruth, LrfError> {
         let rec = rec.map_err(|e| {
             err(
                 e.position()
-                    .map_or(0, |p| odocal_core::line_of_byte(&text, p.byte()) as usize),
+                    .map_or(0, |p| lines.line_of_byte(p.byte()) as usize),
                 format!("{e}"),
             )
         })?;
         let line = rec
             .position()
-            .map_or(0, |p| odocal_core::line_of_byte(&text, p.byte()) as usize);
+            .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
         let num = |c: usize| -> Result<f64, LrfError> {
             let s = rec.get(c).unwrap_or("");
             s.parse::<f64>()

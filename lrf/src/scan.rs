@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use nalgebra::{Matrix2, Point2, Rotation2, Vector2};
-use odocal_core::{line_of_byte, Pose2};
+use odocal_core::{LineIndex, Pose2};
 
 use crate::sweep::Sweep;
 use crate::LrfError;
@@ -478,6 +478,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
         column: column.to_string(),
         message,
     };
+    let lines = LineIndex::new(text);
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
@@ -506,12 +507,12 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
         let rec = rec.map_err(|e| {
             let line = e
                 .position()
-                .map_or(0, |p| line_of_byte(text, p.byte()) as usize);
+                .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
             err(line, "-", format!("malformed CSV row: {e}"))
         })?;
         let line = rec
             .position()
-            .map_or(0, |p| line_of_byte(text, p.byte()) as usize);
+            .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
         let num = |c: usize, cname: &str| -> Result<f64, LrfError> {
             let s = rec.get(c).unwrap_or("");
             s.parse::<f64>()
