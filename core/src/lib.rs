@@ -28,8 +28,7 @@ pub use natural_order::{natural_cmp, natural_path_cmp, sort_naturally};
 pub use pose::{wrap_angle, Pose2};
 pub use ray::ray_segment;
 pub use table::{
-    csv_error, csv_table, csv_table_with_header, line_of_byte, numeric_row, CsvTable, LineIndex,
-    TextFormat,
+    csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, LineIndex, TextFormat,
 };
 pub use tag_mount::{MountFit, TagToRobot, TagYawError, MAX_TAG_YAW_DEG};
 pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};

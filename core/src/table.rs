@@ -32,13 +32,14 @@ pub fn csv_table(text: &str, name: &str) -> Result<Option<CsvTable>, FileError> 
         .flexible(true)
         .trim(csv::Trim::All)
         .from_reader(uncommented.as_bytes());
+    let lines = LineIndex::new(&uncommented);
     let mut rows = Vec::new();
     for rec in rdr.records() {
         let rec = rec.map_err(|e| csv_error(name, &e))?;
         if rec.iter().all(|f| f.is_empty()) {
             continue;
         }
-        let line = rec.position().map(|p| line_of_byte(&uncommented, p.byte()));
+        let line = rec.position().map(|p| lines.line_of_byte(p.byte()));
         rows.push((line.unwrap_or(0), rec));
     }
     if rows.is_empty() {
@@ -115,20 +116,8 @@ pub fn numeric_row<const N: usize>(
     Ok(vals)
 }
 
-/// 1-based line number of the record starting at byte offset `byte` in `text` (the offset
-/// the csv crate gives can point at blank lines before the record). The csv crate's own line
-/// count runs one short after a CRLF line.
-pub fn line_of_byte(text: &str, byte: u64) -> u64 {
-    let bytes = text.as_bytes();
-    let mut end = (byte as usize).min(bytes.len());
-    while end < bytes.len() && matches!(bytes[end], b'\n' | b'\r') {
-        end += 1;
-    }
-    bytes[..end].iter().filter(|&&b| b == b'\n').count() as u64 + 1
-}
-
-/// The lines of a text, for the line numbers of many byte offsets: [`line_of_byte`] counts
-/// from the start each time, which over every record of a large file is quadratic.
+/// The lines of a text, for the 1-based line numbers of records by their byte offsets
+/// (indexed once: counting from the start for every record is quadratic in a large file).
 pub struct LineIndex<'a> {
     text: &'a [u8],
     newlines: Vec<usize>,
@@ -142,7 +131,9 @@ impl<'a> LineIndex<'a> {
         Self { text, newlines }
     }
 
-    /// [`line_of_byte`] of the indexed text.
+    /// 1-based line number of the record starting at byte offset `byte`. The offset the csv
+    /// crate gives can point at blank lines before the record, and the crate's own line count
+    /// runs one short after a CRLF line, so the line ends are counted here.
     pub fn line_of_byte(&self, byte: u64) -> u64 {
         let mut end = (byte as usize).min(self.text.len());
         while end < self.text.len() && matches!(self.text[end], b'\n' | b'\r') {
@@ -172,6 +163,11 @@ mod tests {
         assert_eq!(t.rows[0].0, 4);
         let v: [f64; 2] = numeric_row("f.csv", t.rows[0].0, &t.rows[0].1).unwrap();
         assert_eq!(v, [1.0, 2.0]);
+        // Windows line ends count as one line each, blank lines before a row too.
+        let t = csv_table("a,b\r\n1,2\r\n\r\n# c\r\n3,4\r\n", "f.csv")
+            .unwrap()
+            .unwrap();
+        assert_eq!((t.rows[0].0, t.rows[1].0), (2, 5));
         assert!(csv_table("\n# only a comment\n", "f.csv")
             .unwrap()
             .is_none());
