@@ -90,6 +90,30 @@ fn negative_numbers_are_values(cmd: clap::Command) -> clap::Command {
     .mut_subcommands(negative_numbers_are_values)
 }
 
+/// `msg` with every long number written in scientific notation: messages quote option values
+/// with `{}`, which writes 1e308 as 309 digits. Whole numbers a u64 holds (seeds) are kept.
+fn short_numbers(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(start) = rest.find(|c: char| c.is_ascii_digit()) {
+        out.push_str(&rest[..start]);
+        let len = rest[start..]
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(rest.len() - start);
+        let number = rest[start..start + len].trim_end_matches('.');
+        let digits = number.chars().filter(char::is_ascii_digit).count();
+        match number.parse::<f64>() {
+            Ok(v) if digits > 20 || (digits > 15 && number.contains('.')) => {
+                out.push_str(&format!("{v:e}"))
+            }
+            _ => out.push_str(number),
+        }
+        rest = &rest[start + number.len()..];
+    }
+    out.push_str(rest);
+    out
+}
+
 fn main() {
     // First, before any thread starts: they all inherit the blocked interrupt signals.
     output::discard_on_interrupt();
@@ -128,7 +152,25 @@ fn main() {
                 msg = format!("{msg}: {cause}");
             }
         }
-        tell!("odocal: error: {msg}");
+        tell!("odocal: error: {}", short_numbers(&msg));
         std::process::exit(2);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn long_numbers_are_shortened_and_others_kept() {
+        let long = format!("--speed-max {}: need 0 < min", 1e308);
+        assert_eq!(
+            super::short_numbers(&long),
+            "--speed-max 1e308: need 0 < min"
+        );
+        let tiny = format!("x {} s.", 1e-30);
+        assert_eq!(super::short_numbers(&tiny), "x 1e-30 s.");
+        let kept = "run001.csv:12:3: 0.25 m, 1.5e3 mm, v2.0.";
+        assert_eq!(super::short_numbers(kept), kept);
+        let seed = "--seed 18446744073709551615";
+        assert_eq!(super::short_numbers(seed), seed);
     }
 }
