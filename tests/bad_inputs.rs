@@ -216,6 +216,14 @@ fn camera_files_without_physical_sense_name_the_field() {
     let mut c = cam.clone();
     c["camera"]["intrinsics"]["fx"] = serde_json::json!(3.6);
     edits.push(("mm", c, "focal lengths are in pixels"));
+    // A focal length of 1e300 px, or fx three times fy, loaded and tracked with exit 0.
+    let mut c = cam.clone();
+    c["camera"]["intrinsics"]["fx"] = serde_json::json!(1e300);
+    edits.push(("huge", c, "fx = 1.000000e300 px gives a field of view under 0.6 degrees"));
+    let mut c = cam.clone();
+    let fy = c["camera"]["intrinsics"]["fy"].as_f64().unwrap_or(1000.0);
+    c["camera"]["intrinsics"]["fx"] = serde_json::json!(3.0 * fy);
+    edits.push(("aspect", c, "no camera's pixels are that far from square"));
     // A floor uncertainty map cut short, or of negative σ, changed every fix's σ with exit 0.
     let map = |sigma: Vec<serde_json::Value>| {
         serde_json::json!({"cell_px": 40, "cols": 32, "rows": 18, "sigma_mm": sigma,

@@ -247,6 +247,24 @@ impl CameraFile {
                 ));
             }
         }
+        // A field of view under half a degree is a telescope's, not a ceiling camera's: such
+        // a value is a typing slip or a focal length in other units (micrometres).
+        let max_f = MAX_FOCAL_SHARE * c.width.max(c.height) as f64;
+        for (field, v) in [("fx", k.fx), ("fy", k.fy)] {
+            if v > max_f {
+                return Err(format!(
+                    "camera.intrinsics.{field} = {v:.6e} px gives a field of view under 0.6 degrees on a {}x{} px image (at most {max_f:.0} px): focal lengths are in pixels (millimetres divided by the pixel pitch)",
+                    c.width, c.height
+                ));
+            }
+        }
+        // Pixels are square to within a few per cent on any camera a lab would mount.
+        if k.fx / k.fy > MAX_PIXEL_ASPECT || k.fy / k.fx > MAX_PIXEL_ASPECT {
+            return Err(format!(
+                "camera.intrinsics.fx = {} px and fy = {} px differ by more than a factor {MAX_PIXEL_ASPECT}: no camera's pixels are that far from square (was one of them edited?)",
+                k.fx, k.fy
+            ));
+        }
         for (field, v, size) in [("cx", k.cx, c.width), ("cy", k.cy, c.height)] {
             if !(v.is_finite() && v >= 0.0 && v <= size as f64) {
                 return Err(format!(
@@ -345,6 +363,13 @@ impl CameraFile {
 
 /// The smallest focal length a camera file may give, as a share of the image's larger side.
 const MIN_FOCAL_SHARE: f64 = 0.05;
+
+/// The largest focal length a camera file may give, as a share of the image's larger side
+/// (a field of view of 0.57°).
+const MAX_FOCAL_SHARE: f64 = 100.0;
+
+/// The largest ratio of fx to fy (or fy to fx) a camera file may give.
+const MAX_PIXEL_ASPECT: f64 = 2.0;
 
 /// How far from 1 the floor rotation's quaternion norm may be (hand-typed values rounded to
 /// five decimals are within 1e-5).
