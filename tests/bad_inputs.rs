@@ -219,7 +219,11 @@ fn camera_files_without_physical_sense_name_the_field() {
     // A focal length of 1e300 px, or fx three times fy, loaded and tracked with exit 0.
     let mut c = cam.clone();
     c["camera"]["intrinsics"]["fx"] = serde_json::json!(1e300);
-    edits.push(("huge", c, "fx = 1.000000e300 px gives a field of view under 0.6 degrees"));
+    edits.push((
+        "huge",
+        c,
+        "fx = 1.000000e300 px gives a field of view under 0.6 degrees",
+    ));
     let mut c = cam.clone();
     let fy = c["camera"]["intrinsics"]["fy"].as_f64().unwrap_or(1000.0);
     c["camera"]["intrinsics"]["fx"] = serde_json::json!(3.0 * fy);

@@ -1216,6 +1216,26 @@ fn a_wrong_marker_height_is_flagged_by_the_tags_apparent_size() {
         (shift_mm - true_max_mm).abs() < 0.2 * true_max_mm,
         "{err}\n{out}"
     );
+    // The camera's own height (read off its file, rounded as a user copies it) passed the
+    // range check; so would 8 (centimetres read as metres) under a 9 m camera.
+    let cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("camera.json")).unwrap()).unwrap();
+    let h = cam["floor"]["camera_height_m"].as_f64().unwrap();
+    let typed = format!("{:.1}", h - 0.02);
+    fails_with(
+        &odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--out",
+            p(&d.join("high.csv")),
+            "--marker-height",
+            &typed,
+        ]),
+        &format!("--marker-height {typed}: the marker is on the robot, 0 m or more above the floor and well below the camera: under"),
+    );
+    assert!(!d.join("high.csv").exists());
 }
 
 /// A tag mounted 10 cm ahead of the axle, 2 cm to its left and turned 90°: tracked as if it

@@ -44,6 +44,9 @@ use crate::TrackError;
 /// done anything between them).
 pub const MAX_CONTINUOUS_S: f64 = 0.5;
 
+/// The highest a marker may sit, as a share of the camera's height above the floor.
+const MAX_MARKER_SHARE: f64 = 0.8;
+
 /// Tracking settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackOptions {
@@ -121,12 +124,18 @@ impl TrackOptions {
                 self.tag_size_m
             ));
         }
-        let top = camera_height_m.unwrap_or(f64::INFINITY);
+        // A marker in the top fifth of the way up to the camera is no robot's: such a height
+        // is the camera's own typed in, or centimetres read as metres.
+        let top = camera_height_m.map_or(f64::INFINITY, |h| MAX_MARKER_SHARE * h);
         if !(self.marker_height_m >= 0.0 && self.marker_height_m < top.min(10.0)) {
             return bad(format!(
-                "--marker-height {}: the marker is on the robot, 0 m or more above the floor and below the camera{}",
+                "--marker-height {}: the marker is on the robot, 0 m or more above the floor and well below the camera{} (in metres)",
                 self.marker_height_m,
-                camera_height_m.map_or(String::new(), |h| format!(" ({h:.2} m)"))
+                camera_height_m.map_or(String::new(), |h| format!(
+                    ": under {:.2} m, {:.0} % of the camera's {h:.2} m",
+                    MAX_MARKER_SHARE * h,
+                    100.0 * MAX_MARKER_SHARE
+                ))
             ));
         }
         if !(self.max_speed_mps > 0.0 && self.max_speed_mps.is_finite()) {
