@@ -38,7 +38,7 @@ pub fn coverage_notes(camera: &CameraModel, views: &[BoardView]) -> Vec<String> 
                 .fold(f64::INFINITY, f64::min);
             (nearest > reach).then(|| {
                 format!(
-                    "no corners within {reach:.0} px of the image's {name} (nearest {nearest:.0} px away): \
+                    "warning: no corners within {reach:.0} px of the image's {name} (nearest {nearest:.0} px away): \
                      the lens model is extrapolated there; add views with the board reaching it"
                 )
             })

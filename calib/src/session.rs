@@ -95,7 +95,8 @@ impl BoardSpec {
 pub struct Session {
     /// camera.json's content.
     pub file: CameraFile,
-    /// "skipped IMAGE: reason" for every image without the board.
+    /// What the user should know, each line starting "note:" or "warning:" (\"note: skipped
+    /// IMAGE: reason\" for every image without the board).
     pub notes: Vec<String>,
 }
 
@@ -377,7 +378,7 @@ pub fn calibrate_session(
     let legacy_layout = check_layouts(views.iter())?;
     let mut notes: Vec<String> = skipped
         .iter()
-        .map(|s| format!("skipped {}: {}", s.image, s.reason))
+        .map(|s| format!("note: skipped {}: {}", s.image, s.reason))
         .collect();
     notes.extend(crate::detect::display_rotation_note(
         images.iter().chain(floor).map(PathBuf::as_path),
@@ -411,7 +412,7 @@ pub fn calibrate_session(
                     Ok(h) => h,
                     Err(e) => {
                         notes.push(format!(
-                            "no held-out error: calibrating without some of the views failed ({e}); the fit below may rest on a few decisive views"
+                            "warning: no held-out error: calibrating without some of the views failed ({e}); the fit below may rest on a few decisive views"
                         ));
                         vec![]
                     }
@@ -492,7 +493,7 @@ pub fn calibrate_session(
         notes.extend(
             fskipped
                 .iter()
-                .map(|s| format!("skipped floor view {}: {}", s.image, s.reason)),
+                .map(|s| format!("note: skipped floor view {}: {}", s.image, s.reason)),
         );
         if fviews.is_empty() {
             return Err(no_board_error(floor, board, "floor"));
@@ -522,7 +523,7 @@ pub fn calibrate_session(
         notes.extend(turned_floor_note(&fviews[0], board));
         if let [only] = fviews.as_slice() {
             notes.push(format!(
-                "the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
+                "warning: the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
                 only.image
             ));
         }
