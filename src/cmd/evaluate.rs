@@ -206,7 +206,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 error_m: r.errors_m[0],
             })
             .collect();
-        let c = Umbmark::of(&errors)?.correction(side, &robot);
+        let benchmark = Umbmark::of(&errors)?;
+        if let Some(w) = benchmark.few_squares_warning("the UMBMark calibration (E_d, E_b)") {
+            tell!("odocal: {w}");
+        }
+        let c = benchmark.correction(side, &robot);
         say!(
             "UMBMark calibration from {} squares: E_d = {:.5} (wheel diameter ratio right/left), E_b = {:.5} (wheel base factor)",
             errors.len(),
@@ -283,6 +287,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .count();
     if let Some(side) = args.umbmark_m {
         check_square_side(&ev.runs, side, &args.manifest)?;
+    }
+    if let Some(w) = ev
+        .methods
+        .first()
+        .and_then(|m| m.umbmark.as_ref())
+        .and_then(|u| u.few_squares_warning("every E_max,syst below"))
+    {
+        tell!("odocal: {w}");
     }
     let path_m: f64 = ev.runs.iter().map(|r| r.path_length_m).sum();
     say!(

@@ -13,6 +13,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::TrainError;
 
+/// Squares per direction in Borenstein's UMBMark protocol.
+pub const PROTOCOL_RUNS_PER_DIRECTION: usize = 5;
+
 /// One return-position error of a square run, metres ("true minus computed", start frame).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SquareError {
@@ -68,6 +71,19 @@ impl Umbmark {
             r_ccw_m,
             e_max_syst_m: r_cw_m.max(r_ccw_m),
             runs: [n_cw, n_ccw],
+        })
+    }
+
+    /// A warning when either direction has fewer squares than Borenstein's protocol drives:
+    /// a centre of gravity of one or two squares is mostly their random error (the start's
+    /// placement, slip on a corner), not the systematic error E_max,syst and the correction
+    /// claim to measure.
+    pub fn few_squares_warning(&self, what: &str) -> Option<String> {
+        let [cw, ccw] = self.runs;
+        (cw.min(ccw) < PROTOCOL_RUNS_PER_DIRECTION).then(|| {
+            format!(
+                "warning: {what} rests on {cw} clockwise and {ccw} counter-clockwise squares, where Borenstein's protocol drives {PROTOCOL_RUNS_PER_DIRECTION} each way: with fewer, each direction's centre of gravity carries the squares' random error (start placement, slip) as if it were systematic; drive more squares"
+            )
         })
     }
 
@@ -174,6 +190,15 @@ mod tests {
             })
             .collect();
         let u = Umbmark::of(&errors).unwrap();
+        // One square each way is named as short of the protocol; five each way are not.
+        let w = u.few_squares_warning("E").unwrap_or_default();
+        assert!(
+            w.contains("E rests on 1 clockwise and 1 counter-clockwise squares"),
+            "{w}"
+        );
+        let protocol: Vec<SquareError> = errors.iter().cycle().take(10).copied().collect();
+        let five = Umbmark::of(&protocol).unwrap();
+        assert_eq!((five.runs, five.few_squares_warning("E")), ([5, 5], None));
         let c = u.correction(side, &robot);
         let e_d_true = truth.right_wheel_diameter_m / truth.left_wheel_diameter_m;
         assert!((c.e_d - e_d_true).abs() < 1e-4, "{c:?} vs E_d {e_d_true}");
