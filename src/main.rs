@@ -119,7 +119,9 @@ fn main() {
     output::discard_on_interrupt();
     // Rust ignores SIGPIPE, so a write into a closed pipe is an error that `say!` and `tell!`
     // pass over: the command runs to its end and commits its files.
-    let matches = negative_numbers_are_values(Cli::command()).get_matches();
+    let command = negative_numbers_are_values(Cli::command());
+    output::learn_value_options(&command);
+    let matches = command.get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Synth(SynthCommand::Calib(a)) => cmd::synth_calib::run(a),

@@ -46,6 +46,7 @@ pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
     let mut i = 0;
     while i < args.len() {
         let a = &args[i];
+        let before = i.checked_sub(1).map(|b| args[b].to_string_lossy());
         i += 1;
         let text = a.to_string_lossy();
         if text == option {
@@ -61,16 +62,45 @@ pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
             _ => a.clone(),
         };
         if file_identity(Path::new(&value)).as_ref() == Some(&target) {
+            // The value of an option is named with its option (`--tum x.csv`).
+            let named = match before {
+                Some(opt) if takes_value(&opt) => format!("{opt} {text}"),
+                _ => text.into_owned(),
+            };
             return Err(FileError::content(
                 &format!("{option} {}", path.display()),
                 format!(
-                    "is the same file as the argument {}, which writing it would replace; give {option} another path",
-                    text
+                    "is the same file as the argument {named}, which writing it would replace; give {option} another path"
                 ),
             ));
         }
     }
     Ok(())
+}
+
+/// The long options of every command that take a value (`--out`, not `--pnp-check`), set
+/// once from the command line's definition.
+static VALUE_OPTIONS: std::sync::OnceLock<HashSet<String>> = std::sync::OnceLock::new();
+
+/// Records which of `cmd`'s options (and its subcommands') take a value.
+pub fn learn_value_options(cmd: &clap::Command) {
+    fn walk(cmd: &clap::Command, set: &mut HashSet<String>) {
+        for a in cmd.get_arguments() {
+            if let (Some(long), true) = (a.get_long(), a.get_action().takes_values()) {
+                set.insert(format!("--{long}"));
+            }
+        }
+        for sub in cmd.get_subcommands() {
+            walk(sub, set);
+        }
+    }
+    let mut set = HashSet::new();
+    walk(cmd, &mut set);
+    let _ = VALUE_OPTIONS.set(set);
+}
+
+fn takes_value(arg: &str) -> bool {
+    VALUE_OPTIONS.get().is_some_and(|s| s.contains(arg))
 }
 
 /// Refuses an output path that would replace a file the command reads without it being an

@@ -440,7 +440,7 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
             "--tum",
             p(&poses),
         ],
-        &["--out", "is the same file as the argument"],
+        &["--out", "is the same file as the argument --tum "],
     );
     std::fs::remove_file(&scans_copy).expect("remove");
     // A name of 254 characters works (the temporary name does not grow it).
