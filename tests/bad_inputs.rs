@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use common::{experiment_dataset, fails, odocal, ok, p};
+use common::{experiment_dataset, fails, odocal, ok, p, succeeded};
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -1127,6 +1127,29 @@ fn synth_calib_blur_is_checked() {
     ]);
     assert!(e.contains("could place none of the 2 floor views"), "{e}");
     assert!(!d.path().join("c").exists());
+    // Some placed of more asked for was said only by the count written.
+    let run = odocal(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&d.path().join("c")),
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--views",
+        "3",
+        "--floor-views",
+        "5",
+        "--hfov",
+        "35",
+    ]);
+    succeeded(&run);
+    let said = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        said.contains("warning: only 4 of the 5 floor views asked for hold a whole board"),
+        "{said}"
+    );
 }
 
 /// The simulated paths are a lab's: a square of 1e300 m ran the simulator until it gave up

@@ -109,6 +109,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let truth = write_calib_set(&a.out, &scene, a.seed)?;
     commit()?;
+    if truth.floor_views.len() < scene.floor_views {
+        tell!(
+            "odocal: warning: only {} of the {} floor views asked for hold a whole board in the {}x{} image of a {}° camera {} m up: the floor plane rests on those; give a wider --hfov or a smaller --square for all of them",
+            truth.floor_views.len(),
+            scene.floor_views,
+            a.width,
+            a.height,
+            a.hfov,
+            scene.camera_height_m
+        );
+    }
     let k = truth.camera.intrinsics;
     if scene.board.is_charuco() {
         say!(

@@ -119,7 +119,7 @@ pub fn write_calib_set(
     }
     // A narrow view of the floor from the ceiling holds no whole board: a calibration from
     // these views would have no floor, which `track` needs. (Some placed of more asked is
-    // said by the count written.)
+    // warned about by `synth calib`.)
     if scene.floor_views > 0 && truth.floor_views.is_empty() {
         return Err(CalibSetError::Settings(format!(
             "could place none of the {} floor views in a {}x{} image: the floor a {}° camera sees from {} m holds no whole board there; give a wider --hfov, a smaller --square, or --floor-views 0",
