@@ -133,6 +133,28 @@ fn several_tags_keep_the_rolling_shutter_timing() {
 fn bad_arena_inputs_give_one_line() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    // A 320x240 arena under cameras already at the 6 m maximum was told to hang them higher:
+    // its boards are too few pixels across at any height, and higher makes it worse.
+    let e = fails(&[
+        "synth",
+        "arena",
+        "--out",
+        p(&d.join("small")),
+        "--frames",
+        "2",
+        "--width",
+        "320",
+        "--height",
+        "240",
+        "--camera-height",
+        "6",
+    ]);
+    assert!(
+        e.contains("px apart even right under the camera")
+            && e.contains("give a larger image (--width, --height) or a lower --camera-height")
+            && !e.contains("higher"),
+        "{e}"
+    );
     let e = fails(&[
         "track",
         "v.mp4",

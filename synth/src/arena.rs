@@ -180,7 +180,40 @@ impl ArenaTruth {
     }
 }
 
+/// The lenses the four cameras may have, degrees across.
+const MIN_HFOV_DEG: f64 = 60.0;
+const MAX_HFOV_DEG: f64 = 110.0;
+/// The heights the cameras may hang at, metres above the floor.
+const MIN_CAMERA_HEIGHT_M: f64 = 1.5;
+const MAX_CAMERA_HEIGHT_M: f64 = 6.0;
+
 impl ArenaScene {
+    /// What to change when a board does not fit `camera`'s view: where even a board right
+    /// under the camera has its corners too close to detect, a larger image or a lower camera
+    /// (a higher one makes it worse); otherwise whichever of a wider lens and a higher camera
+    /// is still within range, or a larger image when both are at their limits.
+    fn fitting_advice(&self, camera: &CameraModel) -> String {
+        let nadir_px = camera.intrinsics.fx.min(camera.intrinsics.fy) * self.board.square_m
+            / self.camera_height_m;
+        let least_px = crate::board::min_corner_spacing_px(self.width);
+        if nadir_px < 1.2 * least_px {
+            return format!(
+                "the board's corners are {nadir_px:.1} px apart even right under the camera, and a board view needs at least {least_px:.0} px: give a larger image (--width, --height) or a lower --camera-height"
+            );
+        }
+        let mut ways = Vec::new();
+        if self.hfov_deg < MAX_HFOV_DEG {
+            ways.push("a wider --hfov");
+        }
+        if self.camera_height_m < MAX_CAMERA_HEIGHT_M {
+            ways.push("a higher --camera-height");
+        }
+        if ways.is_empty() {
+            ways.push("a larger image (--width, --height)");
+        }
+        format!("use {}", ways.join(" or "))
+    }
+
     /// Checks the settings for sense; the message names the option.
     pub fn check(&self) -> Result<(), ArenaSynthError> {
         let bad = |m: String| Err(ArenaSynthError::Settings(m));
@@ -190,15 +223,15 @@ impl ArenaScene {
                 self.width, self.height
             ));
         }
-        if !(60.0..=110.0).contains(&self.hfov_deg) {
+        if !(MIN_HFOV_DEG..=MAX_HFOV_DEG).contains(&self.hfov_deg) {
             return bad(format!(
-                "--hfov {}: the four cameras cover the arena with 60-110 degree lenses",
+                "--hfov {}: the four cameras cover the arena with {MIN_HFOV_DEG}-{MAX_HFOV_DEG} degree lenses",
                 self.hfov_deg
             ));
         }
-        if !(1.5..=6.0).contains(&self.camera_height_m) {
+        if !(MIN_CAMERA_HEIGHT_M..=MAX_CAMERA_HEIGHT_M).contains(&self.camera_height_m) {
             return bad(format!(
-                "--camera-height {}: 1.5 to 6 m above the floor",
+                "--camera-height {}: {MIN_CAMERA_HEIGHT_M} to {MAX_CAMERA_HEIGHT_M} m above the floor",
                 self.camera_height_m
             ));
         }
@@ -572,7 +605,8 @@ pub fn write_arena(
         }
         if cam.floor_views.is_empty() {
             return Err(ArenaSynthError::Settings(format!(
-                "camera {k}: no floor board fits its view; use a wider --hfov or a higher camera"
+                "camera {k}: no floor board fits its view; {}",
+                scene.fitting_advice(&cam.camera)
             )));
         }
     }
@@ -580,7 +614,8 @@ pub fn write_arena(
     for k in 0..4 {
         if !truth.shared.iter().any(|s| s.cameras.contains(&k)) {
             return Err(ArenaSynthError::Settings(format!(
-                "camera {k} sees no shared board: the cameras do not overlap enough; use a wider --hfov or a higher camera"
+                "camera {k} sees no shared board: the cameras do not overlap enough; {}",
+                scene.fitting_advice(&truth.cameras[k].camera)
             )));
         }
     }
