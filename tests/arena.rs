@@ -177,6 +177,32 @@ fn bad_arena_inputs_give_one_line() {
         p(&d.join("t.csv")),
     ]);
     assert!(e.contains("given twice"), "{e}");
+    // Without --arena a second video (even one not there) and the arena's outputs were
+    // dropped unsaid, exit 0.
+    for (extra, needle) in [
+        (
+            vec!["/no/such/video.avi"],
+            "a second video is an arena camera's, and needs --arena",
+        ),
+        (
+            vec!["--arena-report", "r.json"],
+            "--arena-report is for an arena's cameras and needs --arena",
+        ),
+        (
+            vec!["--arena-truth", "t"],
+            "--arena-truth is for an arena's cameras",
+        ),
+        (
+            vec!["--max-clock-offset-s", "5"],
+            "--max-clock-offset-s is for an arena's cameras",
+        ),
+    ] {
+        let out = d.join("t.csv");
+        let mut args = vec!["track", "v.mp4", "--camera", "c.json", "--out", p(&out)];
+        args.extend(extra);
+        let e = fails(&args);
+        assert!(e.contains(needle), "{e}");
+    }
     // --tag-id beside --tags used to be ignored.
     let res = odocal(&[
         "track",

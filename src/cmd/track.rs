@@ -299,6 +299,7 @@ fn one_tag_of_tags(args: &mut Args) -> anyhow::Result<()> {
 
 /// Runs the subcommand.
 pub fn run(mut args: Args) -> anyhow::Result<()> {
+    args.multi.check_arena_options()?;
     one_tag_of_tags(&mut args)?;
     if args.multi.wanted() {
         return super::track_arena::run(args);

@@ -22,6 +22,9 @@ use crate::output::{
     check_output_file, check_output_not_input, commit, progress, write_atomic, write_json,
 };
 
+/// The clock offset between two arena cameras searched unless told, seconds either way.
+const DEFAULT_MAX_CLOCK_OFFSET_S: f64 = 1.0;
+
 /// The options of `odocal track` for several robots and several cameras.
 #[derive(clap::Args)]
 pub struct MultiArgs {
@@ -50,11 +53,38 @@ pub struct MultiArgs {
     /// With --arena: the largest clock offset between two cameras searched, seconds (either
     /// way). Cameras started together are milliseconds apart; cameras started by hand can be
     /// seconds apart (the search takes longer the wider it is).
-    #[arg(long, requires = "arena", default_value_t = 1.0)]
+    #[arg(long, requires = "arena", default_value_t = DEFAULT_MAX_CLOCK_OFFSET_S)]
     pub max_clock_offset_s: f64,
 }
 
 impl MultiArgs {
+    /// Refuses the arena's options without `--arena` (clap's `requires` does not hold them
+    /// beside `--camera`): a second video or an arena report would be dropped unsaid.
+    pub fn check_arena_options(&self) -> anyhow::Result<()> {
+        if self.arena.is_some() {
+            return Ok(());
+        }
+        if let Some(v) = self.more_videos.first() {
+            anyhow::bail!(
+                "{}: a second video is an arena camera's, and needs --arena arena.json (the cameras in its order); without it odocal tracks one video: run track once per video",
+                v.display()
+            );
+        }
+        for (given, flag) in [
+            (self.arena_report.is_some(), "--arena-report"),
+            (self.arena_truth.is_some(), "--arena-truth"),
+            (
+                self.max_clock_offset_s != DEFAULT_MAX_CLOCK_OFFSET_S,
+                "--max-clock-offset-s",
+            ),
+        ] {
+            if given {
+                anyhow::bail!("{flag} is for an arena's cameras and needs --arena arena.json");
+            }
+        }
+        Ok(())
+    }
+
     /// Whether this run tracks several tags or several cameras.
     pub fn wanted(&self) -> bool {
         self.tags.is_some() || self.arena.is_some()
