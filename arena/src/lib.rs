@@ -37,7 +37,7 @@ pub use graph::{
     build_arena, height_warnings, shared_residual_warnings, solve_arena, ArenaSolution, Renumbered,
     SharedObservation, REFUSE_RMS_MM,
 };
-pub use shared::{detect_shared, parse_shared_name, SharedView};
+pub use shared::{check_board_scale, detect_shared, parse_shared_name, SharedView};
 pub use track::{
     camera_tracks, check_frame_folders, clock_priors, frame_period_s, fuse_all, track_camera,
     track_cameras, ArenaTracking, CameraResult,

@@ -202,3 +202,45 @@ mod tests {
         }
     }
 }
+
+/// How far a camera's height above a shared board may differ from its calibrated height
+/// above the floor before the board's square is taken for the wrong size (a board lying on
+/// the floor puts the camera at its floor height; a wrong `--square` scales it).
+const SCALE_TOLERANCE: f64 = 0.15;
+
+/// Refuses a board side that the shared views contradict, before the arena is solved (whose
+/// search with a wrong side takes minutes, then fails as if cameras were out of place): the
+/// first view of each camera with a calibrated floor, located with `board`, puts the camera at
+/// its floor height only when the side is right.
+pub fn check_board_scale(
+    files: &[odocal_calib::CameraFile],
+    shared: &[SharedView],
+    board: &BoardSpec,
+) -> Result<(), ArenaError> {
+    for (k, file) in files.iter().enumerate() {
+        let Some(floor) = &file.floor else { continue };
+        let Some(view) = shared
+            .iter()
+            .find_map(|s| s.views.iter().find(|(c, _)| *c == k).map(|(_, v)| v))
+        else {
+            continue;
+        };
+        let Ok(pose) = odocal_calib::board_pose(&file.camera, view, board) else {
+            continue;
+        };
+        // The camera's distance from the board's plane, in the board's frame.
+        let above_m = pose.0.inverse().translation.vector.z.abs();
+        let ratio = above_m / floor.camera_height_m;
+        if (ratio - 1.0).abs() > SCALE_TOLERANCE {
+            return Err(ArenaError::Input(format!(
+                "{}: with squares of {} m the board puts camera {k} {above_m:.2} m above it, where its calibration's floor puts it {:.2} m up; a board on the floor with those corners has squares of {:.3} m: give --square {:.3} (or leave --square out if the shared board is the one the cameras were calibrated with)",
+                view.image,
+                board.square_m,
+                floor.camera_height_m,
+                board.square_m / ratio,
+                board.square_m / ratio
+            )));
+        }
+    }
+    Ok(())
+}

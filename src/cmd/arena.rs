@@ -4,7 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use odocal_arena::{build_arena, detect_shared, height_warnings, shared_residual_warnings};
+use odocal_arena::{
+    build_arena, check_board_scale, detect_shared, height_warnings, shared_residual_warnings,
+};
 use odocal_calib::{BoardSpec, CameraFile};
 
 use crate::output::{check_output_file, check_output_not_in_folder, commit, write_json};
@@ -73,6 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for n in &notes {
         tell!("{n}");
     }
+    check_board_scale(&files, &shared, &board)?;
     let paths: Vec<&Path> = args.camera.iter().map(|p| p.as_path()).collect();
     // A board side other than the one the cameras were calibrated with scales every shared
     // board's distance: the failure reads as cameras or views out of place, so the side is
