@@ -1181,3 +1181,47 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
         "{e}"
     );
 }
+
+/// A robot.json whose wheel base is twice the robot's went through `dataset` and `train`
+/// with exit 0 and no word (the fit made it 102 mm of the 200 mm given): the fit's base is
+/// named against the file's. The right robot.json says nothing.
+#[test]
+fn a_robot_file_unlike_the_fitted_wheels_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, tours) = small_path_model(dir.path());
+    let robot = dir.path().join("robot.json");
+    std::fs::write(
+        &robot,
+        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":12,"wheel_base_m":0.2,"period_s":0.2}"#,
+    )
+    .unwrap();
+    let windows = dir.path().join("w2.json");
+    ok(&[
+        "dataset",
+        "--manifest",
+        p(&tours.join("manifest.json")),
+        "--layout",
+        "windows",
+        "--robot",
+        p(&robot),
+        "--out",
+        p(&windows),
+    ]);
+    let train = |w: &std::path::Path, out: &str| {
+        let res = odocal(&["train", p(w), "--out", p(&dir.path().join(out))]);
+        succeeded(&res);
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    let e = train(&windows, "m2.json");
+    let share: f64 = e
+        .split("the kinematic fit gives a wheel base of ")
+        .nth(1)
+        .and_then(|s| s.split(" mm, ").nth(1))
+        .and_then(|s| s.split(" %").next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no wheel base named in {e}"));
+    assert!((45.0..=56.0).contains(&share), "{e}");
+    assert!(e.contains("robot.json's wheel_base_m 200.00 mm"), "{e}");
+    let e = train(&dir.path().join("windows.json"), "m1.json");
+    assert!(!e.contains("kinematic fit gives"), "{e}");
+}

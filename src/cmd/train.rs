@@ -199,6 +199,9 @@ fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
         );
     }
     let g = &model.kinematic_fit;
+    if let Some(w) = odocal_trainer::baseline::unlike_nominal_warning(g, &ds.robot, true) {
+        tell!("odocal: warning: {w}");
+    }
     say!(
         "kinematic fit: left wheel {:.3} mm, right wheel {:.3} mm, wheel base {:.2} mm (nominal {:.3} mm, {:.2} mm)",
         1e3 * g.left_wheel_diameter_m,

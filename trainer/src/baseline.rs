@@ -75,6 +75,69 @@ const WHEEL_BASE_PRIOR_M: f64 = 10.0;
 /// contact points change diameters and base by percents, not by a factor of 2.
 pub const PLAUSIBLE_MULTIPLIER: std::ops::RangeInclusive<f64> = 0.5..=2.0;
 
+/// How far a fitted wheel diameter may be from robot.json's before robot.json is doubted:
+/// tyres wear and squash by percents.
+const NOMINAL_DIAMETER_SHARE: std::ops::RangeInclusive<f64> = 0.9..=1.1;
+
+/// How far a fitted wheel base may be from robot.json's before robot.json is doubted: the
+/// tyres' contact and skid move the effective base outward, up to about half again.
+const NOMINAL_BASE_SHARE: std::ops::RangeInclusive<f64> = 0.8..=1.6;
+
+/// A warning when a kinematic fit's effective geometry is unlike robot.json's nominal one by
+/// more than wear, tyres and skid explain (diameters off by over 10 %, a base under 0.8 or over
+/// 1.6 times): within [`PLAUSIBLE_MULTIPLIER`] the fit absorbs it, but a robot.json measured
+/// that badly (or another robot's) misstates the raw odometry every figure is judged against.
+/// `base_fitted` is false where the runs hold too few turns to fit a base (straight runs).
+pub fn unlike_nominal_warning(
+    fitted: &WheelGeometry,
+    robot: &RobotParams,
+    base_fitted: bool,
+) -> Option<String> {
+    let mut off = Vec::new();
+    for (name, fitted_m, nominal_m, range, field) in [
+        (
+            "left wheel diameter",
+            fitted.left_wheel_diameter_m,
+            robot.wheel_diameter_m,
+            &NOMINAL_DIAMETER_SHARE,
+            "wheel_diameter_m",
+        ),
+        (
+            "right wheel diameter",
+            fitted.right_wheel_diameter_m,
+            robot.wheel_diameter_m,
+            &NOMINAL_DIAMETER_SHARE,
+            "wheel_diameter_m",
+        ),
+        (
+            "wheel base",
+            fitted.wheel_base_m,
+            robot.wheel_base_m,
+            &NOMINAL_BASE_SHARE,
+            "wheel_base_m",
+        ),
+    ] {
+        if name == "wheel base" && !base_fitted {
+            continue;
+        }
+        let share = fitted_m / nominal_m;
+        if !range.contains(&share) {
+            off.push(format!(
+                "a {name} of {:.2} mm, {:.0} % of robot.json's {field} {:.2} mm",
+                1e3 * fitted_m,
+                100.0 * share,
+                1e3 * nominal_m
+            ));
+        }
+    }
+    (!off.is_empty()).then(|| {
+        format!(
+            "the kinematic fit gives {}: real wheels are within 10 % of their measured diameter and an effective base within 0.8-1.6 times the distance between the wheels' contact points; measure the robot again (or is robot.json another robot's?): the model absorbs the difference, but the raw odometry every figure is judged against is then not this robot's",
+            off.join(" and ")
+        )
+    })
+}
+
 /// Numerical Jacobian (central differences) of a residual function of 3 parameters.
 fn numeric_jacobian(f: &dyn Fn(&[f64; 3]) -> Vec<f64>, p: &[f64; 3]) -> LmMatrix {
     let m = f(p).len();

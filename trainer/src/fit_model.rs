@@ -138,6 +138,16 @@ pub fn fit_model(
     let kin = KinematicCalibration::fit(&all, &ds.robot).ok();
     if let Some(k) = &kin {
         k.check_physical()?;
+        let r = &k.ros;
+        let fitted = odocal_dataset::WheelGeometry {
+            left_wheel_diameter_m: r.left_wheel_radius_multiplier * ds.robot.wheel_diameter_m,
+            right_wheel_diameter_m: r.right_wheel_radius_multiplier * ds.robot.wheel_diameter_m,
+            wheel_base_m: r.wheel_separation_multiplier * ds.robot.wheel_base_m,
+        };
+        // Straight runs do not fit a wheel base (a prior holds it near nominal).
+        warnings.extend(crate::baseline::unlike_nominal_warning(
+            &fitted, &ds.robot, false,
+        ));
     }
     let metrics = ModelMetrics {
         train: train_metrics,
