@@ -134,6 +134,39 @@ fn a_net_left_at_its_starting_weights_is_warned() {
         epochs.push(epoch);
     }
     assert!(epochs.contains(&0), "{epochs:?}");
+    // A model without its domain block corrected any log silently; one whose output bias was
+    // edited put a 1.5 m run's end 9 km away, exit 0.
+    let log = dir.path().join("exp/runs/run001.odometry.csv");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).expect("model")).expect("json");
+    let mut bare = m.clone();
+    bare.as_object_mut().expect("object").remove("domain");
+    let bare_path = dir.path().join("bare.json");
+    std::fs::write(&bare_path, bare.to_string()).expect("write");
+    let res = common::odocal(&["correct", "--model", p(&bare_path), p(&log)]);
+    assert!(res.status.success());
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        stderr.contains("bare.json carries no training domain"),
+        "{stderr}"
+    );
+    let mut far = m;
+    far["weights"]["b2"][0] = serde_json::json!(1e6);
+    let far_path = dir.path().join("far.json");
+    std::fs::write(&far_path, far.to_string()).expect("write");
+    // (The model may also be named as kept at epoch 0, on the line before.)
+    let res = common::odocal(&["correct", "--model", p(&far_path), p(&log)]);
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{e}");
+    assert!(
+        e.lines()
+            .last()
+            .unwrap_or_default()
+            .starts_with("odocal: error: ")
+            && e.contains("far.json: the model puts the corrected end")
+            && e.contains("its weights are damaged or edited"),
+        "{e}"
+    );
 }
 
 /// `train --sweep` over several sizes: Table 2's perceptron row has k chosen per outer fold

@@ -99,6 +99,11 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
         .map_err(|e| blame(e, args))?;
     warn_outside_domain(&run.outside_domain);
     let (raw, corrected) = run.ends();
+    check_reach(
+        corrected.x_m.hypot(corrected.y_m),
+        run.path_length_m,
+        &args.model,
+    )?;
     say!(
         "raw odometry end: x {:.4} m, y {:.4} m, heading {:.2} deg; corrected end: x {:.4} m, y {:.4} m, heading {:.2} deg (start frame; correction {:.2} cm over {:.3} m of wheel travel)",
         raw.x_m,
@@ -111,6 +116,20 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
         run.path_length_m
     );
     write_track(args, run.to_csv())
+}
+
+/// Refuses a corrected end farther from the start than the wheels could have carried the
+/// robot (their travel, half again for slip and a wheel's error, and 5 cm): no correction
+/// of a real robot does that, only a damaged or edited model.
+fn check_reach(end_m: f64, path_length_m: f64, model: &std::path::Path) -> anyhow::Result<()> {
+    let reach_m = 1.5 * path_length_m + 0.05;
+    if end_m.is_finite() && end_m <= reach_m {
+        return Ok(());
+    }
+    anyhow::bail!(
+        "{}: the model puts the corrected end {end_m:.3} m from the start after {path_length_m:.3} m of wheel travel, farther than any robot gets on it ({reach_m:.3} m at most): its weights are damaged or edited; train it again",
+        model.display()
+    )
 }
 
 /// Runs the subcommand.
@@ -126,7 +145,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return correct_path(&args);
     }
     let model = ModelFile::read(&args.model)?;
-    if let Some(w) = model.untrained_warning(&args.model.display().to_string()) {
+    let name = args.model.display().to_string();
+    for w in [
+        model.untrained_warning(&name),
+        model.no_domain_warning(&name),
+    ]
+    .into_iter()
+    .flatten()
+    {
         tell!("odocal: warning: {w}");
     }
     let (robot, log) = robot_and_log(&args, model.robot)?;
@@ -140,6 +166,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map_err(|e| blame(e, &args))?;
     let (raw, corrected) = (run.raw_end_m, run.corrected_end_m);
     warn_outside_domain(&run.outside_domain);
+    check_reach(
+        corrected[0].hypot(corrected[1]),
+        run.path_length_m,
+        &args.model,
+    )?;
     say!(
         "raw odometry end: x {:.4} m, y {:.4} m; corrected end: x {:.4} m, y {:.4} m (start frame; correction {:.2} cm over {:.3} m of odometry)",
         raw[0],

@@ -164,6 +164,13 @@ impl ModelFile {
         }
     }
 
+    /// A warning when the file carries no training domain: logs outside it cannot be named.
+    pub fn no_domain_warning(&self, name: &str) -> Option<String> {
+        self.domain.is_none().then(|| format!(
+            "{name} carries no training domain (written by an older odocal, or edited): a log unlike the runs it was trained on (driven backwards, longer, faster) is corrected without being named as outside it; train it again to have such logs named"
+        ))
+    }
+
     /// A warning when training kept a net's random initialisation (epoch 0, which `train`
     /// named when it wrote the file): that net's corrections are no better than chance.
     pub fn untrained_warning(&self, name: &str) -> Option<String> {
