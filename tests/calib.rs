@@ -438,6 +438,27 @@ fn hand_held_view_passed_as_floor_is_refused() {
         err.contains("the floor rests on one board") && err.contains("view_03.png"),
         "{err}"
     );
+    // A board held 39° from level (view_05) was taken as the floor with exit 0 and "floor
+    // mapped within 2 mm": the camera is said to look far from down. (view_03's 11° passes
+    // as a camera hung a little off level.)
+    let steep = images(dir.path(), "view_05");
+    let res = calibrate_floor(dir.path(), &out, &[steep[0].as_str()]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    let tilt = err
+        .split("by the floor views the camera looks ")
+        .nth(1)
+        .and_then(|s| s.split('°').next())
+        .and_then(|s| s.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("no tilt named in {err}"));
+    assert!(
+        tilt > 30.0 && err.contains("one board alone sets the floor"),
+        "{err}"
+    );
+    // Two boards lying on the floor say nothing of it.
+    let res = calibrate_floor(dir.path(), &out, &[floors[0].as_str(), floors[1].as_str()]);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(!err.contains("away from straight down"), "{err}");
 }
 
 /// Views from two cameras of one resolution (a 70° and a 110° lens) calibrate to no camera

@@ -123,6 +123,10 @@ impl ModelChoice {
     }
 }
 
+/// The largest angle between a ceiling camera's axis and straight down that passes unwarned,
+/// degrees.
+const MAX_CEILING_TILT_DEG: f64 = 30.0;
+
 /// Heights above the floor a ceiling camera over small robots can plausibly have, metres;
 /// outside them the board's square size is more likely wrong than the camera.
 pub(crate) const CEILING_HEIGHT_M: std::ops::RangeInclusive<f64> = 0.5..=10.0;
@@ -512,12 +516,26 @@ pub fn calibrate_session(
             cal.rms_px,
         )?);
         if !CEILING_HEIGHT_M.contains(&plane.camera_height_m) {
+            let high = plane.camera_height_m > *CEILING_HEIGHT_M.end();
             notes.push(format!(
-                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is --square {} the side of one square in metres? (a square 10 times too large makes every floor distance 10 times too large)",
+                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is --square {} the side of one square in metres? (a square 10 times too {} makes every floor distance 10 times too {})",
                 plane.camera_height_m,
                 CEILING_HEIGHT_M.start(),
                 CEILING_HEIGHT_M.end(),
-                board.square_m
+                board.square_m,
+                if high { "large" } else { "small" },
+                if high { "large" } else { "small" },
+            ));
+        }
+        // A ceiling camera looks nearly straight down; a floor 30° or more off its axis is a
+        // camera on a wall, or a floor view of a board that was not lying on the floor.
+        let up_in_camera = plane.floor_to_camera.0.rotation * nalgebra::Vector3::z();
+        let tilt_deg = up_in_camera.z.abs().min(1.0).acos().to_degrees();
+        if tilt_deg > MAX_CEILING_TILT_DEG {
+            notes.push(format!(
+                "warning: by the floor views the camera looks {tilt_deg:.0}° away from straight down (a ceiling camera looks within {MAX_CEILING_TILT_DEG:.0}° of it){}: if it hangs level, {} not lying flat on the floor (held by hand, or a calibration view given as a floor view), and every floor position is wrong by up to metres; give --floor only photographs of a board lying on the floor",
+                if fviews.len() == 1 { ", and one board alone sets the floor" } else { "" },
+                if fviews.len() == 1 { "the floor board was" } else { "the floor boards were" }
             ));
         }
         notes.extend(turned_floor_note(&fviews[0], board));
