@@ -114,6 +114,41 @@ fn short_numbers(msg: &str) -> String {
     out
 }
 
+/// `msg` with every quoted text of more than [`LONGEST_QUOTE`] characters cut short: errors
+/// quote what they read (a header, a field), which in a file of the wrong kind can be a
+/// whole binary line.
+fn short_quotes(msg: &str) -> String {
+    let parts: Vec<&str> = msg.split('"').collect();
+    let cut = parts
+        .iter()
+        .enumerate()
+        .map(|(i, part)| {
+            let quoted = i % 2 == 1 && i + 1 < parts.len();
+            let n = part.chars().count();
+            if quoted && n > LONGEST_QUOTE {
+                let head: String = part.chars().take(LONGEST_QUOTE / 2).collect();
+                format!("{head}… ({n} characters)")
+            } else {
+                (*part).to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\"");
+    // Quotes inside the quoted text itself can pair up wrongly: the whole is bounded too.
+    let n = cut.chars().count();
+    if n > LONGEST_MESSAGE {
+        let head: String = cut.chars().take(LONGEST_MESSAGE).collect();
+        return format!("{head}… (cut at {LONGEST_MESSAGE} of {n} characters)");
+    }
+    cut
+}
+
+/// The most characters of an error message shown.
+const LONGEST_MESSAGE: usize = 3000;
+
+/// The most characters of a quoted text an error shows.
+const LONGEST_QUOTE: usize = 120;
+
 fn main() {
     // First, before any thread starts: they all inherit the blocked interrupt signals.
     output::discard_on_interrupt();
@@ -154,7 +189,7 @@ fn main() {
                 msg = format!("{msg}: {cause}");
             }
         }
-        tell!("odocal: error: {}", short_numbers(&msg));
+        tell!("odocal: error: {}", short_quotes(&short_numbers(&msg)));
         std::process::exit(2);
     }
 }
@@ -162,7 +197,7 @@ fn main() {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn long_numbers_are_shortened_and_others_kept() {
+    fn long_numbers_and_quotes_are_shortened_and_others_kept() {
         let long = format!("--speed-max {}: need 0 < min", 1e308);
         assert_eq!(
             super::short_numbers(&long),
@@ -172,6 +207,18 @@ mod tests {
         assert_eq!(super::short_numbers(&tiny), "x 1e-30 s.");
         let kept = "run001.csv:12:3: 0.25 m, 1.5e3 mm, v2.0.";
         assert_eq!(super::short_numbers(kept), kept);
+        let long = format!("f.csv:1:1: header is \"{}\", not \"t\"", "x".repeat(500));
+        let cut = super::short_quotes(&long);
+        assert_eq!(
+            cut,
+            format!(
+                "f.csv:1:1: header is \"{}… (500 characters)\", not \"t\"",
+                "x".repeat(60)
+            )
+        );
+        assert_eq!(super::short_quotes("an \"odd quote"), "an \"odd quote");
+        let unpaired = format!("\"a\"b\"{}", "y".repeat(5000));
+        assert!(super::short_quotes(&unpaired).ends_with("(cut at 3000 of 5005 characters)"));
         let seed = "--seed 18446744073709551615";
         assert_eq!(super::short_numbers(seed), seed);
     }
