@@ -290,12 +290,32 @@ fn laser_options_and_scan_times_are_checked() {
         ("--max-range-m", "-5", "--max-range-m"),
         ("--sigma-range-m", "-1", "--sigma-range-m"),
         ("--intensity-min", "NaN", "--intensity-min"),
+        // 240° typed in radians was taken (the scans' own angles span 240°).
+        (
+            "--fov-deg",
+            "4.18",
+            "--fov-deg 4.18: the scans' beams span 239.",
+        ),
+        ("--fov-deg", "4.18", "(if 4.18 is in radians, it is 239.5°)"),
     ] {
         let mut args = base.to_vec();
         let arg = format!("{opt}={v}");
         args.push(&arg);
         refused(dir, &args, &[needle]);
     }
+    // A range too short for the room was put as a unit mistake ("if these are centimetres,
+    // 2.882 is 0.029 m"). (The map's landmarks are named as isolated at that range first.)
+    let mut args = base.to_vec();
+    args.push("--max-range-m=1");
+    let res = odocal(&args);
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{e}");
+    assert!(
+        e.lines().last().unwrap_or_default().contains(
+            "median range is 2.808 m, beyond twice --max-range-m 1 m, so most returns would be dropped"
+        ) && !e.contains("centimetres"),
+        "{e}"
+    );
     refused(
         dir,
         &["lrf", "check-map", p(&map), "--max-range-m=-1"],

@@ -36,8 +36,9 @@ pub use eval::{
     CORRECT_POS_M,
 };
 pub use localize::{
-    check_beam_step, check_intensity_scale, check_range_unit, check_scan_times, drop_beyond_range,
-    localize_scans, read_scan_files, Localized, MovedLandmark, ScanFiles, Skewed,
+    check_beam_step, check_fov, check_intensity_scale, check_range_unit, check_scan_times,
+    drop_beyond_range, localize_scans, read_scan_files, Localized, MovedLandmark, ScanFiles,
+    Skewed,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};

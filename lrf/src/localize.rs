@@ -270,18 +270,60 @@ pub fn check_range_unit(scans: &[Scan], max_range_m: f64) -> Result<(), LrfError
     ranges.sort_by(f64::total_cmp);
     let median = ranges[ranges.len() / 2];
     if median > 2.0 * max_range_m {
-        // The unit that brings the median inside the scanner's range is the likely one.
+        // The unit that brings the median inside the scanner's range is the likely one; a
+        // median that no unit makes a room's distance is a --max-range-m too short.
         let (unit, per_m) = if median / 100.0 <= max_range_m {
             ("centimetres", 100.0)
         } else {
             ("millimetres", 1000.0)
         };
+        let in_unit_m = median / per_m;
+        if in_unit_m < MIN_MEDIAN_RANGE_M {
+            return Err(LrfError::Config(format!(
+                "the scans' median range is {median:.3} m, beyond twice --max-range-m {max_range_m} m, so most returns would be dropped as out of range: give the scanner's real --max-range-m (its data sheet's range)"
+            )));
+        }
         return Err(LrfError::Config(format!(
-            "the scans' median range is {median:.3} against --max-range-m {max_range_m} m: ranges are in metres (if these are {unit}, {median:.3} is {:.3} m); give ranges in metres, or the scanner's real --max-range-m",
-            median / per_m
+            "the scans' median range is {median:.3} (read as metres) against --max-range-m {max_range_m} m: ranges are in metres (if these are {unit}, {median:.3} is {in_unit_m:.3} m); give ranges in metres, or the scanner's real --max-range-m"
         )));
     }
     Ok(())
+}
+
+/// The shortest median range a scan of a room has, metres: a unit that makes the median
+/// shorter is not the scans' unit.
+const MIN_MEDIAN_RANGE_M: f64 = 0.2;
+
+/// Refuses a field of view the scans' beams exceed (by more than a beam step): the view's
+/// edges decide which landmarks a scan should have seen, and `--fov-deg 4.19` (240° typed in
+/// radians) was taken with a 240° scan.
+pub fn check_fov(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> {
+    let widest = scans
+        .iter()
+        .filter(|s| s.angles_rad.len() > 1)
+        .map(|s| {
+            let span = (s.angles_rad[s.angles_rad.len() - 1] - s.angles_rad[0]).abs();
+            (span, span / (s.angles_rad.len() - 1) as f64)
+        })
+        .fold((0.0, 0.0), |a: (f64, f64), b| if b.0 > a.0 { b } else { a });
+    let (span_rad, step_rad) = widest;
+    if span_rad <= sensor.fov_rad + 1.5 * step_rad {
+        return Ok(());
+    }
+    let fov_deg = sensor.fov_rad.to_degrees();
+    let as_radians = if fov_deg <= std::f64::consts::TAU {
+        format!(
+            " (if {fov_deg} is in radians, it is {:.1}°)",
+            fov_deg.to_degrees()
+        )
+    } else {
+        String::new()
+    };
+    Err(LrfError::Config(format!(
+        "--fov-deg {fov_deg}: the scans' beams span {:.1}°, wider than the field of view given{as_radians}; give the scanner's field of view in degrees, --fov-deg {:.0}",
+        span_rad.to_degrees(),
+        (span_rad + step_rad).to_degrees()
+    )))
 }
 
 /// Turns every range at or beyond the scanner's `max_range_m` into 0, "no return": ROS's

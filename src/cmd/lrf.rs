@@ -5,10 +5,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 use odocal_lrf::{
-    check_beam_step, check_intensity_scale, check_map_report, check_range_unit, check_scan_times,
-    drop_beyond_range, evaluate, layout_repeats, localize_scans, read_scan_files, read_truth_csv,
-    Localized, Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status,
-    DEFAULT_TOLERANCE_M,
+    check_beam_step, check_fov, check_intensity_scale, check_map_report, check_range_unit,
+    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans, read_scan_files,
+    read_truth_csv, Localized, Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed,
+    Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, commit, progress, write_atomic};
@@ -180,6 +180,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         cfg.sensor.step_rad = step;
     }
     cfg.sensor.check()?;
+    check_fov(&scans, &cfg.sensor)?;
     check_intensity_scale(&scans, &cfg.sensor)?;
     let loc = Localizer::new(map, cfg);
     if let Some(w) = check_beam_step(&loc, &scans) {
