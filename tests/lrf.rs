@@ -728,6 +728,12 @@ fn cli_check_map_flags_the_symmetric_layout() {
     println!("{text}");
     assert!(out.status.success());
     assert!(text.contains("verdict: AMBIGUOUS"), "{text}");
+    // Said on stderr as a warning too (it was only a stdout line, exit 0).
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("warning: ") && err.contains("map.json: AMBIGUOUS layout ("),
+        "{err}"
+    );
     let rnd = d.join("rnd");
     assert!(odocal(&["synth", "lrf", "--out", s(&rnd), "--scans", "1"])
         .status
@@ -740,6 +746,7 @@ fn cli_check_map_flags_the_symmetric_layout() {
         text.contains("verdict: no congruent configuration"),
         "{text}"
     );
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("AMBIGUOUS"));
 }
 
 /// Runs odocal expecting exit code 2 and a one-line error containing `want`.

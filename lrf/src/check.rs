@@ -220,7 +220,7 @@ pub fn check_map_report(
         find_ambiguities_within(map, tolerance_m, max_range_m, min_size, CHECK_BUDGET);
     if !complete {
         return Err(LrfError::Config(format!(
-            "{name}: the ambiguity search stopped after {CHECK_BUDGET} candidate matches with {} ambiguous configurations found: the layout repeats itself (a regular lattice?) and cannot give unambiguous poses; break the symmetry by moving some reflectors",
+            "{name}: the ambiguity search stopped after {CHECK_BUDGET} candidate matches with {} ambiguous configurations found: the layout repeats itself within {tolerance_m} m (a regular lattice, or so many reflectors that groups of them match others by chance) and a scan seeing only such a group cannot be placed without motion; break the symmetry by moving some reflectors, or judge it with a smaller --tolerance-m if the reflectors are surveyed more finely",
             amb.len()
         )));
     }

@@ -100,6 +100,11 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
     let name = a.map.display().to_string();
     for line in check_map_report(&map, &name, a.tolerance_m, a.max_range_m, a.min_size)? {
         say!("{line}");
+        // The verdict is the report's last line; an ambiguous one is said on stderr too, as
+        // every result that needs attention is.
+        if let Some(verdict) = line.strip_prefix("verdict: AMBIGUOUS") {
+            tell!("warning: {name}: AMBIGUOUS{verdict}");
+        }
     }
     warn_isolated(&map, &name, a.max_range_m);
     Ok(())
