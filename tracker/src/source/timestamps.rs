@@ -105,10 +105,19 @@ pub(super) fn read_timestamps(csv_path: &Path, files: &[PathBuf]) -> Result<Vec<
     dt.sort_by(f64::total_cmp);
     if let Some(&median) = dt.get(dt.len() / 2) {
         if median > MAX_MEDIAN_INTERVAL_S {
+            // The smallest unit that puts the frames a camera's interval apart.
+            let unit = [
+                ("milliseconds", 1e3),
+                ("microseconds", 1e6),
+                ("nanoseconds", 1e9),
+            ]
+            .into_iter()
+            .find(|(_, per_s)| median / per_s <= MAX_MEDIAN_INTERVAL_S)
+            .map_or("milliseconds", |(u, _)| u);
             return Err(TrackError::bad_input(
                 csv_path,
                 format!(
-                    "images are a median {median:.3} s apart ({:.3} frames/s): are the timestamps in milliseconds? they must be in seconds",
+                    "images are a median {median:.3} s apart ({:.3} frames/s): are the timestamps in {unit}? they must be in seconds",
                     1.0 / median
                 ),
             ));
@@ -161,5 +170,8 @@ mod tests {
             e.contains("a median 33.400 s apart") && e.contains("in milliseconds?"),
             "{e}"
         );
+        // Microseconds were asked about as milliseconds.
+        let e = ts("t\n0\n33333\n66667\n", 3).unwrap_err().to_string();
+        assert!(e.contains("in microseconds?"), "{e}");
     }
 }
