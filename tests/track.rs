@@ -1785,6 +1785,20 @@ fn a_damaged_frame_is_a_gap_not_the_previous_pose() {
     ));
     let rows = std::fs::read_to_string(&tag0).unwrap().lines().count() - 1;
     assert_eq!(rows, 39, "--tags: the damaged frame's fix is left out");
+    // Most frames damaged: exit 0 with "tracked tag 0 in 1/39 frames" and no word that the
+    // robot was in view all along. The share is named, with the reason counted.
+    for k in 10..36 {
+        damage_avi_frame(&video, k);
+    }
+    let res = odocal(&["track", p(&video), "--camera", p(&camera), "--out", p(&out)]);
+    succeeded(&res);
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        stderr.contains("warning: ")
+            && stderr.contains("of the 40 frames where tag 0 was found gave a fix (left out: ")
+            && stderr.contains(" repeated image"),
+        "{stderr}"
+    );
 }
 
 /// A camera clock that jumps 5 s mid-recording (a clock set by the network): the step was

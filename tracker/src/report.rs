@@ -2,7 +2,9 @@
 //! tag ids seen, and the trajectory's error against a reference.
 
 use crate::track::median;
-use crate::{Outcome, TrackOptions, TrackResult, Trajectory};
+use std::collections::BTreeMap;
+
+use crate::{GapReason, Outcome, TrackOptions, TrackResult, Trajectory};
 
 /// The `format` tag of the track report.
 pub const TRACK_REPORT_FORMAT: &str = "odocal.track-report/1";
@@ -316,6 +318,38 @@ pub fn track_video(
     Ok((result.trajectory()?, warnings))
 }
 
+/// A warning when fewer than half the frames where the tag was found gave a fix (at least
+/// [`FEW_FIXES_MIN_FOUND`] found): the robot was in view, and a damaged video (frames decoded
+/// as repeats of the last good one), a wrong size or calibration (geometry) or a blurred tag
+/// (confidence) left most of it out. Each reason is counted.
+pub fn few_fixes_warning(result: &TrackResult, tag_id: u32) -> Option<String> {
+    let mut reasons: BTreeMap<&'static str, usize> = BTreeMap::new();
+    let mut fixes = 0;
+    for r in &result.records {
+        match &r.outcome {
+            Outcome::Fix(_) => fixes += 1,
+            Outcome::Gap(GapReason::NotDetected) => {}
+            Outcome::Gap(g) => *reasons.entry(g.as_str()).or_default() += 1,
+        }
+    }
+    let found = fixes + reasons.values().sum::<usize>();
+    if found < FEW_FIXES_MIN_FOUND || 2 * fixes >= found {
+        return None;
+    }
+    let mut why: Vec<(&str, usize)> = reasons.into_iter().collect();
+    why.sort_by(|a, b| b.1.cmp(&a.1));
+    Some(format!(
+        "only {fixes} of the {found} frames where tag {tag_id} was found gave a fix (left out: {}): the trajectory misses most of the time the robot was in view; the lines above say why (a damaged video decodes frames as repeats of the last good one; a wrong --tag-size or camera file fails the geometry; a smeared tag fails the confidence)",
+        why.iter()
+            .map(|(r, n)| format!("{n} {r}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
+}
+
+/// The fewest frames with the tag found for [`few_fixes_warning`] to judge.
+const FEW_FIXES_MIN_FOUND: usize = 5;
+
 /// What the fixes of a run say about the inputs, one line each: [`tag_shape_warnings`], and
 /// fixes outside the floor the calibration vouches for.
 pub fn fix_warnings(
@@ -324,7 +358,10 @@ pub fn fix_warnings(
     floor: &odocal_calib::FloorToCamera,
     options: &TrackOptions,
 ) -> Vec<String> {
-    let mut warnings = tag_shape_warnings(result, camera, floor, options);
+    let mut warnings: Vec<String> = few_fixes_warning(result, options.tag_id)
+        .into_iter()
+        .chain(tag_shape_warnings(result, camera, floor, options))
+        .collect();
     if let Some(map) = &camera.floor_uncertainty {
         warnings.extend(
             crate::UnvouchedFixes::of(result, map, &camera.camera, floor).map(|u| u.warning()),
