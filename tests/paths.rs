@@ -1111,14 +1111,7 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
         "--out",
         p(&sq),
     ]);
-    let (one, two) = (
-        sq.join("runs/run001.trajectory.csv"),
-        sq.join("runs/run002.trajectory.csv"),
-    );
-    let swap = sq.join("runs/swap.csv");
-    std::fs::rename(&one, &swap).unwrap();
-    std::fs::rename(&two, &one).unwrap();
-    std::fs::rename(&swap, &two).unwrap();
+    swap_first_two_trajectories(&sq);
     let e = fails(&[
         "evaluate",
         p(&sq.join("manifest.json")),
@@ -1158,14 +1151,7 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
         "--out",
         p(&tours),
     ]);
-    let (one, two) = (
-        tours.join("runs/run001.trajectory.csv"),
-        tours.join("runs/run002.trajectory.csv"),
-    );
-    let swap = tours.join("runs/swap.csv");
-    std::fs::rename(&one, &swap).unwrap();
-    std::fs::rename(&two, &one).unwrap();
-    std::fs::rename(&swap, &two).unwrap();
+    swap_first_two_trajectories(&tours);
     let e = fails(&[
         "evaluate",
         p(&tours.join("manifest.json")),
@@ -1224,4 +1210,16 @@ fn a_robot_file_unlike_the_fitted_wheels_is_named() {
     assert!(e.contains("robot.json's wheel_base_m 200.00 mm"), "{e}");
     let e = train(&dir.path().join("windows.json"), "m1.json");
     assert!(!e.contains("kinematic fit gives"), "{e}");
+}
+
+/// Swaps the trajectories of run001 and run002 of the experiment in `exp`.
+fn swap_first_two_trajectories(exp: &std::path::Path) {
+    let (one, two) = (
+        exp.join("runs/run001.trajectory.csv"),
+        exp.join("runs/run002.trajectory.csv"),
+    );
+    let swap = exp.join("runs/swap.csv");
+    std::fs::rename(&one, &swap).unwrap();
+    std::fs::rename(&two, &one).unwrap();
+    std::fs::rename(&swap, &two).unwrap();
 }
