@@ -105,7 +105,7 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
         &args.model,
     )?;
     say!(
-        "raw odometry end: x {:.4} m, y {:.4} m, heading {:.2} deg; corrected end: x {:.4} m, y {:.4} m, heading {:.2} deg (start frame; correction {:.2} cm over {:.3} m of wheel travel)",
+        "raw odometry end: x {:.4} m, y {:.4} m, heading {:.2} deg; corrected end: x {:.4} m, y {:.4} m, heading {:.2} deg (start frame; correction {:.2} cm and {:+.2} deg of turning over {:.3} m of wheel travel)",
         raw.x_m,
         raw.y_m,
         odocal_core::wrap_angle(raw.theta_rad).to_degrees(),
@@ -113,6 +113,8 @@ fn correct_path(args: &Args) -> anyhow::Result<()> {
         corrected.y_m,
         odocal_core::wrap_angle(corrected.theta_rad).to_degrees(),
         100.0 * (corrected.x_m - raw.x_m).hypot(corrected.y_m - raw.y_m),
+        // The headings are shown within ±180°; the turning they differ by is not.
+        (corrected.theta_rad - raw.theta_rad).to_degrees(),
         run.path_length_m
     );
     write_track(args, run.to_csv())
