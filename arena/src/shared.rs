@@ -181,28 +181,6 @@ pub fn detect_shared(
     Ok((views, notes))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn shared_names_give_view_and_camera() {
-        let ok = parse_shared_name(Path::new("d/s_03_c2.png"), 4).unwrap();
-        assert_eq!(ok, ("s_03".to_string(), 2));
-        for (name, why) in [
-            ("d/s03.png", "does not end in _cK"),
-            ("d/s03_cx.png", "is not a camera number"),
-            ("d/s03_c4.png", "camera 4 does not exist"),
-            ("d/_c1.png", "is empty"),
-        ] {
-            let e = parse_shared_name(Path::new(name), 4)
-                .unwrap_err()
-                .to_string();
-            assert!(e.contains(why) && e.contains("VIEW_cK"), "{name}: {e}");
-        }
-    }
-}
-
 /// How far a camera's height above a shared board may differ from its calibrated height
 /// above the floor before the board's square is taken for the wrong size (a board lying on
 /// the floor puts the camera at its floor height; a wrong `--square` scales it).
@@ -243,4 +221,26 @@ pub fn check_board_scale(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shared_names_give_view_and_camera() {
+        let ok = parse_shared_name(Path::new("d/s_03_c2.png"), 4).unwrap();
+        assert_eq!(ok, ("s_03".to_string(), 2));
+        for (name, why) in [
+            ("d/s03.png", "does not end in _cK"),
+            ("d/s03_cx.png", "is not a camera number"),
+            ("d/s03_c4.png", "camera 4 does not exist"),
+            ("d/_c1.png", "is empty"),
+        ] {
+            let e = parse_shared_name(Path::new(name), 4)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(why) && e.contains("VIEW_cK"), "{name}: {e}");
+        }
+    }
 }

@@ -337,7 +337,7 @@ pub fn few_fixes_warning(result: &TrackResult, tag_id: u32) -> Option<String> {
         return None;
     }
     let mut why: Vec<(&str, usize)> = reasons.into_iter().collect();
-    why.sort_by(|a, b| b.1.cmp(&a.1));
+    why.sort_by_key(|w| std::cmp::Reverse(w.1));
     Some(format!(
         "only {fixes} of the {found} frames where tag {tag_id} was found gave a fix (left out: {}): the trajectory misses most of the time the robot was in view; the lines above say why (a damaged video decodes frames as repeats of the last good one; a wrong --tag-size or camera file fails the geometry; a smeared tag fails the confidence)",
         why.iter()
