@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use common::{experiment_dataset, fails, odocal, ok, p, succeeded};
+use common::{experiment_dataset, fails, fails_with, odocal, ok, p, succeeded};
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -1129,41 +1129,25 @@ fn synth_calib_blur_is_checked() {
     }
     // A narrow camera whose floor holds no whole board wrote "0 floor views" with exit 0,
     // and its calibration had no floor for `track`.
-    let e = fails(&[
-        "synth",
-        "calib",
-        "--out",
-        p(&d.path().join("c")),
-        "--width",
-        "640",
-        "--height",
-        "360",
-        "--views",
-        "3",
-        "--floor-views",
-        "2",
-        "--hfov",
-        "30",
-    ]);
-    assert!(e.contains("could place none of the 2 floor views"), "{e}");
-    assert!(!d.path().join("c").exists());
+    let out = d.path().join("c");
+    // A 640x360 camera of `hfov` degrees asked for `floor_views` floor views.
+    let narrow = |floor_views: &'static str, hfov: &'static str| {
+        let mut args = vec!["synth", "calib", "--out", p(&out), "--width", "640"];
+        args.extend([
+            "--height",
+            "360",
+            "--views",
+            "3",
+            "--floor-views",
+            floor_views,
+        ]);
+        args.extend(["--hfov", hfov]);
+        odocal(&args)
+    };
+    let e = fails_with(&narrow("2", "30"), "could place none of the 2 floor views");
+    assert!(!out.exists(), "{e}");
     // Some placed of more asked for was said only by the count written.
-    let run = odocal(&[
-        "synth",
-        "calib",
-        "--out",
-        p(&d.path().join("c")),
-        "--width",
-        "640",
-        "--height",
-        "360",
-        "--views",
-        "3",
-        "--floor-views",
-        "5",
-        "--hfov",
-        "35",
-    ]);
+    let run = narrow("5", "35");
     succeeded(&run);
     let said = String::from_utf8_lossy(&run.stderr);
     assert!(

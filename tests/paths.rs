@@ -610,12 +610,7 @@ fn evaluate_refuses_a_held_out_recording_driven_backwards_as_correct_does() {
 fn evaluate_refuses_another_robot_as_correct_does_naming_what_differs() {
     let dir = tempfile::tempdir().unwrap();
     let (model, tours) = small_path_model(dir.path());
-    let robot = dir.path().join("robot.json");
-    std::fs::write(
-        &robot,
-        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.045,"ticks_per_rev":12,"wheel_base_m":0.1,"period_s":0.2}"#,
-    )
-    .unwrap();
+    let robot = write_robot(dir.path(), 0.045, 0.1);
     let what = "wheel diameter 43.000 mm in the model vs 45.000 mm given; pass the robot the model was trained for (or leave out --robot)";
     let e = fails_with(
         &odocal(&[
@@ -1175,12 +1170,7 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
 fn a_robot_file_unlike_the_fitted_wheels_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let (_, tours) = small_path_model(dir.path());
-    let robot = dir.path().join("robot.json");
-    std::fs::write(
-        &robot,
-        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":12,"wheel_base_m":0.2,"period_s":0.2}"#,
-    )
-    .unwrap();
+    let robot = write_robot(dir.path(), 0.043, 0.2);
     let windows = dir.path().join("w2.json");
     ok(&[
         "dataset",
@@ -1222,4 +1212,14 @@ fn swap_first_two_trajectories(exp: &std::path::Path) {
     std::fs::rename(&one, &swap).unwrap();
     std::fs::rename(&two, &one).unwrap();
     std::fs::rename(&swap, &two).unwrap();
+}
+
+/// Writes `dir/robot.json`: the synthetic robot (12 ticks per turn, 0.2 s logs) with wheels
+/// of `diameter_m` and a wheel base of `base_m`.
+fn write_robot(dir: &std::path::Path, diameter_m: f64, base_m: f64) -> std::path::PathBuf {
+    let robot = dir.join("robot.json");
+    let json = serde_json::json!({"format": "odocal.robot/1", "wheel_diameter_m": diameter_m,
+        "ticks_per_rev": 12, "wheel_base_m": base_m, "period_s": 0.2});
+    std::fs::write(&robot, json.to_string()).unwrap();
+    robot
 }
