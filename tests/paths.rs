@@ -1199,7 +1199,50 @@ fn a_robot_file_unlike_the_fitted_wheels_is_named() {
     assert!((45.0..=56.0).contains(&share), "{e}");
     assert!(e.contains("robot.json's wheel_base_m 200.00 mm"), "{e}");
     let e = train(&dir.path().join("windows.json"), "m1.json");
-    assert!(!e.contains("kinematic fit gives"), "{e}");
+    assert!(
+        !e.contains("kinematic fit gives") && !e.contains("parameters fitted"),
+        "{e}"
+    );
+    // A net of more parameters than one tour's windows can pin down (99 on 16 windows) was
+    // taken without a word.
+    let one = dir.path().join("one");
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "tours",
+        "--runs",
+        "1",
+        "--frames",
+        "none",
+        "--out",
+        p(&one),
+    ]);
+    let few = dir.path().join("few.json");
+    ok(&[
+        "dataset",
+        "--manifest",
+        p(&one.join("manifest.json")),
+        "--layout",
+        "windows",
+        "--out",
+        p(&few),
+    ]);
+    let res = odocal(&[
+        "train",
+        p(&few),
+        "--out",
+        p(&dir.path().join("m6.json")),
+        "--hidden",
+        "6",
+    ]);
+    succeeded(&res);
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        e.contains("warning: the perceptron 2-6-3 has 39 parameters fitted to ")
+            && e.contains("its training figures above flatter it"),
+        "{e}"
+    );
 }
 
 /// Swaps the trajectories of run001 and run002 of the experiment in `exp`.
