@@ -375,6 +375,10 @@ pub struct Tracker {
     intrinsics_covariance: Option<nalgebra::DMatrix<f64>>,
     /// Which of the search directions the whole-frame blurred search tries next.
     blurred_search_turn: usize,
+    /// The time of the first frame searched whole for a smeared tag, seconds.
+    first_blurred_search_s: Option<f64>,
+    /// Frames searched whole for a smeared tag, counted until the first fix.
+    blurred_searches_unfound: usize,
     /// Frames since the last whole-frame search.
     frames_since_search: usize,
     /// Where other tags of the tracked id were seen beside the track (pixels, newest last):
@@ -476,6 +480,8 @@ impl Tracker {
             residual_pool: (0.0, 0.0),
             intrinsics_covariance: None,
             blurred_search_turn: 0,
+            first_blurred_search_s: None,
+            blurred_searches_unfound: 0,
             frames_since_search: 0,
             other_places_px: Vec::new(),
         };
@@ -553,10 +559,11 @@ impl Tracker {
 
     /// A whole-frame search for a tag smeared by motion in an unknown direction: the blur is
     /// undone along the four [`SEARCH_DIRECTIONS`] (a smear within 22.5° of one is mostly
-    /// undone) and the restored frame searched decimated. Before the first fix and within a
-    /// second of the last one all four are tried; a track lost for longer (the robot out of
-    /// view, a person in the way) tries one per frame in turn, so that a long gap costs one
-    /// deconvolution per frame, not four.
+    /// undone) and the restored frame searched decimated. In the first second of searching
+    /// before the first fix, and within a second of the last one, all four are tried; a track
+    /// lost for longer (the robot out of view, a person in the way) tries one per frame in
+    /// turn, so that a long gap costs one deconvolution per frame, not four; a tag not yet
+    /// found beside others of the family is searched for more sparingly still.
     fn search_blurred(
         &mut self,
         frame: &Frame,
@@ -569,11 +576,35 @@ impl Tracker {
             width: w,
             height: h,
         };
+        // Before the first fix, only the video's first second: a tag of the id that never
+        // comes (a wrong --tag-id) cost four deconvolutions of every frame, minutes a video.
+        let first_s = *self.first_blurred_search_s.get_or_insert(frame.t_s);
         let recently = match self.history.last() {
-            None => true,
+            None => frame.t_s - first_s < 1.0,
             Some(&(t, _, _)) => frame.t_s - t < 1.0,
         };
-        let tries = if recently { 4 } else { 1 };
+        // Never found yet while the plain search reads other ids in the frame (a wrong
+        // --tag-id, or another robot): one direction per frame in that first second, then one
+        // every eighth frame, so a smeared tag of the id is still found within a few frames
+        // or a second; a sharp one the plain search finds at once.
+        let others_seen = !ids.is_empty();
+        let unfound = self.history.is_empty();
+        if unfound {
+            self.blurred_searches_unfound += 1;
+            let every = match (others_seen, recently) {
+                (true, false) => 8,
+                (false, false) => 4,
+                (_, true) => 1,
+            };
+            if self.blurred_searches_unfound % every != 0 {
+                return Ok(Vec::new());
+            }
+        }
+        let tries = if recently && !(unfound && others_seen) {
+            4
+        } else {
+            1
+        };
         self.detector
             .set_decimate(self.opts.search_decimate.max(1.0));
         let mut found = Vec::new();
