@@ -177,6 +177,18 @@ fn bad_arena_inputs_give_one_line() {
         p(&d.join("t.csv")),
     ]);
     assert!(e.contains("given twice"), "{e}");
+    // A search over ±0 s ran, and found nothing to fuse.
+    let e = fails(&[
+        "track",
+        "v.mp4",
+        "--arena",
+        "a.json",
+        "--max-clock-offset-s",
+        "0",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    assert!(e.contains("--max-clock-offset-s 0: "), "{e}");
     // Without --arena a second video (even one not there) and the arena's outputs were
     // dropped unsaid, exit 0.
     for (extra, needle) in [
@@ -592,6 +604,28 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     std::fs::write(&old_path, old.to_string()).unwrap();
     let old = odocal_arena::ArenaTrackFile::load(&old_path).unwrap();
     assert!(old.frame_rates.is_empty() && old.robots == file.robots);
+    // The summary of a tracking with other cameras was drawn beside this arena's footprints,
+    // its offsets listed for cameras the arena lacks: refused.
+    let mut other: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    other["frame_rates"][3]["camera"] = 7.into();
+    let other_path = d.join("other-track.json");
+    std::fs::write(&other_path, other.to_string()).unwrap();
+    let html = d.join("r.html");
+    let e = fails(&[
+        "report",
+        "--arena",
+        p(&arena),
+        "--arena-track",
+        p(&other_path),
+        "--out",
+        p(&html),
+    ]);
+    assert!(
+        e.contains("other-track.json: tracked camera 7, but") && e.contains("has 4 cameras"),
+        "{e}"
+    );
+    assert!(!html.exists());
     assert!(
         said.contains("frame rates 30.000, 15.000, 30.000, 30.000 frames/s")
             && said.contains(

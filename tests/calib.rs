@@ -549,6 +549,38 @@ fn views_from_two_cameras_are_flagged() {
     succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(!err.contains("do not fit one camera"), "{err}");
+    // The truth of the other camera of the same image size was compared with it ("fx -48 %"
+    // in the report, exit 0): refused by check-calib and report alike.
+    let b_json = dir.path().join("b.json");
+    let other_truth = a.join("truth.json");
+    for args in [
+        vec![
+            "synth",
+            "check-calib",
+            "--camera",
+            p(&b_json),
+            "--truth",
+            p(&other_truth),
+        ],
+        vec![
+            "report",
+            "--camera",
+            p(&b_json),
+            "--calib-truth",
+            p(&other_truth),
+            "--out",
+            p(&dir.path().join("r.html")),
+        ],
+    ] {
+        let res = odocal(&args);
+        let err = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains("is the truth of a camera with fx")
+                && err.contains("pass the truth.json of the views that were calibrated"),
+            "{err}"
+        );
+    }
 }
 
 #[test]

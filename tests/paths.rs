@@ -185,6 +185,13 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
             && e.contains("their figures are the training's fit, not held-out"),
         "{e}"
     );
+    // ... and not called held-out in the figures' heading.
+    let said = String::from_utf8_lossy(&own.stdout);
+    assert!(
+        said.contains("40 recordings (40 of them training recordings, not held out)")
+            && !said.contains("held-out recordings"),
+        "{said}"
+    );
     let held = common::odocal(&[
         "evaluate",
         &d("tours/manifest.json"),
@@ -461,7 +468,7 @@ fn a_path_model_trained_on_forward_tours_refuses_a_log_driven_backwards() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(
         err.trim_end(),
-        format!("odocal: warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
+        format!("warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
         "{err}"
     );
 }
@@ -558,7 +565,7 @@ fn evaluate_refuses_a_held_out_recording_driven_backwards_as_correct_does() {
     );
     assert!(
         stderr.starts_with(&format!(
-            "odocal: warning: EXTRAPOLATED, outside the training domain: run \"back\" of {}: the model was trained on forward driving",
+            "warning: EXTRAPOLATED, outside the training domain: run \"back\" of {}: the model was trained on forward driving",
             p(&manifest)
         )),
         "{stderr}"
@@ -601,7 +608,7 @@ fn evaluate_refuses_a_held_out_recording_driven_backwards_as_correct_does() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(
         err.trim_end(),
-        format!("odocal: warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
+        format!("warning: {} {UNRECORDED_DIRECTIONS}", p(&old)),
         "{err}"
     );
 }

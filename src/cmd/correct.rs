@@ -43,7 +43,7 @@ fn robot_and_log(
     }
     let (log, mended) = odocal_dataset::glitch::mend_garbled_readings(&log, &robot);
     for m in mended {
-        tell!("odocal: warning: {}: {m}", args.log.display());
+        tell!("warning: {}: {m}", args.log.display());
     }
     Ok((robot, log))
 }
@@ -68,7 +68,7 @@ fn blame(e: odocal_trainer::TrainError, args: &Args) -> anyhow::Error {
 /// with `--allow-extrapolation`).
 fn warn_outside_domain(outside_domain: &[String]) {
     for why in outside_domain {
-        tell!("odocal: warning: EXTRAPOLATED, outside the training domain: {why}");
+        tell!("warning: EXTRAPOLATED, outside the training domain: {why}");
     }
 }
 
@@ -86,7 +86,7 @@ fn write_track(args: &Args, csv: String) -> anyhow::Result<()> {
 fn correct_path(args: &Args) -> anyhow::Result<()> {
     let model = PathModelFile::read(&args.model)?;
     if let Some(w) = model.unrecorded_directions(&args.model.display().to_string()) {
-        tell!("odocal: warning: {w}");
+        tell!("warning: {w}");
     }
     let (robot, log) = robot_and_log(args, model.robot)?;
     let run = model
@@ -155,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .into_iter()
     .flatten()
     {
-        tell!("odocal: warning: {w}");
+        tell!("warning: {w}");
     }
     let (robot, log) = robot_and_log(&args, model.robot)?;
     let run = model

@@ -58,11 +58,7 @@ fn read_recordings(
         }
         let (log, mended) = odocal_dataset::glitch::mend_garbled_readings(&r.log, robot);
         for m in mended {
-            tell!(
-                "odocal: warning: run \"{}\" ({}): {m}",
-                r.id,
-                r.log_file.display()
-            );
+            tell!("warning: run \"{}\" ({}): {m}", r.id, r.log_file.display());
         }
         r.log = log;
     }
@@ -114,7 +110,7 @@ fn outside_domain(
         .check_domain(&rec.log, robot, &name, args.allow_extrapolation)
         .with_context(|| format!("{}", args.model.display()))?;
     for w in &why {
-        tell!("odocal: warning: EXTRAPOLATED, outside the training domain: {name}: {w}");
+        tell!("warning: EXTRAPOLATED, outside the training domain: {name}: {w}");
     }
     Ok(why)
 }
@@ -150,7 +146,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let model = PathModelFile::read(&args.model)?;
     if let Some(w) = model.unrecorded_directions(&args.model.display().to_string()) {
-        tell!("odocal: warning: {w}");
+        tell!("warning: {w}");
     }
     let robot = match &args.robot {
         Some(p) => RobotParams::read(p)?,
@@ -208,7 +204,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect();
         let benchmark = Umbmark::of(&errors)?;
         if let Some(w) = benchmark.few_squares_warning("the UMBMark calibration (E_d, E_b)") {
-            tell!("odocal: {w}");
+            tell!("{w}");
         }
         let c = benchmark.correction(side, &robot);
         say!(
@@ -237,13 +233,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let (Some(p), Some(f)) = (&args.truth, &truth_file) {
         match odocal_trainer::evaluate::truth_distance(&recs, f) {
             (Some(rms), _) if rms > TRUTH_MISMATCH_M => tell!(
-                "odocal: warning: --truth: the recordings' camera trajectories end {:.0} mm RMS from the true ends in {}: is that the truth of the experiment {} lists? Its oracle row would judge another robot",
+                "warning: --truth: the recordings' camera trajectories end {:.0} mm RMS from the true ends in {}: is that the truth of the experiment {} lists? Its oracle row would judge another robot",
                 1e3 * rms,
                 p.display(),
                 args.manifest.display()
             ),
             (_, missing) if missing > 0 => tell!(
-                "odocal: warning: --truth: {} has no truth for {missing} of the {} recordings of {}: is that the truth of this experiment?",
+                "warning: --truth: {} has no truth for {missing} of the {} recordings of {}: is that the truth of this experiment?",
                 p.display(),
                 recs.len(),
                 args.manifest.display()
@@ -270,7 +266,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     if let Some((id, t)) = trained.first() {
         tell!(
-            "odocal: warning: {} of the {} recordings of {} are recordings {} was trained on (run \"{id}\" holds training recording \"{t}\"'s steps): their figures are the training's fit, not held-out; evaluate on recordings the training did not see",
+            "warning: {} of the {} recordings of {} are recordings {} was trained on (run \"{id}\" holds training recording \"{t}\"'s steps): their figures are the training's fit, not held-out; evaluate on recordings the training did not see",
             trained.len(),
             recs.len(),
             args.manifest.display(),
@@ -294,12 +290,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|m| m.umbmark.as_ref())
         .and_then(|u| u.few_squares_warning("every E_max,syst below"))
     {
-        tell!("odocal: {w}");
+        tell!("{w}");
     }
     let path_m: f64 = ev.runs.iter().map(|r| r.path_length_m).sum();
     say!(
-        "{} held-out recordings, {path_m:.1} m of wheel travel; end-point error per metre driven (mean over recordings){}:",
+        "{} {}, {path_m:.1} m of wheel travel; end-point error per metre driven (mean over recordings){}:",
         ev.runs.len(),
+        if trained.is_empty() {
+            "held-out recordings".to_string()
+        } else {
+            format!(
+                "recordings ({} of them training recordings, not held out)",
+                trained.len()
+            )
+        },
         if args.umbmark_m.is_some() {
             "; UMBMark E_max,syst = larger distance of the clockwise and counter-clockwise error centres"
         } else {

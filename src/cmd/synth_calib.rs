@@ -111,7 +111,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     commit()?;
     if truth.floor_views.len() < scene.floor_views {
         tell!(
-            "odocal: warning: only {} of the {} floor views asked for hold a whole board in the {}x{} image of a {}° camera {} m up: the floor plane rests on those; give a wider --hfov or a smaller --square for all of them",
+            "warning: only {} of the {} floor views asked for hold a whole board in the {}x{} image of a {}° camera {} m up: the floor plane rests on those; give a wider --hfov or a smaller --square for all of them",
             truth.floor_views.len(),
             scene.floor_views,
             a.width,

@@ -345,10 +345,11 @@ fn track_arena(
         bail!("--fps and --timestamps are for one video; arena videos carry their own timestamps (a frame folder its timestamps.csv)");
     }
     if !(m.max_clock_offset_s.is_finite()
-        && (0.0..=MAX_CLOCK_OFFSET_S).contains(&m.max_clock_offset_s))
+        && m.max_clock_offset_s > 0.0
+        && m.max_clock_offset_s <= MAX_CLOCK_OFFSET_S)
     {
         bail!(
-            "--max-clock-offset-s {}: the cameras' clocks are searched 0 to {MAX_CLOCK_OFFSET_S} s apart; give the seconds between the cameras' starts, or less",
+            "--max-clock-offset-s {}: the cameras' clocks are searched over 0 up to {MAX_CLOCK_OFFSET_S} s apart (even cameras started together are milliseconds apart); give the seconds between the cameras' starts, or less",
             m.max_clock_offset_s
         );
     }
@@ -514,10 +515,17 @@ fn say_clocks(tracking: &odocal_arena::ArenaTracking, videos: &[PathBuf], max_of
                 "; its rate within ±{:.0} ppm of the arena clock's, taken as equal",
                 3.0 * sigma_ppm
             ),
-            ClockRate::Implausible { ppm } => format!(
-                "; a rate of {ppm:+.0} ppm fitted, beyond any clock's ({} ppm): taken as the arena clock's",
-                odocal_arena::MAX_RATE_PPM
-            ),
+            ClockRate::Implausible { ppm } => {
+                tell!(
+                    "warning: camera {k} ({}): by the robots seen by it and another camera at once its clock runs {ppm:+.0} ppm off the arena clock, beyond any camera clock's ({} ppm): its frame times are not when its frames were taken (timestamps written at a nominal frame rate the camera did not keep, or a video re-timed), and its fixes are fused at those times; check its timestamps against its clock",
+                    videos.get(k).map_or(String::new(), |v| v.display().to_string()),
+                    odocal_arena::MAX_RATE_PPM
+                );
+                format!(
+                    "; a rate of {ppm:+.0} ppm fitted, beyond any clock's ({} ppm): taken as the arena clock's",
+                    odocal_arena::MAX_RATE_PPM
+                )
+            }
             ClockRate::Fitted { ppm, sigma_ppm } => {
                 say!(
                     "camera {k} clock offset {} ± {:.3} ms at {:.3} s on its clock, rate {ppm:+.1} ppm ± {sigma_ppm:.1} ppm: its clock gains {:.3} ms a second on the arena clock (t_arena = t_camera + offset − rate·(t_camera − {:.3} s))",

@@ -204,14 +204,14 @@ fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
     let parameters = inputs * k + k + outputs * k + outputs;
     if 3 * model.n_windows < 2 * parameters {
         tell!(
-            "odocal: warning: the perceptron 2-{hidden}-3 has {parameters} parameters fitted to {} windows ({} target values, fewer than twice as many): it can follow their noise, so its training figures above flatter it; judge it with `odocal evaluate` on held-out recordings, record more, or give a smaller --hidden",
+            "warning: the perceptron 2-{hidden}-3 has {parameters} parameters fitted to {} windows ({} target values, fewer than twice as many): it can follow their noise, so its training figures above flatter it; judge it with `odocal evaluate` on held-out recordings, record more, or give a smaller --hidden",
             model.n_windows,
             3 * model.n_windows
         );
     }
     let g = &model.kinematic_fit;
     if let Some(w) = odocal_trainer::baseline::unlike_nominal_warning(g, &ds.robot, true) {
-        tell!("odocal: warning: {w}");
+        tell!("warning: {w}");
     }
     say!(
         "kinematic fit: left wheel {:.3} mm, right wheel {:.3} mm, wheel base {:.2} mm (nominal {:.3} mm, {:.2} mm)",
@@ -319,7 +319,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if let Some(w) = odocal_dataset::errors_against_truth(&ds, &file, &name)?
                 .and_then(|e| e.mismatch_warning(&name))
             {
-                tell!("odocal: warning: --oracle: {w}");
+                tell!("warning: --oracle: {w}");
             }
             Some(oracle_ends(&ds, &file, &name)?)
         }
@@ -339,7 +339,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .with_context(|| format!("{}", args.dataset.display()))?;
     bar.finish_and_clear();
     for w in &fitted.warnings {
-        tell!("odocal: warning: {w}");
+        tell!("warning: {w}");
     }
     if let Some(md) = &fitted.table2_markdown {
         say!("{md}");
@@ -386,7 +386,7 @@ fn run_sweep(
         .with_context(|| format!("{}", args.dataset.display()))?;
     bar.finish_and_clear();
     for w in &rep.warnings {
-        tell!("odocal: warning: {w}");
+        tell!("warning: {w}");
     }
     let md = report::markdown(&rep);
     say!("{md}");

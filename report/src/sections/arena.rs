@@ -22,10 +22,29 @@ impl ArenaInput {
     /// Reads the arena file and, when given, the tracking summary.
     pub fn read(arena: &Path, track: Option<&Path>) -> Result<Self, ReportError> {
         let bad = |e: odocal_arena::ArenaError| ReportError::Mismatch(e.to_string());
-        Ok(Self {
+        let input = Self {
             arena: ArenaFile::load(arena).map_err(bad)?,
             track: track.map(ArenaTrackFile::load).transpose().map_err(bad)?,
-        })
+        };
+        // A tracking of another arena would list clock offsets of cameras this one lacks
+        // beside its footprints.
+        if let (Some(t), Some(tp)) = (&input.track, track) {
+            let n = input.arena.cameras.len();
+            let cameras = t
+                .offsets
+                .iter()
+                .map(|o| o.camera)
+                .chain(t.frame_rates.iter().map(|f| f.camera));
+            if let Some(k) = cameras.filter(|&k| k >= n).max() {
+                return Err(ReportError::Mismatch(format!(
+                    "{}: tracked camera {k}, but {} has {n} cameras (0 to {}): give the --arena-track of a tracking with this arena",
+                    tp.display(),
+                    arena.display(),
+                    n.saturating_sub(1)
+                )));
+            }
+        }
+        Ok(input)
     }
 }
 
