@@ -596,7 +596,7 @@ impl Tracker {
                 (false, false) => 4,
                 (_, true) => 1,
             };
-            if self.blurred_searches_unfound % every != 0 {
+            if !self.blurred_searches_unfound.is_multiple_of(every) {
                 return Ok(Vec::new());
             }
         }
