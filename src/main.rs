@@ -91,7 +91,9 @@ fn negative_numbers_are_values(cmd: clap::Command) -> clap::Command {
 }
 
 /// `msg` with every long number written in scientific notation: messages quote option values
-/// with `{}`, which writes 1e308 as 309 digits. Whole numbers a u64 holds (seeds) are kept.
+/// with `{}`, which writes 1e308 as 309 digits. Numbers of up to [`LONGEST_NUMBER_DIGITS`]
+/// digits are kept as written: seeds, and file names of epoch times in nanoseconds
+/// (`1732712345.123456789.png`), which must stay the names they are.
 fn short_numbers(msg: &str) -> String {
     let mut out = String::with_capacity(msg.len());
     let mut rest = msg;
@@ -103,9 +105,7 @@ fn short_numbers(msg: &str) -> String {
         let number = rest[start..start + len].trim_end_matches('.');
         let digits = number.chars().filter(char::is_ascii_digit).count();
         match number.parse::<f64>() {
-            Ok(v) if digits > 20 || (digits > 15 && number.contains('.')) => {
-                out.push_str(&format!("{v:e}"))
-            }
+            Ok(v) if digits > LONGEST_NUMBER_DIGITS => out.push_str(&format!("{v:e}")),
             _ => out.push_str(number),
         }
         rest = &rest[start + number.len()..];
@@ -145,6 +145,9 @@ fn short_quotes(msg: &str) -> String {
 
 /// The most characters of an error message shown.
 const LONGEST_MESSAGE: usize = 3000;
+
+/// The most digits of a number an error shows as written.
+const LONGEST_NUMBER_DIGITS: usize = 24;
 
 /// The most characters of a quoted text an error shows.
 const LONGEST_QUOTE: usize = 120;
@@ -219,6 +222,8 @@ mod tests {
         assert_eq!(super::short_quotes("an \"odd quote"), "an \"odd quote");
         let unpaired = format!("\"a\"b\"{}", "y".repeat(5000));
         assert!(super::short_quotes(&unpaired).ends_with("(cut at 3000 of 5005 characters)"));
+        let frame = "frames/1732712345.123456789.png: not an image";
+        assert_eq!(super::short_numbers(frame), frame);
         let seed = "--seed 18446744073709551615";
         assert_eq!(super::short_numbers(seed), seed);
     }
