@@ -35,13 +35,37 @@ pub fn board_pose(
             view.object_points.len()
         )));
     }
-    match solve_pnp(
-        camera,
-        &view.object_points,
-        &view.corners,
-        calib3d::SOLVEPNP_ITERATIVE,
-    )? {
-        Some(iso) => Ok(BoardToCamera(iso)),
+    // A flat board has two poses that fit its corners nearly equally (mirror images about the
+    // line of sight); the iterative solver starts from one homography and can settle in the
+    // wrong one, or short of the right one, for a small board far off the axis. IPPE solves
+    // for both; each start is refined on every corner and the closer fit kept.
+    let misfit = |pose: &Isometry3<f64>| {
+        let o = Observation {
+            pose: BoardToCamera(*pose),
+            object: &view.object_points,
+            image: &view.corners,
+        };
+        let r = residuals(camera, pose, &o);
+        if r.iter().all(|v| v.is_finite()) {
+            r.iter().map(|v| v * v).sum::<f64>()
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut best: Option<(f64, Isometry3<f64>)> = None;
+    for method in [calib3d::SOLVEPNP_ITERATIVE, calib3d::SOLVEPNP_IPPE] {
+        // A method OpenCV cannot apply to these points (IPPE needs them on one plane, as a
+        // board's are) is no answer; the other's is kept.
+        let Ok(Some(pose)) = solve_pnp(camera, &view.object_points, &view.corners, method) else {
+            continue;
+        };
+        let m = misfit(&pose);
+        if best.is_none_or(|(b, _)| m < b) {
+            best = Some((m, pose));
+        }
+    }
+    match best {
+        Some((_, iso)) => Ok(BoardToCamera(iso)),
         None => Err(CalibError::Input(format!(
             "{}: cannot locate the floor board",
             view.image

@@ -461,11 +461,24 @@ fn floor_uncertainty_matches_the_spread_over_noise_draws() {
     let draws = 40;
     let mut points: Vec<Vec<Point2<f64>>> = vec![Vec::new(); pixels.len()];
     let mut mean_sigma = vec![0.0; pixels.len()];
+    let mut refused = Vec::new();
     for seed in 0..draws {
         let views = noisy_views_posed(&cam, &board, 15, sigma_px, 7, 500 + seed);
         let floor_views = noisy_floor_views(&cam, &board, &floor, sigma_px, 1000 + seed);
         let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
-        let plane = fit_floor(&cal.camera, &floor_views, &board, sigma_px).unwrap();
+        // A draw whose floor boards are refused as not lying on one floor is left out of the
+        // spread and counted: none of 600 draws is refused on the development machine, but on
+        // another machine's OpenCV one of these 40 was (a board 4.6° off the others).
+        let plane = match fit_floor(&cal.camera, &floor_views, &board, sigma_px) {
+            Ok(plane) => plane,
+            Err(e) => {
+                refused.push(format!(
+                    "draw {seed} (fx {:.2} px, RMS {:.3} px): {e}",
+                    cal.camera.intrinsics.fx, cal.rms_px
+                ));
+                continue;
+            }
+        };
         let map = FloorUncertaintyMap::new(
             &cal.camera,
             &cal.covariance,
@@ -481,8 +494,17 @@ fn floor_uncertainty_matches_the_spread_over_noise_draws() {
                 .pixel_to_floor(&plane.floor_to_camera, pix, 0.0)
                 .unwrap();
             points[k].push(p);
-            mean_sigma[k] += map.at(pix).unwrap() / draws as f64;
+            mean_sigma[k] += map.at(pix).unwrap();
         }
+    }
+    assert!(
+        refused.len() <= 1,
+        "floor refused in {} of {draws} draws: {refused:#?}",
+        refused.len()
+    );
+    let kept = (draws as usize - refused.len()) as f64;
+    for s in &mut mean_sigma {
+        *s /= kept;
     }
     for (k, pts) in points.iter().enumerate() {
         let n = pts.len() as f64;
@@ -495,7 +517,7 @@ fn floor_uncertainty_matches_the_spread_over_noise_draws() {
         let spread_mm = c.symmetric_eigenvalues().max().sqrt() * 1000.0;
         let r = mean_sigma[k] / spread_mm;
         println!(
-            "pixel ({:.0}, {:.0}): floor spread {spread_mm:.3} mm (worst direction), mean σ {:.3} mm, ratio {r:.2} ({draws} draws)",
+            "pixel ({:.0}, {:.0}): floor spread {spread_mm:.3} mm (worst direction), mean σ {:.3} mm, ratio {r:.2} ({kept} draws)",
             pixels[k].x, pixels[k].y, mean_sigma[k]
         );
         assert!((0.7..1.4).contains(&r), "pixel {k}: σ / spread = {r}");
