@@ -198,16 +198,8 @@ fn run_paths(args: &Args, ds: &Dataset, sha: &str) -> anyhow::Result<()> {
             f.heading_rms_rad.to_degrees()
         );
     }
-    // A window's end gives three targets (x, y, heading); fewer than twice the net's
-    // parameters let it follow their noise, and the figures above flatter it.
-    let [inputs, k, outputs] = model.layer_sizes;
-    let parameters = inputs * k + k + outputs * k + outputs;
-    if 3 * model.n_windows < 2 * parameters {
-        tell!(
-            "warning: the perceptron 2-{hidden}-3 has {parameters} parameters fitted to {} windows ({} target values, fewer than twice as many): it can follow their noise, so its training figures above flatter it; judge it with `odocal evaluate` on held-out recordings, record more, or give a smaller --hidden",
-            model.n_windows,
-            3 * model.n_windows
-        );
+    if let Some(w) = model.overfit_warning() {
+        tell!("warning: {w}");
     }
     let g = &model.kinematic_fit;
     if let Some(w) = odocal_trainer::baseline::unlike_nominal_warning(g, &ds.robot, true) {

@@ -384,6 +384,27 @@ impl PathModelFile {
         Ok(outside_domain)
     }
 
+    /// The net's weights and biases, fitted together.
+    pub fn parameter_count(&self) -> usize {
+        let [inputs, hidden, outputs] = self.layer_sizes;
+        inputs * hidden + hidden + outputs * hidden + outputs
+    }
+
+    /// Why the fit to the training windows flatters the model, if it does: a window's end
+    /// gives three targets (x, y, heading), and fewer than twice the net's parameters let it
+    /// follow their noise. None when the windows outnumber it enough.
+    pub fn overfit_warning(&self) -> Option<String> {
+        let parameters = self.parameter_count();
+        let targets = 3 * self.n_windows;
+        (targets < 2 * parameters).then(|| {
+            let [inputs, hidden, outputs] = self.layer_sizes;
+            format!(
+                "the perceptron {inputs}-{hidden}-{outputs} has {parameters} parameters fitted to {} windows ({targets} target values, fewer than twice as many): it can follow their noise, so its training figures flatter it; judge it with `odocal evaluate` on held-out recordings, record more, or give a smaller --hidden",
+                self.n_windows
+            )
+        })
+    }
+
     /// Why logs cannot be checked for the directions they were driven in: models written
     /// before the training's directions were recorded (`step_directions` absent). `name`
     /// names the model. None when the record is there.
