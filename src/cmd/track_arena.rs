@@ -40,26 +40,27 @@ pub struct MultiArgs {
     #[arg(long)]
     pub arena: Option<PathBuf>,
     /// The other cameras' videos or frame folders (with --arena).
-    #[arg(requires = "arena")]
     pub more_videos: Vec<PathBuf>,
     /// With --arena: also write the fusion's summary (clock offsets, cameras per pose,
     /// handoffs; `odocal.arena-track/1`) for `odocal report --arena-track`.
-    #[arg(long, requires = "arena")]
+    #[arg(long)]
     pub arena_report: Option<PathBuf>,
     /// With --arena: the output folder of `odocal synth arena`; prints each robot's error
     /// against its true path and the clock offsets against the true ones.
-    #[arg(long, requires = "arena")]
+    #[arg(long)]
     pub arena_truth: Option<PathBuf>,
     /// With --arena: the largest clock offset between two cameras searched, seconds (either
     /// way). Cameras started together are milliseconds apart; cameras started by hand can be
-    /// seconds apart (the search takes longer the wider it is).
-    #[arg(long, requires = "arena", default_value_t = DEFAULT_MAX_CLOCK_OFFSET_S)]
-    pub max_clock_offset_s: f64,
+    /// seconds apart (the search takes longer the wider it is). [default: 1]
+    #[arg(long)]
+    pub max_clock_offset_s: Option<f64>,
 }
 
 impl MultiArgs {
-    /// Refuses the arena's options without `--arena` (clap's `requires` does not hold them
-    /// beside `--camera`): a second video or an arena report would be dropped unsaid.
+    /// Refuses the arena's options without `--arena`: a second video or an arena report would
+    /// be dropped unsaid. clap's `requires = "arena"` cannot say this: clap waives a required
+    /// argument that conflicts with one given, and `--arena` conflicts with `--camera`, which
+    /// every run without an arena gives.
     pub fn check_arena_options(&self) -> anyhow::Result<()> {
         if self.arena.is_some() {
             return Ok(());
@@ -73,10 +74,7 @@ impl MultiArgs {
         for (given, flag) in [
             (self.arena_report.is_some(), "--arena-report"),
             (self.arena_truth.is_some(), "--arena-truth"),
-            (
-                self.max_clock_offset_s != DEFAULT_MAX_CLOCK_OFFSET_S,
-                "--max-clock-offset-s",
-            ),
+            (self.max_clock_offset_s.is_some(), "--max-clock-offset-s"),
         ] {
             if given {
                 anyhow::bail!("{flag} is for an arena's cameras and needs --arena arena.json");
@@ -344,13 +342,13 @@ fn track_arena(
     if args.fps.is_some() || args.timestamps.is_some() {
         bail!("--fps and --timestamps are for one video; arena videos carry their own timestamps (a frame folder its timestamps.csv)");
     }
-    if !(m.max_clock_offset_s.is_finite()
-        && m.max_clock_offset_s > 0.0
-        && m.max_clock_offset_s <= MAX_CLOCK_OFFSET_S)
+    let max_clock_offset_s = m.max_clock_offset_s.unwrap_or(DEFAULT_MAX_CLOCK_OFFSET_S);
+    if !(max_clock_offset_s.is_finite()
+        && max_clock_offset_s > 0.0
+        && max_clock_offset_s <= MAX_CLOCK_OFFSET_S)
     {
         bail!(
-            "--max-clock-offset-s {}: the cameras' clocks are searched over 0 up to {MAX_CLOCK_OFFSET_S} s apart (even cameras started together are milliseconds apart); give the seconds between the cameras' starts, or less",
-            m.max_clock_offset_s
+            "--max-clock-offset-s {max_clock_offset_s}: the cameras' clocks are searched over 0 up to {MAX_CLOCK_OFFSET_S} s apart (even cameras started together are milliseconds apart); give the seconds between the cameras' starts, or less"
         );
     }
     let videos: Vec<PathBuf> = std::iter::once(args.video.clone())
@@ -388,7 +386,7 @@ fn track_arena(
         }
     }
     let fuse = FuseOptions {
-        max_offset_s: m.max_clock_offset_s,
+        max_offset_s: max_clock_offset_s,
         ..FuseOptions::default()
     };
     let mut tracking =
@@ -429,7 +427,7 @@ fn track_arena(
         }
     }
     say_frame_rates(&tracking);
-    say_clocks(&tracking, &videos, m.max_clock_offset_s);
+    say_clocks(&tracking, &videos, max_clock_offset_s);
     if tracking.offsets.pairs.is_empty() {
         say!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
     } else {
