@@ -467,8 +467,10 @@ fn floor_uncertainty_matches_the_spread_over_noise_draws() {
         let floor_views = noisy_floor_views(&cam, &board, &floor, sigma_px, 1000 + seed);
         let cal = calibrate(&views, &board, LensModel::Pinhole5).unwrap();
         // A draw whose floor boards are refused as not lying on one floor is left out of the
-        // spread and counted: none of 600 draws is refused on the development machine, but on
-        // another machine's OpenCV one of these 40 was (a board 4.6° off the others).
+        // spread and counted, up to a tenth of the draws: none of 600 draws is refused on the
+        // development machine, but on another machine's OpenCV (and its BLAS) one of these 40
+        // was, a board 4.6° off the others. This test is of σ; the refusal is tested in
+        // tests/calib.rs.
         let plane = match fit_floor(&cal.camera, &floor_views, &board, sigma_px) {
             Ok(plane) => plane,
             Err(e) => {
@@ -497,8 +499,11 @@ fn floor_uncertainty_matches_the_spread_over_noise_draws() {
             mean_sigma[k] += map.at(pix).unwrap();
         }
     }
+    for r in &refused {
+        println!("refused: {r}");
+    }
     assert!(
-        refused.len() <= 1,
+        refused.len() <= draws as usize / 10,
         "floor refused in {} of {draws} draws: {refused:#?}",
         refused.len()
     );
