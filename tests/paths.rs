@@ -51,17 +51,11 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     synth("umbmark", "10", "12", "squares-cal");
     synth("umbmark", "10", "13", "squares");
     synth("tours", "10", "14", "tours");
-    let out = ok(&[
-        "dataset",
-        "--manifest",
+    let out = window_dataset(
         &d("train/manifest.json"),
-        "--layout",
-        "windows",
-        "--out",
         &d("windows.json"),
-        "--truth",
-        &d("train/truth/oracle.json"),
-    ]);
+        &["--truth", &d("train/truth/oracle.json")],
+    );
     println!("{out}");
     let out = ok(&["train", &d("windows.json"), "--out", &d("path-model.json")]);
     println!("{out}");
@@ -361,6 +355,22 @@ fn jittered(log: &str) -> String {
     out
 }
 
+/// `odocal dataset --layout windows` of the experiment whose manifest is `manifest`, into
+/// `out`, with `extra` options; its stdout.
+fn window_dataset(manifest: &str, out: &str, extra: &[&str]) -> String {
+    let mut args = vec![
+        "dataset",
+        "--manifest",
+        manifest,
+        "--layout",
+        "windows",
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(extra);
+    ok(&args)
+}
+
 /// A small path model trained on forward tours in `dir`: (the model, the tours' folder).
 fn small_path_model(dir: &std::path::Path) -> (String, std::path::PathBuf) {
     let d = |p: &str| dir.join(p).display().to_string();
@@ -376,15 +386,7 @@ fn small_path_model(dir: &std::path::Path) -> (String, std::path::PathBuf) {
         "--out",
         &d("tours"),
     ]);
-    ok(&[
-        "dataset",
-        "--manifest",
-        &d("tours/manifest.json"),
-        "--layout",
-        "windows",
-        "--out",
-        &d("windows.json"),
-    ]);
+    window_dataset(&d("tours/manifest.json"), &d("windows.json"), &[]);
     ok(&["train", &d("windows.json"), "--out", &d("path-model.json")]);
     (d("path-model.json"), dir.join("tours"))
 }
@@ -1069,19 +1071,11 @@ fn a_path_model_of_straight_runs_names_the_missing_turns() {
         "--out",
         &d("exp"),
     ]);
-    ok(&[
-        "dataset",
-        "--manifest",
+    window_dataset(
         &d("exp/manifest.json"),
-        "--layout",
-        "windows",
-        "--window-s",
-        "5",
-        "--window-stride-s",
-        "1",
-        "--out",
         &d("windows.json"),
-    ]);
+        &["--window-s", "5", "--window-stride-s", "1"],
+    );
     let e = fails(&["train", &d("windows.json"), "--out", &d("model.json")]);
     assert!(
         e.contains("too few turns to fit a wheel base")
@@ -1179,17 +1173,11 @@ fn a_robot_file_unlike_the_fitted_wheels_is_named() {
     let (_, tours) = small_path_model(dir.path());
     let robot = write_robot(dir.path(), 0.043, 0.2);
     let windows = dir.path().join("w2.json");
-    ok(&[
-        "dataset",
-        "--manifest",
+    window_dataset(
         p(&tours.join("manifest.json")),
-        "--layout",
-        "windows",
-        "--robot",
-        p(&robot),
-        "--out",
         p(&windows),
-    ]);
+        &["--robot", p(&robot)],
+    );
     let train = |w: &std::path::Path, out: &str| {
         let res = odocal(&["train", p(w), "--out", p(&dir.path().join(out))]);
         succeeded(&res);
@@ -1226,15 +1214,7 @@ fn a_robot_file_unlike_the_fitted_wheels_is_named() {
         p(&one),
     ]);
     let few = dir.path().join("few.json");
-    ok(&[
-        "dataset",
-        "--manifest",
-        p(&one.join("manifest.json")),
-        "--layout",
-        "windows",
-        "--out",
-        p(&few),
-    ]);
+    window_dataset(p(&one.join("manifest.json")), p(&few), &[]);
     let res = odocal(&[
         "train",
         p(&few),
@@ -1247,7 +1227,7 @@ fn a_robot_file_unlike_the_fitted_wheels_is_named() {
     let e = String::from_utf8_lossy(&res.stderr);
     assert!(
         e.contains("warning: the perceptron 2-6-3 has 39 parameters fitted to ")
-            && e.contains("its training figures above flatter it"),
+            && e.contains("its training figures flatter it"),
         "{e}"
     );
 }
