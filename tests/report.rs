@@ -740,6 +740,27 @@ fn tracking_conditions_from_track_reports() {
     let text = std::fs::read_to_string(&html).expect("html");
     assert!(text.contains("Tracking under real-camera conditions"));
     assert!(text.contains("10 ms exposure, 30 ms readout"));
+    // The same report twice was two rows of one condition; --runs 0 drew empty figures.
+    let again = d.join(".").join("r.json");
+    let e = fails(&[
+        "report",
+        "--track-report",
+        p(&rep),
+        p(&again),
+        "--out",
+        p(&html),
+    ]);
+    assert!(e.contains("given twice"), "{e}");
+    let e = fails(&[
+        "report",
+        "--track-report",
+        p(&rep),
+        "--runs",
+        "0",
+        "--out",
+        p(&html),
+    ]);
+    assert!(e.contains("--runs 0"), "{e}");
     // A track report without the truth cannot make a row: one line says what to do.
     let plain = d.join("plain.json");
     track(&["--report", p(&plain)]);

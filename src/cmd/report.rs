@@ -111,6 +111,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             bail!("--demo-dir {}: no such folder", d.display());
         }
     }
+    if a.runs == 0 {
+        bail!("--runs 0: the trajectory and heading figures would draw no run; give 1 or more (default 3)");
+    }
+    // The same track report twice would be two rows of one condition in the table.
+    let same_file = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+    let reports: Vec<PathBuf> = a.track_report.iter().map(same_file).collect();
+    for (k, r) in a.track_report.iter().enumerate() {
+        if reports[..k].contains(&reports[k]) {
+            bail!(
+                "--track-report {}: given twice; each track report is one tracking condition, give it once",
+                r.display()
+            );
+        }
+    }
     let camera = input(&a.camera, demo, "camera.json")?;
     let calib_truth = input(&a.calib_truth, demo, "calib/truth.json")?;
     let dataset = input(&a.dataset, demo, "dataset.json")?;
