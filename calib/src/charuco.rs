@@ -735,10 +735,14 @@ fn mirrored_corner(id: u32, board: &BoardSpec) -> u32 {
 
 /// The fraction of neighbouring marker pairs that sit where the board says: each marker's
 /// own corners give the homography of its square of the board, which predicts where its
-/// diagonal neighbours' centres must be (near enough for lens distortion not to matter; within
-/// half a marker side, as the marker corners are only found to a pixel or so). A wrong
-/// `--board` (OpenCV numbers the markers row by row, so another width moves them) or a wrong
-/// marker-to-square ratio puts them a square or more away. `None` when no two markers are
+/// diagonal neighbours' centres must be (near enough for lens distortion not to matter). A
+/// wrong `--board` (OpenCV numbers the markers row by row, so another width moves them) or a
+/// board of the other layout puts them a square or more away, and a marker-to-square ratio
+/// wrong by a third of itself half a square; within half a square, the midpoint, a neighbour
+/// agrees. Half a marker side was too
+/// tight for markers a few pixels across, whose corners are found to a pixel or so: that
+/// error, carried a marker and a half by the homography, failed pairs of 960x640 views and
+/// made 480x320 views read as of the other layout. `None` when no two markers are
 /// neighbours.
 fn layout_agreement(
     board: &Ptr<CharucoBoard>,
@@ -748,6 +752,7 @@ fn layout_agreement(
     let objects = board.obj_points();
     let board_ids = board.ids();
     let square = board.get_square_length()? as f64;
+    let square_per_marker = square / board.get_marker_length()? as f64;
     let mut markers = Vec::new();
     for (quad, id) in corners.iter().zip(ids.iter()) {
         let Some(k) = board_ids.iter().position(|b| b == id) else {
@@ -794,7 +799,7 @@ fn layout_agreement(
             let u = (h[0][0] * oj.0 + h[0][1] * oj.1 + h[0][2]) / w;
             let v = (h[1][0] * oj.0 + h[1][1] * oj.1 + h[1][2]) / w;
             pairs += 1;
-            if (u - cj.0).hypot(v - cj.1) < 0.5 * side {
+            if (u - cj.0).hypot(v - cj.1) < 0.5 * side * square_per_marker {
                 agree += 1;
             }
         }
