@@ -30,6 +30,16 @@ fn assert_intrinsics_within_bounds(lens: &str, e: &CalibErrors, rms_px: f64) {
     assert!(rms_px <= 0.2, "{lens}: RMS {rms_px}");
 }
 
+/// The calibration's errors against the truth it was rendered from.
+fn errors_against(cam: &CameraFile, truth: &CalibTruth) -> CalibErrors {
+    calibration_errors(
+        &cam.camera,
+        cam.floor.as_ref().map(|f| &f.floor_to_camera),
+        &truth.camera,
+        &truth.floor_to_camera,
+    )
+}
+
 fn synth(dir: &Path, seed: u64, extra: &[&str]) -> CalibTruth {
     let d = dir.to_str().unwrap();
     let seed = seed.to_string();
@@ -88,12 +98,7 @@ fn calibration_matches_truth_for_several_seeds() {
         let res = calibrate_with(dir.path(), &out, "9x6", "0.05", &["--model", "pinhole5"]);
         succeeded(&res);
         let cam = CameraFile::load(&out).unwrap();
-        let e = calibration_errors(
-            &cam.camera,
-            cam.floor.as_ref().map(|f| &f.floor_to_camera),
-            &truth.camera,
-            &truth.floor_to_camera,
-        );
+        let e = errors_against(&cam, &truth);
         let floor_err = e.floor_max_m.expect("floor plane estimated");
         println!(
             "seed {seed}: fx err {:.4} %, fy err {:.4} %, cx err {:.3} px, cy err {:.3} px, RMS {:.3} px, floor max err {:.3} mm",
@@ -721,12 +726,7 @@ fn every_lens_model_is_recovered_and_chosen() {
         );
         let cam = CameraFile::load(&out).unwrap();
         assert!(cam.skipped.is_empty(), "{lens}: skipped {:?}", cam.skipped);
-        let e = calibration_errors(
-            &cam.camera,
-            cam.floor.as_ref().map(|f| &f.floor_to_camera),
-            &truth.camera,
-            &truth.floor_to_camera,
-        );
+        let e = errors_against(&cam, &truth);
         let within_45 = e.floor_max_by_ring_m[..2]
             .iter()
             .flatten()
@@ -856,12 +856,7 @@ fn a_far_out_view_does_not_choose_the_lens_model() {
     succeeded(&res);
     let cam = CameraFile::load(&out).unwrap();
     assert_eq!(cam.camera.distortion.model.name(), "rational");
-    let e = calibration_errors(
-        &cam.camera,
-        cam.floor.as_ref().map(|f| &f.floor_to_camera),
-        &truth.camera,
-        &truth.floor_to_camera,
-    );
+    let e = errors_against(&cam, &truth);
     assert_intrinsics_within_bounds("rational at 800x450", &e, cam.rms_px);
     assert_vouched_floor_holds("rational at 800x450", &cam, &truth);
     let err = String::from_utf8_lossy(&res.stderr);
@@ -979,12 +974,7 @@ fn charuco_calibration_matches_truth_with_boards_partly_outside_the_image() {
         let res = calibrate_charuco(dir.path(), &out, square, marker);
         succeeded(&res);
         let cam = CameraFile::load(&out).unwrap();
-        let e = calibration_errors(
-            &cam.camera,
-            cam.floor.as_ref().map(|f| &f.floor_to_camera),
-            &truth.camera,
-            &truth.floor_to_camera,
-        );
+        let e = errors_against(&cam, &truth);
         let bounded = e.floor_max_by_ring_m[..rings]
             .iter()
             .flatten()
@@ -1046,12 +1036,7 @@ fn charuco_markers_a_few_pixels_across_are_read() {
         let res = calibrate_charuco(dir.path(), &out, "0.04", "0.03");
         succeeded(&res);
         let cam = CameraFile::load(&out).unwrap();
-        let e = calibration_errors(
-            &cam.camera,
-            cam.floor.as_ref().map(|f| &f.floor_to_camera),
-            &truth.camera,
-            &truth.floor_to_camera,
-        );
+        let e = errors_against(&cam, &truth);
         println!(
             "{w}x{h} seed {seed}: {} views used, fx err {:.4} %, cx err {:.3} px, cy err {:.3} px, RMS {:.3} px",
             cam.views.len(),
