@@ -27,25 +27,31 @@ fn per_m(ev: &Value, prefix: &str) -> f64 {
     method(ev, prefix)["end_error_per_m"].as_f64().unwrap()
 }
 
+/// `odocal synth experiment --paths PATHS --runs RUNS --frames none` into `out` (logs and
+/// trajectories only), with `extra` options.
+fn synth_paths(paths: &str, runs: &str, out: &str, extra: &[&str]) {
+    let mut args = vec![
+        "synth",
+        "experiment",
+        "--paths",
+        paths,
+        "--runs",
+        runs,
+        "--frames",
+        "none",
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(extra);
+    ok(&args);
+}
+
 #[test]
 fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true_kinematics() {
     let dir = tempfile::tempdir().unwrap();
     let d = |p: &str| dir.path().join(p).display().to_string();
     let synth = |paths: &str, runs: &str, seed: &str, out: &str| {
-        ok(&[
-            "synth",
-            "experiment",
-            "--paths",
-            paths,
-            "--runs",
-            runs,
-            "--frames",
-            "none",
-            "--seed",
-            seed,
-            "--out",
-            &d(out),
-        ]);
+        synth_paths(paths, runs, &d(out), &["--seed", seed]);
     };
     synth("tours", "40", "11", "train");
     synth("umbmark", "10", "12", "squares-cal");
@@ -374,18 +380,7 @@ fn window_dataset(manifest: &str, out: &str, extra: &[&str]) -> String {
 /// A small path model trained on forward tours in `dir`: (the model, the tours' folder).
 fn small_path_model(dir: &std::path::Path) -> (String, std::path::PathBuf) {
     let d = |p: &str| dir.join(p).display().to_string();
-    ok(&[
-        "synth",
-        "experiment",
-        "--paths",
-        "tours",
-        "--runs",
-        "4",
-        "--frames",
-        "none",
-        "--out",
-        &d("tours"),
-    ]);
+    synth_paths("tours", "4", &d("tours"), &[]);
     window_dataset(&d("tours/manifest.json"), &d("windows.json"), &[]);
     ok(&["train", &d("windows.json"), "--out", &d("path-model.json")]);
     (d("path-model.json"), dir.join("tours"))
@@ -1093,20 +1088,7 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
     let dir = tempfile::tempdir().unwrap();
     let (model, _) = small_path_model(dir.path());
     let sq = dir.path().join("sq");
-    ok(&[
-        "synth",
-        "experiment",
-        "--paths",
-        "umbmark",
-        "--runs",
-        "4",
-        "--frames",
-        "none",
-        "--seed",
-        "5",
-        "--out",
-        p(&sq),
-    ]);
+    synth_paths("umbmark", "4", p(&sq), &["--seed", "5"]);
     swap_first_two_trajectories(&sq);
     let e = fails(&[
         "evaluate",
@@ -1131,22 +1113,12 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
     // Held-out tours swapped alike turn the same way round: they were judged (every method
     // about 20 % of path off, against 2 %) until each log was asked to follow its trajectory.
     let tours = dir.path().join("held-out");
-    ok(&[
-        "synth",
-        "experiment",
-        "--paths",
+    synth_paths(
         "tours",
-        "--tour-legs",
-        "4",
-        "--runs",
         "3",
-        "--frames",
-        "none",
-        "--seed",
-        "9",
-        "--out",
         p(&tours),
-    ]);
+        &["--tour-legs", "4", "--seed", "9"],
+    );
     swap_first_two_trajectories(&tours);
     let e = fails(&[
         "evaluate",
@@ -1201,18 +1173,7 @@ fn a_robot_file_unlike_the_fitted_wheels_is_named() {
     // A net of more parameters than one tour's windows can pin down (99 on 16 windows) was
     // taken without a word.
     let one = dir.path().join("one");
-    ok(&[
-        "synth",
-        "experiment",
-        "--paths",
-        "tours",
-        "--runs",
-        "1",
-        "--frames",
-        "none",
-        "--out",
-        p(&one),
-    ]);
+    synth_paths("tours", "1", p(&one), &[]);
     let few = dir.path().join("few.json");
     window_dataset(p(&one.join("manifest.json")), p(&few), &[]);
     let res = odocal(&[
