@@ -227,4 +227,25 @@ mod tests {
         let seed = "--seed 18446744073709551615";
         assert_eq!(super::short_numbers(seed), seed);
     }
+
+    /// `--max-clock-offset-s` has no clap default (giving it without `--arena` is refused), so
+    /// its help states the default by hand: it must be the one the code uses.
+    #[test]
+    fn the_clock_offset_default_in_the_help_is_the_one_used() {
+        use clap::CommandFactory;
+        let mut cli = super::Cli::command();
+        let track = cli
+            .find_subcommand_mut("track")
+            .expect("odocal has a track command");
+        let help = track.render_long_help().to_string();
+        let at = help
+            .find("--max-clock-offset-s")
+            .expect("track has --max-clock-offset-s");
+        let want = format!(
+            "[default: {}]",
+            super::cmd::track_arena::DEFAULT_MAX_CLOCK_OFFSET_S
+        );
+        let next = help[at..].find("\n      --").map_or(help.len(), |i| at + i);
+        assert!(help[at..next].contains(&want), "{}", &help[at..next]);
+    }
 }

@@ -23,7 +23,7 @@ use crate::output::{
 };
 
 /// The clock offset between two arena cameras searched unless told, seconds either way.
-const DEFAULT_MAX_CLOCK_OFFSET_S: f64 = 1.0;
+pub(crate) const DEFAULT_MAX_CLOCK_OFFSET_S: f64 = 1.0;
 
 /// The options of `odocal track` for several robots and several cameras.
 #[derive(clap::Args)]
