@@ -404,8 +404,20 @@ fn a_coarse_cameras_floor_boards_are_one_floor() {
     let dir = tempfile::tempdir().unwrap();
     let d = p(dir.path());
     succeeded(&odocal(&[
-        "synth", "arena", "--out", d, "--seed", "17", "--width", "480", "--height", "320",
-        "--calib-views", "6", "--frames", "2",
+        "synth",
+        "arena",
+        "--out",
+        d,
+        "--seed",
+        "17",
+        "--width",
+        "480",
+        "--height",
+        "320",
+        "--calib-views",
+        "6",
+        "--frames",
+        "2",
     ]));
     let cam0 = dir.path().join("cam0");
     let out = dir.path().join("camera.json");

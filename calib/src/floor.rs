@@ -145,7 +145,17 @@ fn check_on_one_plane(
         .iter()
         .map(|p| p.0.translation.vector.norm())
         .fold(0.0, f64::max);
-    let off_plane_m = OFF_PLANE_M.max(OFF_PLANE_PX * farthest_m / focal_px);
+    // Only at a ceiling's height: a square given 10 times too large puts the boards 10
+    // times too far, and a bound grown with that distance would let their 10 times larger
+    // offsets through, where the height check below names --square.
+    let height_m = pnp
+        .first()
+        .map_or(0.0, |p| p.0.inverse().translation.vector.z.abs());
+    let off_plane_m = if crate::session::CEILING_HEIGHT_M.contains(&height_m) {
+        OFF_PLANE_M.max(OFF_PLANE_PX * farthest_m / focal_px)
+    } else {
+        OFF_PLANE_M
+    };
     let score = |(h, t): (f64, f64)| (h.abs() / off_plane_m).max(t / OFF_PLANE_TILT_DEG);
     let agree = |a: usize, b: usize| score(off(a, b)) <= 1.0;
     let count = |k: usize| (0..n).filter(|&j| j != k && agree(k, j)).count();
