@@ -358,6 +358,30 @@ fn board_on_floor(b: &BoardSpec, at: Point2<f64>, yaw_rad: f64) -> Isometry3<f64
 
 /// Whether the whole board (with a one-square margin) is in the image with its squares at
 /// least 6 pixels apart (scaled with the image width).
+/// Each camera's group of cameras tied together by shared views (the lowest camera index
+/// in the group).
+fn tied_with(cameras: usize, shared: &[SharedViewTruth]) -> Vec<usize> {
+    let mut group: Vec<usize> = (0..cameras).collect();
+    // A few passes settle any chain of four cameras.
+    for _ in 0..cameras {
+        for s in shared {
+            let low = s.cameras.iter().map(|&k| group[k]).min().unwrap_or(0);
+            for &k in &s.cameras {
+                let g = group[k];
+                for v in group.iter_mut().filter(|v| **v == g) {
+                    *v = low;
+                }
+            }
+        }
+    }
+    group
+}
+
+/// Whether shared views tie every camera to the first.
+fn tied_to_first(cameras: usize, shared: &[SharedViewTruth]) -> bool {
+    tied_with(cameras, shared).iter().all(|&g| g == 0)
+}
+
 fn board_in_view(camera: &CameraModel, pose: &BoardToCamera, b: &BoardSpec) -> bool {
     let corners = true_corners(camera, pose, b);
     if corners.len() < (b.cols * b.rows) as usize {
@@ -458,11 +482,8 @@ pub fn draw_arena(scene: &ArenaScene) -> ArenaTruth {
         (1.6, 1.2),
         (2.4, 0.8),
     ];
-    let mut shared = Vec::new();
-    for (x, y) in spots {
-        let at = Point2::new(x + rng.gen_range(-0.1..0.1), y + rng.gen_range(-0.1..0.1));
-        let board_to_arena = board_on_floor(&b, at, rng.gen_range(-0.4..0.4));
-        let seen: Vec<usize> = cameras
+    let seen_by = |board_to_arena: &Isometry3<f64>| -> Vec<usize> {
+        cameras
             .iter()
             .enumerate()
             .filter(|(_, c)| {
@@ -473,8 +494,34 @@ pub fn draw_arena(scene: &ArenaScene) -> ArenaTruth {
                 )
             })
             .map(|(k, _)| k)
-            .collect();
+            .collect()
+    };
+    let mut shared = Vec::new();
+    for (x, y) in spots {
+        let at = Point2::new(x + rng.gen_range(-0.1..0.1), y + rng.gen_range(-0.1..0.1));
+        let board_to_arena = board_on_floor(&b, at, rng.gen_range(-0.4..0.4));
+        let seen = seen_by(&board_to_arena);
         if seen.len() >= 2 {
+            shared.push(SharedViewTruth {
+                name: format!("s{:02}", shared.len()),
+                board_to_arena,
+                cameras: seen,
+            });
+        }
+    }
+    // Cameras turned or hung a little apart can leave a seam where no board lies whole in
+    // two views, and two pairs of cameras with nothing between them (seed 34): boards
+    // anywhere on the floor, until one ties them. Seeds whose spots already tie every camera
+    // draw nothing more, so their outputs are unchanged.
+    let mut tries = 0;
+    while !tied_to_first(cameras.len(), &shared) && tries < 400 {
+        tries += 1;
+        let (x0, y0, x1, y1) = ARENA_RECT_M;
+        let at = Point2::new(rng.gen_range(x0..x1), rng.gen_range(y0..y1));
+        let board_to_arena = board_on_floor(&b, at, rng.gen_range(-0.4..0.4));
+        let seen = seen_by(&board_to_arena);
+        let tied = tied_with(cameras.len(), &shared);
+        if seen.len() >= 2 && seen.iter().any(|&k| tied[k] != tied[seen[0]]) {
             shared.push(SharedViewTruth {
                 name: format!("s{:02}", shared.len()),
                 board_to_arena,
@@ -610,14 +657,13 @@ pub fn write_arena(
             )));
         }
     }
-    // Every camera must be tied to the others by a shared view.
-    for k in 0..4 {
-        if !truth.shared.iter().any(|s| s.cameras.contains(&k)) {
-            return Err(ArenaSynthError::Settings(format!(
-                "camera {k} sees no shared board: the cameras do not overlap enough; {}",
-                scene.fitting_advice(&truth.cameras[k].camera)
-            )));
-        }
+    // Every camera must be tied to the first by shared views.
+    let tied = tied_with(truth.cameras.len(), &truth.shared);
+    if let Some(k) = (0..truth.cameras.len()).find(|&k| tied[k] != tied[0]) {
+        return Err(ArenaSynthError::Settings(format!(
+            "camera {k} shares no board with camera 0, directly or through others: the cameras do not overlap enough; {}",
+            scene.fitting_advice(&truth.cameras[k].camera)
+        )));
     }
     let pattern =
         BoardPattern::new(&b).map_err(|e| ArenaSynthError::Settings(format!("the board: {e}")))?;
@@ -819,4 +865,43 @@ fn write_video(
     let ts = dir.join("timestamps.csv");
     std::fs::write(&ts, csv).map_err(|e| write_err(&ts, e))?;
     Ok(scene.frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Seed 34 at the default size drew shared boards that tied cameras 0 and 1, and 2 and 3,
+    /// but nothing between the pairs: `odocal arena` refused it. Every seed's shared views now
+    /// tie every camera to the first, and a seed whose spots did so already is drawn as before.
+    #[test]
+    fn shared_views_tie_every_camera_to_the_first() {
+        for seed in [1, 34] {
+            let truth = draw_arena(&ArenaScene {
+                seed,
+                ..ArenaScene::default()
+            });
+            let tied = tied_with(truth.cameras.len(), &truth.shared);
+            assert_eq!(tied, vec![0; 4], "seed {seed}: {:?}", truth.shared.len());
+            if seed == 1 {
+                // The demo's arena: 15 spots, 13 of them seen whole by two cameras or more.
+                assert_eq!(truth.shared.len(), 13, "seed 1");
+            }
+        }
+        // Before, seed 34's fifteen spots left the pairs apart.
+        let two_pairs = [
+            SharedViewTruth {
+                name: "s00".into(),
+                board_to_arena: Isometry3::identity(),
+                cameras: vec![0, 1],
+            },
+            SharedViewTruth {
+                name: "s01".into(),
+                board_to_arena: Isometry3::identity(),
+                cameras: vec![3, 2],
+            },
+        ];
+        assert_eq!(tied_with(4, &two_pairs), vec![0, 0, 2, 2]);
+        assert!(!tied_to_first(4, &two_pairs));
+    }
 }
