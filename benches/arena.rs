@@ -64,6 +64,7 @@ fn main() {
             points: 0,
         },
         pairs: vec![],
+        frame_placement: None,
     };
     let videos: Vec<_> = (0..4).map(|k| d.join(format!("video_c{k}"))).collect();
     let opts = TrackOptions {

@@ -699,3 +699,111 @@ fn a_camera_video_turned_is_named() {
         "{e}"
     );
 }
+
+/// Whether the fused σ are right is a matter for many arenas: most of each σ is the first
+/// camera's floor (the floor frame's placement and tilt), one draw per arena that moves
+/// every fix alike. Over twelve small arenas (480x320, 6 calibration views a camera, seeds
+/// 11-22), a robot's error/σ RMS per axis, pooled, is near 1. With the first floor's
+/// covariance taken out of the camera files, as arena files written before it was kept, the
+/// σ leave that common part out and the errors are several times their σ.
+/// Measured: 0.89 pooled (0.25-1.51 per robot); without the floor's covariance 2.49 (0.72-5.09).
+/// Ignored: it takes about 13 minutes on 2 cores (`cargo test --release --test arena --
+/// --ignored fused_sigma`).
+#[test]
+#[ignore]
+fn fused_sigma_holds_over_many_arenas() {
+    let dir = tempfile::tempdir().unwrap();
+    // Each robot's error/σ RMS per axis, as `track --arena-truth` prints it.
+    let z_of = |stdout: &str| -> Vec<f64> {
+        stdout
+            .lines()
+            .filter_map(|l| l.split("error/σ RMS per axis ").nth(1))
+            .map(|v| v.split(' ').next().unwrap().parse::<f64>().unwrap())
+            .collect()
+    };
+    let (mut with, mut without) = (Vec::new(), Vec::new());
+    for seed in 11..=22 {
+        let d = dir.path().join(format!("s{seed}"));
+        let s = seed.to_string();
+        ok(&[
+            "synth",
+            "arena",
+            "--out",
+            p(&d),
+            "--seed",
+            &s,
+            "--width",
+            "480",
+            "--height",
+            "320",
+            "--calib-views",
+            "6",
+        ]);
+        let mut cams = Vec::new();
+        let mut cams_old = Vec::new();
+        for k in 0..4 {
+            let c = d.join(format!("cam{k}"));
+            let mut args = vec!["calibrate".to_string()];
+            let images = |prefix: &str| {
+                let mut v: Vec<String> = std::fs::read_dir(&c)
+                    .unwrap()
+                    .map(|e| e.unwrap().path().to_string_lossy().into_owned())
+                    .filter(|f| f.contains(prefix))
+                    .collect();
+                v.sort();
+                v
+            };
+            let (views, floors) = (images("/view_"), images("/floor_"));
+            args.extend(views);
+            args.push("--floor".into());
+            args.extend(floors);
+            let out = c.join("camera.json");
+            args.extend(["--board", "9x6", "--square", "0.07", "--out", p(&out)].map(String::from));
+            ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+            let mut file: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+            file["floor_uncertainty"]
+                .as_object_mut()
+                .unwrap()
+                .remove("floor_covariance");
+            let old = c.join("camera_old.json");
+            std::fs::write(&old, file.to_string()).unwrap();
+            cams.push(out);
+            cams_old.push(old);
+        }
+        for (files, zs, name) in [
+            (&cams, &mut with, "arena"),
+            (&cams_old, &mut without, "old"),
+        ] {
+            let arena = d.join(format!("{name}.json"));
+            let mut args = vec!["arena".to_string(), "--camera".into()];
+            args.extend(files.iter().map(|f| p(f).to_string()));
+            args.extend(["--shared", p(&d.join("shared")), "--out", p(&arena)].map(String::from));
+            ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+            let mut args: Vec<String> = vec!["track".into(), "--arena".into(), p(&arena).into()];
+            args.extend((0..4).map(|k| p(&d.join(format!("video_c{k}"))).to_string()));
+            args.extend(
+                [
+                    "--tags",
+                    "0,3",
+                    "--tag-size",
+                    "0.16",
+                    "--out",
+                    p(&d.join(format!("{name}.csv"))),
+                    "--arena-truth",
+                    p(&d),
+                ]
+                .map(String::from),
+            );
+            let z = z_of(&ok(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+            assert_eq!(z.len(), 2, "seed {seed} ({name}): {z:?}");
+            eprintln!("seed {seed} ({name}): error/σ RMS per axis {z:?}");
+            zs.extend(z);
+        }
+    }
+    let pooled = |z: &[f64]| (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    let (z, z_old) = (pooled(&with), pooled(&without));
+    eprintln!("pooled error/σ RMS per axis over 12 arenas: {z:.2}; without the first floor's covariance {z_old:.2}");
+    assert!((0.7..=1.4).contains(&z), "pooled error/σ {z:.2}");
+    assert!(z_old > 2.0, "without the floor's covariance: {z_old:.2}");
+}

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use nalgebra::{Matrix2x3, Matrix3, Point2, Vector2};
 use odocal_calib::{CameraFile, FloorToCamera};
 use serde::{Deserialize, Serialize};
 
@@ -55,6 +56,64 @@ pub struct PairConsistency {
     pub consistency: Consistency,
 }
 
+/// How well the arena's floor frame is placed on the real floor: the covariance of a small
+/// turn of the whole frame about the vertical and shift along the floor. The frame is the
+/// first camera's floor frame, located from that camera's floor boards with its intrinsics;
+/// the part of their error stated here moves every fix of every camera alike, by one turn
+/// and shift. The fixes' σ include it, as they include the rest of the first floor's
+/// uncertainty: a fix is where the robot is in the frame the first camera's floor boards
+/// defined, to within its σ. A run aligned to its odometry takes the common move up, so on
+/// an arena whose fixes' σ are mostly this part the aligned runs are better than their σ.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FramePlacement {
+    /// Covariance of (turn about the vertical in radians, shift along x in metres, shift along
+    /// y in metres) of the frame about its origin (the first floor board's first corner), in
+    /// the frame's own axes, row by row.
+    pub covariance: [[f64; 3]; 3],
+}
+
+impl FramePlacement {
+    /// σ of the frame's heading, radians.
+    pub fn heading_sigma_rad(&self) -> f64 {
+        self.covariance[0][0].sqrt()
+    }
+
+    /// σ of the frame's origin along x and y, metres.
+    pub fn origin_sigma_m(&self) -> Vector2<f64> {
+        Vector2::new(self.covariance[1][1].sqrt(), self.covariance[2][2].sqrt())
+    }
+
+    /// σ of where the frame's move puts a floor point `at` (metres, in the frame), √(σx² +
+    /// σy²), metres: the shift's, and the turn's times the point's distance from the origin.
+    pub fn sigma_at_m(&self, at: &Point2<f64>) -> f64 {
+        let c = Matrix3::from_fn(|i, j| self.covariance[i][j]);
+        let j = Matrix2x3::new(-at.y, 1.0, 0.0, at.x, 0.0, 1.0);
+        (j * c * j.transpose()).trace().max(0.0).sqrt()
+    }
+
+    fn check(&self) -> Result<(), String> {
+        let c = &self.covariance;
+        let symmetric = (0..3).all(|i| {
+            (0..3).all(|j| {
+                (c[i][j] - c[j][i]).abs()
+                    <= 1e-9 * (c[i][i] * c[j][j]).sqrt().max(f64::MIN_POSITIVE)
+            })
+        });
+        if c.iter().flatten().any(|v| !v.is_finite()) || (0..3).any(|i| c[i][i] < 0.0) || !symmetric
+        {
+            return Err("frame_placement.covariance is not a covariance (finite, symmetric, variances 0 or more)".into());
+        }
+        if self.heading_sigma_rad() > 0.1 || self.origin_sigma_m().max() > 1.0 {
+            return Err(format!(
+                "frame_placement gives the floor frame's heading a σ of {:.1} mrad and its origin one of {:.0} mm: no floor calibration is that unsure",
+                self.heading_sigma_rad() * 1e3,
+                self.origin_sigma_m().max() * 1e3
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// The contents of an arena file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ArenaFile {
@@ -68,6 +127,11 @@ pub struct ArenaFile {
     pub consistency: Consistency,
     /// Agreement of each pair that shares a board.
     pub pairs: Vec<PairConsistency>,
+    /// How well the floor frame itself is placed (from the first camera's floor
+    /// uncertainty); None when its camera file does not keep the floor's covariance, and in
+    /// arena files written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_placement: Option<FramePlacement>,
 }
 
 impl ArenaFile {
@@ -109,6 +173,9 @@ impl ArenaFile {
                     "cameras[{k}].arena_to_camera puts the camera {height} m above the floor (0 to 100 m)"
                 ));
             }
+        }
+        if let Some(f) = &self.frame_placement {
+            f.check()?;
         }
         let c = &self.consistency;
         if !(c.rms_mm.is_finite() && c.rms_mm >= 0.0 && c.max_mm >= c.rms_mm) {

@@ -61,6 +61,8 @@ pub struct ArenaSolution {
     /// Each camera's joint covariance of its pose correction and its intrinsics
     /// ([`crate::ArenaCamera::pose_covariance`]).
     pub pose_covariance: Vec<Option<DMatrix<f64>>>,
+    /// How well the floor frame is placed ([`crate::ArenaFile::frame_placement`]).
+    pub frame_placement: Option<crate::FramePlacement>,
     /// The cameras whose shared images numbered the checkerboard's corners from the other end
     /// (mounted turned about 180° from the first camera), read with their numbering turned
     /// back; None when every camera's numbering was taken as recorded.
@@ -187,6 +189,7 @@ pub fn solve_arena(
         consistency,
         pairs,
         pose_covariance,
+        frame_placement: frame_placement(&cameras[0]),
         renumbered,
     })
 }
@@ -260,10 +263,14 @@ fn fit_graph(
         .filter(|(_, c)| c.is_none())
         .map(|(k, _)| format!("{k} ({})", camera_paths[k].display()))
         .collect();
-    if !unlinked.is_empty() {
+    if let [rest @ .., last] = unlinked.as_slice() {
+        let (who, verb) = if rest.is_empty() {
+            (format!("camera {last}"), "shares")
+        } else {
+            (format!("cameras {} and {last}", rest.join(", ")), "share")
+        };
         return Err(ArenaError::Input(format!(
-            "camera {} shares no board with the first camera, directly or through others: photograph a board on the floor where its view overlaps another's, with both cameras at once",
-            unlinked.join(", ")
+            "{who} {verb} no board with the first camera, directly or through others: photograph a board on the floor where its view overlaps another's, with both cameras at once",
         )));
     }
     let cam_init: Vec<FloorToCamera> = cam_init.into_iter().flatten().collect();
@@ -621,10 +628,14 @@ fn jacobian(f: &dyn Fn(&[f64]) -> Vec<f64>, p: &[f64], h: &[f64]) -> DMatrix<f64
 /// neighbour's error becomes this camera's, the same for every fix in a region, and this
 /// camera's own error is partly made good by its pose where the boards tie it. The
 /// covariance carries the intrinsics' covariances (camera.json's) through the fit, plus the
-/// corners' noise. The first camera's intrinsics are left out: its pose is its own floor's,
-/// located with those same intrinsics, which the fit here cannot move, and its floor
-/// uncertainty map already describes how its pixels reach the floor. None for a camera whose
-/// file has no covariance, or when the fit's normal matrix is singular.
+/// corners' noise. The first camera's pose is its own floor's, located with those same
+/// intrinsics from its floor boards: the fit here cannot move it, but its uncertainty (the
+/// floor's joint covariance with the intrinsics, kept in its floor uncertainty map) moves the
+/// arena's floor frame, and with it every camera tied to it; a camera file without it has its
+/// intrinsics' error taken up by the rigid move of the first camera that best absorbs it.
+/// The first camera itself is left out: its floor uncertainty map already describes how its
+/// pixels reach the floor. None for a camera whose file has no covariance, or when the fit's
+/// normal matrix is singular.
 fn pose_covariances(
     files: &[CameraFile],
     cams: &[Isometry3<f64>],
@@ -678,6 +689,25 @@ fn pose_covariances(
             };
             let h: Vec<f64> = p0.iter().map(|v| 1e-6 * v.abs().max(1e-3)).collect();
             let mut j_int = jacobian(&g, &p0, &h);
+            if let Some(joint) = (k == 0)
+                .then(|| first_floor_covariance(&files[0]))
+                .flatten()
+            {
+                // The arena's floor frame is the first camera's floor, located from its floor
+                // boards: where it is uncertain, every camera tied to it is moved with it, far
+                // from the first camera's image as much as in it (a turn of the frame about
+                // its origin moves a camera 3 m off by 3 mm a milliradian).
+                let moved_floor = |d: &[f64]| {
+                    let mut c = cams.to_vec();
+                    c[0] = cams[0] * floor_correction(d);
+                    pixel_residuals(&models, &c, boards, observations, m)
+                };
+                let j_floor = jacobian(&moved_floor, &[0.0; 6], &[1e-6; 6]);
+                let mut j = DMatrix::zeros(j_int.nrows(), 6 + j_int.ncols());
+                j.columns_mut(0, 6).copy_from(&j_floor);
+                j.columns_mut(6, j_int.ncols()).copy_from(&j_int);
+                return Some((-(&solve * j), joint));
+            }
             if k == 0 {
                 // The first camera's pose is its own floor's, located with the same
                 // intrinsics: it takes up what a rigid move can of their error.
@@ -714,6 +744,76 @@ fn pose_covariances(
             Some(c)
         })
         .collect()
+}
+
+/// A small correction of a floor pose on its floor's side (rotation vector, then translation),
+/// as `odocal_calib::FloorUncertaintyMap::floor_covariance` describes it.
+fn floor_correction(d: &[f64]) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(d[3], d[4], d[5]),
+        UnitQuaternion::from_scaled_axis(Vector3::new(d[0], d[1], d[2])),
+    )
+}
+
+/// The floor pose correction's components that place the floor plane (tilt about x and y,
+/// height): [`floor_correction`]'s order.
+const FLOOR_SHAPE: [usize; 3] = [0, 1, 5];
+
+/// The floor pose correction's components that move the floor frame along its own plane
+/// (turn about the vertical, shift along x and y): [`floor_correction`]'s order.
+const FLOOR_PLACEMENT: [usize; 3] = [2, 3, 4];
+
+/// How well the arena's floor frame is placed: the part of the first camera's floor turn
+/// about the vertical and shift along the floor that moves every fix alike. None when its
+/// camera file does not keep its floor's covariance.
+///
+/// With that turn and shift p and the rest of the floor pose and the intrinsics s (tilt,
+/// height, focal length, …), p = A s + e, e independent of s: A s moves each camera's fixes
+/// with the floor's plane and the lens, differently in each, and e (the conditional
+/// covariance of p given s) moves them all by one turn and shift. The turn and the shift are
+/// tied to the tilt (a floor seen from 2.6 m, tilted a milliradian about a point under the
+/// camera, shifts its origin by the tilt times the distance), so p's own covariance
+/// overstates the common move many times: 7 mm where e is 0.2 mm, on a 480x320 arena.
+fn frame_placement(first: &CameraFile) -> Option<crate::FramePlacement> {
+    let joint = first_floor_covariance(first)?;
+    let rest_at: Vec<usize> = FLOOR_SHAPE
+        .iter()
+        .copied()
+        .chain(6..joint.nrows())
+        .collect();
+    let pick = |rows: &[usize], cols: &[usize]| {
+        DMatrix::from_fn(rows.len(), cols.len(), |a, b| joint[(rows[a], cols[b])])
+    };
+    let rest = pick(&rest_at, &rest_at);
+    let cross = pick(&FLOOR_PLACEMENT, &rest_at);
+    // Scaled to unit variances first: the parameters' units span many decades, and the
+    // rational model's coefficients have a direction they barely tell apart.
+    let scale =
+        DMatrix::from_diagonal(&rest.diagonal().map(
+            |v| {
+                if v > 0.0 {
+                    1.0 / v.sqrt()
+                } else {
+                    0.0
+                }
+            },
+        ));
+    let inverse = &scale * (&scale * &rest * &scale).pseudo_inverse(1e-10).ok()? * &scale;
+    let e = pick(&FLOOR_PLACEMENT, &FLOOR_PLACEMENT) - &cross * inverse * cross.transpose();
+    let mut covariance = [[0.0; 3]; 3];
+    for (i, row) in covariance.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = 0.5 * (e[(i, j)] + e[(j, i)]);
+        }
+    }
+    Some(crate::FramePlacement { covariance })
+}
+
+/// The first camera's joint covariance of its floor pose and intrinsics, when its camera
+/// file keeps one that fits its model.
+fn first_floor_covariance(file: &CameraFile) -> Option<DMatrix<f64>> {
+    let c = file.floor_uncertainty.as_ref()?.floor_covariance_matrix()?;
+    (c.nrows() == 6 + file.camera.parameters().len()).then_some(c)
 }
 
 /// A camera whose shared-view corners fit this many times worse than its own calibration's
@@ -928,6 +1028,7 @@ pub fn build_arena(
         shared_views: shared.iter().map(|s| s.name.clone()).collect(),
         consistency: solution.consistency,
         pairs: solution.pairs.clone(),
+        frame_placement: solution.frame_placement,
     };
     Ok((file, solution))
 }
@@ -1114,6 +1215,105 @@ mod tests {
         let z_rms = (z2 / count as f64).sqrt();
         eprintln!("floor error / σ RMS {z_rms:.2} over {count} axes");
         assert!((0.5..=2.0).contains(&z_rms), "error/σ RMS {z_rms:.2}");
+    }
+
+    /// The first camera's floor (the arena's floor frame) turned about its vertical by an
+    /// unknown angle turns every fix about the floor's origin: each camera's fixes are
+    /// uncertain by that angle times their distance from the origin, 3 mm a milliradian at
+    /// 3 m, and the arena states the turn as the frame's placement too. Tilted by an unknown
+    /// angle, it moves each camera's fixes by that camera's own lines of sight, and is no
+    /// placement. (Before, the arena left the first floor's uncertainty out, and fixes far
+    /// from the first camera were 4.7 σ off on a small arena.)
+    #[test]
+    fn the_first_floors_uncertainty_reaches_every_camera() {
+        let (cams, poses, shared) = scene();
+        let paths = [
+            Path::new("a.json"),
+            Path::new("b.json"),
+            Path::new("c.json"),
+        ];
+        let sd_rad = 1e-3;
+        let n = cams[0].parameters().len();
+        // Intrinsics known all but exactly: only the first floor's pose is uncertain, by 1
+        // mrad about the axis `axis`.
+        let arena_with = |axis: Option<usize>| {
+            let mut f = files(&cams, &poses);
+            for file in &mut f {
+                file.covariance = Some(
+                    (0..n)
+                        .map(|i| (0..n).map(|j| if i == j { 1e-18 } else { 0.0 }).collect())
+                        .collect(),
+                );
+            }
+            f[0].floor_uncertainty = axis.map(|axis| odocal_calib::FloorUncertaintyMap {
+                cell_px: 960,
+                cols: 1,
+                rows: 1,
+                sigma_mm: vec![None],
+                floor_boards_px: vec![],
+                model_spread_mm: vec![],
+                floor_covariance: Some(
+                    (0..6 + n)
+                        .map(|i| {
+                            (0..6 + n)
+                                .map(|j| {
+                                    if i == axis && j == axis {
+                                        sd_rad * sd_rad
+                                    } else {
+                                        0.0
+                                    }
+                                })
+                                .collect()
+                        })
+                        .collect(),
+                ),
+            });
+            build_arena(&f, &paths, &shared, &BOARD).unwrap().0
+        };
+        let fix_sigma_m = |arena: &crate::ArenaFile, k: usize| {
+            let cam = &arena.cameras[k];
+            let px = Point2::new(480.0, 270.0);
+            let at = cam
+                .calibration
+                .camera
+                .pixel_to_floor(&cam.arena_to_camera, &px, 0.0)
+                .unwrap();
+            let c = crate::track::calibration_covariance(cam, &px, 0.0).unwrap();
+            (c.trace().sqrt(), at)
+        };
+        let turned = arena_with(Some(2));
+        let placement = turned.frame_placement.unwrap();
+        assert!((placement.heading_sigma_rad() / sd_rad - 1.0).abs() < 1e-9);
+        assert!(placement.origin_sigma_m().norm() < 1e-12);
+        let tilted = arena_with(Some(0));
+        assert!(tilted.frame_placement.unwrap().heading_sigma_rad() < 1e-12);
+        let neither = arena_with(None);
+        assert!(neither.frame_placement.is_none());
+        let mut tilt_part_m = Vec::new();
+        for k in 1..3 {
+            let (noise_m, at) = fix_sigma_m(&neither, k);
+            let part_m = |arena: &crate::ArenaFile| {
+                let (sigma_m, _) = fix_sigma_m(arena, k);
+                (sigma_m.powi(2) - noise_m.powi(2)).max(0.0).sqrt()
+            };
+            let want_m = sd_rad * at.coords.norm();
+            assert!(
+                (part_m(&turned) / want_m - 1.0).abs() < 0.05,
+                "camera {k} at {at}: a 1 mrad turn adds {:.3} mm, its lever gives {:.3} mm",
+                part_m(&turned) * 1e3,
+                want_m * 1e3
+            );
+            // Measured: 0.33 mm at camera 1 (0.24 m from the tilt's axis), 0.73 mm at camera
+            // 2 (1.64 m from it).
+            let tilted_m = part_m(&tilted);
+            assert!(
+                tilted_m > 0.2e-3,
+                "camera {k} at {at}: a 1 mrad tilt adds {:.3} mm",
+                tilted_m * 1e3
+            );
+            tilt_part_m.push((at.y.abs(), tilted_m));
+        }
+        assert!(tilt_part_m[1].1 > tilt_part_m[0].1, "{tilt_part_m:?}");
     }
 
     /// One camera's image of one view saved under another view's name: the arena is refused

@@ -13,7 +13,10 @@
 //! cameras at once, and simultaneous fixes are fused with weights that fade out towards each
 //! image's border, so a robot handed from one view to the next does not jump. Each fix's σ
 //! carries the calibrations' uncertainty through the arena fit (every camera's intrinsics
-//! covariance moves the fitted poses), and the fusion does not average that part down.
+//! covariance moves the fitted poses, and so does the first camera's floor, which is the
+//! arena's floor frame), and the fusion does not average that part down. The part of the
+//! floor frame's uncertainty that moves every fix alike is stated on its own
+//! ([`FramePlacement`]): a run aligned to its odometry takes it up.
 //! A camera whose video is turned 180° against its calibration is named ([`TurnedCamera`])
 //! rather than blamed on its clock.
 
@@ -27,7 +30,9 @@ mod track_file;
 mod turned;
 
 pub use error::ArenaError;
-pub use file::{ArenaCamera, ArenaFile, Consistency, PairConsistency, ARENA_FORMAT};
+pub use file::{
+    ArenaCamera, ArenaFile, Consistency, FramePlacement, PairConsistency, ARENA_FORMAT,
+};
 pub use fuse::{
     estimate_clock_offsets, fix_weight, fuse_robot, Agreement, CameraFix, CameraTrack,
     ClockOffsets, ClockRate, Disagreement, FuseGrid, FuseOptions, FusedTrack, Handoff,

@@ -17,6 +17,14 @@ use odocal_synth::arena::{write_arena, ArenaScene};
 use odocal_tracker::multi::TagSelection;
 use odocal_tracker::TrackOptions;
 
+/// The bounds of a robot's error/σ RMS per axis over its fused rows. Most of each σ is the
+/// first camera's floor (the floor frame's placement and tilt), one draw per arena that moves
+/// every fix alike: on this arena it happens to be small, and the errors are well within σ
+/// (0.31 and 0.34). A σ ten times too large, or one leaving that common part out (4.4 on a
+/// small arena), falls outside. Whether σ is right on average is a matter for many arenas:
+/// `tests/arena.rs` `fused_sigma_holds_over_many_arenas` (ignored: it takes minutes).
+const ROW_Z_RMS: std::ops::RangeInclusive<f64> = 0.15..=2.5;
+
 fn pngs(dir: &Path, prefix: &str) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap()
@@ -283,10 +291,25 @@ fn arena_meets_the_bounds() {
             robot.tag_id
         );
         assert!(
-            (0.4..=2.5).contains(&z_rms),
+            ROW_Z_RMS.contains(&z_rms),
             "robot {}: error/σ RMS {z_rms:.2}: the fused σ does not describe the errors",
             robot.tag_id
         );
+        // The frame's placement is in every row's σ: a turn about the origin and a shift of
+        // the whole frame move each row at least that much.
+        let placement = arena
+            .frame_placement
+            .expect("camera 0's file keeps its floor's covariance");
+        for r in rows {
+            let (s, p) = (r.sigma.expect("fused rows carry σ"), r.pose.position());
+            assert!(
+                s.x_m.hypot(s.y_m) >= 0.999 * placement.sigma_at_m(&p),
+                "robot {} at {p}: σ {:.3} mm leaves out the floor frame's placement, {:.3} mm there",
+                robot.tag_id,
+                s.x_m.hypot(s.y_m) * 1e3,
+                placement.sigma_at_m(&p) * 1e3
+            );
+        }
         eprintln!(
             "robot {}: {} rows over {:.2} s, position RMS {:.3} mm, {} handoffs, largest error step at a handoff {:.3} mm (the fusion's own measure {:.3} mm)",
             robot.tag_id,
@@ -557,7 +580,7 @@ fn perturbed_cameras(
         for (k, r) in tracking.robots.iter().enumerate() {
             assert!(rms[k] <= (base.0[k] + 3e-4).min(1.5e-3), "{name}: {rms:?}");
             assert!(
-                z[k] <= base.1[k] + 1.0 && (0.4..=2.5).contains(&z[k]),
+                z[k] <= base.1[k] + 1.0 && ROW_Z_RMS.contains(&z[k]),
                 "{name}: {z:?}"
             );
             let plain = &one_rate.robots[k].trajectory.rows;

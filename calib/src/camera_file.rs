@@ -410,5 +410,19 @@ fn check_floor_uncertainty(
             "floor_uncertainty has a value that is not a standard deviation (a number of millimetres, 0 or more) at entry {i} (counting sigma_mm, then model_spread_mm)"
         ));
     }
+    // An arena carries the floor pose's covariance to every camera tied to this one.
+    if let Some(c) = &map.floor_covariance {
+        let n = 6 + camera.parameters().len();
+        if c.len() != n || c.iter().any(|r| r.len() != n) {
+            return Err(format!(
+                "floor_uncertainty.floor_covariance must be {n}x{n} (the floor pose's 6 and the {} model's {} parameters)",
+                camera.distortion.model,
+                n - 6
+            ));
+        }
+        if c.iter().flatten().any(|v| !v.is_finite()) || (0..n).any(|i| c[i][i] < 0.0) {
+            return Err("floor_uncertainty.floor_covariance has a value that is not a finite number, or a negative variance".into());
+        }
+    }
     Ok(())
 }

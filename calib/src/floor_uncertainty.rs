@@ -120,6 +120,15 @@ pub struct FloorUncertaintyMap {
     /// image empty, models alike on the views part ways.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub model_spread_mm: Vec<Option<f64>>,
+    /// Joint covariance of a small correction to the floor pose (rotation vector, then
+    /// translation, in radians and metres, applied on the floor's side: `floor_to_camera ∘
+    /// correction`) and of the intrinsics (`CameraModel::parameters`), from the floor boards'
+    /// corner noise and the intrinsics' covariance ([`Self::floor_covariance_matrix`]). The
+    /// map's σ describe this camera's own fixes; a floor frame shared with other cameras (an
+    /// arena's, which is its first camera's) carries this covariance to every camera tied to
+    /// it, far beyond this image. None in files written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_covariance: Option<Vec<Vec<f64>>>,
 }
 
 impl FloorUncertaintyMap {
@@ -219,6 +228,22 @@ impl FloorUncertaintyMap {
         let dp_dtheta = -(&info_inv * jp.transpose() * &jt);
         let floor_cov = info_inv.view((0, 0), (6, 6)).into_owned();
         let dfloor_dtheta = dp_dtheta.rows(0, 6).into_owned();
+        // The floor pose's joint covariance with the intrinsics: its own (the boards' corner
+        // noise) plus what the intrinsics' error moves it by. The parameters' correction is
+        // applied after the fitted one (`FloorBoards::floor`), which to first order is the
+        // same as a correction of the fitted pose on its floor side.
+        let moved_by_intrinsics = &dfloor_dtheta * covariance;
+        let mut joint = DMatrix::<f64>::zeros(6 + n, 6 + n);
+        joint
+            .view_mut((0, 0), (6, 6))
+            .copy_from(&(&floor_cov + &moved_by_intrinsics * dfloor_dtheta.transpose()));
+        joint
+            .view_mut((0, 6), (6, n))
+            .copy_from(&moved_by_intrinsics);
+        joint
+            .view_mut((6, 0), (n, 6))
+            .copy_from(&moved_by_intrinsics.transpose());
+        joint.view_mut((6, 6), (n, n)).copy_from(covariance);
         let mut cov = vec![Matrix2::<f64>::zeros(); pixels.len()];
         for (k, pix) in pixels.iter().enumerate() {
             if !seen[k] {
@@ -276,7 +301,23 @@ impl FloorUncertaintyMap {
                 .map(|v| v.corners.iter().map(|p| [p.x, p.y]).collect())
                 .collect(),
             model_spread_mm: Vec::new(),
+            floor_covariance: Some(
+                joint
+                    .row_iter()
+                    .map(|r| r.iter().copied().collect())
+                    .collect(),
+            ),
         })
+    }
+
+    /// [`Self::floor_covariance`] as a matrix, if the map has one that is square.
+    pub fn floor_covariance_matrix(&self) -> Option<DMatrix<f64>> {
+        let rows = self.floor_covariance.as_ref()?;
+        let n = rows.len();
+        if rows.iter().any(|r| r.len() != n) {
+            return None;
+        }
+        Some(DMatrix::from_fn(n, n, |i, j| rows[i][j]))
     }
 
     /// The index of the cell holding `pixel` (None off the map).

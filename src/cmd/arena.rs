@@ -168,6 +168,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         c.points,
         arena.shared_views.len()
     );
+    match &arena.frame_placement {
+        Some(f) => {
+            // The camera farthest from the origin sees the frame's turn the most.
+            let (far_k, far) = arena
+                .cameras
+                .iter()
+                .map(|c| {
+                    let at = c.arena_to_camera.0.inverse().translation.vector;
+                    nalgebra::Point2::new(at.x, at.y)
+                })
+                .enumerate()
+                .max_by(|a, b| a.1.coords.norm().total_cmp(&b.1.coords.norm()))
+                .unwrap_or((0, nalgebra::Point2::origin()));
+            let origin = f.origin_sigma_m();
+            say!(
+                "floor frame (camera 0's floor boards): heading σ {:.3} mrad, origin σ {:.2} mm (x) {:.2} mm (y), {:.2} mm under camera {far_k} ({:.1} m out): a turn and shift of every fix alike, part of the fixes' σ; a run aligned to its odometry takes it up",
+                f.heading_sigma_rad() * 1e3,
+                origin.x * 1e3,
+                origin.y * 1e3,
+                f.sigma_at_m(&far) * 1e3,
+                far.coords.norm()
+            );
+        }
+        None => tell!(
+            "warning: {} keeps no covariance of its floor (calibrated before camera files kept it), so the fixes' σ leave out how well the floor frame itself is placed, most of their error on a small arena; calibrate camera 0 again with `odocal calibrate` to have it",
+            paths[0].display()
+        ),
+    }
     commit()?;
     say!("wrote {}", args.out.display());
     Ok(())

@@ -467,7 +467,7 @@ fn track_arena(
         }
     }
     if let Some(dir) = &m.arena_truth {
-        print_against_truth(dir, &tracking)?;
+        print_against_truth(dir, &tracking, arena.frame_placement.as_ref())?;
     }
     let single = matches!(selection, TagSelection::Ids(ids) if ids.len() == 1);
     if let Some(p) = &m.arena_report {
@@ -644,7 +644,11 @@ fn say_frame_rates(tracking: &odocal_arena::ArenaTracking) {
 }
 
 /// Each robot's error against the synthetic truth, and the offsets against the true ones.
-fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> anyhow::Result<()> {
+fn print_against_truth(
+    dir: &Path,
+    tracking: &odocal_arena::ArenaTracking,
+    frame: Option<&odocal_arena::FramePlacement>,
+) -> anyhow::Result<()> {
     let truth = ArenaTruth::read(&dir.join("truth.json"))?;
     // The truth's clock is camera 0's; the arena's is the reference camera's.
     let to_truth_s = truth
@@ -661,6 +665,8 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
             None => {}
         }
     }
+    // Each robot's fused rows with the truth at their time.
+    let mut robots = Vec::new();
     for r in &tracking.robots {
         let Some(rt) = truth.robots.iter().find(|t| t.tag_id == r.tag_id) else {
             say!(
@@ -670,23 +676,67 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
             continue;
         };
         let tt = Trajectory::read_csv(&dir.join(&rt.trajectory))?;
-        let err = |row: &odocal_core::TrajectoryRow| {
-            tt.position_at(row.t_s + to_truth_s, 0.01)
-                .map(|p| row.pose.position() - p)
-        };
-        let errs: Vec<_> = r.trajectory.rows.iter().filter_map(err).collect();
-        // Each axis's error over its σ, where the rows have σ.
-        let z: Vec<f64> = r
+        let truths: Vec<Option<nalgebra::Point2<f64>>> = r
             .trajectory
             .rows
             .iter()
-            .filter_map(|row| Some((err(row)?, row.sigma?)))
+            .map(|row| tt.position_at(row.t_s + to_truth_s, 0.01))
+            .collect();
+        robots.push((r, truths));
+    }
+    // How much of the error is one move of every fix: the floor frame's placement, and what
+    // the cameras' calibrations move alike.
+    let (truth_at, fixed_at): (Vec<_>, Vec<_>) = robots
+        .iter()
+        .flat_map(|(r, truths)| {
+            r.trajectory
+                .rows
+                .iter()
+                .zip(truths)
+                .filter_map(|(row, t)| Some(((*t)?, row.pose.position())))
+        })
+        .unzip();
+    let common = odocal_core::fit_rigid(&truth_at, &fixed_at).ok();
+    if let Some(c) = &common {
+        let placement = frame.map_or(
+            "the arena file states no σ of the floor frame's placement".to_string(),
+            |f| {
+                let o = f.origin_sigma_m();
+                format!(
+                    "the floor frame's placement alone has σ {:.3} mrad and ({:.2}, {:.2}) mm",
+                    f.heading_sigma_rad() * 1e3,
+                    o.x * 1e3,
+                    o.y * 1e3
+                )
+            },
+        );
+        say!(
+            "against the truth: every robot's fixes together sit turned {:.3} mrad and shifted ({:.2}, {:.2}) mm from the truth, one move common to all ({placement}; the cameras' calibrations add to it)",
+            c.pose.theta_rad * 1e3,
+            c.pose.x_m * 1e3,
+            c.pose.y_m * 1e3
+        );
+    }
+    for (r, truths) in &robots {
+        let rows = &r.trajectory.rows;
+        let err = |i: usize| truths[i].map(|p| rows[i].pose.position() - p);
+        let errs: Vec<_> = (0..rows.len()).filter_map(err).collect();
+        // Each axis's error over its σ, where the rows have σ.
+        let z: Vec<f64> = (0..rows.len())
+            .filter_map(|i| Some((err(i)?, rows[i].sigma?)))
             .flat_map(|(e, s)| [e.x / s.x_m, e.y / s.y_m])
             .collect();
-        let rms =
-            (errs.iter().map(|e| e.norm_squared()).sum::<f64>() / errs.len().max(1) as f64).sqrt();
+        let rms_of = |v: &[nalgebra::Vector2<f64>]| {
+            (v.iter().map(|e| e.norm_squared()).sum::<f64>() / v.len().max(1) as f64).sqrt()
+        };
+        let rms = rms_of(&errs);
+        let apart: Vec<_> = (0..rows.len())
+            .filter_map(|i| {
+                let c = common.as_ref()?;
+                Some(rows[i].pose.position() - c.pose.transform_point(&truths[i]?))
+            })
+            .collect();
         let max = errs.iter().map(|e| e.norm()).fold(0.0, f64::max);
-        let rows = &r.trajectory.rows;
         let mut step: f64 = 0.0;
         for h in &r.handoffs {
             if let Some(i) = rows.iter().position(|x| (x.t_s - h.t_s).abs() < 1e-9) {
@@ -695,7 +745,7 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
                 } else {
                     (i, (i + 1).min(rows.len() - 1))
                 };
-                if let (Some(ea), Some(eb)) = (err(&rows[a]), err(&rows[b])) {
+                if let (Some(ea), Some(eb)) = (err(a), err(b)) {
                     step = step.max((eb - ea).norm());
                 }
             }
@@ -709,11 +759,12 @@ fn print_against_truth(dir: &Path, tracking: &odocal_arena::ArenaTracking) -> an
             )
         };
         say!(
-            "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses; largest error step at a handoff {:.3} mm{z_rms}",
+            "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses ({:.3} mm RMS with the common move taken out); largest error step at a handoff {:.3} mm{z_rms}",
             r.tag_id,
             rms * 1e3,
             max * 1e3,
             errs.len(),
+            rms_of(&apart) * 1e3,
             step * 1e3
         );
     }

@@ -103,6 +103,15 @@ pub fn arena_section(inp: &ArenaInput) -> Result<Section, ReportError> {
         c.max_mm,
         c.points
     )));
+    if let Some(f) = &a.frame_placement {
+        let o = f.origin_sigma_m();
+        s.blocks.push(Block::Text(format!(
+            "The floor frame itself, located from the first camera's floor boards, is placed to a heading σ of {:.3} mrad and an origin σ of {:.2} mm (x) and {:.2} mm (y): one turn and shift of every fix alike, included in each fix's σ, which a run aligned to its odometry takes up.",
+            f.heading_sigma_rad() * 1e3,
+            o.x * 1e3,
+            o.y * 1e3
+        )));
+    }
     let mut ch = Chart::new(
         "The arena from above",
         "x, floor frame (m)",
