@@ -724,21 +724,7 @@ fn fused_sigma_holds_over_many_arenas() {
     let (mut with, mut without) = (Vec::new(), Vec::new());
     for seed in 11..=22 {
         let d = dir.path().join(format!("s{seed}"));
-        let s = seed.to_string();
-        ok(&[
-            "synth",
-            "arena",
-            "--out",
-            p(&d),
-            "--seed",
-            &s,
-            "--width",
-            "480",
-            "--height",
-            "320",
-            "--calib-views",
-            "6",
-        ]);
+        common::synth_small_arena(&d, seed, &[]);
         let mut cams = Vec::new();
         let mut cams_old = Vec::new();
         for k in 0..4 {

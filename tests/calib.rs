@@ -402,23 +402,7 @@ fn repeated_floor_view_is_skipped() {
 #[test]
 fn a_coarse_cameras_floor_boards_are_one_floor() {
     let dir = tempfile::tempdir().unwrap();
-    let d = p(dir.path());
-    succeeded(&odocal(&[
-        "synth",
-        "arena",
-        "--out",
-        d,
-        "--seed",
-        "17",
-        "--width",
-        "480",
-        "--height",
-        "320",
-        "--calib-views",
-        "6",
-        "--frames",
-        "2",
-    ]));
+    common::synth_small_arena(dir.path(), 17, &["--frames", "2"]);
     let cam0 = dir.path().join("cam0");
     let out = dir.path().join("camera.json");
     let res = calibrate_with(&cam0, &out, "9x6", "0.07", &[]);

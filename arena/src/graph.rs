@@ -1047,6 +1047,9 @@ mod tests {
         target: odocal_calib::BoardTarget::Checkerboard,
     };
 
+    /// The three cameras' file names, as the command line would give them.
+    const CAMERA_PATHS: [&str; 3] = ["a.json", "b.json", "c.json"];
+
     /// Three 90° cameras 2.5 m up, and boards on the floor where their views overlap; the
     /// corners are the true projections with 0.1 px of noise.
     fn scene() -> (Vec<CameraModel>, Vec<FloorToCamera>, Vec<SharedView>) {
@@ -1121,11 +1124,7 @@ mod tests {
     fn the_pose_graph_puts_every_camera_where_it_is() {
         let (cams, poses, shared) = scene();
         assert!(shared.len() >= 4, "{} shared views", shared.len());
-        let paths = [
-            Path::new("a.json"),
-            Path::new("b.json"),
-            Path::new("c.json"),
-        ];
+        let paths = CAMERA_PATHS.map(Path::new);
         let sol = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD).unwrap();
         // Corner noise of 0.1 px is 0.5-0.8 mm of floor at these cameras, twice over for a pair.
         assert!(sol.consistency.rms_mm < 1.5, "{:?}", sol.consistency);
@@ -1159,11 +1158,7 @@ mod tests {
     #[test]
     fn the_pose_covariance_describes_what_the_calibrations_leave() {
         let (cams, poses, shared) = scene();
-        let paths = [
-            Path::new("a.json"),
-            Path::new("b.json"),
-            Path::new("c.json"),
-        ];
+        let paths = CAMERA_PATHS.map(Path::new);
         let sd = [0.8, 0.8, 0.8, 0.8, 2e-3, 1e-3, 1e-4, 1e-4, 3e-4];
         let cov = |scale: f64| -> Vec<Vec<f64>> {
             (0..sd.len())
@@ -1227,11 +1222,7 @@ mod tests {
     #[test]
     fn the_first_floors_uncertainty_reaches_every_camera() {
         let (cams, poses, shared) = scene();
-        let paths = [
-            Path::new("a.json"),
-            Path::new("b.json"),
-            Path::new("c.json"),
-        ];
+        let paths = CAMERA_PATHS.map(Path::new);
         let sd_rad = 1e-3;
         let n = cams[0].parameters().len();
         // Intrinsics known all but exactly: only the first floor's pose is uncertain, by 1
@@ -1343,11 +1334,7 @@ mod tests {
             image: format!("{}_c1.png", names[to]),
             ..copy
         };
-        let paths = [
-            Path::new("a.json"),
-            Path::new("b.json"),
-            Path::new("c.json"),
-        ];
+        let paths = CAMERA_PATHS.map(Path::new);
         let e = solve_arena(&files(&cams, &poses), &paths, &shared, &BOARD)
             .unwrap_err()
             .to_string();
@@ -1366,11 +1353,7 @@ mod tests {
     #[test]
     fn corners_numbered_the_other_way_round_are_named_or_turned_back() {
         let (cams, poses, shared) = scene();
-        let paths = [
-            Path::new("a.json"),
-            Path::new("b.json"),
-            Path::new("c.json"),
-        ];
+        let paths = CAMERA_PATHS.map(Path::new);
         let refusal = |shared: &[SharedView]| {
             solve_arena(&files(&cams, &poses), &paths, shared, &BOARD)
                 .unwrap_err()

@@ -12,6 +12,28 @@ pub fn odocal(args: &[&str]) -> Output {
         .expect("run odocal")
 }
 
+/// `odocal synth arena` of a small arena into `out`: 480x320 cameras, each calibrated from
+/// 6 views, with the `extra` options.
+pub fn synth_small_arena(out: &std::path::Path, seed: u64, extra: &[&str]) {
+    let seed = seed.to_string();
+    let mut args = vec![
+        "synth",
+        "arena",
+        "--out",
+        p(out),
+        "--seed",
+        &seed,
+        "--width",
+        "480",
+        "--height",
+        "320",
+        "--calib-views",
+        "6",
+    ];
+    args.extend_from_slice(extra);
+    ok(&args);
+}
+
 /// Runs odocal expecting success; returns its standard output.
 pub fn ok(args: &[&str]) -> String {
     let o = odocal(args);
