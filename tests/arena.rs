@@ -410,6 +410,32 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!e.contains("no floor views"), "{e}");
+    assert!(!e.contains("covariance of its floor"), "{e}");
+    // A first camera file with the intrinsics' covariance but not its floor's, as odocal
+    // wrote before it kept it: the σ leave out the floor frame's own uncertainty, which is
+    // said (on a small arena fused fixes were 4.4 σ off with no word).
+    let mut older: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("cam0/camera_true.json")).unwrap())
+            .unwrap();
+    older["covariance"] = serde_json::json!((0..9)
+        .map(|i| (0..9)
+            .map(|j| if i == j { 1e-8 } else { 0.0 })
+            .collect::<Vec<f64>>())
+        .collect::<Vec<_>>());
+    let older_path = d.join("cam0_older.json");
+    std::fs::write(&older_path, older.to_string()).unwrap();
+    let mut first_older = args.clone();
+    first_older[2] = p(&older_path);
+    let older_arena = d.join("older_arena.json");
+    let last = first_older.len() - 1;
+    first_older[last] = p(&older_arena);
+    let o = odocal(&first_older);
+    succeeded(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("warning: ") && e.contains("cam0_older.json keeps no covariance of its floor"),
+        "{e}"
+    );
     // A camera file without floor views: its height cannot be checked, which is said.
     let mut bare: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("cam2/camera_true.json")).unwrap())

@@ -191,10 +191,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 far.coords.norm()
             );
         }
-        None => tell!(
+        // A file without the intrinsics' covariance is named above; one that has it but not
+        // the floor's was written by an odocal that did not keep it.
+        None if files[0].covariance.is_some() => tell!(
             "warning: {} keeps no covariance of its floor (calibrated before camera files kept it), so the fixes' σ leave out how well the floor frame itself is placed, most of their error on a small arena; calibrate camera 0 again with `odocal calibrate` to have it",
             paths[0].display()
         ),
+        None => {}
     }
     commit()?;
     say!("wrote {}", args.out.display());
