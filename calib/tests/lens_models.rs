@@ -355,14 +355,12 @@ fn covariance_matches_opencv_standard_deviations() {
             "σ {name}: odocal {:.4e}, calibrateCamera {:.4e} (ratio × {factor:.3}: {ratio:.3})",
             ours[i], ocv[i]
         );
-        // calibrateCamera's σ hang on where its optimiser stops, which differs between
-        // machines: on one they came out 3–4 % lower for the intrinsics and 25 % higher for
-        // k1 on these same corners, and on another NaN for all of them. Every parameter is
-        // judged against OpenCV's derivatives above; where calibrateCamera gives finite σ,
-        // the intrinsics here are still close enough to show the √((2N − n)/(N − n)).
-        if i < 4 && ocv[i].is_finite() {
-            assert!((ratio - 1.0).abs() < 0.1, "σ {name}: ratio {ratio}");
-        }
+        // calibrateCamera's own σ are printed, not asserted: on these same corners, with the
+        // same K to every printed digit, its σ fx came out 0.853, 0.391 and 0.196 px in
+        // different runs of this test on one machine (two tests calibrating at once in the
+        // process), and NaN on another. In the usual run they are odocal's times the
+        // √((2N − n)/(N − n)) within 0.1 %. Every parameter is judged against OpenCV's own
+        // derivatives above, which do not vary.
     }
 }
 
