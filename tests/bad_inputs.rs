@@ -239,6 +239,32 @@ fn camera_files_without_physical_sense_name_the_field() {
     let mut c = cam.clone();
     c["floor_uncertainty"] = map(vec![serde_json::json!(-1.0); 576]);
     edits.push(("negative", c, "not a standard deviation"));
+    // A floor covariance with a σ of metres, or not symmetric, widened every arena fix's σ
+    // with exit 0.
+    let covariance = |turn_var: f64, skew: f64| {
+        let n = 15; // the floor pose's 6 and pinhole5's 9 parameters
+        let rows: Vec<Vec<f64>> = (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| match (i, j) {
+                        _ if i == j && i < 3 => turn_var,
+                        _ if i == j => 1e-6,
+                        (0, 1) => skew,
+                        _ => 0.0,
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut m = map(vec![serde_json::json!(0.2); 576]);
+        m["floor_covariance"] = serde_json::json!(rows);
+        m
+    };
+    let mut c = cam.clone();
+    c["floor_uncertainty"] = covariance(0.25, 0.0);
+    edits.push(("floor_sigma", c, "σ of 500.0 mrad (turn)"));
+    let mut c = cam.clone();
+    c["floor_uncertainty"] = covariance(1e-6, 1e-7);
+    edits.push(("asymmetric", c, "floor_covariance is not symmetric"));
     for (name, c, needle) in edits {
         let path = dir.join(format!("cam_{name}.json"));
         std::fs::write(&path, c.to_string()).expect("write");

@@ -244,6 +244,8 @@ impl FloorUncertaintyMap {
             .view_mut((6, 0), (n, 6))
             .copy_from(&moved_by_intrinsics.transpose());
         joint.view_mut((6, 6), (n, n)).copy_from(covariance);
+        // Written symmetric to the last bit: the products above leave it so to only 1e-8.
+        let joint = (&joint + joint.transpose()) * 0.5;
         let mut cov = vec![Matrix2::<f64>::zeros(); pixels.len()];
         for (k, pix) in pixels.iter().enumerate() {
             if !seen[k] {
