@@ -142,6 +142,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         tell!("warning: {w}");
     }
+    // `track` checks every arena file it reads: one it would refuse is not written.
+    if let Err(e) = arena.check() {
+        bail!(
+            "the arena solved from these camera files is not plausible ({e}); check the camera files and the shared views"
+        );
+    }
     write_json(&args.out, &arena)?;
     for (k, c) in arena.cameras.iter().enumerate() {
         let at = c.arena_to_camera.0.inverse().translation.vector;
