@@ -31,7 +31,7 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{DMatrix, Point2};
+use nalgebra::{DMatrix, Point2, Vector2};
 use odocal_calib::{CameraModel, FloorToCamera};
 use odocal_core::{wrap_angle, Pose2, PoseSigma, Trajectory, TrajectoryRow};
 
@@ -54,10 +54,12 @@ pub struct CameraFix {
     pub quality: f64,
     /// The fix's standard deviations (corner noise and calibration), when known.
     pub sigma: Option<PoseSigma>,
-    /// The part of `sigma`'s position σ (per axis, metres) that the calibrations put there: the
-    /// same error in every fix of this camera nearby, and tied to the other cameras' through
-    /// the shared boards, so it averages down neither over fixes nor between cameras.
-    pub shared_m: f64,
+    /// The part of `sigma`'s position σ, per axis (x, y), metres, that the calibrations put
+    /// there: the same error in every fix of this camera nearby, and tied to the other
+    /// cameras' through the shared boards, so it averages down neither over fixes nor between
+    /// cameras. Per axis, because a turn of the floor frame moves a fix across the line to the
+    /// origin, not along it.
+    pub shared_m: Vector2<f64>,
 }
 
 /// One camera's fixes of one robot, in increasing time.
@@ -106,7 +108,7 @@ impl CameraTrack {
                 y_m: mix(p.y_m, q.y_m),
                 theta_rad: mix(p.theta_rad, q.theta_rad),
             }),
-            shared_m: mix(a.shared_m, b.shared_m),
+            shared_m: a.shared_m + w * (b.shared_m - a.shared_m),
         })
     }
 
@@ -764,8 +766,8 @@ type Part = (usize, CameraFix);
 /// all the cameras (a calibration's error reaches its neighbours through the shared boards),
 /// so it is the weighted mean Σ w s / Σ w and never shrinks with more cameras.
 fn weighted_pose(parts: &[Part], skip: Option<usize>) -> Option<(Pose2, f64, Option<PoseSigma>)> {
-    let (mut sw, mut x, mut y, mut s, mut c, mut q, mut shared) =
-        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut sw, mut x, mut y, mut s, mut c, mut q) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut shared = Vector2::zeros();
     let mut var = Some([0.0; 3]);
     for (k, f) in parts {
         if Some(*k) == skip {
@@ -779,23 +781,23 @@ fn weighted_pose(parts: &[Part], skip: Option<usize>) -> Option<(Pose2, f64, Opt
         c += w * p.theta_rad.cos();
         q += w * f.quality;
         shared += w * f.shared_m;
-        let own = |sigma: f64| (sigma * sigma - f.shared_m * f.shared_m).max(0.0);
+        let own = |sigma: f64, part: f64| (sigma * sigma - part * part).max(0.0);
         var = var.zip(f.sigma).map(|(v, e)| {
             [
-                v[0] + w * w * own(e.x_m),
-                v[1] + w * w * own(e.y_m),
+                v[0] + w * w * own(e.x_m, f.shared_m.x),
+                v[1] + w * w * own(e.y_m, f.shared_m.y),
                 v[2] + (w * e.theta_rad).powi(2),
             ]
         });
     }
     (sw > 0.0).then(|| {
-        let common = (shared / sw).powi(2);
+        let common = (shared / sw).map(|v| v * v);
         (
             Pose2::new(x / sw, y / sw, wrap_angle(s.atan2(c))),
             q / sw,
             var.map(|v| PoseSigma {
-                x_m: (v[0] / (sw * sw) + common).sqrt(),
-                y_m: (v[1] / (sw * sw) + common).sqrt(),
+                x_m: (v[0] / (sw * sw) + common.x).sqrt(),
+                y_m: (v[1] / (sw * sw) + common.y).sqrt(),
                 theta_rad: v[2].sqrt() / sw,
             }),
         )
@@ -1198,7 +1200,7 @@ mod tests {
                             weight: (edge / 0.2).clamp(MIN_TAPER, 1.0),
                             quality: 0.9,
                             sigma: None,
-                            shared_m: 0.0,
+                            shared_m: Vector2::zeros(),
                         })
                     })
                     .collect();
@@ -1331,7 +1333,7 @@ mod tests {
                         weight: 1.0 / (total * total),
                         quality: 1.0,
                         sigma: Some(sigma),
-                        shared_m,
+                        shared_m: Vector2::repeat(shared_m),
                     };
                     (k, fix)
                 })
@@ -1343,6 +1345,35 @@ mod tests {
         }
         let z_rms = (z2 / trials as f64).sqrt();
         assert!((0.85..=1.15).contains(&z_rms), "error/σ RMS {z_rms:.2}");
+    }
+
+    /// A turn of the floor frame moves a fix 3 m out along y, not x: the row's σ keeps the
+    /// calibration's part on the axis it is on (as one figure for both axes it was 0.71 mm on
+    /// each, the y error 1.4 σ).
+    #[test]
+    fn the_calibrations_part_of_sigma_stays_on_its_axis() {
+        let (shared, corner_m): (Vector2<f64>, f64) = (Vector2::new(1e-4, 1e-3), 5e-5);
+        let sigma = PoseSigma {
+            x_m: shared.x.hypot(corner_m),
+            y_m: shared.y.hypot(corner_m),
+            theta_rad: 1e-3,
+        };
+        let parts: Vec<Part> = (0..2)
+            .map(|k| {
+                let fix = CameraFix {
+                    t_s: 0.0,
+                    pose: Pose2::new(3.0, 0.0, 0.0),
+                    weight: 1.0,
+                    quality: 1.0,
+                    sigma: Some(sigma),
+                    shared_m: shared,
+                };
+                (k, fix)
+            })
+            .collect();
+        let s = weighted_pose(&parts, None).unwrap().2.unwrap();
+        assert!((s.y_m - 1e-3).abs() < 2e-6, "{s:?}");
+        assert!((s.x_m - 1e-4).abs() < 1e-5, "{s:?}");
     }
 
     /// The same tracks with every fix's σ (the noise is uniform over ±0.5 mm: σ 0.29 mm).

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use nalgebra::{DMatrix, Matrix2, Point2};
+use nalgebra::{DMatrix, Matrix2, Point2, Vector2};
 use odocal_calib::FloorToCamera;
 use odocal_core::PoseSigma;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
@@ -190,7 +190,7 @@ fn camera_fix(cam: &ArenaCamera, f: &Fix, marker_height_m: f64) -> CameraFix {
                 y_m: (f.sigma.y_m.powi(2) + c[(1, 1)]).sqrt(),
                 ..f.sigma
             },
-            (0.5 * c.trace()).sqrt(),
+            Vector2::new(c[(0, 0)].sqrt(), c[(1, 1)].sqrt()),
         ),
         // The tracker added the camera's floor map (the first camera's floor is the arena's).
         None => (
@@ -199,7 +199,7 @@ fn camera_fix(cam: &ArenaCamera, f: &Fix, marker_height_m: f64) -> CameraFix {
                 .floor_uncertainty
                 .as_ref()
                 .and_then(|m| m.at(&centre))
-                .map_or(0.0, |s_mm| s_mm * 1e-3),
+                .map_or(Vector2::zeros(), |s_mm| Vector2::repeat(s_mm * 1e-3)),
         ),
     };
     CameraFix {
