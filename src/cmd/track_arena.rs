@@ -758,6 +758,41 @@ fn print_against_truth(
                 (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt()
             )
         };
+        // Which camera's σ is off, when one is: the rows by the camera with the largest
+        // share of each, and the rows two or more cameras share.
+        let mut by_camera: BTreeMap<String, (f64, usize)> = BTreeMap::new();
+        for i in 0..rows.len() {
+            let (Some(e), Some(s)) = (err(i), rows[i].sigma) else {
+                continue;
+            };
+            let parts = &r.contributions[i];
+            let lead = parts.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|p| p.0);
+            let shared = parts.iter().filter(|p| p.1 >= 0.1).count() >= 2;
+            let key = match (lead, shared) {
+                (_, true) => "two or more cameras".to_string(),
+                (Some(k), false) => format!("camera {k} alone"),
+                (None, false) => continue,
+            };
+            let z2 = (e.x / s.x_m).powi(2) + (e.y / s.y_m).powi(2);
+            let v = by_camera.entry(key).or_default();
+            v.0 += z2;
+            v.1 += 2;
+        }
+        if by_camera.len() > 1 {
+            say!(
+                "against the truth: tag {}'s error/σ (RMS per axis) by the cameras that made each row (another camera's share under 10 %: alone): {}",
+                r.tag_id,
+                by_camera
+                    .iter()
+                    .map(|(k, (z2, n))| {
+                        let rows = n / 2;
+                        let s = if rows == 1 { "" } else { "s" };
+                        format!("{k} {:.2} ({rows} row{s})", (z2 / *n as f64).sqrt())
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
         say!(
             "against the truth: tag {} position RMS {:.3} mm, max {:.3} mm over {} poses ({:.3} mm RMS with the common move taken out); largest error step at a handoff {:.3} mm{z_rms}",
             r.tag_id,
