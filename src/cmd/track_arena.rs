@@ -761,11 +761,10 @@ fn print_against_truth(
         // Which camera's σ is off, when one is: the rows by the camera with the largest
         // share of each, and the rows two or more cameras share.
         let mut by_camera: BTreeMap<String, (f64, usize)> = BTreeMap::new();
-        for i in 0..rows.len() {
-            let (Some(e), Some(s)) = (err(i), rows[i].sigma) else {
+        for (i, (row, parts)) in rows.iter().zip(&r.contributions).enumerate() {
+            let (Some(e), Some(s)) = (err(i), row.sigma) else {
                 continue;
             };
-            let parts = &r.contributions[i];
             let lead = parts.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|p| p.0);
             let shared = parts.iter().filter(|p| p.1 >= 0.1).count() >= 2;
             let key = match (lead, shared) {
