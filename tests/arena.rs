@@ -732,7 +732,7 @@ fn a_camera_video_turned_is_named() {
 /// 11-22), a robot's error/σ RMS per axis, pooled, is near 1. With the first floor's
 /// covariance taken out of the camera files, as arena files written before it was kept, the
 /// σ leave that common part out and the errors are several times their σ.
-/// Measured: 0.89 pooled (0.25-1.51 per robot); without the floor's covariance 2.49 (0.72-5.09).
+/// Measured: 0.91 pooled (0.26-1.52 per robot); without the floor's covariance 2.50 (0.73-5.10).
 /// Ignored: it takes about 13 minutes on 2 cores (`cargo test --release --test arena --
 /// --ignored fused_sigma`).
 #[test]
