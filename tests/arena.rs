@@ -436,6 +436,50 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         e.contains("warning: ") && e.contains("cam0_older.json keeps no covariance of its floor"),
         "{e}"
     );
+    // A pose covariance edited in an arena file gave every fix of that camera an absurd σ
+    // with exit 0: refused by name, its size, symmetry and σ checked as a camera file's.
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&older_arena).unwrap()).unwrap();
+    let covariance = |n: usize, variance: f64, skew: f64| {
+        serde_json::json!((0..n)
+            .map(|i| (0..n)
+                .map(|j| match (i, j) {
+                    (0, 1) => skew,
+                    _ if i == j => variance,
+                    _ => 0.0,
+                })
+                .collect::<Vec<f64>>())
+            .collect::<Vec<_>>())
+    };
+    for (name, value, needle) in [
+        ("size", covariance(6, 1e-8, 0.0), "must be 15x15"),
+        ("skew", covariance(15, 1e-8, 1e-9), "is not symmetric"),
+        (
+            "sigma",
+            covariance(15, 1.0, 0.0),
+            "a σ of 1000.0 mrad (turn)",
+        ),
+    ] {
+        let mut edited = written.clone();
+        edited["cameras"][1]["pose_covariance"] = value;
+        let path = d.join(format!("arena_{name}.json"));
+        std::fs::write(&path, edited.to_string()).unwrap();
+        let e = fails(&[
+            "track",
+            "--arena",
+            p(&path),
+            "v0",
+            "v1",
+            "--out",
+            p(&d.join("t.csv")),
+        ]);
+        assert!(
+            e.contains(&format!("arena_{name}.json"))
+                && e.contains("cameras[1].pose_covariance")
+                && e.contains(needle),
+            "{e}"
+        );
+    }
     // A camera file without floor views: its height cannot be checked, which is said.
     let mut bare: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("cam2/camera_true.json")).unwrap())

@@ -4,7 +4,10 @@
 use std::path::Path;
 
 use nalgebra::{Matrix2x3, Matrix3, Point2, Vector2};
-use odocal_calib::{CameraFile, FloorToCamera};
+use odocal_calib::{
+    check_pose_covariance, CameraFile, FloorToCamera, MAX_POSE_SHIFT_SIGMA_M,
+    MAX_POSE_TURN_SIGMA_RAD,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::ArenaError;
@@ -103,7 +106,9 @@ impl FramePlacement {
         {
             return Err("frame_placement.covariance is not a covariance (finite, symmetric, variances 0 or more)".into());
         }
-        if self.heading_sigma_rad() > 0.1 || self.origin_sigma_m().max() > 1.0 {
+        if self.heading_sigma_rad() > MAX_POSE_TURN_SIGMA_RAD
+            || self.origin_sigma_m().max() > MAX_POSE_SHIFT_SIGMA_M
+        {
             return Err(format!(
                 "frame_placement gives the floor frame's heading a σ of {:.1} mrad and its origin one of {:.0} mm: no floor calibration is that unsure",
                 self.heading_sigma_rad() * 1e3,
@@ -166,6 +171,14 @@ impl ArenaFile {
                 return Err(format!(
                     "cameras[{k}].arena_to_camera rotation has norm {norm}, not a unit quaternion"
                 ));
+            }
+            // Every fix of this camera takes its σ from it.
+            if let Some(pc) = &c.pose_covariance {
+                check_pose_covariance(
+                    &format!("cameras[{k}].pose_covariance"),
+                    pc,
+                    &c.calibration.camera,
+                )?;
             }
             let height = iso.inverse().translation.vector.z;
             if !(height.is_finite() && height > 0.0 && height < 100.0) {

@@ -375,13 +375,59 @@ const MAX_PIXEL_ASPECT: f64 = 2.0;
 /// five decimals are within 1e-5).
 const QUATERNION_NORM_TOLERANCE: f64 = 1e-4;
 
-/// The largest σ of the floor pose's turn a camera file may give, radians: a floor whose
-/// boards leave it 6° unsure is not located (real calibrations give a milliradian or less).
-const MAX_FLOOR_TURN_SIGMA_RAD: f64 = 0.1;
-/// The largest σ of the floor pose's shift a camera file may give, metres.
-const MAX_FLOOR_SHIFT_SIGMA_M: f64 = 1.0;
+/// The largest σ of a pose's turn a camera or arena file may give, radians: a floor or camera
+/// 6° unsure is not located (real calibrations give a milliradian or less).
+pub const MAX_POSE_TURN_SIGMA_RAD: f64 = 0.1;
+/// The largest σ of a pose's shift a camera or arena file may give, metres.
+pub const MAX_POSE_SHIFT_SIGMA_M: f64 = 1.0;
 
-/// The floor uncertainty map fits the image and holds standard deviations: `track` reads each
+/// Checks a joint covariance of a small pose correction (rotation vector, then translation)
+/// and `camera`'s intrinsics (`CameraModel::parameters`), as camera and arena files keep
+/// them: its size, that it is a covariance (finite, symmetric, no negative variance), and
+/// that the pose is no more unsure than any calibration leaves it. `field` names it in the
+/// message.
+pub fn check_pose_covariance(
+    field: &str,
+    c: &[Vec<f64>],
+    camera: &crate::CameraModel,
+) -> Result<(), String> {
+    let n = 6 + camera.parameters().len();
+    if c.len() != n || c.iter().any(|r| r.len() != n) {
+        return Err(format!(
+            "{field} must be {n}x{n} (the pose's 6 and the {} model's {} parameters)",
+            camera.distortion.model,
+            n - 6
+        ));
+    }
+    if c.iter().flatten().any(|v| !v.is_finite()) || (0..n).any(|i| c[i][i] < 0.0) {
+        return Err(format!(
+            "{field} has a value that is not a finite number, or a negative variance"
+        ));
+    }
+    // Written symmetric; 1e-6 leaves room for values rounded by another tool.
+    let symmetric = (0..n).all(|i| {
+        (0..i).all(|j| {
+            (c[i][j] - c[j][i]).abs() <= 1e-6 * (c[i][i] * c[j][j]).sqrt().max(f64::MIN_POSITIVE)
+        })
+    });
+    if !symmetric {
+        return Err(format!("{field} is not symmetric, so not a covariance"));
+    }
+    let turn_sigma_rad = (0..3).map(|i| c[i][i].sqrt()).fold(0.0, f64::max);
+    let shift_sigma_m = (3..6).map(|i| c[i][i].sqrt()).fold(0.0, f64::max);
+    if turn_sigma_rad > MAX_POSE_TURN_SIGMA_RAD || shift_sigma_m > MAX_POSE_SHIFT_SIGMA_M {
+        return Err(format!(
+            "{field} gives the pose a σ of {:.1} mrad (turn) and {:.0} mm (shift): no calibration is that unsure (at most {:.0} mrad and {:.0} mm)",
+            turn_sigma_rad * 1e3,
+            shift_sigma_m * 1e3,
+            MAX_POSE_TURN_SIGMA_RAD * 1e3,
+            MAX_POSE_SHIFT_SIGMA_M * 1e3
+        ));
+    }
+    Ok(())
+}
+
+/// The floor uncertainty map fits the image/// The floor uncertainty map fits the image and holds standard deviations: `track` reads each
 /// fix's calibration σ from it, so a cut or edited map would give σ of another pixel or none.
 fn check_floor_uncertainty(
     map: &crate::FloorUncertaintyMap,
@@ -416,43 +462,10 @@ fn check_floor_uncertainty(
             "floor_uncertainty has a value that is not a standard deviation (a number of millimetres, 0 or more) at entry {i} (counting sigma_mm, then model_spread_mm)"
         ));
     }
-    // An arena carries the floor pose's covariance to every camera tied to this one.
+    // An arena carries the floor pose's covariance to every camera tied to this one: an
+    // edited or corrupt value would widen every fix's σ with no other sign.
     if let Some(c) = &map.floor_covariance {
-        let n = 6 + camera.parameters().len();
-        if c.len() != n || c.iter().any(|r| r.len() != n) {
-            return Err(format!(
-                "floor_uncertainty.floor_covariance must be {n}x{n} (the floor pose's 6 and the {} model's {} parameters)",
-                camera.distortion.model,
-                n - 6
-            ));
-        }
-        if c.iter().flatten().any(|v| !v.is_finite()) || (0..n).any(|i| c[i][i] < 0.0) {
-            return Err("floor_uncertainty.floor_covariance has a value that is not a finite number, or a negative variance".into());
-        }
-        let symmetric = (0..n).all(|i| {
-            (0..i).all(|j| {
-                (c[i][j] - c[j][i]).abs()
-                    <= 1e-6 * (c[i][i] * c[j][j]).sqrt().max(f64::MIN_POSITIVE)
-            })
-        });
-        if !symmetric {
-            return Err(
-                "floor_uncertainty.floor_covariance is not symmetric, so not a covariance".into(),
-            );
-        }
-        // An arena adds these σ to every camera tied to this one: an edited or corrupt value
-        // would widen every fix's σ with no other sign.
-        let turn_sigma_rad = (0..3).map(|i| c[i][i].sqrt()).fold(0.0, f64::max);
-        let shift_sigma_m = (3..6).map(|i| c[i][i].sqrt()).fold(0.0, f64::max);
-        if turn_sigma_rad > MAX_FLOOR_TURN_SIGMA_RAD || shift_sigma_m > MAX_FLOOR_SHIFT_SIGMA_M {
-            return Err(format!(
-                "floor_uncertainty.floor_covariance gives the floor pose a σ of {:.1} mrad (turn) and {:.0} mm (shift): no floor calibration is that unsure (at most {:.0} mrad and {:.0} mm)",
-                turn_sigma_rad * 1e3,
-                shift_sigma_m * 1e3,
-                MAX_FLOOR_TURN_SIGMA_RAD * 1e3,
-                MAX_FLOOR_SHIFT_SIGMA_M * 1e3
-            ));
-        }
+        check_pose_covariance("floor_uncertainty.floor_covariance", c, camera)?;
     }
     Ok(())
 }

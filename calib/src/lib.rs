@@ -19,8 +19,8 @@ pub mod uncertainty;
 
 pub use calibrate::{board_points, calibrate, Calibration, Observation};
 pub use camera_file::{
-    BoardSpec, BoardTarget, CameraFile, FloorPlane, IntrinsicsStd, SkippedView, ViewResidual,
-    CAMERA_FORMAT,
+    check_pose_covariance, BoardSpec, BoardTarget, CameraFile, FloorPlane, IntrinsicsStd,
+    SkippedView, ViewResidual, CAMERA_FORMAT, MAX_POSE_SHIFT_SIGMA_M, MAX_POSE_TURN_SIGMA_RAD,
 };
 pub use charuco::ArucoDictionary;
 pub use detect::{detect_file, display_rotation, BoardView, Detection, IMREAD_SENSOR_GRAY};
