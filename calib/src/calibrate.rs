@@ -74,9 +74,7 @@ pub fn calibrate(
     let (camera, poses) = opencv_calibrate(views, (w, h), model)?;
     check_tilt(&poses)?;
     if !camera.parameters().iter().all(|v| v.is_finite()) || camera.intrinsics.fx <= 0.0 {
-        return Err(CalibError::Input(
-            "calibration diverged; the views are probably degenerate: tilt the board 20-45° in several views".into(),
-        ));
+        return Err(diverged());
     }
     let observations: Vec<Observation> = views
         .iter()
@@ -109,9 +107,7 @@ pub fn calibrate(
         distortion: sd[4..].to_vec(),
     };
     if !fit.rms_px.is_finite() {
-        return Err(CalibError::Input(
-            "calibration diverged; the views are probably degenerate: tilt the board 20-45° in several views".into(),
-        ));
+        return Err(diverged());
     }
     Ok(Calibration {
         camera,
@@ -285,7 +281,9 @@ fn opencv_calibrate(
     }
     let mut poses = Vec::with_capacity(views.len());
     for (r, t) in rvecs.iter().zip(tvecs.iter()) {
-        poses.push(BoardToCamera(isometry_from_rt(&r, &t)?));
+        poses.push(BoardToCamera(
+            isometry_from_rt(&r, &t)?.ok_or_else(diverged)?,
+        ));
     }
     let d = dist.data_typed::<f64>()?.to_vec();
     let camera = CameraModel {
@@ -300,6 +298,14 @@ fn opencv_calibrate(
         distortion: Distortion::new(model, &d),
     };
     Ok((camera, poses))
+}
+
+/// The error for a fit that left the finite numbers.
+fn diverged() -> CalibError {
+    CalibError::Input(
+        "calibration diverged; the views are probably degenerate: tilt the board 20-45° in several views"
+            .into(),
+    )
 }
 
 /// Rejects sets whose boards are all (nearly) parallel to the image plane:

@@ -1,8 +1,6 @@
 //! Conversions between nalgebra types and OpenCV's.
 
-use nalgebra::{
-    Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
-};
+use nalgebra::{Isometry3, Point2, Point3, Translation3, UnitQuaternion, Vector3};
 use opencv::core::{self, Mat, MatTraitConst, Point2f, Point3f, Vector};
 use opencv::prelude::*;
 
@@ -44,22 +42,19 @@ pub fn at(m: &Mat, r: i32, c: i32) -> Result<f64, CalibError> {
     Ok(*m.at_2d::<f64>(r, c)?)
 }
 
-/// A rotation vector and translation vector (OpenCV's rvec, tvec) as an isometry.
-pub fn isometry_from_rt(rvec: &Mat, tvec: &Mat) -> Result<Isometry3<f64>, CalibError> {
-    let mut r = Mat::default();
-    opencv::calib3d::rodrigues(rvec, &mut r, &mut core::no_array())?;
-    let mut m = Matrix3::zeros();
-    for i in 0..3 {
-        for j in 0..3 {
-            m[(i, j)] = at(&r, i as i32, j as i32)?;
-        }
+/// A rotation vector and translation vector (OpenCV's rvec, tvec) as an isometry, or `None`
+/// when either holds a value that is not finite (a fit that diverged).
+pub fn isometry_from_rt(rvec: &Mat, tvec: &Mat) -> Result<Option<Isometry3<f64>>, CalibError> {
+    let (r, t) = (flat(rvec)?, flat(tvec)?);
+    if !r.iter().chain(t.iter()).all(|v| v.is_finite()) {
+        // Turned into a rotation matrix first, a NaN never converges to the nearest rotation.
+        return Ok(None);
     }
-    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&m));
-    let t = flat(tvec)?;
-    Ok(Isometry3::from_parts(
-        Translation3::new(t[0], t[1], t[2]),
-        rot,
-    ))
+    // A Rodrigues vector is the rotation's axis scaled by its angle.
+    Ok(Some(Isometry3::from_parts(
+        Translation3::from(t),
+        UnitQuaternion::from_scaled_axis(r),
+    )))
 }
 
 /// The three values of a 3x1 or 1x3 CV_64F matrix.
@@ -136,7 +131,9 @@ pub fn solve_pnp(
     if !ok {
         return Ok(None);
     }
-    let start = isometry_from_rt(&rvec, &tvec)?;
+    let Some(start) = isometry_from_rt(&rvec, &tvec)? else {
+        return Ok(None);
+    };
     let moved = |p: &[f64]| {
         let rot = UnitQuaternion::from_scaled_axis(Vector3::new(p[0], p[1], p[2]));
         Isometry3::from_parts(
@@ -173,4 +170,37 @@ pub fn points3d(points: &[Point3<f64>]) -> Vector<core::Point3d> {
         .iter()
         .map(|p| core::Point3d::new(p.x, p.y, p.z))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pose_is_the_rodrigues_vectors_rotation_and_a_diverged_one_is_none() {
+        let rvec = Mat::from_slice(&[0.1f64, -0.2, 0.3])
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        let tvec = Mat::from_slice(&[1.0f64, 2.0, 3.0])
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        let pose = isometry_from_rt(&rvec, &tvec).unwrap().unwrap();
+        let mut r = Mat::default();
+        opencv::calib3d::rodrigues(&rvec, &mut r, &mut core::no_array()).unwrap();
+        let m = pose.rotation.to_rotation_matrix();
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((m[(i, j)] - at(&r, i as i32, j as i32).unwrap()).abs() < 1e-15);
+            }
+        }
+        assert_eq!(pose.translation.vector, Vector3::new(1.0, 2.0, 3.0));
+        let nan = Mat::from_slice(&[f64::NAN, 0.0, 0.0])
+            .unwrap()
+            .try_clone()
+            .unwrap();
+        assert!(isometry_from_rt(&nan, &tvec).unwrap().is_none());
+        assert!(isometry_from_rt(&rvec, &nan).unwrap().is_none());
+    }
 }
