@@ -2,7 +2,7 @@
 # Both first install the Debian packages the build needs (idempotent).
 
 SHELL := /bin/bash
-APT_PACKAGES := libopencv-dev libopenblas0-serial clang libclang-dev pkg-config chromium ffmpeg
+APT_PACKAGES := libopencv-dev libblas3 liblapack3 clang libclang-dev pkg-config chromium ffmpeg
 CARGO ?= cargo
 DEMO_OUT ?= demo-out
 

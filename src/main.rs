@@ -24,6 +24,7 @@ macro_rules! tell {
     }};
 }
 
+mod blas;
 mod cmd;
 mod output;
 
@@ -155,6 +156,9 @@ const LONGEST_QUOTE: usize = 120;
 fn main() {
     // First, before any thread starts: they all inherit the blocked interrupt signals.
     output::discard_on_interrupt();
+    if let Some(warning) = blas::one_thread_per_call() {
+        eprintln!("{warning}");
+    }
     // Rust ignores SIGPIPE, so a write into a closed pipe is an error that `say!` and `tell!`
     // pass over: the command runs to its end and commits its files.
     let command = negative_numbers_are_values(Cli::command());

@@ -355,12 +355,54 @@ fn covariance_matches_opencv_standard_deviations() {
             "σ {name}: odocal {:.4e}, calibrateCamera {:.4e} (ratio × {factor:.3}: {ratio:.3})",
             ours[i], ocv[i]
         );
-        // calibrateCamera's own σ are printed, not asserted: on these same corners, with the
-        // same K to every printed digit, its σ fx came out 0.853, 0.391 and 0.196 px in
-        // different runs of this test on one machine (two tests calibrating at once in the
-        // process), and NaN on another. In the usual run they are odocal's times the
-        // √((2N − n)/(N − n)) within 0.1 %. Every parameter is judged against OpenCV's own
-        // derivatives above, which do not vary.
+        // These once varied from run to run (σ fx 0.853, 0.391, 0.196 px, and NaN, with the
+        // same K): a BLAS that is not thread-safe (Debian's serial OpenBLAS) under two tests
+        // calibrating at once. `concurrent_calibrations_equal_calibrations_alone` guards that.
+        assert!((ratio - 1.0).abs() < 0.005, "σ {name}: ratio {ratio}");
+    }
+}
+
+/// OpenCV's calibration calls LAPACK; a BLAS/LAPACK that is not thread-safe (Debian's
+/// serial OpenBLAS, built without locking) gives calibrations run in parallel threads
+/// different, sometimes non-finite, results (a NaN board pose once made the pose conversion
+/// spin forever). odocal runs OpenCV from several threads (cameras tracked at once, tests),
+/// so the BLAS it is built against must be thread-safe: this fails when it is not.
+#[test]
+fn concurrent_calibrations_equal_calibrations_alone() {
+    let (cam, _) = lenses().remove(0);
+    let board = BoardSpec::checkerboard(9, 6, 0.05);
+    let sets: Vec<Vec<BoardView>> = (0..16)
+        .map(|seed| noisy_views_seeded(&cam, &board, 12, 0.2, 100 + seed))
+        .collect();
+    let fit = |views: &[BoardView]| -> Vec<u64> {
+        let cal = calibrate(views, &board, LensModel::Pinhole5).unwrap();
+        let mut bits: Vec<u64> = cal
+            .camera
+            .parameters()
+            .iter()
+            .map(|v| v.to_bits())
+            .collect();
+        for pose in &cal.poses {
+            bits.extend(pose.0.translation.vector.iter().map(|v| v.to_bits()));
+        }
+        bits
+    };
+    let alone: Vec<Vec<u64>> = sets.iter().map(|v| fit(v)).collect();
+    let together: Vec<Vec<Vec<u64>>> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..3)
+            .map(|_| scope.spawn(|| sets.iter().map(|v| fit(v)).collect::<Vec<_>>()))
+            .collect();
+        workers.into_iter().map(|w| w.join().unwrap()).collect()
+    });
+    for (t, fits) in together.iter().enumerate() {
+        let differing = fits.iter().zip(&alone).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            differing,
+            0,
+            "thread {t}: {differing} of {} calibrations differ from the same ones run alone; \
+             is the BLAS/LAPACK thread-safe (libopenblas0-pthread, not -serial)?",
+            sets.len()
+        );
     }
 }
 
