@@ -643,6 +643,10 @@ fn say_frame_rates(tracking: &odocal_arena::ArenaTracking) {
     );
 }
 
+/// The share of a fused row's weight from which a camera counts as one of the row's makers
+/// (under it the row is the other camera's alone).
+const SHARE_OF_A_ROW: f64 = 0.1;
+
 /// Each robot's error against the synthetic truth, and the offsets against the true ones.
 fn print_against_truth(
     dir: &Path,
@@ -721,11 +725,14 @@ fn print_against_truth(
         let rows = &r.trajectory.rows;
         let err = |i: usize| truths[i].map(|p| rows[i].pose.position() - p);
         let errs: Vec<_> = (0..rows.len()).filter_map(err).collect();
-        // Each axis's error over its σ, where the rows have σ.
-        let z: Vec<f64> = (0..rows.len())
-            .filter_map(|i| Some((err(i)?, rows[i].sigma?)))
-            .flat_map(|(e, s)| [e.x / s.x_m, e.y / s.y_m])
+        // Each row's error over its σ on each axis, where the row has σ.
+        let z_row: Vec<Option<[f64; 2]>> = (0..rows.len())
+            .map(|i| {
+                let (e, s) = (err(i)?, rows[i].sigma?);
+                Some([e.x / s.x_m, e.y / s.y_m])
+            })
             .collect();
+        let z: Vec<f64> = z_row.iter().flatten().flatten().copied().collect();
         let rms_of = |v: &[nalgebra::Vector2<f64>]| {
             (v.iter().map(|e| e.norm_squared()).sum::<f64>() / v.len().max(1) as f64).sqrt()
         };
@@ -761,26 +768,26 @@ fn print_against_truth(
         // Which camera's σ is off, when one is: the rows by the camera with the largest
         // share of each, and the rows two or more cameras share.
         let mut by_camera: BTreeMap<String, (f64, usize)> = BTreeMap::new();
-        for (i, (row, parts)) in rows.iter().zip(&r.contributions).enumerate() {
-            let (Some(e), Some(s)) = (err(i), row.sigma) else {
+        for (zr, parts) in z_row.iter().zip(&r.contributions) {
+            let Some([zx, zy]) = zr else {
                 continue;
             };
             let lead = parts.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|p| p.0);
-            let shared = parts.iter().filter(|p| p.1 >= 0.1).count() >= 2;
+            let shared = parts.iter().filter(|p| p.1 >= SHARE_OF_A_ROW).count() >= 2;
             let key = match (lead, shared) {
                 (_, true) => "two or more cameras".to_string(),
                 (Some(k), false) => format!("camera {k} alone"),
                 (None, false) => continue,
             };
-            let z2 = (e.x / s.x_m).powi(2) + (e.y / s.y_m).powi(2);
             let v = by_camera.entry(key).or_default();
-            v.0 += z2;
+            v.0 += zx * zx + zy * zy;
             v.1 += 2;
         }
         if by_camera.len() > 1 {
             say!(
-                "against the truth: tag {}'s error/σ (RMS per axis) by the cameras that made each row (another camera's share under 10 %: alone): {}",
+                "against the truth: tag {}'s error/σ (RMS per axis) by the cameras that made each row (another camera's share under {:.0} %: alone): {}",
                 r.tag_id,
+                SHARE_OF_A_ROW * 100.0,
                 by_camera
                     .iter()
                     .map(|(k, (z2, n))| {
