@@ -10,6 +10,7 @@ DEMO_OUT ?= demo-out
 
 deps:
 	@./scripts/install-deps.sh $(APT_PACKAGES)
+	@./scripts/select-blas.sh
 
 build: deps
 	$(CARGO) build --release
