@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use clap::Args as ClapArgs;
 use odocal_calib::{CameraFile, LensModel};
 use odocal_synth::board::{
-    calibration_errors, lens_preset, visible_share, vouched_floor_error, CalibScene, CalibTruth,
-    FLOOR_RINGS_DEG,
+    calibration_errors, floor_error_over_sigma, lens_preset, visible_share, vouched_floor_error,
+    CalibScene, CalibTruth, FLOOR_RINGS_DEG,
 };
 use odocal_synth::calib_set::{self, check_scene};
 
@@ -219,6 +219,11 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             reach.radius_m,
             reach.off_nadir_deg,
             max * 1e3
+        );
+    }
+    if let Some((z, n)) = floor_error_over_sigma(&cam, &truth) {
+        say!(
+            "  floor mapping error over the floor map's σ (its worst direction), RMS over {n} pixels: {z:.2} (1 to 1.4 when σ is honest; under 1, σ too large)"
         );
     }
     let failed = e.failures(vouched.map(|(_, max)| max));
