@@ -20,12 +20,14 @@ pub fn one_thread_per_call() -> Option<String> {
         let parallel = symbol(c"openblas_get_parallel")?;
         let parallel: extern "C" fn() -> c_int = std::mem::transmute(parallel);
         (parallel() == 0).then(|| {
-            "warning: the system's BLAS is OpenBLAS's serial build, which gives wrong results when \
-             called from several threads at once (as tracking several cameras does); select \
-             Debian's reference BLAS and LAPACK (packages libblas3, liblapack3) with \
-             `update-alternatives --config libblas.so.3-x86_64-linux-gnu` and the same for \
-             liblapack.so.3-x86_64-linux-gnu"
-                .to_string()
+            let arch = std::env::consts::ARCH;
+            format!(
+                "warning: the system's BLAS is OpenBLAS's serial build, which gives wrong results \
+                 when called from several threads at once (as tracking several cameras does); \
+                 run `make deps` in odocal's source, or select Debian's reference BLAS and LAPACK \
+                 (packages libblas3, liblapack3) with `update-alternatives --config \
+                 libblas.so.3-{arch}-linux-gnu` and the same for liblapack.so.3-{arch}-linux-gnu"
+            )
         })
     }
 }
