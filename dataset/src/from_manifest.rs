@@ -3,7 +3,7 @@
 //! processed in parallel, and the dataset's errors against a synthetic experiment's truth.
 
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 use odocal_core::Trajectory;
@@ -258,6 +258,11 @@ fn mismatch_before_alignment(
 /// `threads` plain threads, one video per thread at a time (each tracker runs a decoder
 /// thread of its own, so tracking never waits on a busy rayon pool); rows with trajectories
 /// only are processed on the rayon pool. `on_row` is called after each row.
+///
+/// A video that cannot be tracked (a wrong tag id or family, say, which every video of the
+/// manifest shares) stops the threads from taking further rows: the error is the first such
+/// row's in manifest order, whichever thread met it first, and comes after the rows before
+/// it rather than after the whole manifest.
 pub fn build_from_manifest(
     m: &Manifest,
     opts: &BuildOptions,
@@ -267,20 +272,34 @@ pub fn build_from_manifest(
 ) -> Result<Dataset, DatasetError> {
     use rayon::prelude::*;
     type Done = (Result<RowOutcome, DatasetError>, RowPair);
+    let untrackable = &AtomicBool::new(false);
+    let watched = track.map(|track| {
+        move |row: &ManifestRow, video: &Path| {
+            let r = track(row, video);
+            if r.is_err() {
+                untrackable.store(true, Ordering::SeqCst);
+            }
+            r
+        }
+    });
+    let watched = watched.as_ref().map(|w| w as &VideoTracker);
     let work = |row: &ManifestRow| {
         let mut pair = None;
-        let r = one_row(m, row, track, opts, &mut pair);
+        let r = one_row(m, row, watched, opts, &mut pair);
         on_row();
         (r, pair)
     };
-    let results: Vec<Done> = if track.is_some() {
+    let results: Vec<Done> = if watched.is_some() {
         let next = AtomicUsize::new(0);
         let mut slots: Vec<Option<Done>> = (0..m.runs.len()).map(|_| None).collect();
         let done = Mutex::new(&mut slots);
         std::thread::scope(|scope| {
             for _ in 0..threads.clamp(1, m.runs.len().max(1)) {
                 scope.spawn(|| loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if untrackable.load(Ordering::SeqCst) {
+                        break;
+                    }
+                    let i = next.fetch_add(1, Ordering::SeqCst);
                     let Some(row) = m.runs.get(i) else {
                         break;
                     };
@@ -289,16 +308,15 @@ pub fn build_from_manifest(
                 });
             }
         });
-        slots
-            .into_iter()
-            .zip(&m.runs)
-            .map(|(r, row)| {
-                r.unwrap_or_else(|| {
-                    let e = DatasetError::Mismatch(format!("run \"{}\" was not processed", row.id));
-                    (Err(e), None)
-                })
-            })
-            .collect()
+        // Every row before the first one left untaken was taken before it, and finished: the
+        // first error among them is the first of the whole manifest's untrackable rows.
+        if slots.iter().any(Option::is_none) {
+            let first = slots.into_iter().flatten().find_map(|(r, _)| r.err());
+            return Err(first.unwrap_or_else(|| {
+                DatasetError::Mismatch("a video could not be tracked".to_string())
+            }));
+        }
+        slots.into_iter().flatten().collect()
     } else {
         m.runs.par_iter().map(work).collect()
     };
@@ -469,4 +487,81 @@ pub fn errors_against_truth(
         rate_max_ppm,
         n: target.len(),
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A manifest of `n` rows with a video each (never opened: the tracker below is a stand-in)
+    /// and a log of the robot standing still, in a folder of its own.
+    fn manifest_of_videos(n: usize, name: &str) -> Manifest {
+        let dir = std::env::temp_dir().join(format!("odocal-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut log = String::from("t,left_ticks,right_ticks\n");
+        for k in 0..30 {
+            log.push_str(&format!("{:.1},0,0\n", k as f64 * 0.2));
+        }
+        let runs = (0..n)
+            .map(|i| {
+                let odometry = format!("run{i}.csv");
+                std::fs::write(dir.join(&odometry), &log).unwrap();
+                ManifestRow {
+                    id: format!("run{i}"),
+                    video: Some(format!("run{i}.avi")),
+                    trajectory: None,
+                    odometry,
+                    speed_mps: None,
+                    comment: crate::manifest::Note,
+                    notes: crate::manifest::Note,
+                    description: crate::manifest::Note,
+                }
+            })
+            .collect();
+        Manifest::new(runs, &dir)
+    }
+
+    /// A video that cannot be tracked stops the manifest there, on any number of threads:
+    /// with a wrong tag id every video fails alike, and tracking them all only to report the
+    /// first took minutes.
+    #[test]
+    fn an_untrackable_video_stops_the_manifest() {
+        let m = manifest_of_videos(12, "untrackable");
+        for (bad_from, threads) in [(0, 1), (0, 2), (0, 3), (5, 2), (11, 2)] {
+            let tried = AtomicUsize::new(0);
+            let track = |row: &ManifestRow, _: &Path| -> Result<Trajectory, String> {
+                tried.fetch_add(1, Ordering::SeqCst);
+                let i: usize = row.id.trim_start_matches("run").parse().unwrap();
+                if i >= bad_from {
+                    return Err(format!("tag 5 was never seen in {}", row.id));
+                }
+                // The robot standing still where its log says it stands.
+                let rows = (0..180)
+                    .map(|k| odocal_core::TrajectoryRow {
+                        t_s: k as f64 / 30.0,
+                        pose: odocal_core::Pose2::new(1.0, 1.0, 0.0),
+                        quality: 1.0,
+                        sigma: None,
+                    })
+                    .collect();
+                Trajectory::new(rows).map_err(|e| e.to_string())
+            };
+            let err =
+                build_from_manifest(&m, &BuildOptions::default(), Some(&track), threads, &|| {})
+                    .unwrap_err()
+                    .to_string();
+            assert!(
+                err.contains(&format!("tag 5 was never seen in run{bad_from}")),
+                "{err}"
+            );
+            // Every row before the first untrackable one is tracked; after it, at most one
+            // more per other thread (rows already taken when it failed).
+            let tried = tried.load(Ordering::SeqCst);
+            assert!(
+                (bad_from + 1..=bad_from + threads).contains(&tried),
+                "{tried} videos tracked on {threads} thread(s); the first untrackable is run{bad_from}"
+            );
+        }
+        let _ = std::fs::remove_dir_all(&m.base_dir);
+    }
 }
