@@ -121,12 +121,15 @@ fn calibration_matches_truth_for_several_seeds() {
         assert!(floor_err <= 0.002, "seed {seed}: floor error {floor_err} m");
         assert_eq!(cam.views.len(), 20);
         // The floor map's σ says how far each pixel's floor point is off: the true error over
-        // it (σ of the worst direction, so 1 to √2 when honest) within 1.5 times of that.
-        // Seeds 1-3 give 1.53, 1.69 and 1.58 (σ about 10 % small); 1.45-1.74 on seeds 1-12.
+        // it (σ of the worst direction, so 1 to √2 when honest) no larger than honest, and
+        // σ at most 1.5 times too large. Seeds 1-3 give 0.92, 1.07 and 0.99 (0.88-1.07 on
+        // seeds 1-12). They gave 1.53, 1.69 and 1.58 while the first floor board's corners,
+        // whose errors are alike between neighbours on a board laid square to the image,
+        // counted as independent (`corner_count_worth`): the floor frame turned by 1.5σ.
         let (z, n) = floor_error_over_sigma(&cam, &truth).expect("a floor uncertainty map");
         println!("seed {seed}: floor error over its σ, RMS over {n} pixels: {z:.2}");
         assert!(
-            (1.0 / 1.5..=1.5 * std::f64::consts::SQRT_2).contains(&z),
+            (1.0 / 1.5..=std::f64::consts::SQRT_2).contains(&z),
             "seed {seed}: floor error/σ RMS {z:.2}"
         );
         if seed == 1 {
