@@ -177,12 +177,14 @@ const TRUTH_MISMATCH_M: f64 = 0.05;
 /// in another unit or frame: the tracker's own heading errors are a fraction of a degree.
 const TRUTH_HEADING_MISMATCH_RAD: f64 = 0.17;
 
-/// Prints the comparison with the truth (and AprilTag 3's rate when measured).
-fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
+/// Prints the comparison with the truth (and AprilTag 3's rate when measured). `floor_map`:
+/// the camera file has a floor uncertainty map, whose σ (its worst direction) the fixes take
+/// for x and y alike, so an honest position σ gives error/σ under 1 where it dominates.
+fn print_against_truth(a: &AgainstTruth, tag_id: u32, floor_map: bool) {
     let e = &a.errors;
     let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
     say!(
-        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth at their time{}; error/σ RMS {} (x,y) {} (θ), 1 when σ is right",
+        "against {}: position RMS {:.3} mm (max {:.3} mm), heading RMS {:.3} deg over the {} fixes with a truth at their time{}; error/σ RMS {} (x,y) {} (θ), 1 when σ is right{}",
         a.truth,
         e.position_rms_m * 1e3,
         e.position_max_m * 1e3,
@@ -199,6 +201,11 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32) {
         },
         z(e.error_over_sigma_xy),
         z(e.error_over_sigma_theta),
+        if floor_map {
+            " (x,y: 0.7 to 1 where the floor map's σ, its worst direction taken for both, dominates)"
+        } else {
+            ""
+        },
     );
     if e.position_rms_m > TRUTH_MISMATCH_M {
         tell!(
@@ -340,6 +347,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     // The calibration's uncertainty goes into every fix's σ.
     let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
+    // The fixes' calibration part, and the floor map's σ in it, need the intrinsics' covariance.
+    let floor_map = camera_file.floor_uncertainty.is_some() && camera_file.covariance.is_some();
     let source = open_source(&args.video, &source_options)?;
     if let Some(turn) = &source.info().display_rotation {
         tell!(
@@ -442,7 +451,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     commit()?;
     tell!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {
-        print_against_truth(a, args.tag.tag_id);
+        print_against_truth(a, args.tag.tag_id, floor_map);
     }
     Ok(())
 }
