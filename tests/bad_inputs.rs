@@ -1329,6 +1329,49 @@ fn charuco_options_and_boards_are_checked() {
     ];
     args.extend(views.iter().map(|v| p(v)));
     refused(dir, &args, &["pass --target charuco with them"]);
+    // A plain checkerboard's photos given as a ChArUco board's: no marker of any dictionary,
+    // and the checkerboard's size is named.
+    let plain = dir.join("plain");
+    ok(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&plain),
+        "--views",
+        "3",
+        "--floor-views",
+        "0",
+        "--seed",
+        "5",
+    ]);
+    let mut args = vec![
+        "calibrate",
+        "--target",
+        "charuco",
+        "--board",
+        "11x8",
+        "--square",
+        "0.04",
+        "--marker",
+        "0.03",
+        "--dictionary",
+        "4X4_50",
+        "--out",
+        p(&out),
+    ];
+    let plain_views: Vec<PathBuf> = (0..3)
+        .map(|i| plain.join(format!("view_{i:02}.png")))
+        .collect();
+    args.extend(plain_views.iter().map(|v| p(v)));
+    refused(
+        dir,
+        &args,
+        &[
+            "shows a plain checkerboard of 9x6 inner corners",
+            "leave out --target charuco",
+            "pass --board 9x6",
+        ],
+    );
     refused(
         dir,
         &[

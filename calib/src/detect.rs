@@ -711,6 +711,21 @@ fn board_size_seen(gray: &Mat, board: &BoardSpec) -> Option<(u32, u32)> {
     .filter(|&size| size != (board.cols, board.rows) && size != (board.rows, board.cols))
 }
 
+/// The inner corners of a plain checkerboard that the image at `path` shows, looked for at
+/// `board`'s size and around it: for images given as a ChArUco board's that show no marker,
+/// whose grid of squares `board` counts alike.
+pub fn checkerboard_shown(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {
+    let gray = read_gray(path).ok()?;
+    let plain = BoardSpec::checkerboard(board.cols, board.rows, board.square_m);
+    if let Some(corners) = find_corners_quick(&gray, board.cols, board.rows) {
+        let (part, c, r) = regular_part(&corners, board.cols as usize, board.rows as usize);
+        let spec = BoardSpec::checkerboard(c as u32, r as u32, board.square_m);
+        let whole = board_around(&gray, &spec, &part).unwrap_or((c as u32, r as u32));
+        return Some(oriented_like(whole, &plain));
+    }
+    board_size_seen(&gray, &plain)
+}
+
 /// When no view shows the board, tries nearby sizes on one image to tell the
 /// user what they probably miscounted. Returns the size found, if any.
 pub fn guess_board_size(path: &Path, board: &BoardSpec) -> Option<(u32, u32)> {

@@ -824,6 +824,14 @@ fn no_charuco_error(
         .take(3)
         .find_map(|p| crate::charuco::guess_dictionary(p, dictionary))
         .map(|(d, n)| format!(" {n} markers of dictionary {d} were found: pass --dictionary {d}."))
+        .or_else(|| {
+            let p = paths.first()?;
+            let (c, r) = crate::detect::checkerboard_shown(p, board)?;
+            Some(format!(
+                " {} shows a plain checkerboard of {c}x{r} inner corners and no ArUco marker: leave out --target charuco, --marker and --dictionary, and pass --board {c}x{r}.",
+                p.display()
+            ))
+        })
         .unwrap_or_default();
     CalibError::Input(format!(
         "no {} found in any of the {} {what} image(s):{options}{}{hint}",
