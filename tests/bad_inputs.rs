@@ -1440,62 +1440,78 @@ fn a_closed_standard_output_loses_no_file() {
     );
 }
 
-/// ChArUco floor views at 640x360 whose markers are 5 px across: the markers are read, but
-/// the corners between them cannot be placed. The message used to blame --board and
-/// --dictionary; it now says how many pixels the markers have and what to change.
+/// ChArUco floor views whose markers are too small: at 640x360 (5 px markers) the markers
+/// are read, but the corners between them cannot be placed; at 480x320 (4 px) not even the
+/// markers are read, though OpenCV finds their outlines. The message used to blame --board
+/// and --dictionary, and then to ask for the whole board in sight; it now says how many pixels
+/// the markers have and what to change.
 #[test]
 fn charuco_markers_too_small_are_named_by_their_pixels() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let d = dir.path();
-    ok(&[
-        "synth",
-        "calib",
-        "--target",
-        "charuco",
-        "--width",
-        "640",
-        "--height",
-        "360",
-        "--out",
-        p(d),
-    ]);
-    let images = |prefix: &str| -> Vec<String> {
-        let mut v: Vec<String> = listing(d)
-            .into_iter()
-            .filter(|f| f.starts_with(prefix))
-            .map(|f| d.join(f).display().to_string())
-            .collect();
-        v.sort();
-        v
-    };
-    let (views, floors) = (images("view_"), images("floor_"));
-    let mut args: Vec<&str> = vec!["calibrate"];
-    args.extend(views.iter().map(String::as_str));
-    let out = d.join("camera.json");
-    args.extend([
-        "--target",
-        "charuco",
-        "--board",
-        "11x8",
-        "--square",
-        "0.04",
-        "--marker",
-        "0.03",
-        "--dictionary",
-        "4X4_50",
-        "--out",
-        p(&out),
-        "--floor",
-    ]);
-    args.extend(floors.iter().map(String::as_str));
-    let e = fails(&args);
-    assert!(
-        e.contains("its markers are 5 px across (median), too few pixels to place the corners")
-            && e.contains("use larger squares and markers")
-            && !e.contains("--board counts"),
-        "{e}"
-    );
-    assert!(!out.exists());
+    for (width, height, said) in [
+        (
+            "640",
+            "360",
+            "its markers are 5 px across (median), too few pixels to place the corners",
+        ),
+        (
+            "480",
+            "320",
+            "could be read: 23 square outlines 4 px across (median) were found, too few pixels to read a marker's cells",
+        ),
+    ] {
+        let d = &dir.path().join(width);
+        ok(&[
+            "synth",
+            "calib",
+            "--target",
+            "charuco",
+            "--width",
+            width,
+            "--height",
+            height,
+            "--out",
+            p(d),
+        ]);
+        let images = |prefix: &str| -> Vec<String> {
+            let mut v: Vec<String> = listing(d)
+                .into_iter()
+                .filter(|f| f.starts_with(prefix))
+                .map(|f| d.join(f).display().to_string())
+                .collect();
+            v.sort();
+            v
+        };
+        let (views, floors) = (images("view_"), images("floor_"));
+        let mut args: Vec<&str> = vec!["calibrate"];
+        args.extend(views.iter().map(String::as_str));
+        let out = d.join("camera.json");
+        args.extend([
+            "--target",
+            "charuco",
+            "--board",
+            "11x8",
+            "--square",
+            "0.04",
+            "--marker",
+            "0.03",
+            "--dictionary",
+            "4X4_50",
+            "--out",
+            p(&out),
+            "--floor",
+        ]);
+        args.extend(floors.iter().map(String::as_str));
+        let e = fails(&args);
+        assert!(
+            e.contains(said)
+                && e.contains("use larger squares and markers")
+                && !e.contains("--board counts")
+                && !e.contains("whole board in sight"),
+            "{width}x{height}: {e}"
+        );
+        assert!(!out.exists());
+    }
 }
 
 /// Standard output that cannot be written (a full disk under `> poses.csv`): what was

@@ -346,7 +346,15 @@ pub fn find_charuco_corners(
                 board_name(board),
                 n_markers - 1
             ),
-            None => format!("no {dictionary} marker of the {} found", board_name(board)),
+            None => match median_side_px(&rejected).filter(|side| *side < MIN_MARKER_SIDE_PX) {
+                // Outlines found but no marker read: the markers are there, too small to read.
+                Some(side) if rejected.len() >= MIN_UNREAD_OUTLINES => format!(
+                    "no {dictionary} marker of the {} could be read: {} square outlines {side:.0} px across (median) were found, too few pixels to read a marker's cells ({MIN_MARKER_SIDE_PX:.0} px or more needed); use larger squares and markers, views from closer, or a higher resolution",
+                    board_name(board),
+                    rejected.len()
+                ),
+                _ => format!("no {dictionary} marker of the {} found", board_name(board)),
+            },
         }));
     }
     // A stray false detection is left out above; many markers beyond the board's ids mean a
@@ -461,23 +469,8 @@ pub fn find_charuco_corners(
     if ids.len() < MIN_CHARUCO_CORNERS {
         // Markers found but too small to place the corners between them is a matter of
         // pixels, not of the options that describe the board.
-        let mut sides: Vec<f64> = corners_on
-            .iter()
-            .map(|q| {
-                let q: Vec<Point2f> = q.iter().collect();
-                (0..q.len())
-                    .map(|i| {
-                        let (a, b) = (q[i], q[(i + 1) % q.len()]);
-                        f64::from(a.x - b.x).hypot(f64::from(a.y - b.y))
-                    })
-                    .sum::<f64>()
-                    / q.len().max(1) as f64
-            })
-            .collect();
-        sides.sort_by(f64::total_cmp);
-        let small = sides
-            .get(sides.len() / 2)
-            .filter(|side| **side < MIN_MARKER_SIDE_PX)
+        let small = median_side_px(&corners_on)
+            .filter(|side| *side < MIN_MARKER_SIDE_PX)
             .map(|side| {
                 format!(
                     ": its markers are {side:.0} px across (median), too few pixels to place the corners between them ({MIN_MARKER_SIDE_PX:.0} px or more needed); use larger squares and markers, views from closer, or a higher resolution"
@@ -538,6 +531,29 @@ fn refine_half_window(markers: &[Vec<(f64, f64)>], square_per_marker: f64) -> Op
 /// Markers smaller than this (side, pixels) are read, but the corners between them are not
 /// placed reliably: the synthetic ChArUco views place them from 13 px markers on.
 const MIN_MARKER_SIDE_PX: f64 = 12.0;
+
+/// Square outlines that OpenCV found but could not read as markers, fewest that name markers
+/// too small to read (rather than a few stray quadrilaterals in a view of no board).
+const MIN_UNREAD_OUTLINES: usize = 4;
+
+/// The median side of quadrilaterals (OpenCV's marker corners), pixels; None for none.
+fn median_side_px(quads: &Vector<Vector<Point2f>>) -> Option<f64> {
+    let mut sides: Vec<f64> = quads
+        .iter()
+        .map(|q| {
+            let q: Vec<Point2f> = q.iter().collect();
+            (0..q.len())
+                .map(|i| {
+                    let (a, b) = (q[i], q[(i + 1) % q.len()]);
+                    f64::from(a.x - b.x).hypot(f64::from(a.y - b.y))
+                })
+                .sum::<f64>()
+                / q.len().max(1) as f64
+        })
+        .collect();
+    sides.sort_by(f64::total_cmp);
+    sides.get(sides.len() / 2).copied()
+}
 
 /// The smallest half window (pixels) that refines a corner: a 5x5 window.
 const MIN_HALF_WINDOW_PX: i32 = 2;

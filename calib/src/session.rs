@@ -483,9 +483,16 @@ pub fn calibrate_session(
         // the next view's would, and every trajectory would come out moved and turned.
         if let (Some(Detection::NotFound { image, reason, .. }), true) = (fd.first(), fd.len() > 1)
         {
-            return Err(CalibError::Input(format!(
-                "the first floor view {image} fixes the floor frame's origin and axes, but {reason} there: the next view's board would fix them instead, elsewhere; retake that view with the whole board in sight, or give first the floor view whose board should be the origin"
-            )));
+            // Markers too small to read are a matter of pixels, which the advice then gives.
+            return Err(CalibError::Input(if reason.contains("too few pixels") {
+                format!(
+                    "the first floor view {image}, which fixes the floor frame's origin and axes: {reason}"
+                )
+            } else {
+                format!(
+                    "the first floor view {image} fixes the floor frame's origin and axes, but {reason} there: the next view's board would fix them instead, elsewhere; retake that view with the whole board in sight, or give first the floor view whose board should be the origin"
+                )
+            }));
         }
         let (fviews, mut fskipped, fsizes) = split(fd);
         // A floor photo given twice would count its board twice in the joint floor fit and
