@@ -126,7 +126,7 @@ fn calibration_matches_truth_for_several_seeds() {
         // seeds 1-12). They gave 1.53, 1.69 and 1.58 while the first floor board's corners,
         // whose errors are alike between neighbours on a board laid square to the image,
         // counted as independent (`corner_count_worth`): the floor frame turned by 1.5σ.
-        let (z, n) = floor_error_over_sigma(&cam, &truth).expect("a floor uncertainty map");
+        let (z, n) = floor_error_over_sigma(&cam, &truth, None).expect("a floor uncertainty map");
         println!("seed {seed}: floor error over its σ, RMS over {n} pixels: {z:.2}");
         assert!(
             (1.0 / 1.5..=std::f64::consts::SQRT_2).contains(&z),
@@ -813,6 +813,18 @@ fn every_lens_model_is_recovered_and_chosen() {
         assert_intrinsics_within_bounds(lens, &e, cam.rms_px);
         assert!(within_45 <= 0.002, "{lens}: floor {within_45} m within 45°");
         assert_vouched_floor_holds(lens, &cam, &truth);
+        // Where the floor is vouched for, its σ says how far off it is: the true error over σ
+        // (worst direction: 1 to 1.4 when honest) is 0.99, 0.65 and 1.20 for the three lenses.
+        // Beyond, the model is extrapolated and σ does not cover that (8.6 through the
+        // rational lens of seed 1), which is why the floor is not vouched for there.
+        let (reach, _) = vouched_floor_error(&cam, &truth).expect("a vouched floor");
+        let (z, n) = floor_error_over_sigma(&cam, &truth, Some(reach.radius_m))
+            .expect("a floor uncertainty map");
+        println!("{lens}: floor error over its σ where vouched for, RMS over {n} pixels: {z:.2}");
+        assert!(
+            (0.4..=1.6).contains(&z),
+            "{lens}: floor error/σ RMS {z:.2} where vouched for"
+        );
         assert!(
             cam.views.len() >= 15,
             "{lens}: only {} views detected",

@@ -221,9 +221,16 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             max * 1e3
         );
     }
-    if let Some((z, n)) = floor_error_over_sigma(&cam, &truth) {
+    if let Some((z, n)) = floor_error_over_sigma(&cam, &truth, None) {
+        // Beyond the floor vouched for, the lens model is extrapolated, and σ (how well the
+        // model's parameters are known) does not say how far the model is from the lens.
+        let vouched_part = vouched
+            .filter(|(reach, _)| !reach.whole)
+            .and_then(|(reach, _)| floor_error_over_sigma(&cam, &truth, Some(reach.radius_m)))
+            .map(|(z, n)| format!("; over the {n} where `calibrate` vouches for the floor: {z:.2}"))
+            .unwrap_or_default();
         say!(
-            "  floor mapping error over the floor map's σ (its worst direction), RMS over {n} pixels: {z:.2} (1 to 1.4 when σ is honest; under 1, σ too large)"
+            "  floor mapping error over the floor map's σ (its worst direction), RMS over {n} pixels: {z:.2}{vouched_part} (1 to 1.4 when σ is honest; under 1, σ too large)"
         );
     }
     let failed = e.failures(vouched.map(|(_, max)| max));
