@@ -239,6 +239,27 @@ fn camera_files_without_physical_sense_name_the_field() {
     let mut c = cam.clone();
     c["floor_uncertainty"] = map(vec![serde_json::json!(-1.0); 576]);
     edits.push(("negative", c, "not a standard deviation"));
+    // The per-cell covariance behind σ, which `track` takes each fix's σ from: cut short, or
+    // with a correlation beyond ±1.
+    let with_covariance = |cells: usize, xy: f64| {
+        let mut m = map(vec![serde_json::json!(0.2); 576]);
+        m["covariance_mm2"] = serde_json::json!(vec![[0.04, xy, 0.01]; cells]);
+        m
+    };
+    let mut c = cam.clone();
+    c["floor_uncertainty"] = with_covariance(100, 0.0);
+    edits.push((
+        "cov_cut",
+        c,
+        "floor_uncertainty has 100 covariance_mm2 values",
+    ));
+    let mut c = cam.clone();
+    c["floor_uncertainty"] = with_covariance(576, 0.05);
+    edits.push((
+        "cov_corr",
+        c,
+        "floor_uncertainty.covariance_mm2 entry 0 is not a covariance",
+    ));
     // A floor covariance with a σ of metres, or not symmetric, widened every arena fix's σ
     // with exit 0.
     let covariance = |turn_var: f64, skew: f64| {

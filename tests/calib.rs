@@ -1126,6 +1126,9 @@ fn camera_files_without_a_board_target_are_checkerboards() {
 /// default scene (fresh noise and hand-held views each), the floor-mapping error divided by
 /// the map's σ at the same pixel, pooled per ring off the nadir, has an RMS near 1. Each
 /// calibration's errors are one draw shared by all its pixels, hence several calibrations.
+/// σ is the worst direction's, so an honest map gives 1 to 1.4; 1.02, 0.91 and 0.95 from the
+/// nadir out (1.70, 1.48 and 1.51 before the first floor board's corners, alike from one to
+/// the next, counted as fewer).
 /// Minutes of work, so run on demand:
 /// `cargo test --release --test calib floor_sigma -- --ignored --nocapture`.
 #[test]
@@ -1172,7 +1175,7 @@ fn floor_sigma_is_honest_over_calibrations() {
             "floor {lo:.0}-{r:.0}° off the nadir: RMS of error/σ {z:.2} over six calibrations"
         );
         assert!(
-            n > 0 && (0.5..=2.0).contains(&z),
+            n > 0 && (1.0 / 1.5..=std::f64::consts::SQRT_2).contains(&z),
             "{lo}-{r}°: error/σ RMS {z:.2}"
         );
         lo = *r;

@@ -1243,6 +1243,7 @@ mod tests {
                 sigma_mm: vec![None],
                 floor_boards_px: vec![],
                 model_spread_mm: vec![],
+                covariance_mm2: vec![],
                 floor_covariance: Some(
                     (0..6 + n)
                         .map(|i| {

@@ -427,7 +427,7 @@ pub fn check_pose_covariance(
     Ok(())
 }
 
-/// The floor uncertainty map fits the image/// The floor uncertainty map fits the image and holds standard deviations: `track` reads each
+/// The floor uncertainty map fits the image and holds standard deviations: `track` reads each
 /// fix's calibration σ from it, so a cut or edited map would give σ of another pixel or none.
 fn check_floor_uncertainty(
     map: &crate::FloorUncertaintyMap,
@@ -460,6 +460,26 @@ fn check_floor_uncertainty(
     {
         return Err(format!(
             "floor_uncertainty has a value that is not a standard deviation (a number of millimetres, 0 or more) at entry {i} (counting sigma_mm, then model_spread_mm)"
+        ));
+    }
+    if !(map.covariance_mm2.is_empty() || map.covariance_mm2.len() == cells) {
+        return Err(format!(
+            "floor_uncertainty has {} covariance_mm2 values for its {cells} cells",
+            map.covariance_mm2.len()
+        ));
+    }
+    // A covariance is finite, with variances of 0 or more and a correlation within ±1.
+    let not_covariance = |c: &Option<[f64; 3]>| {
+        c.is_some_and(|[xx, xy, yy]| {
+            ![xx, xy, yy].iter().all(|v| v.is_finite())
+                || xx < 0.0
+                || yy < 0.0
+                || xy * xy > xx * yy * (1.0 + 1e-9) + 1e-18
+        })
+    };
+    if let Some(i) = map.covariance_mm2.iter().position(not_covariance) {
+        return Err(format!(
+            "floor_uncertainty.covariance_mm2 entry {i} is not a covariance (xx, xy, yy in square millimetres: finite, xx and yy 0 or more, xy² at most xx·yy)"
         ));
     }
     // An arena carries the floor pose's covariance to every camera tied to this one: an

@@ -120,6 +120,13 @@ pub struct FloorUncertaintyMap {
     /// image empty, models alike on the views part ways.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub model_spread_mm: Vec<Option<f64>>,
+    /// Per cell, the floor point's covariance in the floor frame as (xx, xy, yy), square
+    /// millimetres, where `sigma_mm` has a value: the ellipse whose longest axis is that σ.
+    /// `track` takes a fix's calibration part along x and y from it, not the worst direction
+    /// both ways, which overstated σ along the other. Empty in files written before it was
+    /// kept ([`Self::covariance_at`] then falls back on the worst direction's σ).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub covariance_mm2: Vec<Option<[f64; 3]>>,
     /// Joint covariance of a small correction to the floor pose (rotation vector, then
     /// translation, in radians and metres, applied on the floor's side: `floor_to_camera ∘
     /// correction`) and of the intrinsics (`CameraModel::parameters`), from the floor boards'
@@ -284,13 +291,18 @@ impl FloorUncertaintyMap {
             cov[k] = Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
         }
 
-        let sigma_mm = cov
+        let sigma_mm: Vec<Option<f64>> = cov
             .iter()
             .zip(&seen)
             .map(|(c, &s)| {
                 let worst = worst_sigma(c);
                 (s && worst.is_finite()).then_some(worst * 1000.0)
             })
+            .collect();
+        let covariance_mm2 = cov
+            .iter()
+            .zip(&sigma_mm)
+            .map(|(c, s)| s.map(|_| [c[(0, 0)] * 1e6, c[(0, 1)] * 1e6, c[(1, 1)] * 1e6]))
             .collect();
         Ok(Self {
             cell_px,
@@ -303,6 +315,7 @@ impl FloorUncertaintyMap {
                 .map(|v| v.corners.iter().map(|p| [p.x, p.y]).collect())
                 .collect(),
             model_spread_mm: Vec::new(),
+            covariance_mm2,
             floor_covariance: Some(
                 joint
                     .row_iter()
@@ -335,6 +348,18 @@ impl FloorUncertaintyMap {
     /// The σ of the cell holding `pixel`, millimetres (None off the map or off the floor).
     pub fn at(&self, pixel: &Point2<f64>) -> Option<f64> {
         self.sigma_mm.get(self.cell_of(pixel)?).copied().flatten()
+    }
+
+    /// The covariance of the floor point seen in the cell holding `pixel`, in the floor
+    /// frame, square millimetres: [`Self::covariance_mm2`]'s, or where a file has none, the
+    /// worst direction's σ in every direction (None off the map or off the floor).
+    pub fn covariance_at(&self, pixel: &Point2<f64>) -> Option<Matrix2<f64>> {
+        let k = self.cell_of(pixel)?;
+        let sigma = self.sigma_mm.get(k).copied().flatten()?;
+        Some(match self.covariance_mm2.get(k).copied().flatten() {
+            Some([xx, xy, yy]) => Matrix2::new(xx, xy, xy, yy),
+            None => Matrix2::identity() * sigma * sigma,
+        })
     }
 
     /// Whether lens models that fit the views alike map the floor at `pixel` too far apart
@@ -475,6 +500,35 @@ fn difference(
 
 #[cfg(test)]
 mod tests {
+
+    /// The covariance behind a cell's σ where the map has it; the worst direction's σ both
+    /// ways where a file from before it was kept has not; nothing off the floor.
+    #[test]
+    fn a_cell_gives_its_covariance_or_its_worst_sigma_both_ways() {
+        let mut map = FloorUncertaintyMap {
+            cell_px: 20,
+            cols: 2,
+            rows: 1,
+            sigma_mm: vec![Some(0.5), None],
+            floor_boards_px: vec![],
+            model_spread_mm: vec![],
+            covariance_mm2: vec![],
+            floor_covariance: None,
+        };
+        let (on, off) = (Point2::new(5.0, 5.0), Point2::new(25.0, 5.0));
+        assert_eq!(
+            map.covariance_at(&on),
+            Some(Matrix2::new(0.25, 0.0, 0.0, 0.25))
+        );
+        assert_eq!(map.covariance_at(&off), None);
+        map.covariance_mm2 = vec![Some([0.25, 0.01, 0.04]), None];
+        assert_eq!(
+            map.covariance_at(&on),
+            Some(Matrix2::new(0.25, 0.01, 0.01, 0.04))
+        );
+        assert_eq!(map.covariance_at(&off), None);
+    }
+
     use super::*;
 
     /// Where models bound the floor, the sentence names the kind of model that does, and a

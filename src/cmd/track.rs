@@ -177,10 +177,11 @@ const TRUTH_MISMATCH_M: f64 = 0.05;
 /// in another unit or frame: the tracker's own heading errors are a fraction of a degree.
 const TRUTH_HEADING_MISMATCH_RAD: f64 = 0.17;
 
-/// Prints the comparison with the truth (and AprilTag 3's rate when measured). `floor_map`:
-/// the camera file has a floor uncertainty map, whose σ (its worst direction) the fixes take
-/// for x and y alike, so an honest position σ gives error/σ under 1 where it dominates.
-fn print_against_truth(a: &AgainstTruth, tag_id: u32, floor_map: bool) {
+/// Prints the comparison with the truth (and AprilTag 3's rate when measured).
+/// `worst_both_ways`: the camera file's floor uncertainty map has σ of the worst direction
+/// only, which the fixes take for x and y alike, so an honest σ gives error/σ under 1 where
+/// it dominates.
+fn print_against_truth(a: &AgainstTruth, tag_id: u32, worst_both_ways: bool) {
     let e = &a.errors;
     let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
     say!(
@@ -201,8 +202,8 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32, floor_map: bool) {
         },
         z(e.error_over_sigma_xy),
         z(e.error_over_sigma_theta),
-        if floor_map {
-            " (x,y: 0.7 to 1 where the floor map's σ, its worst direction taken for both, dominates)"
+        if worst_both_ways {
+            " (x,y: 0.7 to 1 where the floor's σ dominates: this camera file's floor map has its worst direction only, taken for both; calibrate again for its covariance)"
         } else {
             ""
         },
@@ -347,8 +348,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     // The calibration's uncertainty goes into every fix's σ.
     let opts = options(&args)?.with_calibration(&camera_file);
     opts.check(camera_file.floor.as_ref().map(|f| f.camera_height_m))?;
-    // The fixes' calibration part, and the floor map's σ in it, need the intrinsics' covariance.
-    let floor_map = camera_file.floor_uncertainty.is_some() && camera_file.covariance.is_some();
+    // The fixes' calibration part, and the floor map's σ in it, need the intrinsics' covariance;
+    // a map written before the floor's covariance was kept per cell gives its worst direction's
+    // σ to x and y alike.
+    let worst_both_ways = camera_file.covariance.is_some()
+        && camera_file
+            .floor_uncertainty
+            .as_ref()
+            .is_some_and(|m| m.covariance_mm2.is_empty());
     let source = open_source(&args.video, &source_options)?;
     if let Some(turn) = &source.info().display_rotation {
         tell!(
@@ -451,7 +458,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     commit()?;
     tell!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {
-        print_against_truth(a, args.tag.tag_id, floor_map);
+        print_against_truth(a, args.tag.tag_id, worst_both_ways);
     }
     Ok(())
 }

@@ -1033,12 +1033,14 @@ impl Tracker {
             ) {
                 let mut c = c;
                 let centre = d.centre_px();
-                if let Some(s_mm) = o.floor_uncertainty.as_ref().and_then(|m| m.at(&centre)) {
-                    // Position from the floor map (its worst direction both ways); the
-                    // heading's part stays: a turn of the tag does not move with the floor.
-                    let var = (s_mm * 1e-3).powi(2);
-                    c.fixed_view_mut::<2, 2>(0, 0)
-                        .copy_from(&(nalgebra::Matrix2::identity() * var));
+                if let Some(mm2) = o
+                    .floor_uncertainty
+                    .as_ref()
+                    .and_then(|m| m.covariance_at(&centre))
+                {
+                    // Position from the floor map; the heading's part stays: a turn of the tag
+                    // does not move with the floor.
+                    c.fixed_view_mut::<2, 2>(0, 0).copy_from(&(mm2 * 1e-6));
                     for k in 0..2 {
                         c[(k, 2)] = 0.0;
                         c[(2, k)] = 0.0;

@@ -149,6 +149,7 @@ mod tests {
             sigma_mm: vec![Some(0.5), Some(1.0), Some(0.5), None],
             floor_boards_px: vec![],
             model_spread_mm: vec![],
+            covariance_mm2: vec![],
             floor_covariance: None,
         }
     }
