@@ -1365,25 +1365,10 @@ fn charuco_options_and_boards_are_checked() {
         "--seed",
         "5",
     ]);
-    let mut args = vec![
-        "calibrate",
-        "--target",
-        "charuco",
-        "--board",
-        "11x8",
-        "--square",
-        "0.04",
-        "--marker",
-        "0.03",
-        "--dictionary",
-        "4X4_50",
-        "--out",
-        p(&out),
-    ];
     let plain_views: Vec<PathBuf> = (0..3)
         .map(|i| plain.join(format!("view_{i:02}.png")))
         .collect();
-    args.extend(plain_views.iter().map(|v| p(v)));
+    let args = synthetic_charuco_calibration(&out, plain_views.iter().map(|v| p(v)));
     refused(
         dir,
         &args,
@@ -1461,6 +1446,31 @@ fn a_closed_standard_output_loses_no_file() {
     );
 }
 
+/// `odocal calibrate` of `views` as `synth calib --target charuco` draws its board (11x8
+/// squares of 4 cm, 3 cm 4X4_50 markers), into `out`.
+fn synthetic_charuco_calibration<'a>(
+    out: &'a Path,
+    views: impl IntoIterator<Item = &'a str>,
+) -> Vec<&'a str> {
+    let mut args = vec![
+        "calibrate",
+        "--target",
+        "charuco",
+        "--board",
+        "11x8",
+        "--square",
+        "0.04",
+        "--marker",
+        "0.03",
+        "--dictionary",
+        "4X4_50",
+        "--out",
+        p(out),
+    ];
+    args.extend(views);
+    args
+}
+
 /// ChArUco floor views whose markers are too small: at 640x360 (5 px markers) the markers
 /// are read, but the corners between them cannot be placed; at 480x320 (4 px) not even the
 /// markers are read, though OpenCV finds their outlines. The message used to blame --board
@@ -1504,24 +1514,9 @@ fn charuco_markers_too_small_are_named_by_their_pixels() {
             v
         };
         let (views, floors) = (images("view_"), images("floor_"));
-        let mut args: Vec<&str> = vec!["calibrate"];
-        args.extend(views.iter().map(String::as_str));
         let out = d.join("camera.json");
-        args.extend([
-            "--target",
-            "charuco",
-            "--board",
-            "11x8",
-            "--square",
-            "0.04",
-            "--marker",
-            "0.03",
-            "--dictionary",
-            "4X4_50",
-            "--out",
-            p(&out),
-            "--floor",
-        ]);
+        let mut args = synthetic_charuco_calibration(&out, views.iter().map(String::as_str));
+        args.push("--floor");
         args.extend(floors.iter().map(String::as_str));
         let e = fails(&args);
         assert!(
