@@ -280,12 +280,11 @@ pub(crate) fn corner_count_worth(object: &[Point3<f64>], residuals: &[f64]) -> f
             }
         }
     }
-    let counted = (0..n).filter(|&i| finite(i)).count();
-    let power = (0..n)
+    let squares: Vec<f64> = (0..n)
         .filter(|&i| finite(i))
         .map(|i| residuals[2 * i].powi(2) + residuals[2 * i + 1].powi(2))
-        .sum::<f64>()
-        / counted.max(1) as f64;
+        .collect();
+    let power = squares.iter().sum::<f64>() / squares.len().max(1) as f64;
     if pairs < 4 || power <= 0.0 {
         return 1.0;
     }

@@ -500,6 +500,7 @@ fn difference(
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     /// The covariance behind a cell's σ where the map has it; the worst direction's σ both
     /// ways where a file from before it was kept has not; nothing off the floor.
@@ -528,8 +529,6 @@ mod tests {
         );
         assert_eq!(map.covariance_at(&off), None);
     }
-
-    use super::*;
 
     /// Where models bound the floor, the sentence names the kind of model that does, and a
     /// spread of metres (rays grazing the floor) is not printed as "102643.5 mm".
