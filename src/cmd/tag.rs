@@ -120,6 +120,11 @@ pub struct TagArgs {
         value_name = "X,Y"
     )]
     pub tag_tilt: TagTiltDeg,
+    /// Read the whole video even when the tag's id is in none of its first 90 frames while
+    /// another tag is in nearly all of them (a wrong --tag-id, reported then by default): for
+    /// a robot whose tag comes into view only later.
+    #[arg(long)]
+    pub whole_video: bool,
 }
 
 /// The tag's options alone, for their defaults.
@@ -182,6 +187,10 @@ impl TagArgs {
                 self.tag_tilt.x_deg.to_radians(),
                 self.tag_tilt.y_deg.to_radians(),
             ),
+            wrong_id_after_frames: match self.whole_video {
+                true => None,
+                false => opts.wrong_id_after_frames,
+            },
             ..opts
         })
     }

@@ -98,6 +98,11 @@ pub struct TrackOptions {
     /// `−x·tan(x angle) − y·tan(y angle)` above the marker height, x and y its place on the
     /// tag, and its ray is met there.
     pub tag_tilt_rad: nalgebra::Vector2<f64>,
+    /// Stop after this many frames when the tag's id was in none of them while another id of
+    /// the family was in nearly all (the robot's tag given a wrong id: reading on would cost
+    /// the whole video's time for the same error). `None` reads the whole video, for a tag
+    /// that comes into view only later.
+    pub wrong_id_after_frames: Option<usize>,
 }
 
 /// A tag tilted more than this on the robot is refused, degrees: the planar pose takes each
@@ -210,8 +215,31 @@ impl Default for TrackOptions {
             pnp_cross_check: false,
             tag_to_robot: TagToRobot::IDENTITY,
             tag_tilt_rad: nalgebra::Vector2::zeros(),
+            wrong_id_after_frames: Some(WRONG_ID_FRAMES),
         }
     }
+}
+
+/// Frames read before a tag id missing from all of them, beside another id in nearly every
+/// one, is taken for a wrong --tag-id (3 s at 30 frames/s; a robot's tag hidden that long at
+/// the start of a run, with another tag in plain view, is rare, and `--whole-video` waits).
+pub const WRONG_ID_FRAMES: usize = 90;
+
+/// The share of the frames read an id must be seen in to be taken for the robot's tag under
+/// another number.
+const NEARLY_EVERY_FRAME: f64 = 0.9;
+
+/// The ids seen in nearly every one of `frames` frames (`seen`: frames per id), most seen
+/// first: when the tracked id is in none of them, the robot's tag is most likely one of
+/// these, given a wrong --tag-id.
+fn ids_in_nearly_every_frame(seen: &BTreeMap<u32, usize>, frames: usize) -> Vec<(u32, usize)> {
+    let mut ids: Vec<(u32, usize)> = seen
+        .iter()
+        .filter(|&(_, &n)| frames > 0 && n as f64 >= NEARLY_EVERY_FRAME * frames as f64)
+        .map(|(&id, &n)| (id, n))
+        .collect();
+    ids.sort_by_key(|&(id, n)| (std::cmp::Reverse(n), id));
+    ids
 }
 
 /// Why a frame has no pose.
@@ -368,6 +396,8 @@ pub struct Tracker {
     last_fix_index: Option<usize>,
     consecutive_jumps: usize,
     seen: BTreeMap<u32, usize>,
+    /// Frames given to [`Self::process`].
+    frames_read: usize,
     /// Pooled corner residuals: decayed sums of each fix's squared residuals over what its
     /// corners' covariance expects of them, and of the weights.
     residual_pool: (f64, f64),
@@ -477,6 +507,7 @@ impl Tracker {
             last_fix_index: None,
             consecutive_jumps: 0,
             seen: BTreeMap::new(),
+            frames_read: 0,
             residual_pool: (0.0, 0.0),
             intrinsics_covariance: None,
             blurred_search_turn: 0,
@@ -532,6 +563,17 @@ impl Tracker {
     /// Ids seen so far (any id of the family) and in how many frames.
     pub fn seen_ids(&self) -> &BTreeMap<u32, usize> {
         &self.seen
+    }
+
+    /// Whether the frames read so far show the robot's tag under another id: the options'
+    /// [`TrackOptions::wrong_id_after_frames`] read, the tracked id in none of them, and
+    /// another id in nearly all.
+    pub fn wrong_id_evident(&self) -> bool {
+        self.opts
+            .wrong_id_after_frames
+            .is_some_and(|limit| self.frames_read >= limit)
+            && !self.seen.contains_key(&self.opts.tag_id)
+            && !ids_in_nearly_every_frame(&self.seen, self.frames_read).is_empty()
     }
 
     fn predict(&self, t_s: f64) -> Option<(Pose2, f64, f64)> {
@@ -763,6 +805,7 @@ impl Tracker {
                 .floor_to_pixel(&self.floor, &pose.position(), self.opts.marker_height_m)
         });
         self.frames_since_search += 1;
+        self.frames_read += 1;
         let mut ids_in_frame: Vec<u32> = Vec::new();
         let mut found: Option<(TagDetection, bool)> = None;
         let mut others: Vec<TagDetection> = Vec::new();
@@ -1270,7 +1313,65 @@ impl TrackResult {
     /// Whether a run without a fix may have a wrong --family: the tag's id never seen, or
     /// many ids, none with a tag's shape.
     pub fn family_in_doubt(&self, tag_id: u32) -> bool {
-        !self.seen_ids.contains_key(&tag_id) || self.wrong_family()
+        (!self.seen_ids.contains_key(&tag_id) && self.ids_in_nearly_every_frame().is_empty())
+            || self.wrong_family()
+    }
+
+    /// The ids seen in nearly every frame, most seen first (see [`WRONG_ID_FRAMES`]).
+    fn ids_in_nearly_every_frame(&self) -> Vec<(u32, usize)> {
+        ids_in_nearly_every_frame(&self.seen_ids, self.records.len())
+    }
+
+    /// Why the tracked id is taken for a wrong --tag-id: it was in none of the frames read,
+    /// another id was in nearly all. `early`: the run stopped after
+    /// [`TrackOptions::wrong_id_after_frames`] rather than at the video's end.
+    pub fn wrong_id_text(
+        &self,
+        opts: &TrackOptions,
+        path: &std::path::Path,
+        early: bool,
+    ) -> String {
+        let n = self.records.len();
+        let span_s = match (self.records.first(), self.records.last()) {
+            (Some(a), Some(b)) => b.t_s - a.t_s,
+            _ => 0.0,
+        };
+        let read = if early {
+            format!("was not seen in the first {n} frames ({span_s:.1} s)")
+        } else {
+            format!("was never seen in {n} frames")
+        };
+        let ids = self.ids_in_nearly_every_frame();
+        let (seen, advice) = match ids.as_slice() {
+            [(id, k)] => (
+                format!("tag {id} was seen in {k} of them"),
+                format!("pass --tag-id {id} if that is the robot's tag"),
+            ),
+            _ => (
+                format!(
+                    "tags {} were each seen in nearly every one",
+                    ids.iter()
+                        .map(|(id, k)| format!("{id} ({k} frames)"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                "pass the robot's tag's id with --tag-id".to_string(),
+            ),
+        };
+        let wait = if early {
+            format!(
+                " (or --whole-video, should tag {} come into view later)",
+                opts.tag_id
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "tag {} ({}) {read} of {}, where {seen}: {advice}{wait}",
+            opts.tag_id,
+            opts.family,
+            path.display()
+        )
     }
 
     /// One robot carries one tag: many ids, and the tracked one never with a tag's shape,
@@ -1301,6 +1402,10 @@ impl TrackResult {
         let read_as = probe
             .map(|p| format!(": {}", p.advice(opts.tag_id)))
             .unwrap_or_default();
+        if !self.seen_ids.contains_key(&opts.tag_id) && !self.ids_in_nearly_every_frame().is_empty()
+        {
+            return self.wrong_id_text(opts, path, false);
+        }
         if !self.seen_ids.contains_key(&opts.tag_id) {
             return format!(
                 "tag {} ({}) was never seen in {n} frames of {}; {}: check --tag-id and --family{read_as}",
@@ -1498,11 +1603,11 @@ pub fn track_source(
     // nor the decoder waits for `on_frame` (overlays, progress).
     let (tx, rx) = mpsc::sync_channel::<Batch>(3);
     let (done_tx, done_rx) = mpsc::sync_channel::<Result<Vec<(Frame, FrameRecord)>, TrackError>>(3);
-    let (mut records, seen_ids, final_info, kept) =
+    let (mut records, (seen_ids, stopped_early), final_info, kept) =
         std::thread::scope(|scope| -> Result<_, TrackError> {
             let decoder = scope.spawn(move || decode_into(source.as_mut(), tx));
             let path = info.path.clone();
-            let worker = scope.spawn(move || -> Option<BTreeMap<u32, usize>> {
+            let worker = scope.spawn(move || -> Option<(BTreeMap<u32, usize>, bool)> {
                 let mut tracker = match Tracker::new(*camera, *floor, opts.clone()) {
                     Ok(t) => t,
                     Err(e) => {
@@ -1527,8 +1632,11 @@ pub fn track_source(
                     if done_tx.send(out).is_err() || stop {
                         break;
                     }
+                    if tracker.wrong_id_evident() {
+                        return Some((tracker.seen_ids().clone(), true));
+                    }
                 }
-                Some(tracker.seen_ids().clone())
+                Some((tracker.seen_ids().clone(), false))
             });
             let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
             let mut kept = KeptFrames::new(info.frame_count);
@@ -1563,6 +1671,12 @@ pub fn track_source(
         frame_size: (info.width, info.height),
         source: final_info,
     };
+    if stopped_early {
+        // No report nor timing warnings: the frames read are a video's start, not a run.
+        return Err(TrackError::Mismatch(
+            result.wrong_id_text(opts, &info.path, true),
+        ));
+    }
     if result.fixes().next().is_none() {
         // Only a run without a fix pays for reading its frames with the other families.
         let probe = if result.family_in_doubt(opts.tag_id) {
