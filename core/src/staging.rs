@@ -99,8 +99,45 @@ fn inside_staged_dir(path: &Path) -> bool {
 /// cannot hold, or a place the command cannot create files in. Commands call it on every
 /// output path (`option` names it) before doing any work, so a wrong path fails at once.
 pub fn check_output_file(path: &Path, option: &str) -> Result<(), FileError> {
-    check_file_shape(path, option)?;
-    check_can_create(parent_of(path), path, option)
+    let file = through_links(path, option)?;
+    check_file_shape(&file, option)?;
+    check_can_create(parent_of(&file), path, option)
+}
+
+/// The file an output path names once its symbolic links are followed (a link is written
+/// through, never replaced by a file of its own). Refused when it leads into /dev or /proc:
+/// `--out /dev/stdout` under `> out.txt` resolves to a regular file, and the rename into
+/// place would have replaced the system's link with one.
+fn through_links(path: &Path, option: &str) -> Result<PathBuf, FileError> {
+    let mut file = path.to_path_buf();
+    // Linux's own limit on links followed in one path.
+    for _ in 0..40 {
+        if file.starts_with("/dev") || file.starts_with("/proc") {
+            return Err(refuse(
+                option,
+                path,
+                &format!(
+                    "{} a device or a process's file (standard output?): odocal writes its outputs to files only; give a file path",
+                    match file == path {
+                        true => "is".to_string(),
+                        false => format!("leads to {},", file.display()),
+                    }
+                ),
+            ));
+        }
+        match std::fs::symlink_metadata(&file) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let to = std::fs::read_link(&file).map_err(|e| io(&file, e))?;
+                file = parent_of(&file).join(to);
+            }
+            _ => return Ok(file),
+        }
+    }
+    Err(refuse(
+        option,
+        path,
+        "is a chain of more than 40 symbolic links (a loop?); give a file path",
+    ))
 }
 
 fn check_file_shape(path: &Path, option: &str) -> Result<(), FileError> {
@@ -213,6 +250,7 @@ pub fn check_output_dir(path: &Path, option: &str) -> Result<(), FileError> {
 /// Writes `bytes` for `path`: into a temporary file beside it, moved into place by [`commit`].
 /// A path inside a [`staged_dir`] is written directly (the whole directory moves on commit).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
+    let path = &through_links(path, "output")?;
     check_file_shape(path, "output")?;
     let dir = parent_of(path);
     if inside_staged_dir(path) {
@@ -480,6 +518,30 @@ mod tests {
         assert!(dir.join("sub/f").exists());
         assert!(check_output_file(&dir, "--out").is_err());
         assert!(check_output_file(Path::new("/dev/null"), "--out").is_err());
+        // A link is written through, never replaced by a file of its own; one into /dev or
+        // /proc (`--out /dev/stdout` under `> out.txt`) is refused.
+        let (real, link) = (dir.join("real.txt"), dir.join("link.txt"));
+        std::fs::write(&real, b"keep").unwrap();
+        std::os::unix::fs::symlink("real.txt", &link).unwrap();
+        check_output_file(&link, "--out").unwrap();
+        write_atomic(&link, b"through").unwrap();
+        commit().unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&real).unwrap(), b"through");
+        let stdout = dir.join("stdout");
+        std::os::unix::fs::symlink("/proc/self/fd/1", &stdout).unwrap();
+        for out in [stdout.as_path(), Path::new("/dev/stdout")] {
+            let e = check_output_file(out, "--out").unwrap_err().to_string();
+            assert!(e.contains("writes its outputs to files only"), "{e}");
+            assert!(write_atomic(out, b"x").is_err());
+        }
+        let looped = dir.join("loop");
+        std::os::unix::fs::symlink("loop", &looped).unwrap();
+        let e = check_output_file(&looped, "--out").unwrap_err().to_string();
+        assert!(e.contains("a loop?"), "{e}");
         // A folder that cannot be made is a write that failed, not a read.
         let e = write_atomic(&a.join("under/a/file.txt"), b"x").unwrap_err();
         assert!(e.to_string().starts_with("cannot write "), "{e}");
