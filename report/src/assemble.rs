@@ -510,10 +510,21 @@ fn check_laser_truth(
             path.display()
         )));
     }
-    // Positions that agree with headings that do not are the truth's headings, said in the
-    // laser section; most poses far off is another recording's truth.
+    // Most poses far off is another recording's truth; positions that agree with headings
+    // that do not are the truth's headings in another unit or convention, refused as `lrf
+    // localize --truth` refuses them (a few headings off are said in the laser section).
     let headings_only = e.n_accuracy > 0 && e.position_rms_m <= odocal_lrf::CORRECT_POS_M;
-    if e.n_ok > 0 && e.n_wrong_ok * 2 > e.n_ok && !headings_only {
+    if e.n_ok > 0 && e.n_wrong_ok * 2 > e.n_ok && headings_only {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-truth {}: {} of the {} confident laser poses it has a time for are wrong against it in heading only (position RMS {:.1} mm, heading RMS {:.1}°): is its theta in radians (not degrees), counter-clockwise, and the heading of the scanner rather than of the robot it rides on?",
+            path.display(),
+            e.n_wrong_ok,
+            e.n_ok,
+            e.position_rms_m * 1e3,
+            e.heading_rms_rad.to_degrees()
+        )));
+    }
+    if e.n_ok > 0 && e.n_wrong_ok * 2 > e.n_ok {
         return Err(ReportError::Mismatch(format!(
             "--lrf-truth {}: {} of the {} confident laser poses it has a time for are wrong against it (position RMS {:.1} mm): is it the truth of these scans?",
             path.display(),
