@@ -612,29 +612,54 @@ pub fn assemble(robot: RobotParams, outcomes: Vec<Vec<RunOutcome>>) -> Dataset {
 }
 
 /// The samples as CSV: id, speed, the 18 inputs, target, raw end, path length, offset, residuals.
+/// A run id with a comma, quote or line break is quoted, as CSV readers expect.
 pub fn samples_csv(ds: &Dataset) -> String {
-    let mut s = String::from("run_id,speed_mps");
+    let mut header = vec!["run_id".to_string(), "speed_mps".to_string()];
     for i in 1..=8 {
-        s.push_str(&format!(",x{i},y{i}"));
+        header.extend([format!("x{i}"), format!("y{i}")]);
     }
-    s.push_str(",t_b,t_e,target_x,target_y,raw_x,raw_y,path_length_m,clock_offset_s,alignment_residual_mps\n");
+    header.extend(
+        [
+            "t_b",
+            "t_e",
+            "target_x",
+            "target_y",
+            "raw_x",
+            "raw_y",
+            "path_length_m",
+            "clock_offset_s",
+            "alignment_residual_mps",
+        ]
+        .map(String::from),
+    );
+    let mut rows = vec![header];
     for smp in &ds.samples {
-        s.push_str(&format!("{},{}", smp.run_id, smp.speed_mps));
-        for v in &smp.inputs {
-            s.push_str(&format!(",{v}"));
-        }
-        s.push_str(&format!(
-            ",{},{},{},{},{},{},{}\n",
-            smp.target_m[0],
-            smp.target_m[1],
-            smp.raw_end_m[0],
-            smp.raw_end_m[1],
-            smp.path_length_m,
-            smp.clock_offset_s,
-            smp.alignment_residual_mps
-        ));
+        let mut row = vec![smp.run_id.clone(), smp.speed_mps.to_string()];
+        row.extend(smp.inputs.iter().map(f64::to_string));
+        row.extend(
+            [
+                smp.target_m[0],
+                smp.target_m[1],
+                smp.raw_end_m[0],
+                smp.raw_end_m[1],
+                smp.path_length_m,
+                smp.clock_offset_s,
+                smp.alignment_residual_mps,
+            ]
+            .map(|v| v.to_string()),
+        );
+        rows.push(row);
     }
-    s
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new());
+    for row in &rows {
+        // Writing into memory fails only on a field too long for memory.
+        if w.write_record(row).is_err() {
+            break;
+        }
+    }
+    String::from_utf8_lossy(&w.into_inner().unwrap_or_default()).into_owned()
 }
 
 #[cfg(test)]
@@ -718,6 +743,44 @@ mod tests {
         assert!(s.speed_mps == 0.5 && s.speed_commanded);
         let f = features_from_log(&log, &RobotParams::default()).unwrap();
         assert_eq!(f.inputs.to_vec(), s.inputs);
+    }
+
+    /// An id with a comma, quote or line break used to shift every column after it.
+    #[test]
+    fn samples_csv_quotes_awkward_run_ids() {
+        let (log, cam) = synthetic(0.8373, false);
+        let ids = ["run 1, slow", "say \"hi\"", "two\nlines", "run004"];
+        let samples: Vec<Sample> = ids
+            .iter()
+            .map(|id| {
+                let rec = Recording {
+                    id,
+                    speed_mps: Some(0.5),
+                    log: &log,
+                    camera: &cam,
+                };
+                match process_recording(&rec, &BuildOptions::default())
+                    .unwrap()
+                    .remove(0)
+                {
+                    RunOutcome::Sample(s) => *s,
+                    RunOutcome::Rejected(r) => panic!("rejected: {r:?}"),
+                }
+            })
+            .collect();
+        let ds = Dataset::new(RobotParams::default(), samples, Vec::new(), ids.len());
+        let text = samples_csv(&ds);
+        let mut rd = csv::Reader::from_reader(text.as_bytes());
+        let width = rd.headers().unwrap().len();
+        let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.unwrap()).collect();
+        assert_eq!(width, 27);
+        assert_eq!(rows.len(), ids.len());
+        for (row, (id, smp)) in rows.iter().zip(ids.iter().zip(&ds.samples)) {
+            assert_eq!(row.len(), width);
+            assert_eq!(&row[0], *id);
+            assert_eq!(row[2].parse::<f64>().unwrap(), smp.inputs[0]);
+        }
+        assert!(text.contains("\nrun004,0.5,"), "{text}");
     }
 
     #[test]
@@ -823,6 +886,20 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("positive"));
+        // A wheel base a tenth of the e-puck-like robot's, or wheels given in decimetres.
+        for (base, diameter, want) in [
+            (0.01, 0.043, "less than half the wheel diameter"),
+            (0.053, 0.0043, "smallest robot wheels"),
+        ] {
+            let r = RobotParams {
+                wheel_base_m: base,
+                wheel_diameter_m: diameter,
+                ..RobotParams::default()
+            };
+            std::fs::write(&dir, r.to_json()).unwrap();
+            let e = RobotParams::read(&dir).unwrap_err().to_string();
+            assert!(e.contains(want), "{e}");
+        }
         let _ = std::fs::remove_file(&dir);
     }
 

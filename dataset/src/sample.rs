@@ -305,6 +305,9 @@ struct RobotFile {
     robot: RobotParams,
 }
 
+/// The smallest wheel diameter taken for a robot's, metres.
+const MIN_WHEEL_DIAMETER_M: f64 = 0.005;
+
 impl RobotParams {
     /// Reads robot parameters from a small JSON file with `"format": "odocal.robot/1"`.
     pub fn read(path: &std::path::Path) -> Result<Self, crate::DatasetError> {
@@ -367,6 +370,21 @@ impl RobotParams {
                     "{name} = {v} m is not a small wheeled robot's (at most {max} m): is it in millimetres? it must be in metres"
                 ));
             }
+        }
+        // Wheels under 5 mm, or an axle shorter than half a wheel across, are a length in
+        // another unit or another length (a radius, one wheel's width): with a wheel base a
+        // tenth of the true one, raw odometry turned 15 % off and nothing said so.
+        if self.wheel_diameter_m < MIN_WHEEL_DIAMETER_M {
+            return Err(format!(
+                "wheel_diameter_m = {} m is less than the {} m of the smallest robot wheels: is it in another unit? it must be in metres",
+                self.wheel_diameter_m, MIN_WHEEL_DIAMETER_M
+            ));
+        }
+        if self.wheel_base_m < 0.5 * self.wheel_diameter_m {
+            return Err(format!(
+                "wheel_base_m = {} m is less than half the wheel diameter ({} m): it is the distance between the two wheels' contact points, across the robot (centre to centre); is it in another unit, or another length?",
+                self.wheel_base_m, self.wheel_diameter_m
+            ));
         }
         if self.period_s > 10.0 {
             return Err(format!(
