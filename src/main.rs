@@ -91,6 +91,64 @@ fn negative_numbers_are_values(cmd: clap::Command) -> clap::Command {
     .mut_subcommands(negative_numbers_are_values)
 }
 
+/// Exits on a command line clap could not parse: help and version as clap shows them, any
+/// other error as one line with exit code 2, like every other error (clap's own takes three
+/// to seven lines, with the usage).
+fn usage_error(e: clap::Error) -> ! {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        e.exit()
+    }
+    tell!(
+        "odocal: error: {}",
+        one_line_usage_error(&e.render().to_string())
+    );
+    std::process::exit(2)
+}
+
+/// clap's error text as one line: its message and tips, without the usage and the pointer
+/// to --help (said once at the end).
+fn one_line_usage_error(text: &str) -> String {
+    let parts: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| {
+            !(l.is_empty() || l.starts_with("Usage:") || l.starts_with("For more information"))
+        })
+        .map(|l| l.strip_prefix("error: ").unwrap_or(l))
+        .collect();
+    // "the following required arguments were not provided:" heads a list, one per line.
+    let mut line = String::new();
+    let mut listing = false;
+    for part in parts {
+        let sep = match (line.is_empty(), listing) {
+            (true, _) => "",
+            (false, true) if !part.starts_with("tip:") => {
+                if line.ends_with(':') {
+                    " "
+                } else {
+                    ", "
+                }
+            }
+            _ => "; ",
+        };
+        listing = part.ends_with(':') || (listing && !part.starts_with("tip:"));
+        line.push_str(sep);
+        line.push_str(part);
+    }
+    // Unsigned options read "-1" as a digit they cannot parse.
+    let line = line.replace(
+        ": invalid digit found in string",
+        ": not a whole number of 0 or more",
+    );
+    format!("{line}; see --help")
+}
+
 /// `msg` with every long number written in scientific notation: messages quote option values
 /// with `{}`, which writes 1e308 as 309 digits. Numbers of up to [`LONGEST_NUMBER_DIGITS`]
 /// digits are kept as written: seeds, and file names of epoch times in nanoseconds
@@ -163,8 +221,8 @@ fn main() {
     // pass over: the command runs to its end and commits its files.
     let command = negative_numbers_are_values(Cli::command());
     output::learn_value_options(&command);
-    let matches = command.get_matches();
-    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let matches = command.try_get_matches().unwrap_or_else(|e| usage_error(e));
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| usage_error(e));
     let result = match cli.command {
         Command::Synth(SynthCommand::Calib(a)) => cmd::synth_calib::run(a),
         Command::Synth(SynthCommand::CheckCalib(a)) => cmd::synth_calib::run_check(a),
@@ -203,6 +261,25 @@ fn main() {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn usage_errors_are_one_line() {
+        let clap_text = "error: unexpected argument '--tagid' found\n\n  tip: a similar argument exists: '--tag-id'\n\nUsage: odocal track --tag-id <TAG_ID> --out <OUT> <VIDEO>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            super::one_line_usage_error(clap_text),
+            "unexpected argument '--tagid' found; tip: a similar argument exists: '--tag-id'; see --help"
+        );
+        let missing = "error: the following required arguments were not provided:\n  --out <OUT>\n  <VIDEO>\n\nUsage: odocal track --out <OUT> <VIDEO>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            super::one_line_usage_error(missing),
+            "the following required arguments were not provided: --out <OUT>, <VIDEO>; see --help"
+        );
+        let negative = "error: invalid value '-1' for '--frames <FRAMES>': invalid digit found in string\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            super::one_line_usage_error(negative),
+            "invalid value '-1' for '--frames <FRAMES>': not a whole number of 0 or more; see --help"
+        );
+    }
+
     #[test]
     fn long_numbers_and_quotes_are_shortened_and_others_kept() {
         let long = format!("--speed-max {}: need 0 < min", 1e308);
