@@ -168,8 +168,11 @@ pub struct Detection {
     pub range_m: f64,
     /// Bearing of the centre, radians.
     pub bearing_rad: f64,
-    /// Number of beams in the cluster.
+    /// Number of beams from the cluster's first to its last (a beam without a return
+    /// between two of its hits is counted: it crossed the strip).
     pub n_beams: usize,
+    /// Number of those beams that returned from the strip.
+    pub n_hits: usize,
     /// Apparent width (chord plus one beam spacing), metres.
     pub width_m: f64,
     /// Variance of the centre along the beam, m².
@@ -280,7 +283,8 @@ impl Detection {
             along = -along;
         }
         let r = self.range_m;
-        let k = self.n_beams.max(1) as f64;
+        let k = self.n_hits.max(1) as f64;
+        let span = self.n_beams.max(1) as f64;
         // Where a beam at angle `a` meets the strip's plane: its range, and its position along
         // the strip. The plane goes through the centroid of the hits.
         let plane = nrm.dot(&point.coords);
@@ -296,15 +300,16 @@ impl Detection {
             (t, along.dot(&(w * t)))
         };
         let first = self.first_beam_rad;
-        let last = first + (k - 1.0) * self.step_rad;
+        let last = first + (span - 1.0) * self.step_rad;
         let hidden = |side: usize, beam_rad: f64, on_plane: f64| -> bool {
             let Some(range) = self.neighbour_ranges_m[side] else {
                 return true;
             };
             let margin = 4.0 * sensor.sigma_range_m;
             if range < sensor.min_range_m {
-                // No return: nothing in front, but the strip may go on beyond the range limit.
-                return on_plane > sensor.max_range_m - margin;
+                // No return: the strip itself, saturating the receiver, as often as nothing
+                // in front.
+                return true;
             }
             // A dim return on the strip's plane at the edge of its acceptance cone may be the
             // strip itself.
@@ -353,6 +358,9 @@ impl Detection {
     }
 }
 
+/// The most consecutive beams without a return taken inside a strip between two of its hits.
+const MAX_BRIDGED_BEAMS: usize = 2;
+
 /// A beam beside a strip that meets its plane within this angle of the strip's acceptance
 /// cone's edge may have hit the strip dimly, radians: the map's facing is known to a degree
 /// or two, and the pose's heading less well before the fit.
@@ -388,6 +396,10 @@ pub fn extract_detections(
     let reflective =
         |k: usize| sweep.range_m(k) <= cfg.max_range_m && sweep.intensity(k) >= cfg.intensity_min;
     let ok = |k: usize| sweep.range_m(k) >= cfg.min_range_m && reflective(k);
+    let no_return = |k: usize| {
+        let r = sweep.range_m(k);
+        !(r.is_finite() && r >= cfg.min_range_m && r <= cfg.max_range_m)
+    };
     let mut i = 0;
     while i < n {
         if !ok(i) {
@@ -395,10 +407,31 @@ pub fn extract_detections(
             continue;
         }
         let mut j = i + 1;
-        while j < n && ok(j) && (sweep.range_m(j) - sweep.range_m(j - 1)).abs() <= 0.1 {
-            j += 1;
+        loop {
+            if j < n && ok(j) && (sweep.range_m(j) - sweep.range_m(j - 1)).abs() <= 0.1 {
+                j += 1;
+                continue;
+            }
+            // A bright strip saturates some receivers into a beam without a return: up to
+            // [`MAX_BRIDGED_BEAMS`] of them between two hits at one range are the strip, not
+            // its end (split there, one reflector was two detections, and the poses drifted
+            // 9 mm with σ a third of that).
+            let gap = (j..n.min(j + MAX_BRIDGED_BEAMS))
+                .take_while(|&k| no_return(k))
+                .count();
+            let next = j + gap;
+            if gap > 0
+                && next < n
+                && ok(next)
+                && (sweep.range_m(next) - sweep.range_m(j - 1)).abs() <= 0.1
+            {
+                j = next + 1;
+                continue;
+            }
+            break;
         }
         let pts: Vec<Point2<f64>> = (i..j)
+            .filter(|&k| ok(k))
             .map(|k| {
                 let (s, c) = sweep.angle_rad(k).sin_cos();
                 Point2::new(sweep.range_m(k) * c, sweep.range_m(k) * s)
@@ -420,14 +453,19 @@ pub fn extract_detections(
                 })
                 .map(|k| sweep.range_m(k))
         };
-        let dt_s = (i..j).map(|k| beam_time_s(sweep.index(k))).sum::<f64>() / k;
+        let dt_s = (i..j)
+            .filter(|&k| ok(k))
+            .map(|k| beam_time_s(sweep.index(k)))
+            .sum::<f64>()
+            / k;
         let limit = reflector_width_m + 2.0 * spacing + 4.0 * cfg.sigma_range_m;
         if chord <= limit {
             out.push(Detection {
                 point: centre,
                 range_m,
                 bearing_rad: centre.y.atan2(centre.x),
-                n_beams: pts.len(),
+                n_beams: j - i,
+                n_hits: pts.len(),
                 width_m: chord + spacing,
                 var_radial_m2: cfg.sigma_range_m.powi(2) / k + 1e-6,
                 var_tangential_m2: (range_m * cfg.sigma_angle_rad).powi(2)
