@@ -501,10 +501,14 @@ impl OdometryLog {
             let v = self.step_travel_m(k, w, robot) / dt;
             (v.abs() > MAX_WHEEL_SPEED_MPS).then(|| {
                 let (side, column) = [("left", &self.left), ("right", &self.right)][w];
+                // A speed is the log's own figure; ticks say the speed they make.
                 let what = match self.kind {
-                    LogKind::Ticks => {
-                        format!("goes from {} to {} ticks", column[k - 1], column[k])
-                    }
+                    LogKind::Ticks => format!(
+                        "goes from {} to {} ticks, {:.1} m/s",
+                        column[k - 1],
+                        column[k],
+                        v.abs()
+                    ),
                     LogKind::Speeds => format!("reads {} m/s", column[k]),
                 };
                 // A speed log's speeds use neither robot parameter: its unit is the
@@ -514,10 +518,9 @@ impl OdometryLog {
                     LogKind::Speeds => "a glitch in the log, or speeds not in m/s? mm/s read 1000 times too fast",
                 };
                 format!(
-                    "rows {} and {}: the {side} wheel {what}, {:.1} m/s over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
+                    "rows {} and {}: the {side} wheel {what} over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
                     k + 1,
                     k + 2,
-                    v.abs()
                 )
             })
         })
@@ -574,12 +577,35 @@ impl OdometryLog {
                             )
                         })
                         .collect();
+                let cause = match self.counts_per_period(k) {
+                    Some(hint) => format!("counts per period? {hint}; or the counter was reset (motor board restarted?)"),
+                    None => "the counter was reset (motor board restarted?)".into(),
+                };
                 (k, format!(
-                    "line {line}: {}: the counter was reset (motor board restarted?); the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
+                    "line {line}: {}: {cause}; the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
                     drops.join(", and ")
                 ))
             })
             .collect()
+    }
+
+    /// Why the counts look like counts per period rather than cumulative ones, for a drop at
+    /// row `k`: before it, a column rises and falls back three times or more, as a counter of
+    /// a wheel turning one way never does, and no count passes three of its largest rises (a
+    /// counter's counts add up over a run). `None` otherwise.
+    fn counts_per_period(&self, k: usize) -> Option<String> {
+        [&self.left, &self.right].into_iter().find_map(|c| {
+            let steps: Vec<f64> = (1..k).map(|j| c[j] - c[j - 1]).collect();
+            let rises = steps.iter().filter(|d| **d > 0.0).count();
+            let falls = steps.iter().filter(|d| **d < 0.0).count();
+            let largest = c[..k].iter().fold(0.0, |m: f64, v| m.max(v.abs()));
+            let rise = steps.iter().fold(0.0, |m: f64, d| m.max(*d));
+            (rises >= 3 && falls >= 3 && largest <= 3.0 * rise).then(|| {
+                format!(
+                    "they rise and fall back {falls} times before it and never pass {largest}, where odocal reads cumulative counts, a running total: add them up"
+                )
+            })
+        })
     }
 
     /// Cumulative wheel revolutions relative to the first row. Speeds are converted with the
@@ -710,6 +736,16 @@ mod tests {
             .collect();
         let why = csv(&one, &still).counter_reset().expect("reset at rest");
         assert!(why.starts_with("line 7: left_ticks drops from 50 to 1 in one step where the wheel moves 0 ticks a step around it: the counter was reset"), "{why}");
+        // Counts per period, rising and falling about 8 ticks and back to 0 at the end: named
+        // as such, where a counter's reset alone was named before.
+        let period = [0, 0, 1, 5, 7, 9, 8, 9, 8, 9, 9, 8, 9, 8, 9, 1, 0, 0];
+        let why = csv(&period, &period).counter_reset().expect("a drop");
+        assert!(
+            why.contains(
+                "counts per period? they rise and fall back 4 times before it and never pass 9"
+            ) && why.contains("add them up"),
+            "{why}"
+        );
         // Driven backwards (counting down through 0), turning round, or wrapping: no reset.
         let down: Vec<i64> = (0..20).map(|i| 30 - 4 * i).collect();
         let back_and_forth: Vec<i64> = [0, 4, 8, 12, 8, 4, 0, -4, -8].to_vec();

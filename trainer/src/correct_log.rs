@@ -55,9 +55,7 @@ impl ModelFile {
                 outside_domain.join("; ")
             )));
         }
-        let corrected = self
-            .correct(&f.inputs)
-            .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
+        let corrected = self.correct(&f.inputs).map_err(|e| e.in_model_file(name))?;
         let raw = f.raw_end_m;
         // The start stays, the raw end goes to the corrected end: exact at both, a rotation
         // and scaling in between. A run that does not move keeps its raw track.

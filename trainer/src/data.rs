@@ -26,8 +26,9 @@ pub fn parse_dataset(bytes: &[u8], name: &str) -> Result<(Dataset, String), Trai
     Ok((ds, sha256_hex(bytes)))
 }
 
-/// The fewest samples training accepts (one to hold out for early stopping, two to fit).
-pub const MIN_SAMPLES: usize = 3;
+/// The fewest samples training accepts (three to fit, one held out for early stopping), so
+/// that a dataset let through here is not refused by training itself.
+pub const MIN_SAMPLES: usize = 4;
 
 /// Checks a dataset built in memory as [`Dataset::parse`] checks a file, and that it has
 /// samples to train on.
@@ -40,7 +41,7 @@ pub fn check_dataset(ds: &Dataset) -> Result<(), TrainError> {
     }
     if ds.samples.len() < MIN_SAMPLES {
         return Err(TrainError::TooFewSamples(format!(
-            "the dataset has {} sample(s); a corrector needs at least {MIN_SAMPLES} runs to fit and check",
+            "the dataset has {} sample(s); a corrector needs at least {MIN_SAMPLES} runs (3 to fit, 1 held out to check)",
             ds.samples.len()
         )));
     }

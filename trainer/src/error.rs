@@ -27,3 +27,14 @@ pub enum TrainError {
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
 }
+
+impl TrainError {
+    /// This error as a [`TrainError::Model`] of the model file `name` (a model's own error
+    /// keeps its message, without a second "model: ").
+    pub(crate) fn in_model_file(self, name: &str) -> Self {
+        match self {
+            Self::Model(m) => Self::Model(format!("{name}: {m}")),
+            other => Self::Model(format!("{name}: {other}")),
+        }
+    }
+}

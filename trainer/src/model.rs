@@ -208,8 +208,7 @@ impl ModelFile {
         m.robot
             .check()
             .map_err(|e| TrainError::Model(format!("{name}: robot.{e}")))?;
-        m.to_net()
-            .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
+        m.to_net().map_err(|e| e.in_model_file(name))?;
         m.check_sense()
             .map_err(|e| TrainError::Model(format!("{name}: {e}; retrain the model")))?;
         Ok(m)

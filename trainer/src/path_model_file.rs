@@ -290,8 +290,7 @@ impl PathModelFile {
             d.check()
                 .map_err(|e| TrainError::Model(format!("{name}: step_directions.{e}")))?;
         }
-        m.corrector()
-            .map_err(|e| TrainError::Model(format!("{name}: {e}")))?;
+        m.corrector().map_err(|e| e.in_model_file(&name))?;
         Ok(m)
     }
 
