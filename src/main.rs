@@ -16,11 +16,13 @@ macro_rules! say {
     }};
 }
 
-/// `tell!` that carries on when standard error is closed, as [`say!`].
+/// `tell!` that carries on when standard error is closed, as [`say!`]; long numbers are
+/// written short ([`short_numbers`]: a warning quoting a tick count of 1e308 read as 309
+/// digits).
 macro_rules! tell {
     ($($t:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stderr(), $($t)*);
+        let _ = writeln!(std::io::stderr(), "{}", $crate::short_numbers(&format!($($t)*)));
     }};
 }
 
