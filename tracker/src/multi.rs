@@ -218,6 +218,7 @@ pub fn track_source_multi(
                 TrackResult {
                     tag_to_robot: opts.tag_to_robot,
                     records: s.records,
+                    lost_in_file: Vec::new(),
                     seen_ids: seen.clone(),
                     frame_size: (info.width, info.height),
                     source: final_info.clone(),

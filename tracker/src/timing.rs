@@ -37,6 +37,11 @@ pub struct TimingReport {
     /// Steps in time of several frames across which the robot moved as far as in one frame:
     /// the camera's clock jumped (every later time is off by the jump), no frame was lost.
     pub clock_jumps: Vec<DroppedFrames>,
+    /// Frames lost inside the file where its container times frames by their count: the
+    /// robot moved several frames' distance in one frame's step there, and the container's
+    /// frame count says that many are missing; the later frames were timed past them.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lost_in_file: Vec<DroppedFrames>,
     /// Frames whose timestamp is not after the previous one (not tracked).
     pub duplicate_times: usize,
     /// Frames identical to the previous one, or whose fix stands where the previous one's
@@ -76,7 +81,7 @@ pub struct TimingReport {
 /// The usual step between `times` (their median step forward) and the runs of frames missing
 /// between them: a step longer than [`DROP_STEP_FACTOR`] usual ones. `times` are (frame index,
 /// seconds) in decode order.
-fn find_drops(times: &[(usize, f64)]) -> (Option<f64>, Vec<DroppedFrames>) {
+pub(crate) fn find_drops(times: &[(usize, f64)]) -> (Option<f64>, Vec<DroppedFrames>) {
     let mut steps: Vec<f64> = times
         .windows(2)
         .map(|w| w[1].1 - w[0].1)
@@ -205,14 +210,24 @@ impl TimingReport {
         // the camera's clock jumping, not frames lost: told apart where the robot moves.
         let (clock_jumps, dropped): (Vec<DroppedFrames>, Vec<DroppedFrames>) =
             dropped.into_iter().partition(|d| is_clock_jump(r, d));
+        // Frames lost inside the file were timed past by tracking, not by the container.
+        let dropped: Vec<DroppedFrames> = dropped
+            .into_iter()
+            .filter(|d| {
+                !r.lost_in_file
+                    .iter()
+                    .any(|l| l.after_frame == d.after_frame)
+            })
+            .collect();
         let count = |reason| {
             r.records
                 .iter()
                 .filter(|x| x.outcome == Outcome::Gap(reason))
                 .count()
         };
-        let dropped_frames = dropped.iter().map(|d| d.missing).sum();
+        let dropped_frames: usize = dropped.iter().map(|d| d.missing).sum();
         let frames_read = r.records.len();
+        let lost_frames: usize = r.lost_in_file.iter().map(|d| d.missing).sum();
         let announced = r.source.frame_count;
         // Some containers only estimate their frame count: a few frames either way are normal.
         // Where the container states its rate, the frames missing are those its duration holds
@@ -232,7 +247,7 @@ impl TimingReport {
                         0
                     }
                 }
-                _ => a.saturating_sub(frames_read + dropped_frames),
+                _ => a.saturating_sub(frames_read + dropped_frames + lost_frames),
             };
             if missing > 2.max(a / 50) {
                 missing
@@ -264,6 +279,7 @@ impl TimingReport {
             dropped,
             dropped_frames,
             clock_jumps,
+            lost_in_file: r.lost_in_file.clone(),
             duplicate_times: count(GapReason::DuplicateTime),
             repeated_images,
             filled_drops,
@@ -367,6 +383,20 @@ impl TimingReport {
             ));
         }
         w.extend(self.overridden_fps_warning());
+        for l in &self.lost_in_file {
+            w.push(format!(
+                "{} frame{} lost inside the file after frame {} ({:.3} s): the robot moved {} frames' distance further there than the frames' times allow, and the container announces {} frames where {} were read; the frames after it were timed {} frame{} later than the container times them (a damaged file read past what could not be read)",
+                l.missing,
+                if l.missing == 1 { " was" } else { "s were" },
+                l.after_frame,
+                l.after_s,
+                l.missing,
+                self.frames_announced.unwrap_or(0),
+                self.frames_read,
+                l.missing,
+                if l.missing == 1 { "" } else { "s" },
+            ));
+        }
         if self.dropped_frames > 0 {
             w.push(self.dropped_warning());
         }

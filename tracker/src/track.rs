@@ -1211,6 +1211,9 @@ pub struct TrackResult {
     pub tag_to_robot: TagToRobot,
     /// One record per frame, in order.
     pub records: Vec<FrameRecord>,
+    /// Frames lost inside the file, placed by the robot's motion and confirmed by the
+    /// container's frame count: the records after each are timed past them.
+    pub lost_in_file: Vec<crate::timing::DroppedFrames>,
     /// Ids seen (any id of the family) and in how many frames.
     pub seen_ids: BTreeMap<u32, usize>,
     /// Frame size, pixels.
@@ -1664,9 +1667,11 @@ pub fn track_source(
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
     crate::repeats::place_repeated_images(&mut records);
+    let lost_in_file = crate::lost_frames::place_lost_frames_of(&mut records, &final_info);
     let result = TrackResult {
         tag_to_robot: opts.tag_to_robot,
         records,
+        lost_in_file,
         seen_ids,
         frame_size: (info.width, info.height),
         source: final_info,
