@@ -411,7 +411,10 @@ fn targets_that_do_not_follow_the_odometry_are_refused_with_their_likely_cause()
     let mm = with_targets(&ds, dir.path(), "mm.json", |v| 1e3 * v);
     let e = fails(&["train", p(&mm), "--out", p(&m)]);
     assert!(
-        e.contains("are the trajectories in millimetres? odocal expects trajectories in metres")
+        e.contains("12 of 12 targets lie about ")
+            && e.contains(
+                "are the trajectories in millimetres? odocal expects trajectories in metres"
+            )
             && !e.contains("did not converge"),
         "{e}"
     );
@@ -453,7 +456,7 @@ fn sweep_ranges_and_folds_are_checked_as_options() {
         "{e}"
     );
     assert!(!m.exists());
-    // Three samples: no count of folds would do, and the advice is not another count.
+    // Three samples: too few to train at all, and the advice is not another count of folds.
     let mut few: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&ds).unwrap()).unwrap();
     few["samples"].as_array_mut().unwrap().truncate(3);
@@ -462,7 +465,8 @@ fn sweep_ranges_and_folds_are_checked_as_options() {
     for folds in ["2", "10"] {
         let e = fails(&["train", p(&few_path), "--out", p(&m), "--folds", folds]);
         assert!(
-            e.contains("few.json has 3 samples, too few to cross-validate (2 folds of 2 need 4) or to train at all"),
+            e.contains("few.json: the dataset has 3 sample(s); a corrector needs at least 4 runs")
+                && !e.contains("--folds"),
             "--folds {folds}: {e}"
         );
     }

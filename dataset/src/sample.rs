@@ -231,6 +231,9 @@ impl Dataset {
             check_sample(s, windows)
                 .map_err(|e| format!("sample {i} (run '{}'): {e}", s.run_id))?;
         }
+        if !windows {
+            check_target_reach(&self.samples)?;
+        }
         Ok(())
     }
 
@@ -239,6 +242,43 @@ impl Dataset {
     pub fn is_windows(&self) -> bool {
         self.feature_rule == crate::WINDOW_RULE
     }
+}
+
+/// Refuses straight-run targets beyond twice their run's path length from its start (the
+/// camera's end point of a run cannot lie further than the run went): a single one is named
+/// (another run's, or an edit), most of them are a unit (`train` checks the unit of targets
+/// that stay within reach against the odometry).
+fn check_target_reach(samples: &[Sample]) -> Result<(), String> {
+    let over = |s: &Sample| s.target_m[0].hypot(s.target_m[1]) / (2.0 * s.path_length_m + 0.05);
+    let far: Vec<(usize, &Sample)> = samples
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| over(s) > 1.0)
+        .collect();
+    let Some(&(i, s)) = far.first() else {
+        return Ok(());
+    };
+    if far.len() * 2 > samples.len() {
+        let mut ratios: Vec<f64> = far.iter().map(|(_, s)| 2.0 * over(s)).collect();
+        ratios.sort_by(f64::total_cmp);
+        let ratio = ratios[ratios.len() / 2];
+        let unit = if (500.0..=2000.0).contains(&ratio) {
+            "are the trajectories in millimetres? "
+        } else if (50.0..=200.0).contains(&ratio) {
+            "are the trajectories in centimetres? "
+        } else {
+            ""
+        };
+        return Err(format!(
+            "{} of {} targets lie about {ratio:.0} times their run's path length from its start, where a run's end can lie no further than it went: {unit}odocal expects trajectories in metres; fix them and rebuild the dataset",
+            far.len(),
+            samples.len()
+        ));
+    }
+    Err(format!(
+        "sample {i} (run '{}'): its target ({}, {}) m lies beyond twice the run's path length ({:.3} m) from its start, where a run's end can lie no further than it went: another run's, or in another unit? rebuild the dataset with `odocal dataset`",
+        s.run_id, s.target_m[0], s.target_m[1], s.path_length_m
+    ))
 }
 
 fn check_sample(s: &Sample, windows: bool) -> Result<(), String> {
@@ -273,6 +313,26 @@ fn check_sample(s: &Sample, windows: bool) -> Result<(), String> {
     }
     if !(s.path_length_m.is_finite() && s.path_length_m > 0.0) {
         return Err(format!("path length {} must be > 0", s.path_length_m));
+    }
+    if !windows {
+        // A straight run's odometry positions and camera end lie within its path of the
+        // start (odometry off by tens of percent at most); beyond twice it, a value is
+        // another run's, another unit's, or an edit's (an input of 1e300 was taken, and
+        // normalised to nothing).
+        let reach_m = 2.0 * s.path_length_m + 0.05;
+        let far = |x: f64, y: f64| x.hypot(y) > reach_m;
+        if let Some(i) = (0..8).find(|&i| far(s.inputs[2 * i], s.inputs[2 * i + 1])) {
+            return Err(format!(
+                "inputs {} and {} (odometry position x{} = {}, y{} = {}) lie beyond twice the run's path length ({:.3} m) from its start: not a position of this run; rebuild the dataset with `odocal dataset`",
+                2 * i,
+                2 * i + 1,
+                i + 1,
+                s.inputs[2 * i],
+                i + 1,
+                s.inputs[2 * i + 1],
+                s.path_length_m
+            ));
+        }
     }
     if !s.speed_mps.is_finite() {
         return Err("speed is not finite".into());
@@ -402,5 +462,46 @@ impl RobotParams {
             o.insert("format".into(), ROBOT_FORMAT.into());
         }
         serde_json::to_string_pretty(&v).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dataset() -> Dataset {
+        let text = include_str!("../../tests/data/parsers/dataset.json");
+        Dataset::parse(text, "dataset.json").expect("the test dataset parses")
+    }
+
+    /// An input of 1e300 was taken and normalised to nothing, and one target 1000 times too
+    /// far was blamed on the whole dataset's unit: each is now named by its sample.
+    #[test]
+    fn positions_beyond_a_runs_reach_are_named_by_sample() {
+        assert!(dataset().check().is_ok());
+        let mut ds = dataset();
+        ds.samples[2].inputs[4] = 1e300;
+        let e = ds.check().unwrap_err();
+        assert!(
+            e.starts_with("sample 2 (run '")
+                && e.contains("inputs 4 and 5 (odometry position x3 = 1000"),
+            "{e}"
+        );
+        let mut ds = dataset();
+        ds.samples[1].target_m[0] *= 1e3;
+        let e = ds.check().unwrap_err();
+        assert!(
+            e.starts_with("sample 1 (run '") && e.contains("another run's, or in another unit?"),
+            "{e}"
+        );
+        let mut ds = dataset();
+        for s in &mut ds.samples {
+            s.target_m = s.target_m.map(|v| v * 100.0);
+        }
+        let e = ds.check().unwrap_err();
+        assert!(
+            e.contains("4 of 4 targets lie about") && e.contains("in centimetres?"),
+            "{e}"
+        );
     }
 }
