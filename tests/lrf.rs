@@ -2293,6 +2293,38 @@ fn cli_a_truth_with_headings_in_degrees_is_named() {
         "confident laser poses it has a time for are wrong against it",
     );
     assert!(!html2.exists());
+    // The truth in millimetres: its unit is named, by `lrf localize --truth` and `report`.
+    let ycol = header.split(',').position(|h| h == "y").expect("y column");
+    let mm: Vec<String> = truth
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+            for c in [xcol, ycol].into_iter().filter(|_| i > 0) {
+                f[c] = format!("{}", f[c].parse::<f64>().expect("x, y") * 1e3);
+            }
+            f.join(",")
+        })
+        .collect();
+    let truth_mm = other.join("truth_mm.csv");
+    std::fs::write(&truth_mm, mm.join("\n") + "\n").expect("write");
+    let unit = "is the truth in millimetres or centimetres? it must be in metres";
+    expect_error(
+        &[
+            "report",
+            "--out",
+            s(&html2),
+            "--lrf-poses",
+            s(&poses),
+            "--lrf-truth",
+            s(&truth_mm),
+        ],
+        unit,
+    );
+    let mut localize_mm = args.to_vec();
+    let last = localize_mm.len() - 1;
+    localize_mm[last] = s(&truth_mm);
+    expect_error(&localize_mm, unit);
 }
 
 /// `synth lrf --symmetric` placed half the landmarks asked for (30 gave 16, 8 gave 4), unsaid;

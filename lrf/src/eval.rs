@@ -195,6 +195,17 @@ pub struct EstimatedPose {
 
 /// Position error bound of a correct pose, metres.
 pub const CORRECT_POS_M: f64 = 0.05;
+/// What a truth's position error this large says of its unit: the poses of a room more than
+/// 100 m from their truth are against a truth in millimetres (or centimetres). Empty for
+/// errors a room can hold.
+pub fn truth_unit_hint(position_rms_m: f64) -> &'static str {
+    if position_rms_m > 100.0 {
+        " is the truth in millimetres or centimetres? it must be in metres;"
+    } else {
+        ""
+    }
+}
+
 /// Heading error bound of a correct pose, radians (1°).
 pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
 

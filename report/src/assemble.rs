@@ -526,11 +526,12 @@ fn check_laser_truth(
     }
     if e.n_ok > 0 && e.n_wrong_ok * 2 > e.n_ok {
         return Err(ReportError::Mismatch(format!(
-            "--lrf-truth {}: {} of the {} confident laser poses it has a time for are wrong against it (position RMS {:.1} mm): is it the truth of these scans?",
+            "--lrf-truth {}: {} of the {} confident laser poses it has a time for are wrong against it (position RMS {:.1} mm):{} is it the truth of these scans?",
             path.display(),
             e.n_wrong_ok,
             e.n_ok,
-            e.position_rms_m * 1e3
+            e.position_rms_m * 1e3,
+            odocal_lrf::truth_unit_hint(e.position_rms_m)
         )));
     }
     Ok(())

@@ -330,11 +330,12 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 );
             }
             format!(
-                "{} of {} confident poses are wrong against {} (position RMS {:.1} mm), so nothing was written: is it the truth of these scans, and {} the map of this room?",
+                "{} of {} confident poses are wrong against {} (position RMS {:.1} mm), so nothing was written:{} is it the truth of these scans, and {} the map of this room?",
                 e.n_wrong_ok,
                 n_ok,
                 tp.display(),
                 e.position_rms_m * 1e3,
+                odocal_lrf::truth_unit_hint(e.position_rms_m),
                 a.map.display()
             )
         })
