@@ -708,7 +708,10 @@ fn outputs_inside_input_folders_or_naming_folders_are_refused_before_any_work() 
             "--out",
             "/proc/odocal/m.json",
         ],
-        &["--out /proc/odocal/m.json", "cannot create a file in /proc"],
+        &[
+            "--out /proc/odocal/m.json",
+            "is in /proc, where devices and processes' files are",
+        ],
     );
 }
 

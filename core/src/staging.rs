@@ -117,11 +117,12 @@ fn through_links(path: &Path, option: &str) -> Result<PathBuf, FileError> {
                 option,
                 path,
                 &format!(
-                    "{} a device or a process's file (standard output?): odocal writes its outputs to files only; give a file path",
+                    "{} in {}, where devices and processes' files are (standard output?): odocal writes its outputs to ordinary files only; give a file path elsewhere",
                     match file == path {
                         true => "is".to_string(),
                         false => format!("leads to {},", file.display()),
-                    }
+                    },
+                    if file.starts_with("/dev") { "/dev" } else { "/proc" }
                 ),
             ));
         }
@@ -535,7 +536,10 @@ mod tests {
         std::os::unix::fs::symlink("/proc/self/fd/1", &stdout).unwrap();
         for out in [stdout.as_path(), Path::new("/dev/stdout")] {
             let e = check_output_file(out, "--out").unwrap_err().to_string();
-            assert!(e.contains("writes its outputs to files only"), "{e}");
+            assert!(
+                e.contains("writes its outputs to ordinary files only"),
+                "{e}"
+            );
             assert!(write_atomic(out, b"x").is_err());
         }
         let looped = dir.join("loop");
