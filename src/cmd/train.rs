@@ -287,12 +287,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // default on a small dataset only costs the one model its estimate (a warning); folds
     // asked for cannot be had.
     let n = ds.samples.len();
-    if args.folds.is_some() && n < 4 {
-        bail!(
-            "--folds {folds}: {} has {n} samples, too few to cross-validate (2 folds of 2 need 4) or to train at all: build the dataset from more runs (a corrector needs tens)",
-            args.dataset.display()
-        );
-    }
     if args.folds.is_some() && folds > n / 2 {
         bail!(
             "--folds {folds}: too few samples for {folds} folds: {} has {n}, enough for at most {} folds of 2; give --folds {} or fewer{}",

@@ -41,7 +41,7 @@ pub fn check_dataset(ds: &Dataset) -> Result<(), TrainError> {
     }
     if ds.samples.len() < MIN_SAMPLES {
         return Err(TrainError::TooFewSamples(format!(
-            "the dataset has {} sample(s); a corrector needs at least {MIN_SAMPLES} runs (3 to fit, 1 held out to check)",
+            "the dataset has {} sample(s); a corrector needs at least {MIN_SAMPLES} runs (3 to fit, 1 held out to check; a useful one, tens): build the dataset from more runs",
             ds.samples.len()
         )));
     }
