@@ -363,4 +363,55 @@ mod tests {
             assert!((x - resting(slot)).abs() < 1e-4, "slot {slot}: {x}");
         }
     }
+
+    /// The robot out of view over a still scene: 21 identical frames without the tag were
+    /// named as a camera repeating frames and as a frame rate converted from 20 fps. Repeats
+    /// of a tagged image still count.
+    #[test]
+    fn identical_frames_without_the_tag_are_no_repeats_to_name() {
+        let driving = |frame: usize| 0.01 * frame as f64;
+        let mut records: Vec<FrameRecord> = (0..60).map(|i| record(i, driving(i))).collect();
+        for r in &mut records[20..41] {
+            r.outcome = Outcome::Gap(if r.index == 20 {
+                GapReason::NotDetected
+            } else {
+                GapReason::RepeatedImage
+            });
+        }
+        let result = |records: Vec<FrameRecord>| crate::TrackResult {
+            tag_to_robot: odocal_core::TagToRobot::IDENTITY,
+            records,
+            lost_in_file: Vec::new(),
+            seen_ids: Default::default(),
+            frame_size: (1280, 720),
+            source: crate::source::SourceInfo {
+                path: "frames".into(),
+                width: 1280,
+                height: 720,
+                frame_count: Some(60),
+                kind: "image folder".into(),
+                timing: "timestamps".into(),
+                extrapolated_times: 0,
+                overridden_fps: None,
+                container_fps: None,
+                display_rotation: None,
+                container_times_s: None,
+                corrupt_frames: Vec::new(),
+                corrupt_files: Vec::new(),
+            },
+        };
+        let still = crate::timing::TimingReport::of(&result(records.clone()));
+        assert_eq!(still.repeated_images, 0);
+        assert!(
+            still.converted_from_fps.is_none() && still.warnings().is_empty(),
+            "{:?}",
+            still.warnings()
+        );
+        // A tagged image repeated every third frame from frame 45: counted.
+        for r in records.iter_mut().skip(45).step_by(3) {
+            r.outcome = Outcome::Gap(GapReason::RepeatedImage);
+        }
+        let repeated = crate::timing::TimingReport::of(&result(records));
+        assert_eq!(repeated.repeated_images, 5);
+    }
 }

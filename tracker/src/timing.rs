@@ -179,6 +179,24 @@ fn double_steps(r: &TrackResult) -> (usize, usize) {
     (doubled, measured)
 }
 
+/// Frames repeating an image that held a fix: a still stretch without the tag (the robot out
+/// of view over a still scene, frames a codec repeats whole) is no camera repeating frames
+/// nor a frame-rate conversion, and tracking it would find nothing either (21 such frames
+/// were named as both).
+fn repeats_of_tagged_images(r: &TrackResult) -> usize {
+    let mut tagged = false;
+    let mut n = 0;
+    for x in &r.records {
+        match x.outcome {
+            Outcome::Gap(GapReason::RepeatedImage) => n += usize::from(tagged),
+            Outcome::Gap(GapReason::FilledDrop) => {}
+            Outcome::Fix(_) => tagged = true,
+            Outcome::Gap(_) => tagged = false,
+        }
+    }
+    n
+}
+
 /// A step longer than this many usual steps means frames were dropped.
 const DROP_STEP_FACTOR: f64 = 1.5;
 
@@ -255,7 +273,7 @@ impl TimingReport {
                 0
             }
         });
-        let repeated_images = count(GapReason::RepeatedImage);
+        let repeated_images = repeats_of_tagged_images(r);
         let filled_drops = count(GapReason::FilledDrop);
         let converted_from_fps = step.and_then(|step| {
             // One frame in ten or more repeated, or one step in twenty or more doubled, is a
