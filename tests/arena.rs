@@ -589,6 +589,14 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         e.contains("bare_c3: a frame folder of an arena camera needs its frames' times: put a timestamps.csv into it"),
         "{e}"
     );
+    // One camera's video given for two (here camera 0's, spelt another way for camera 1):
+    // named before any tracking, where it was tracked and blamed on a clock offset.
+    let mut a = vec!["track", "--arena", p(&arena), videos[0].as_str()];
+    let spelt = format!("{}/.", videos[0]);
+    a.extend([spelt.as_str(), videos[2].as_str(), videos[3].as_str()]);
+    a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out2)]);
+    let e = fails(&a);
+    assert!(e.contains("is given for camera 0 and camera 1"), "{e}");
     // A camera started 0.1 s late (its timestamps shifted): beyond a search of ±0.05 s it is
     // named with the search's width and the option that widens it; within ±0.2 s it fuses.
     let late = d.join("late_c3");

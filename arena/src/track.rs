@@ -60,10 +60,21 @@ pub fn track_camera(
     )?)
 }
 
-/// Refuses a frame folder without its own timestamps file: frame counts would put every
-/// camera on its own guess of a frame rate, and --fps is one video's, so a frame folder of
-/// an arena camera carries its own times.
+/// Refuses a video given for two cameras, and a frame folder without its own timestamps
+/// file: frame counts would put every camera on its own guess of a frame rate, and --fps is
+/// one video's, so a frame folder of an arena camera carries its own times.
 pub fn check_frame_folders(videos: &[PathBuf]) -> Result<(), ArenaError> {
+    // One camera's recording given for two was tracked for half a minute, then blamed on an
+    // unknown clock offset.
+    let same = |v: &PathBuf| std::fs::canonicalize(v).unwrap_or_else(|_| v.clone());
+    for (k, v) in videos.iter().enumerate() {
+        if let Some(j) = videos[..k].iter().position(|u| same(u) == same(v)) {
+            return Err(ArenaError::Input(format!(
+                "{} is given for camera {j} and camera {k}: each arena camera's own video, in the order of arena.json's cameras",
+                v.display()
+            )));
+        }
+    }
     match videos
         .iter()
         .find(|v| v.is_dir() && !v.join(odocal_tracker::source::FOLDER_TIMESTAMPS).is_file())
