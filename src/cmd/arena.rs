@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let (shared, notes) = detect_shared(&args.shared, files.len(), &board, &sizes)?;
     for n in &notes {
-        tell!("{n}");
+        tell!("note: {n}");
     }
     check_board_scale(&files, &shared, &board)?;
     let paths: Vec<&Path> = args.camera.iter().map(|p| p.as_path()).collect();
