@@ -70,9 +70,22 @@ pub(super) fn read_timestamps(csv_path: &Path, files: &[PathBuf]) -> Result<Vec<
                     .map(|n| n.to_string_lossy().into_owned())
                     .unwrap_or_default();
                 map.get(&name).copied().ok_or_else(|| {
+                    // Rows naming the image under a folder are the likeliest miss.
+                    let under_folder = map.keys().find(|k| {
+                        k.len() > name.len()
+                            && k.ends_with(name.as_str())
+                            && k[..k.len() - name.len()].ends_with(['/', '\\'])
+                    });
                     TrackError::bad_input(
                         csv_path,
-                        format!("has no timestamp for image {name}: add a row \"{name},<t>\""),
+                        match under_folder {
+                            Some(k) => format!(
+                                "names image {name} as \"{k}\": give each image's file name alone, as it is in the folder (\"{name},<t>\")"
+                            ),
+                            None => format!(
+                                "has no timestamp for image {name}: add a row \"{name},<t>\""
+                            ),
+                        },
                     )
                 })
             })
@@ -161,6 +174,14 @@ mod tests {
         assert!(e.contains("line 2, column 2") && e.contains("abc"), "{e}");
         let e = ts("file,t\nframe_00.png,1\n", 2).unwrap_err().to_string();
         assert!(e.contains("no timestamp for image frame_01.png"), "{e}");
+        // Rows naming the images under their folder.
+        let e = ts("file,t\nframes/frame_00.png,0\nframes/frame_01.png,1\n", 2)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("names image frame_00.png as \"frames/frame_00.png\": give each image's file name alone"),
+            "{e}"
+        );
         let e = ts("t\n1\n1\n", 2).unwrap_err().to_string();
         assert!(e.contains("must increase"), "{e}");
         let e = ts("t\n1\n", 2).unwrap_err().to_string();
