@@ -550,6 +550,36 @@ fn localize_into(d: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     odocal(&args)
 }
 
+/// `lrf localize` of `scans` with `map` into `poses` and the trajectory `traj`, judged
+/// against `truth`: the run, which must succeed.
+fn localize_judged(
+    map: &Path,
+    scans: &Path,
+    poses: &Path,
+    traj: &Path,
+    truth: &Path,
+) -> std::process::Output {
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(map),
+        s(scans),
+        "--out",
+        s(poses),
+        "--trajectory",
+        s(traj),
+        "--truth",
+        s(truth),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
@@ -1657,25 +1687,7 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
         d.join("traj.csv"),
     );
     let run = |map: &Path| {
-        let args = [
-            "lrf",
-            "localize",
-            "--map",
-            s(map),
-            s(&scans),
-            "--out",
-            s(&poses),
-            "--truth",
-            s(&truth),
-            "--trajectory",
-            s(&traj),
-        ];
-        let out = odocal(&args);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = localize_judged(map, &scans, &poses, &traj, &truth);
         (
             String::from_utf8_lossy(&out.stdout).to_string(),
             String::from_utf8_lossy(&out.stderr).to_string(),
@@ -2052,25 +2064,8 @@ fn cli_scan_times_in_milliseconds_are_refused() {
     let scans_epoch = rewrite("scans.csv", "epoch.csv", 1, &|_, t| t + epoch);
     let truth_epoch = rewrite("truth.csv", "truth_epoch.csv", 0, &|_, t| t + epoch);
     let traj = d.join("traj.csv");
-    let out = odocal(&[
-        "lrf",
-        "localize",
-        "--map",
-        s(&map),
-        s(&scans_epoch),
-        "--out",
-        s(&poses),
-        "--trajectory",
-        s(&traj),
-        "--truth",
-        s(&truth_epoch),
-    ]);
+    let out = localize_judged(&map, &scans_epoch, &poses, &traj, &truth_epoch);
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let figures = |o: &str| o.split("vs truth:").nth(1).map(str::to_string);
     assert_eq!(figures(&stdout), figures(&from_zero), "{stdout}");
     assert!(stdout.contains("30 ok"), "{stdout}");
@@ -2381,25 +2376,8 @@ fn cli_beams_without_a_return_inside_a_reflector_keep_it_whole() {
     let (map, truth) = (d.join("map.json"), d.join("truth.csv"));
     let run = |scans: &Path| {
         let (poses, traj) = (d.join("p.csv"), d.join("t.csv"));
-        let out = odocal(&[
-            "lrf",
-            "localize",
-            "--map",
-            s(&map),
-            s(scans),
-            "--out",
-            s(&poses),
-            "--trajectory",
-            s(&traj),
-            "--truth",
-            s(&truth),
-        ]);
+        let out = localize_judged(&map, scans, &poses, &traj, &truth);
         let text = String::from_utf8_lossy(&out.stdout).into_owned();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
         let per_scan: f64 = text
             .split(" detections/scan")
             .next()

@@ -30,6 +30,19 @@ fn synth_track_with(dir: &std::path::Path, frames: usize, seed: u64, extra: &[&s
     succeeded(&odocal(&args));
 }
 
+/// `odocal track` of [`synth_track`]'s video in `dir` with its camera, into `out`, with
+/// `extra` options.
+fn track_synth(
+    dir: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let (video, camera) = (dir.join("video.avi"), dir.join("camera.json"));
+    let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(out)];
+    args.extend(extra);
+    odocal(&args)
+}
+
 /// The number written right after `key` in `text` (a sign, digits and a point).
 fn number_after(text: &str, key: &str) -> f64 {
     let at = text
@@ -582,12 +595,8 @@ fn tag_ids_outside_the_family_are_refused_at_once() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     synth_track(d, 6, 1);
-    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
-    let track = |extra: &[&str]| {
-        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
-        args.extend(extra);
-        odocal(&args)
-    };
+    let out = d.join("t.csv");
+    let track = |extra: &[&str]| track_synth(d, &out, extra);
     fails_with(
         &track(&["--tag-id", "99999"]),
         "--tag-id 99999: tag36h11 holds tags 0 to 586; give the id of the robot's tag, or the --family it belongs to",
@@ -618,12 +627,8 @@ fn a_wrong_tag_id_stops_after_the_first_frames() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     synth_track(d, 100, 2);
-    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
-    let track = |extra: &[&str]| {
-        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
-        args.extend(extra);
-        odocal(&args)
-    };
+    let out = d.join("t.csv");
+    let track = |extra: &[&str]| track_synth(d, &out, extra);
     // One line: stopped at a run's start, the video is not called cut short either.
     let e = fails_with(&track(&["--tag-id", "5"]), "where tag 0 was seen in ");
     let read = number_after(&e, "was not seen in the first ");
@@ -698,13 +703,9 @@ fn one_id_in_tags_is_tag_id_with_its_report_and_truth() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     synth_track(d, 6, 1);
-    let (video, camera, out) = (d.join("video.avi"), d.join("camera.json"), d.join("t.csv"));
+    let out = d.join("t.csv");
     let (report, truth) = (d.join("r.json"), d.join("truth.csv"));
-    let track = |extra: &[&str]| {
-        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
-        args.extend(extra);
-        odocal(&args)
-    };
+    let track = |extra: &[&str]| track_synth(d, &out, extra);
     let with_report = ["--report", p(&report), "--truth", p(&truth)];
     let res = track(&[&["--tags", "0"][..], &with_report].concat());
     succeeded(&res);
@@ -1335,9 +1336,7 @@ fn a_tag_off_the_axle_is_named_and_taken_off() {
     let (video, camera) = (d.join("video.avi"), d.join("camera.json"));
     let out = d.join("out.csv");
     let run = |extra: &[&str]| {
-        let mut args = vec!["track", p(&video), "--camera", p(&camera), "--out", p(&out)];
-        args.extend(extra);
-        let res = odocal(&args);
+        let res = track_synth(d, &out, extra);
         succeeded(&res);
         String::from_utf8_lossy(&res.stderr).into_owned()
     };
