@@ -2258,64 +2258,52 @@ fn cli_a_truth_with_headings_in_degrees_is_named() {
     // Another recording's truth (same times, another path: here the path moved 1 m) was
     // drawn as "position RMS 9.7 m against the truth"; refused as `lrf localize --truth`
     // refuses it.
-    let xcol = header.split(',').position(|h| h == "x").expect("x column");
-    let moved: Vec<String> = truth
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i == 0 {
-                return l.to_string();
-            }
-            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
-            f[xcol] = format!("{}", f[xcol].parse::<f64>().expect("x") + 1.0);
-            f.join(",")
-        })
-        .collect();
+    let col = |name: &str| header.split(',').position(|h| h == name).expect("a column");
+    let (xcol, ycol) = (col("x"), col("y"));
     let other = d.join("other");
     std::fs::create_dir_all(&other).expect("mkdir");
-    std::fs::write(other.join("truth.csv"), moved.join("\n") + "\n").expect("write");
+    // The truth with `change(column, value)` made to every row's x and y, as `name`.
+    let rewritten = |name: &str, change: &dyn Fn(usize, f64) -> f64| {
+        let rows: Vec<String> = truth
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+                for c in [xcol, ycol].into_iter().filter(|_| i > 0) {
+                    f[c] = format!("{}", change(c, f[c].parse::<f64>().expect("x, y")));
+                }
+                f.join(",")
+            })
+            .collect();
+        let path = other.join(name);
+        std::fs::write(&path, rows.join("\n") + "\n").expect("write");
+        path
+    };
     let html2 = d.join("r2.html");
-    expect_error(
-        &[
-            "report",
-            "--out",
-            s(&html2),
-            "--lrf-poses",
-            s(&poses),
-            "--lrf-truth",
-            s(&other.join("truth.csv")),
-        ],
+    let report_against = |truth: &Path, want: &str| {
+        expect_error(
+            &[
+                "report",
+                "--out",
+                s(&html2),
+                "--lrf-poses",
+                s(&poses),
+                "--lrf-truth",
+                s(truth),
+            ],
+            want,
+        );
+        assert!(!html2.exists());
+    };
+    let moved = rewritten("truth.csv", &|c, v| if c == xcol { v + 1.0 } else { v });
+    report_against(
+        &moved,
         "confident laser poses it has a time for are wrong against it",
     );
-    assert!(!html2.exists());
     // The truth in millimetres: its unit is named, by `lrf localize --truth` and `report`.
-    let ycol = header.split(',').position(|h| h == "y").expect("y column");
-    let mm: Vec<String> = truth
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
-            for c in [xcol, ycol].into_iter().filter(|_| i > 0) {
-                f[c] = format!("{}", f[c].parse::<f64>().expect("x, y") * 1e3);
-            }
-            f.join(",")
-        })
-        .collect();
-    let truth_mm = other.join("truth_mm.csv");
-    std::fs::write(&truth_mm, mm.join("\n") + "\n").expect("write");
+    let truth_mm = rewritten("truth_mm.csv", &|_, v| v * 1e3);
     let unit = "is the truth in millimetres or centimetres? it must be in metres";
-    expect_error(
-        &[
-            "report",
-            "--out",
-            s(&html2),
-            "--lrf-poses",
-            s(&poses),
-            "--lrf-truth",
-            s(&truth_mm),
-        ],
-        unit,
-    );
+    report_against(&truth_mm, unit);
     let mut localize_mm = args.to_vec();
     let last = localize_mm.len() - 1;
     localize_mm[last] = s(&truth_mm);
