@@ -248,7 +248,7 @@ fn shifted(head: &FrameRecord, slot: &FrameRecord, widen_m: f64, widen_rad: f64)
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::place_repeated_images;
     use crate::{Fix, FrameRecord, GapReason, Outcome};
     use odocal_core::{Pose2, PoseSigma};
@@ -256,7 +256,7 @@ mod tests {
     const FPS: f64 = 30.0;
 
     /// A fix of the tag at `x_m` (σ 0.1 mm) in frame `index`.
-    fn record(index: usize, x_m: f64) -> FrameRecord {
+    pub(crate) fn record(index: usize, x_m: f64) -> FrameRecord {
         let t_s = index as f64 / FPS;
         let corner = nalgebra::Point2::new(0.0, 0.0);
         FrameRecord {
@@ -364,6 +364,38 @@ mod tests {
         }
     }
 
+    /// A tracking run of `records` from `path`, whose container announces `announced` frames
+    /// (at 30 frames/s for a video).
+    pub(crate) fn track_result(
+        records: Vec<FrameRecord>,
+        path: &str,
+        announced: usize,
+    ) -> crate::TrackResult {
+        let video = path.ends_with(".avi");
+        crate::TrackResult {
+            tag_to_robot: odocal_core::TagToRobot::IDENTITY,
+            records,
+            lost_in_file: Vec::new(),
+            seen_ids: Default::default(),
+            frame_size: (1280, 720),
+            source: crate::source::SourceInfo {
+                path: path.into(),
+                width: 1280,
+                height: 720,
+                frame_count: Some(announced),
+                kind: if video { "video MJPG" } else { "image folder" }.into(),
+                timing: "container timestamps".into(),
+                extrapolated_times: 0,
+                overridden_fps: None,
+                container_fps: video.then_some(FPS),
+                display_rotation: None,
+                container_times_s: None,
+                corrupt_frames: Vec::new(),
+                corrupt_files: Vec::new(),
+            },
+        }
+    }
+
     /// The robot out of view over a still scene: 21 identical frames without the tag were
     /// named as a camera repeating frames and as a frame rate converted from 20 fps. Repeats
     /// of a tagged image still count.
@@ -378,28 +410,7 @@ mod tests {
                 GapReason::RepeatedImage
             });
         }
-        let result = |records: Vec<FrameRecord>| crate::TrackResult {
-            tag_to_robot: odocal_core::TagToRobot::IDENTITY,
-            records,
-            lost_in_file: Vec::new(),
-            seen_ids: Default::default(),
-            frame_size: (1280, 720),
-            source: crate::source::SourceInfo {
-                path: "frames".into(),
-                width: 1280,
-                height: 720,
-                frame_count: Some(60),
-                kind: "image folder".into(),
-                timing: "timestamps".into(),
-                extrapolated_times: 0,
-                overridden_fps: None,
-                container_fps: None,
-                display_rotation: None,
-                container_times_s: None,
-                corrupt_frames: Vec::new(),
-                corrupt_files: Vec::new(),
-            },
-        };
+        let result = |records: Vec<FrameRecord>| track_result(records, "frames", 60);
         let still = crate::timing::TimingReport::of(&result(records.clone()));
         assert_eq!(still.repeated_images, 0);
         assert!(
