@@ -234,6 +234,16 @@ const MAX_REFLECTOR_WIDTH_M: f64 = 1.0;
 /// Grid cell size, metres (radius queries up to this size cost 3×3 cells).
 const GRID_CELL_M: f64 = 0.5;
 
+/// Whether one scanner can see both landmarks at once: their acceptance cones overlap (a
+/// landmark without a facing is seen from every side). Strips on the two faces of a post
+/// are not.
+fn seen_together(a: &Landmark, b: &Landmark) -> bool {
+    match (a.facing, b.facing) {
+        (Some(fa), Some(fb)) => fa.angle(&fb) < a.half_fov_rad + b.half_fov_rad,
+        _ => true,
+    }
+}
+
 impl Map {
     /// Reads and validates a map file.
     pub fn read(path: &Path) -> Result<Map, LrfError> {
@@ -385,7 +395,7 @@ impl Map {
     }
 
     /// The map's sorted relations and grid for checked `landmarks`; an error names two
-    /// landmarks at one place.
+    /// landmarks at one place, or touching where one beam sees both.
     fn build(
         landmarks: Vec<Landmark>,
         walls: Vec<[f64; 4]>,
@@ -415,6 +425,18 @@ impl Map {
                         landmarks[i].id, landmarks[first.1 as usize].id, first.0
                     ));
                 }
+            }
+            // Strips closer than a strip's width, seen from one side, touch: the scanner reads
+            // them as one detection between the two (3 cm apart, one was never named).
+            let touching = e
+                .iter()
+                .take_while(|(d, ..)| *d < reflector_width_m)
+                .find(|(_, j, _)| seen_together(&landmarks[i], &landmarks[*j as usize]));
+            if let Some(&(d, j, _)) = touching {
+                return Err(format!(
+                    "landmarks id {} and id {} are {d:.3} m apart, less than a reflector's width ({reflector_width_m} m), and a beam can see both: strips that close read as one; remove one, fix its position, or give each its facing_rad if they face apart",
+                    landmarks[i].id, landmarks[j as usize].id
+                ));
             }
             for (d, j, a) in e {
                 edge_to.push(j);
@@ -676,6 +698,30 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("apart"), "{e}");
+        // Strips 3 cm apart, closer than their 8 cm width: one detection for two, refused;
+        // the same two on the opposite faces of a post are never seen together.
+        let e = Map::from_file(
+            &file(vec![
+                spec(1, 0.0, 0.0),
+                spec(2, 0.03, 0.0),
+                spec(3, 0.0, 1.0),
+            ]),
+            "m",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("landmarks id 1 and id 2 are 0.030 m apart, less than a reflector's width (0.08 m), and a beam can see both"),
+            "{e}"
+        );
+        let mut post = file(vec![
+            spec(1, 0.0, 0.0),
+            spec(2, 0.03, 0.0),
+            spec(3, 0.0, 1.0),
+        ]);
+        post.landmarks[0].facing_rad = Some(std::f64::consts::PI);
+        post.landmarks[1].facing_rad = Some(0.0);
+        assert!(Map::from_file(&post, "m").is_ok());
         // A width in millimetres: 80 "m".
         let mut f = file(vec![
             spec(1, 0.0, 0.0),
