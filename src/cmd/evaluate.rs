@@ -88,6 +88,22 @@ fn check_square_side(
             runs.len()
         );
     }
+    // Each square too: squares of another side averaged into the centres of gravity (4 of
+    // 2 m among 6 of 4 m) gave E_max,syst with no word.
+    let other: Vec<String> = runs
+        .iter()
+        .filter(|r| !(0.8..=1.25).contains(&(side_m / (r.path_length_m / 4.0))))
+        .map(|r| format!("\"{}\" ({:.2} m)", r.id, r.path_length_m / 4.0))
+        .collect();
+    if !other.is_empty() {
+        bail!(
+            "--umbmark-m {side_m}: {} of the {} squares of {} are of another side by their wheel travel: {}; UMBMark compares squares of one side: leave them out of the manifest, or evaluate them on their own",
+            other.len(),
+            runs.len(),
+            manifest.display(),
+            other.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
+        );
+    }
     Ok(())
 }
 
