@@ -234,7 +234,52 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
         "--model",
         &d("path-model.json"),
     ]);
-    assert!(!String::from_utf8_lossy(&held.stderr).contains("the training's fit"));
+    let said = String::from_utf8_lossy(&held.stderr);
+    assert!(
+        !said.contains("the training's fit") && !said.contains("the camera followed"),
+        "{said}"
+    );
+    // The same tours as if driven on wheels 30 % larger than the model's robot's (the camera
+    // sees 30 % more path than the wheels count): judged without a word, they are named.
+    let bigger = dir.path().join("tours-bigger");
+    std::fs::create_dir_all(bigger.join("runs")).unwrap();
+    std::fs::copy(d("tours/manifest.json"), bigger.join("manifest.json")).unwrap();
+    for e in std::fs::read_dir(dir.path().join("tours/runs")).unwrap() {
+        let e = e.unwrap();
+        let text = std::fs::read_to_string(e.path()).unwrap();
+        let name = e.file_name().to_string_lossy().into_owned();
+        let text = if name.ends_with(".trajectory.csv") {
+            let mut lines = text.lines();
+            let mut out = vec![lines.next().unwrap().to_string()];
+            for l in lines {
+                let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+                for c in [1, 2] {
+                    f[c] = format!("{}", 1.3 * f[c].parse::<f64>().unwrap());
+                }
+                out.push(f.join(","));
+            }
+            out.join("\n") + "\n"
+        } else {
+            text
+        };
+        std::fs::write(bigger.join("runs").join(name), text).unwrap();
+    }
+    let other = common::odocal(&[
+        "evaluate",
+        &bigger.join("manifest.json").display().to_string(),
+        "--model",
+        &d("path-model.json"),
+    ]);
+    assert!(other.status.success());
+    let said = String::from_utf8_lossy(&other.stderr);
+    // The own tours' camera path is 4 % shorter than their wheel travel (turns on the spot).
+    let pct: f64 = said
+        .split(" m (+")
+        .nth(1)
+        .and_then(|r| r.split(" %): recordings of another robot").next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{said}"));
+    assert!((20.0..30.0).contains(&pct), "{said}");
     // A calibration square with two rows lost would give E_d and E_b from a misread step.
     let (gapped, _, row) = recording_with_gap(
         &dir.path().join("squares-cal"),
