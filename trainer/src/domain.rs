@@ -23,6 +23,20 @@ pub struct TrainingDomain {
     pub end_distance_m: [f64; 2],
     /// Whether every training run ended ahead of its start (raw odometry x > 0).
     pub forward_only: bool,
+    /// Shortest and longest run, seconds from its start to its end (t_e − t_b): a run at a
+    /// speed the training never drove lies within every input's own range (its t_e among the
+    /// training's, after a longer wait at rest) and only its duration shows it. Absent from
+    /// models trained before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration_s: Option<[f64; 2]>,
+}
+
+/// A run's duration from the feature rule's t_b and t_e (its last two inputs), seconds.
+fn duration_s(inputs: &[f64]) -> Option<f64> {
+    match inputs {
+        [.., t_b, t_e] if inputs.len() == odocal_dataset::N_INPUTS => Some(t_e - t_b),
+        _ => None,
+    }
 }
 
 impl TrainingDomain {
@@ -40,11 +54,19 @@ impl TrainingDomain {
             let d = s.raw_end_m[0].hypot(s.raw_end_m[1]);
             path = [path[0].min(d), path[1].max(d)];
         }
+        let durations: Option<Vec<f64>> = samples.iter().map(|s| duration_s(&s.inputs)).collect();
+        let duration_s = durations.map(|d| {
+            d.iter()
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], &v| {
+                    [a.min(v), b.max(v)]
+                })
+        });
         Some(Self {
             input_min: lo,
             input_max: hi,
             end_distance_m: path,
             forward_only: samples.iter().all(|s| s.raw_end_m[0] > 0.0),
+            duration_s,
         })
     }
 
@@ -59,6 +81,14 @@ impl TrainingDomain {
             why.push(format!(
                 "it ends {d:.3} m from its start (trained on {p0:.3}-{p1:.3} m)"
             ));
+        }
+        if let (Some([a, b]), Some(t)) = (self.duration_s, duration_s(inputs)) {
+            let m = INPUT_MARGIN * (b - a).max(0.1 * b);
+            if !(t >= a - m && t <= b + m) {
+                why.push(format!(
+                    "it takes {t:.2} s from its start to its end (t_e − t_b; trained on {a:.2}-{b:.2} s): a speed the training did not drive"
+                ));
+            }
         }
         if self.forward_only && raw_end_m[0] <= 0.0 {
             why.push(format!(
@@ -316,6 +346,40 @@ pub fn check_same_robot(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run at a speed the training never drove, its every input within the training's
+    /// range with its margin (its t_e among theirs after a longer wait at rest), was
+    /// corrected without a word: its duration names it.
+    #[test]
+    fn a_run_of_an_untrained_duration_is_outside() {
+        let text = include_str!("../../tests/data/parsers/dataset.json");
+        let ds = odocal_dataset::Dataset::parse(text, "dataset.json").expect("parses");
+        // Runs of 3.6 to 4.2 s, started 0.8 to 1.4 s into their logs.
+        let trained: Vec<Sample> = ds.samples[1..4]
+            .iter()
+            .cloned()
+            .zip([3.9, 4.2, 3.6])
+            .map(|(mut s, d)| {
+                s.inputs[17] = s.inputs[16] + d;
+                s
+            })
+            .collect();
+        let domain = TrainingDomain::of(&trained).expect("a domain");
+        assert_eq!(
+            domain.duration_s.map(|d| d.map(|v| (v * 10.0).round())),
+            Some([36.0, 42.0])
+        );
+        let run = &trained[1];
+        assert!(domain.outside(&run.inputs, run.raw_end_m).is_empty());
+        // Started 1.4 s in and ended at 4.2 s: both times among the training's.
+        let mut fast = run.inputs.clone();
+        fast[17] = fast[16] + 2.8;
+        let why = domain.outside(&fast, run.raw_end_m);
+        assert!(
+            why.len() == 1 && why[0].contains("it takes 2.80 s from its start to its end"),
+            "{why:?}"
+        );
+    }
 
     /// Steps of a forward tour: mostly both wheels forwards, some turns on the spot both
     /// ways, a wheel settling backwards now and then, and rests.
