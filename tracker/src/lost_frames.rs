@@ -42,14 +42,8 @@ pub(crate) fn place_lost_frames_of(
         return Vec::new();
     };
     // Under --fps the container's own times show the frames it knows dropped.
-    let dropped = match &source.container_times_s {
-        Some(own) => {
-            let own: Vec<(usize, f64)> = times
-                .iter()
-                .filter_map(|&(index, _)| Some((index, *own.get(index)?)))
-                .collect();
-            crate::timing::find_drops(&own).1
-        }
+    let dropped = match crate::timing::container_times(&times, source) {
+        Some(own) => crate::timing::find_drops(&own).1,
         None => dropped,
     };
     let timed_missing: usize = dropped.iter().map(|d| d.missing).sum();

@@ -213,6 +213,20 @@ fn repeats_of_tagged_images(r: &TrackResult) -> usize {
     n
 }
 
+/// The container's own times of the frames `times` lists (frame index, seconds) when `--fps`
+/// timed them by counting in their place; `None` when the frames carry the container's times.
+pub(crate) fn container_times(
+    times: &[(usize, f64)],
+    source: &crate::source::SourceInfo,
+) -> Option<Vec<(usize, f64)>> {
+    source.container_times_s.as_ref().map(|own| {
+        times
+            .iter()
+            .filter_map(|&(index, _)| Some((index, *own.get(index)?)))
+            .collect()
+    })
+}
+
 /// A step longer than this many usual steps means frames were dropped.
 const DROP_STEP_FACTOR: f64 = 1.5;
 
@@ -222,12 +236,7 @@ impl TimingReport {
         let times: Vec<(usize, f64)> = r.records.iter().map(|x| (x.index, x.t_s)).collect();
         // Under --fps the container's own times are what shows frames dropped: counted times
         // never step over one.
-        let own_times: Option<Vec<(usize, f64)>> = r.source.container_times_s.as_ref().map(|c| {
-            times
-                .iter()
-                .filter_map(|&(index, _)| Some((index, *c.get(index)?)))
-                .collect()
-        });
+        let own_times = container_times(&times, &r.source);
         let fps_over_timestamps = own_times
             .as_ref()
             .and_then(|_| find_drops(&times).0)
