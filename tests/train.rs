@@ -99,6 +99,7 @@ fn a_net_left_at_its_starting_weights_is_warned() {
     let ds = experiment(dir.path(), 18, 1);
     let model = dir.path().join("model.json");
     let mut epochs = Vec::new();
+    let mut capped_epochs = Vec::new();
     for seed in ["1", "2", "3", "4"] {
         let res = common::odocal(&[
             "train",
@@ -121,6 +122,7 @@ fn a_net_left_at_its_starting_weights_is_warned() {
             epoch == 0,
             "seed {seed}, epoch {epoch}: {stderr}"
         );
+        assert!(!stderr.contains("stopped at its cap"), "{stderr}");
         // `correct` with that model says so too (it took it silently).
         let log = dir.path().join("exp/runs/run001.odometry.csv");
         let res = common::odocal(&["correct", "--model", p(&model), p(&log)]);
@@ -132,8 +134,34 @@ fn a_net_left_at_its_starting_weights_is_warned() {
             "seed {seed}, epoch {epoch}: {stderr}"
         );
         epochs.push(epoch);
+        // Stopped by --max-epochs while still improving: said (it used to pass unsaid).
+        let capped = dir.path().join("capped.json");
+        let res = common::odocal(&[
+            "train",
+            p(&ds),
+            "--out",
+            p(&capped),
+            "--hidden",
+            "3",
+            "--no-cv",
+            "--seed",
+            seed,
+            "--max-epochs",
+            "1",
+        ]);
+        assert!(res.status.success());
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&capped).expect("model")).expect("json");
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(
+            stderr.contains("training stopped at its cap of 1 epochs while the net was still improving: the model is not fully trained; give a larger --max-epochs"),
+            m["best_epoch"].as_u64() == Some(1),
+            "seed {seed}: {stderr}"
+        );
+        capped_epochs.push(m["best_epoch"].as_u64());
     }
     assert!(epochs.contains(&0), "{epochs:?}");
+    assert!(capped_epochs.contains(&Some(1)), "{capped_epochs:?}");
     // A model without its domain block corrected any log silently; one whose output bias was
     // edited put a 1.5 m run's end 9 km away, exit 0.
     let log = dir.path().join("exp/runs/run001.odometry.csv");

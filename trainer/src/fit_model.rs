@@ -135,6 +135,7 @@ pub fn fit_model(
             })
         });
     warnings.splice(0..0, usefulness_warning(kept_start, held_out));
+    warnings.extend(stopped_at_the_cap(&net, ts.max_epochs));
     let kin = KinematicCalibration::fit(&all, &ds.robot).ok();
     if let Some(k) = &kin {
         k.check_physical()?;
@@ -169,18 +170,37 @@ pub fn fit_model(
 /// Which net kept its random starting weights (epoch 0 best on the early-stopping split):
 /// "" for the one net, "for runs driven forwards"/"backwards" when there are two.
 fn kept_starting_weights(net: &TrainedNet) -> Vec<&'static str> {
-    let at_start = |n: &TrainedNet| n.best_epoch == 0 && !n.validation_indices.is_empty();
+    nets_where(net, |n| {
+        n.best_epoch == 0 && !n.validation_indices.is_empty()
+    })
+}
+
+/// The nets of `net` for which `test` holds, named as [`kept_starting_weights`] names them.
+fn nets_where(net: &TrainedNet, test: impl Fn(&TrainedNet) -> bool) -> Vec<&'static str> {
     match &net.backward {
-        None => at_start(net).then_some("").into_iter().collect(),
+        None => test(net).then_some("").into_iter().collect(),
         Some(b) => [
             (net, "for runs driven forwards"),
             (b.as_ref(), "for runs driven backwards"),
         ]
         .into_iter()
-        .filter(|(n, _)| at_start(n))
+        .filter(|(n, _)| test(n))
         .map(|(_, way)| way)
         .collect(),
     }
+}
+
+/// A net whose kept epoch is the last the cap allowed was still improving when training
+/// stopped: said, since its figures are those of an unfinished fit.
+fn stopped_at_the_cap(net: &TrainedNet, max_epochs: usize) -> Option<String> {
+    let ways = nets_where(net, |n| n.best_epoch >= max_epochs);
+    (!ways.is_empty()).then(|| {
+        let which = ways.join(" and ");
+        format!(
+            "training stopped at its cap of {max_epochs} epochs{}{which} while the net was still improving: the model is not fully trained; give a larger --max-epochs (the default stops on the early-stopping split, not on a cap)",
+            if which.is_empty() { "" } else { " " }
+        )
+    })
 }
 
 fn raw_odometry_error(ds: &Dataset) -> f64 {
