@@ -618,6 +618,29 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         "{e}"
     );
     assert!(!html.exists(), "nothing written on refusal");
+    // One run in common is named as one run (it read "median over 1 runs").
+    let one = d.join("exp-one");
+    std::fs::create_dir_all(one.join("runs")).expect("mkdir");
+    std::fs::copy(
+        d.join("exp-other/runs/run001.trajectory.csv"),
+        one.join("runs/run001.trajectory.csv"),
+    )
+    .expect("copy");
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&ds),
+        "--experiment",
+        p(&one),
+    ]);
+    assert!(
+        e.contains("its track ends ")
+            && e.contains("mm from the end point the dataset has for the same run id, where"),
+        "{e}"
+    );
+    assert!(!html.exists(), "nothing written on refusal");
     ok(&[
         "report",
         "--out",

@@ -464,10 +464,18 @@ fn check_tracks_fit(views: &[RunView], inp: &ReportInputs) -> Result<(), ReportE
         (None, Some(t)) => format!("--trajectories {}", t.display()),
         (None, None) => "the real tracks".into(),
     };
+    let how_far = match off.len() {
+        1 => format!(
+            "its track ends {:.0} mm from the end point the dataset has for the same run id",
+            median * 1e3
+        ),
+        n => format!(
+            "its tracks end {:.0} mm (median over {n} runs) from the end points the dataset has for the same run ids",
+            median * 1e3
+        ),
+    };
     Err(ReportError::Mismatch(format!(
-        "{source}: its tracks end {:.0} mm (median over {} runs) from the end points the dataset has for the same run ids, where one recording's agree to millimetres: give the experiment or trajectories the dataset was built from",
-        median * 1e3,
-        off.len()
+        "{source}: {how_far}, where one recording's agree to millimetres: give the experiment or trajectories the dataset was built from"
     )))
 }
 
