@@ -2437,4 +2437,26 @@ fn cli_poses_far_beyond_their_bound_name_the_noise_given() {
         err.contains("times (heading) their Cramér–Rao bound from the truth, so their σ are too small for these scans: is --sigma-range-m 0.0001 the scanner's range noise"),
         "{err}"
     );
+    // A σ so small that no scan finds a pose: named with the σ under which they do, where it
+    // used to blame the map.
+    let tight = d.join("tight");
+    synth_lrf(&tight, 2, 10);
+    let out = localize(&tight, &["--sigma-range-m", "0.001"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("with --sigma-range-m 0.01 m (10 times the 0.001 m given) 10 of the first 10 scans find a pose, where 0 did: matches are gated at a few σ of --sigma-range-m")
+            && !err.contains("map of this room"),
+        "{err}"
+    );
+    assert!(!tight.join("poses.csv").exists());
+    // Another room's map is still named as such: no σ finds its poses.
+    std::fs::copy(d.join("map.json"), tight.join("map.json")).expect("copy");
+    let out = localize(&tight, &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("map of this room") && !err.contains("--sigma-range-m"),
+        "{err}"
+    );
 }

@@ -19,6 +19,7 @@ mod error;
 mod eval;
 mod localize;
 mod map;
+mod noise_probe;
 mod pose_fit;
 mod pose_log;
 mod scan;
@@ -41,6 +42,7 @@ pub use localize::{
     Skewed,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
+pub use noise_probe::{wider_noise_finds_poses, WiderNoise};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{
     extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, ScanFile, SensorConfig,

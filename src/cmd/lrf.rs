@@ -7,8 +7,8 @@ use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_fov, check_intensity_scale, check_map_report, check_range_unit,
     check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans, read_scan_files,
-    read_truth_csv, Localized, Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed,
-    Status, DEFAULT_TOLERANCE_M,
+    read_truth_csv, wider_noise_finds_poses, Localized, Localizer, LocalizerConfig, Map, ScanFiles,
+    SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, commit, progress, write_atomic};
@@ -239,11 +239,35 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.map.display()
         );
     }
+    // A range noise given too small turns the true poses away and reads like a wrong map:
+    // tried first, on the run's first scans, whenever most scans found no pose.
+    let noise_hint = || {
+        wider_noise_finds_poses(&loc, &scans, a.rate_hz, a.global_only).map(|w| {
+            format!(
+                "with --sigma-range-m {} m ({:.0} times the {} m given) {} of the first {} scans find a pose, where {} did: matches are gated at a few σ of --sigma-range-m, so a σ below the scanner's range noise turns the true pose away; give the scanner's range noise (1σ, from its datasheet or the spread of its ranges to a wall)",
+                w.sigma_range_m,
+                w.sigma_range_m / a.sigma_range_m,
+                a.sigma_range_m,
+                w.n_ok_wider,
+                w.n_scans,
+                w.n_ok_given
+            )
+        })
+    };
     // A file without one `ok` row is no result: refused, as `track` refuses a video where
     // the tag was never accepted.
     if !log.rows.is_empty() && count(Status::Ok) == 0 {
         let detections: usize = log.rows.iter().map(|r| r.n_detections).sum();
         let per_scan = detections as f64 / log.rows.len() as f64;
+        if let Some(hint) = noise_hint() {
+            anyhow::bail!(
+                "none of the {} scans found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written: {hint}",
+                log.rows.len(),
+                count(Status::Ambiguous),
+                count(Status::Lost),
+                a.out.display()
+            );
+        }
         if count(Status::Lost) == log.rows.len() {
             anyhow::bail!(
                 "none of the {} scans found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
@@ -398,7 +422,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             "warning: {} of {} scans found no pose: {}",
             count(Status::Lost),
             log.rows.len(),
-            why_lost()
+            noise_hint().unwrap_or_else(why_lost)
         );
     }
     // A quarter of the scans or more without a pose they could tell from another: the

@@ -1,0 +1,76 @@
+//! Whether a wider range noise than the one given finds the poses a run left lost or
+//! ambiguous: the association gates and the pose search's margins are a few σ of
+//! `sigma_range_m` wide, so a σ below the scanner's own noise turns the true pose away and
+//! reads, from the outside, like a wrong map.
+
+use crate::localize::localize_scans;
+use crate::scan::Scan;
+use crate::search::{Localizer, Status};
+
+/// Scans tried at each wider noise: enough to tell most from few, few enough to cost
+/// milliseconds.
+const PROBE_SCANS: usize = 20;
+/// Factors tried on the given σ, smallest first: σ given in the wrong unit or by a place
+/// value can be a thousand times too small.
+const FACTORS: [f64; 6] = [3.0, 10.0, 30.0, 100.0, 300.0, 1000.0];
+/// No scanner of this kind is noisier than this (1σ), metres: wider gates stop telling
+/// landmarks apart, and a "pose" found with them says nothing of the σ.
+const MAX_SIGMA_RANGE_M: f64 = 0.05;
+/// Share of the probed scans that must find a pose for the wider σ to be named.
+const MIN_SHARE_OK: f64 = 0.8;
+
+/// A wider range noise under which most probed scans find a pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WiderNoise {
+    /// The range noise tried, metres (1σ).
+    pub sigma_range_m: f64,
+    /// Scans probed (the first of the run).
+    pub n_scans: usize,
+    /// Of them, found a pose with `loc`'s own σ.
+    pub n_ok_given: usize,
+    /// Of them, found a pose with `sigma_range_m`.
+    pub n_ok_wider: usize,
+}
+
+/// Localises the first scans again with 3, 10, 30, … 1000 times `loc`'s range noise (up to
+/// 5 cm) and
+/// returns the first under which at least 80 % of them, and more than with `loc`'s own σ,
+/// find a pose. None when no wider σ does: the cause is then elsewhere.
+pub fn wider_noise_finds_poses(
+    loc: &Localizer,
+    scans: &[Scan],
+    rate_hz: f64,
+    global_only: bool,
+) -> Option<WiderNoise> {
+    let scans = &scans[..scans.len().min(PROBE_SCANS)];
+    if scans.is_empty() {
+        return None;
+    }
+    let n_ok = |l: &Localizer| {
+        let run = localize_scans(l, scans, rate_hz, global_only, &|| {});
+        run.log
+            .rows
+            .iter()
+            .filter(|r| r.status == Status::Ok && r.pose.is_some())
+            .count()
+    };
+    let n_ok_given = n_ok(loc);
+    let given = loc.cfg.sensor.sigma_range_m;
+    FACTORS
+        .iter()
+        // Rounded, as the option would be written.
+        .map(|f| (f * given * 1e6).round() / 1e6)
+        .filter(|&s| s <= MAX_SIGMA_RANGE_M)
+        .find_map(|sigma_range_m| {
+            let mut cfg = loc.cfg;
+            cfg.sensor.sigma_range_m = sigma_range_m;
+            let n_ok_wider = n_ok(&Localizer::new(loc.map.clone(), cfg));
+            (n_ok_wider > n_ok_given && n_ok_wider as f64 >= MIN_SHARE_OK * scans.len() as f64)
+                .then_some(WiderNoise {
+                    sigma_range_m,
+                    n_scans: scans.len(),
+                    n_ok_given,
+                    n_ok_wider,
+                })
+        })
+}
