@@ -2308,6 +2308,24 @@ fn cli_a_truth_with_headings_in_degrees_is_named() {
     let last = localize_mm.len() - 1;
     localize_mm[last] = s(&truth_mm);
     expect_error(&localize_mm, unit);
+    // A map in another frame (here moved 100 m) drew the poses among landmarks they never
+    // saw, exit 0; refused now.
+    let mut shifted: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&map).expect("map")).expect("json");
+    for l in shifted["landmarks"].as_array_mut().expect("landmarks") {
+        l["x_m"] = serde_json::json!(l["x_m"].as_f64().expect("x_m") + 100.0);
+    }
+    let shifted_path = other.join("map.json");
+    std::fs::write(&shifted_path, shifted.to_string()).expect("write");
+    let mut with_map = vec!["report", "--out", s(&html2), "--lrf-poses", s(&poses)];
+    with_map.extend(["--lrf-map", s(&shifted_path)]);
+    expect_error(
+        &with_map,
+        "confident laser poses matched more landmarks than it has within 70 m of them (30 landmarks in all): the poses were localised against another map",
+    );
+    assert!(!html2.exists());
+    with_map[6] = s(&map);
+    assert!(odocal(&with_map).status.success());
 }
 
 /// `synth lrf --symmetric` placed half the landmarks asked for (30 gave 16, 8 gave 4), unsaid;

@@ -226,15 +226,18 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 }
                 None => odocal_lrf::LaserTruth::default(),
             };
-            let poses = log.rows;
             let landmarks_m = match &inp.lrf_map {
-                Some(m) => odocal_lrf::Map::read(m)?
-                    .landmarks
-                    .iter()
-                    .map(|l| (l.position.x, l.position.y))
-                    .collect(),
+                Some(m) => {
+                    let map = odocal_lrf::Map::read(m)?;
+                    check_laser_map(&log, &map, m)?;
+                    map.landmarks
+                        .iter()
+                        .map(|l| (l.position.x, l.position.y))
+                        .collect()
+                }
                 None => Vec::new(),
             };
+            let poses = log.rows;
             used.push(format!("laser poses {}", pp.display()));
             let sec = laser_section(&LaserInput {
                 poses,
@@ -501,6 +504,48 @@ fn find_track(
         }
     }
     Ok(None)
+}
+
+/// The farthest a reflector navigator sees a reflector, metres (SICK's NAV350: 70 m).
+const LONGEST_REFLECTOR_RANGE_M: f64 = 70.0;
+
+/// Refuses a landmark map the poses were not localised against: most confident poses
+/// matched more of its landmarks than lie within any scanner's reach of them (a map of
+/// another room, in another frame or in millimetres). Drawn, the poses would sit among
+/// landmarks they never saw.
+fn check_laser_map(
+    log: &odocal_lrf::PoseLog,
+    map: &odocal_lrf::Map,
+    path: &Path,
+) -> Result<(), ReportError> {
+    let confident: Vec<(odocal_core::Pose2, usize)> = log
+        .rows
+        .iter()
+        .filter(|r| r.status == odocal_lrf::Status::Ok)
+        .filter_map(|r| r.pose.map(|p| (p, r.n_landmarks)))
+        .collect();
+    let out_of_reach = confident
+        .iter()
+        .filter(|(p, matched)| {
+            let within = map
+                .landmarks
+                .iter()
+                .filter(|l| {
+                    (l.position.x - p.x_m).hypot(l.position.y - p.y_m) <= LONGEST_REFLECTOR_RANGE_M
+                })
+                .count();
+            within < *matched
+        })
+        .count();
+    if out_of_reach * 2 > confident.len() {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-map {}: {out_of_reach} of the {} confident laser poses matched more landmarks than it has within {LONGEST_REFLECTOR_RANGE_M:.0} m of them ({} landmarks in all): the poses were localised against another map; give the map given to `odocal lrf localize` (in metres)",
+            path.display(),
+            confident.len(),
+            map.landmarks.len()
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses a laser truth that is not the truth of the poses, as `lrf localize --truth` does:
