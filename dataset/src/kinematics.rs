@@ -108,6 +108,25 @@ impl RunOdometry {
             .sum()
     }
 
+    /// How far the run turned, without a robot file: the largest difference the two wheels'
+    /// revolutions reach from the start, over the mean revolutions both turned (a straight
+    /// run's ticks stay within a percent of each other; a turn in place adds all of its
+    /// travel). None when the wheels did not turn.
+    pub fn turn_share(&self) -> Option<f64> {
+        let first = self.rev.first()?;
+        let travel: f64 = self
+            .rev
+            .windows(2)
+            .map(|w| 0.5 * ((w[1][0] - w[0][0]).abs() + (w[1][1] - w[0][1]).abs()))
+            .sum();
+        let apart = self
+            .rev
+            .iter()
+            .map(|r| ((r[1] - first[1]) - (r[0] - first[0])).abs())
+            .fold(0.0, f64::max);
+        (travel > 0.0).then(|| apart / travel)
+    }
+
     /// The 18 inputs of [`crate::FEATURE_RULE`] computed with `geom`.
     pub fn features(&self, geom: &WheelGeometry) -> [f64; N_INPUTS] {
         features_from_poses(&self.t_s, &self.poses(geom))
