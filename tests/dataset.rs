@@ -1429,6 +1429,12 @@ fn moving_rows_by_run(path: &Path) -> Vec<Vec<usize>> {
 /// Adds `by` ticks to the left count of the tick log at `path` on the data rows (0-based)
 /// that `which` accepts.
 fn add_left_ticks(path: &Path, which: &dyn Fn(usize) -> bool, by: f64) {
+    add_to_column(path, 1, which, by);
+}
+
+/// Adds `by` to column `col` of the data rows (counted from 0) of the CSV at `path` that
+/// `which` accepts.
+fn add_to_column(path: &Path, col: usize, which: &dyn Fn(usize) -> bool, by: f64) {
     let text = std::fs::read_to_string(path).unwrap();
     let lines: Vec<String> = text
         .lines()
@@ -1438,11 +1444,31 @@ fn add_left_ticks(path: &Path, which: &dyn Fn(usize) -> bool, by: f64) {
                 return l.to_string();
             }
             let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
-            f[1] = (f[1].parse::<f64>().unwrap() + by).to_string();
+            f[col] = (f[col].parse::<f64>().unwrap() + by).to_string();
             f.join(",")
         })
         .collect();
     std::fs::write(path, lines.join("\n") + "\n").unwrap();
+}
+
+/// One log timed in Unix seconds among logs counting from their start: its runs' t_b and t_e,
+/// inputs of the net, lay 1.7e9 s outside the others', and a model trained on them put the
+/// linear baseline's error at 1e9 %, unsaid. Its recording is rejected, naming the clock.
+#[test]
+fn a_log_on_another_clock_is_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 6, 3, &[]);
+    add_to_column(&d.join("runs/run002.odometry.csv"), 0, &|_| true, 1.7e9);
+    let (ds, said) = build_said(d);
+    assert_eq!(ds.samples.len(), 5, "{said}");
+    assert!(
+        rejection(&ds, "run002").contains(
+            "its log's first run starts at 1700000001 s on the robot's clock, where the 6 logs' first runs start at"
+        ) && rejection(&ds, "run002").contains("is this log timed on another clock (Unix time)?"),
+        "{said}"
+    );
+    assert!(ds.samples.iter().all(|s| s.inputs[16] < 100.0));
 }
 
 /// Recordings of three runs, a counter glitch in the middle of each one's second run: in

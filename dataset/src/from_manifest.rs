@@ -331,6 +331,10 @@ pub fn build_from_manifest(
         notes.extend(note);
     }
     crate::units::reject_scale_outliers(&mut outcomes, matches!(opts.layout, Layout::Windows(_)));
+    // A window's inputs hold no times.
+    if !matches!(opts.layout, Layout::Windows(_)) {
+        crate::units::reject_clock_outliers(&mut outcomes);
+    }
     let mut ds = assemble(opts.robot, outcomes);
     ds.notes = notes;
     if let Layout::Windows(_) = opts.layout {

@@ -240,6 +240,49 @@ pub fn reject_scale_outliers(outcomes: &mut [Vec<RunOutcome>], per_recording: bo
     }
 }
 
+/// Logs whose first run starts this far from the other logs' (median), seconds, count on
+/// another clock: a day, where the runs of one recording lie minutes or hours apart.
+const MAX_LOG_CLOCK_APART_S: f64 = 86_400.0;
+
+/// Rejects the runs of a recording whose log counts time on another clock than the other
+/// recordings' (one log in Unix time among logs counting from their start): t_b and t_e are
+/// inputs of the net, so its runs lie 1.7e9 s outside the others, the inputs' normalisation
+/// squeezes every other run into one value, and the linear baseline's error read 1e9 %. A
+/// recording is the list of its runs' outcomes.
+pub fn reject_clock_outliers(outcomes: &mut [Vec<RunOutcome>]) {
+    let start_of = |runs: &[RunOutcome]| {
+        runs.iter()
+            .filter_map(|o| match o {
+                RunOutcome::Sample(s) => Some(s.odometry.t_b()),
+                RunOutcome::Rejected(_) => None,
+            })
+            .filter(|t| t.is_finite())
+            .reduce(f64::min)
+    };
+    let starts: Vec<Option<f64>> = outcomes.iter().map(|r| start_of(r)).collect();
+    let judged: Vec<f64> = starts.iter().flatten().copied().collect();
+    let n = judged.len();
+    let Some(median) = upper_median(judged).filter(|_| n >= MIN_RUNS_FOR_SPREAD) else {
+        return;
+    };
+    for (runs, start) in outcomes.iter_mut().zip(starts) {
+        let Some(start) = start.filter(|t| (t - median).abs() > MAX_LOG_CLOCK_APART_S) else {
+            continue;
+        };
+        let reason = format!(
+            "its log's first run starts at {start:.0} s on the robot's clock, where the {n} logs' first runs start at {median:.1} s (median): is this log timed on another clock (Unix time)? The times t_b and t_e are inputs of the net, so every log must count its seconds alike (from its start)"
+        );
+        for o in runs.iter_mut() {
+            if let RunOutcome::Sample(s) = o {
+                *o = RunOutcome::Rejected(RejectedRun {
+                    run_id: s.run_id.clone(),
+                    reason: reason.clone(),
+                });
+            }
+        }
+    }
+}
+
 /// How far the robot file puts the odometry's distances from the camera's: `Err` when a
 /// factor of [`MAX_ODOMETRY_SCALE`] or more says the file is not this robot's (a quadrature
 /// encoder's four edges per line, a radius given as the diameter), `Ok(Some)` with a warning
