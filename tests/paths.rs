@@ -1215,6 +1215,48 @@ fn evaluate_names_squares_whose_trajectories_were_swapped() {
         e.contains("swap run001's and run002's trajectories back"),
         "{e}"
     );
+    // A recording where the robot never moved was blamed on its pairing; it is named as
+    // still. Its log alone still is named against the camera's motion.
+    let log = tours.join("runs/run003.odometry.csv");
+    let moving_log = std::fs::read_to_string(&log).expect("log");
+    let still: Vec<String> = moving_log
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match (i, l.split_once(',')) {
+            (0, _) | (_, None) => l.to_string(),
+            (_, Some((t, _))) => format!("{t},0,0"),
+        })
+        .collect();
+    std::fs::write(&log, still.join("\n") + "\n").expect("write");
+    swap_first_two_trajectories(&tours);
+    let manifest = tours.join("manifest.json");
+    let args = ["evaluate", p(&manifest), "--model", &model];
+    let e = fails(&args);
+    assert!(
+        e.contains("run003: the log holds no motion (its wheels never turn), while the camera sees the robot move up to"),
+        "{e}"
+    );
+    let trajectory = tours.join("runs/run003.trajectory.csv");
+    // Every row at the first row's pose, at its own time.
+    let first_pose = |text: &str| {
+        let mut rows = text.lines();
+        let header = rows.next().unwrap_or_default().to_string();
+        let rows: Vec<&str> = rows.collect();
+        let pose = rows[0].split_once(',').map_or("", |(_, rest)| rest);
+        let mut out = vec![header];
+        out.extend(rows.iter().map(|r| {
+            let t = r.split_once(',').map_or(*r, |(t, _)| t);
+            format!("{t},{pose}")
+        }));
+        out.join("\n") + "\n"
+    };
+    let moving = std::fs::read_to_string(&trajectory).expect("trajectory");
+    std::fs::write(&trajectory, first_pose(&moving)).expect("write");
+    let e = fails(&args);
+    assert!(
+        e.contains("run003: the log holds no motion (its wheels never turn), nor does the camera see the robot move: leave the recording out of the manifest"),
+        "{e}"
+    );
 }
 
 /// A robot.json whose wheel base is twice the robot's went through `dataset` and `train`

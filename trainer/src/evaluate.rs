@@ -175,6 +175,10 @@ pub fn truth_distance(
 /// during the motion (two 12-count ticks a 200 ms step are 0.11 m/s on a 4.3 cm wheel).
 const BOUNDARY_MOTION_MPS: f64 = 0.1;
 
+/// A camera trajectory that never leaves this far from its start, metres, shows a robot at
+/// rest (tracking noise is millimetres).
+const STILL_CAMERA_M: f64 = 0.05;
+
 /// Judges `methods` (name, reckoner) on `recordings` of `robot`. With `squares`, the
 /// recordings are UMBMark squares (each must turn by one full turn one way or the other) and
 /// every method gets Borenstein's figures.
@@ -223,6 +227,29 @@ pub fn evaluate_paths(
                 r.id,
                 if moves(0, 1) { "starts" } else { "ends" },
                 if moves(0, 1) { "first" } else { "last" }
+            )));
+        }
+        // A recording without motion has nothing to judge a method on; alignment would
+        // only blame the pairing.
+        let wheels_turn = revs.rev.first().is_some_and(|a| revs.rev.iter().any(|b| b != a));
+        let camera_moved_m = cam.rows.first().map_or(0.0, |a| {
+            cam.rows
+                .iter()
+                .map(|b| (b.pose.x_m - a.pose.x_m).hypot(b.pose.y_m - a.pose.y_m))
+                .fold(0.0, f64::max)
+        });
+        if !wheels_turn {
+            let camera = if camera_moved_m < STILL_CAMERA_M {
+                "nor does the camera see the robot move: leave the recording out of the manifest".to_string()
+            } else {
+                format!(
+                    "while the camera sees the robot move up to {:.2} m from its start: is the log this recording's?",
+                    camera_moved_m
+                )
+            };
+            return Err(TrainError::Dataset(format!(
+                "{}: the log holds no motion (its wheels never turn), {camera}",
+                r.id
             )));
         }
         let align = odocal_dataset::align::AlignOptions::default();
