@@ -641,6 +641,27 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         "{e}"
     );
     assert!(!html.exists(), "nothing written on refusal");
+    // Given beside the right experiment, another experiment's tracks were left unused and
+    // unchecked, exit 0; each folder is checked now.
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&ds),
+        "--experiment",
+        p(&d.join("exp")),
+        "--trajectories",
+        p(&d.join("exp-other/runs")),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "--trajectories {}: its tracks end ",
+            p(&d.join("exp-other/runs"))
+        )),
+        "{e}"
+    );
+    assert!(!html.exists(), "nothing written on refusal");
     ok(&[
         "report",
         "--out",

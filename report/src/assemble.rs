@@ -154,24 +154,54 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 ),
                 None => None,
             };
-            let mut views = Vec::new();
-            for i in pick_runs(&ds.samples, inp.runs) {
-                let s = &ds.samples[i];
-                let rec = if s.recording_id.is_empty() {
-                    &s.run_id
-                } else {
-                    &s.recording_id
+            let picked = pick_runs(&ds.samples, inp.runs);
+            let views_with = |experiment: Option<&Path>, trajectories: Option<&Path>| {
+                picked
+                    .iter()
+                    .map(|&i| {
+                        let s = &ds.samples[i];
+                        let rec = if s.recording_id.is_empty() {
+                            &s.run_id
+                        } else {
+                            &s.recording_id
+                        };
+                        let track = find_track(rec, experiment, trajectories)?;
+                        Ok(RunView::new(
+                            s,
+                            &ds.robot,
+                            preds.as_ref().map(|p| p[i]),
+                            track.as_ref(),
+                        ))
+                    })
+                    .collect::<Result<Vec<RunView>, ReportError>>()
+            };
+            // Each folder given is checked on its own: the first holding a run's track is
+            // drawn, so another experiment's tracks given beside the right ones passed unseen.
+            let sources = [
+                (
+                    inp.experiment.as_deref(),
+                    None,
+                    "--experiment",
+                    "experiment",
+                ),
+                (
+                    None,
+                    inp.trajectories.as_deref(),
+                    "--trajectories",
+                    "trajectories",
+                ),
+            ];
+            for (experiment, trajectories, option, what) in sources {
+                let Some(folder) = experiment.or(trajectories) else {
+                    continue;
                 };
-                let track =
-                    find_track(rec, inp.experiment.as_deref(), inp.trajectories.as_deref())?;
-                views.push(RunView::new(
-                    s,
-                    &ds.robot,
-                    preds.as_ref().map(|p| p[i]),
-                    track.as_ref(),
-                ));
+                let own = views_with(experiment, trajectories)?;
+                check_tracks_fit(&own, &format!("{option} {}", folder.display()))?;
+                if own.iter().any(|v| v.real_end_off_m().is_some()) {
+                    used.push(format!("{what} {}", folder.display()));
+                }
             }
-            check_tracks_fit(&views, inp)?;
+            let views = views_with(inp.experiment.as_deref(), inp.trajectories.as_deref())?;
             report.sections.push(trajectory_section(&views)?);
             report
                 .sections
@@ -452,7 +482,7 @@ const TRACK_END_MISMATCH_M: f64 = 0.05;
 /// Refuses real tracks (--experiment, --trajectories) that are not of the recordings the
 /// dataset was built from: they are found by run id alone, and another experiment's runs
 /// share the ids.
-fn check_tracks_fit(views: &[RunView], inp: &ReportInputs) -> Result<(), ReportError> {
+fn check_tracks_fit(views: &[RunView], source: &str) -> Result<(), ReportError> {
     let mut off: Vec<f64> = views.iter().filter_map(RunView::real_end_off_m).collect();
     if off.is_empty() {
         return Ok(());
@@ -462,11 +492,6 @@ fn check_tracks_fit(views: &[RunView], inp: &ReportInputs) -> Result<(), ReportE
     if median <= TRACK_END_MISMATCH_M {
         return Ok(());
     }
-    let source = match (&inp.experiment, &inp.trajectories) {
-        (Some(e), _) => format!("--experiment {}", e.display()),
-        (None, Some(t)) => format!("--trajectories {}", t.display()),
-        (None, None) => "the real tracks".into(),
-    };
     let how_far = match off.len() {
         1 => format!(
             "its track ends {:.0} mm from the end point the dataset has for the same run id",

@@ -231,7 +231,10 @@ pub fn evaluate_paths(
         }
         // A recording without motion has nothing to judge a method on; alignment would
         // only blame the pairing.
-        let wheels_turn = revs.rev.first().is_some_and(|a| revs.rev.iter().any(|b| b != a));
+        let wheels_turn = revs
+            .rev
+            .first()
+            .is_some_and(|a| revs.rev.iter().any(|b| b != a));
         let camera_moved_m = cam.rows.first().map_or(0.0, |a| {
             cam.rows
                 .iter()
@@ -240,7 +243,8 @@ pub fn evaluate_paths(
         });
         if !wheels_turn {
             let camera = if camera_moved_m < STILL_CAMERA_M {
-                "nor does the camera see the robot move: leave the recording out of the manifest".to_string()
+                "nor does the camera see the robot move: leave the recording out of the manifest"
+                    .to_string()
             } else {
                 format!(
                     "while the camera sees the robot move up to {:.2} m from its start: is the log this recording's?",
