@@ -410,7 +410,25 @@ fn missing_inputs_are_left_out_with_a_note() {
     // Given, but drawing nothing alone: said so, not "no inputs were given".
     let e = fails(&["report", "--out", p(&html), "--experiment", p(d)]);
     assert!(
-        e.contains("--experiment only draws against other inputs (--model, --experiment and --trajectories against --dataset's runs"),
+        e.contains(&format!("--experiment {}: it is drawn only against --dataset (the dataset.json of its runs), which was not given; give that too, or leave --experiment out", p(d))),
+        "{e}"
+    );
+    // Beside another input, a model without its dataset was listed among the inputs and drew
+    // nothing, exit 0.
+    let model = d.join("stray/model.json");
+    std::fs::create_dir_all(d.join("stray")).expect("mkdir");
+    std::fs::write(&model, "{}").expect("write");
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--model",
+        p(&model),
+        "--lrf-poses",
+        p(&model),
+    ]);
+    assert!(
+        e.contains("it is drawn only against --dataset (the dataset.json it was trained on), which was not given"),
         "{e}"
     );
     let e = fails(&["report", "--demo-dir", p(d), "--out", p(&html)]);
@@ -671,7 +689,9 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         "--experiment",
         p(&d.join("exp")),
     ]);
-    // The dataset they were made from, and each of them without a dataset, are reported.
+    // The dataset they were made from is reported, and the sweep without it; the model,
+    // drawn only against the dataset's runs, is refused without it (it was listed among
+    // the inputs and drew nothing).
     ok(&[
         "report",
         "--out",
@@ -687,11 +707,22 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         "report",
         "--out",
         p(&html),
+        "--train-report",
+        p(&report_json),
+    ]);
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
         "--model",
         p(&model),
         "--train-report",
         p(&report_json),
     ]);
+    assert!(
+        e.contains("it is drawn only against --dataset (the dataset.json it was trained on), which was not given; give that too, or leave --model out"),
+        "{e}"
+    );
 }
 
 /// `odocal track --truth frames.csv --report` carries its comparison with the truth into the

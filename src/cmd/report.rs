@@ -144,6 +144,47 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let lrf_poses = input(&a.lrf_poses, demo, "lrf/poses.csv")?;
     let lrf_truth = input(&a.lrf_truth, demo, "lrf/truth.csv")?;
     let lrf_map = input(&a.lrf_map, demo, "lrf/map.json")?;
+    // An input that only draws against another, given without it, would be listed among the
+    // report's inputs and draw nothing (with the other on hand, it is drawn and checked).
+    for (given, option, needs, what) in [
+        (
+            &a.model,
+            "--model",
+            dataset.is_some(),
+            "--dataset (the dataset.json it was trained on)",
+        ),
+        (
+            &a.experiment,
+            "--experiment",
+            dataset.is_some(),
+            "--dataset (the dataset.json of its runs)",
+        ),
+        (
+            &a.trajectories,
+            "--trajectories",
+            dataset.is_some(),
+            "--dataset (the dataset.json of its runs)",
+        ),
+        (
+            &a.lrf_truth,
+            "--lrf-truth",
+            lrf_poses.is_some(),
+            "--lrf-poses (the poses of `odocal lrf localize`)",
+        ),
+        (
+            &a.lrf_map,
+            "--lrf-map",
+            lrf_poses.is_some(),
+            "--lrf-poses (the poses of `odocal lrf localize`)",
+        ),
+    ] {
+        if let (Some(p), false) = (given, needs) {
+            bail!(
+                "{option} {}: it is drawn only against {what}, which was not given; give that too, or leave {option} out",
+                p.display()
+            );
+        }
+    }
 
     check_output_file(&a.out, "--out")?;
     // The files found in --demo-dir are not arguments, so the check of --out against the
@@ -216,29 +257,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 "--demo-dir {} holds none of the demo's outputs (camera.json, dataset.json, model.json, train/report.json, lrf/poses.csv, track/report.json, …)",
                 d.display()
             ),
-            None => {
-                // Inputs that only draw against others: a model or real tracks against the
-                // dataset's runs, a laser truth or map against the laser poses.
-                let given: Vec<&str> = [
-                    ("--model", a.model.is_some()),
-                    ("--experiment", a.experiment.is_some()),
-                    ("--trajectories", a.trajectories.is_some()),
-                    ("--lrf-truth", a.lrf_truth.is_some()),
-                    ("--lrf-map", a.lrf_map.is_some()),
-                ]
-                .into_iter()
-                .filter_map(|(o, on)| on.then_some(o))
-                .collect();
-                if given.is_empty() {
-                    "no inputs were given".to_string()
-                } else {
-                    format!(
-                        "{} only {} against other inputs (--model, --experiment and --trajectories against --dataset's runs, --lrf-truth and --lrf-map against --lrf-poses)",
-                        given.join(" and "),
-                        if given.len() == 1 { "draws" } else { "draw" }
-                    )
-                }
-            }
+            // Inputs that draw only against others were refused alone above.
+            None => "no inputs were given".to_string(),
         };
         bail!(
             "nothing to report, so {} was not written: {what}; give the folder `make demo` wrote (--demo-dir demo-out), or the stages' outputs one by one (odocal report --help lists them)",
