@@ -31,7 +31,9 @@ pub use table::{
     csv_error, csv_table, csv_table_with_header, numeric_row, CsvTable, LineIndex, TextFormat,
 };
 pub use tag_mount::{MountFit, TagToRobot, TagYawError, MAX_TAG_YAW_DEG};
-pub use tagged_json::{check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json};
+pub use tagged_json::{
+    check_format_tag, parse_json_value, parse_tagged_json, read_tagged_json, without_bom,
+};
 pub use trajectory::{
     mean_pose, PoseSigma, Reference, Trajectory, TrajectoryRow, REFERENCE_MAX_GAP_S, SAME_TIME_S,
     TRAJECTORY_HEADER, TRAJECTORY_SIGMA_HEADER,

@@ -10,12 +10,14 @@ use crate::file_error::FileError;
 /// Parses JSON `text` that must carry `"format": expected`, then deserialises it into `T`.
 /// `name` (the file) starts every message; `hint` follows a wrong or missing format tag and
 /// should say which file is wanted (e.g. "pass a camera.json written by `odocal calibrate`").
+/// A leading byte order mark is passed over ([`without_bom`]).
 pub fn parse_tagged_json<T: DeserializeOwned>(
     text: &str,
     name: &str,
     expected: &str,
     hint: &str,
 ) -> Result<T, FileError> {
+    let text = without_bom(text);
     let value = parse_json_value(text, name).map_err(|e| match e {
         FileError::Parse {
             path,
@@ -46,9 +48,16 @@ pub fn read_tagged_json<T: DeserializeOwned>(
     parse_tagged_json(&text, &path.display().to_string(), expected, hint)
 }
 
-/// Parses JSON `text` into a generic value; syntax errors name the line and column.
+/// `text` without a leading UTF-8 byte order mark: editors on Windows save JSON with one
+/// after a hand edit, and the JSON parser would refuse it at line 1, column 1.
+pub fn without_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
+/// Parses JSON `text` into a generic value; syntax errors name the line and column. A
+/// leading byte order mark is passed over ([`without_bom`]).
 pub fn parse_json_value(text: &str, name: &str) -> Result<serde_json::Value, FileError> {
-    serde_json::from_str(text).map_err(|e| {
+    serde_json::from_str(without_bom(text)).map_err(|e| {
         FileError::parse(
             name,
             e.line() as u64,
@@ -85,6 +94,17 @@ mod tests {
     #[derive(serde::Deserialize, Debug)]
     struct Doc {
         n: u32,
+    }
+
+    /// A model.json saved by a Windows editor after a hand edit was refused as "invalid JSON
+    /// at line 1 column 1", where a manifest with the same mark was read.
+    #[test]
+    fn a_byte_order_mark_is_passed_over() {
+        let ok: Doc =
+            parse_tagged_json("\u{feff}{\"format\":\"x/1\",\"n\":3}", "a.json", "x/1", "h")
+                .unwrap();
+        assert_eq!(ok.n, 3);
+        assert!(parse_json_value("\u{feff}[1]", "b.json").is_ok());
     }
 
     #[test]

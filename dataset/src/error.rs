@@ -35,12 +35,6 @@ pub(crate) fn read_text(path: &std::path::Path) -> Result<String, DatasetError> 
     Ok(odocal_core::read_text(path)?)
 }
 
-/// `text` without a leading UTF-8 byte order mark: editors on Windows save JSON with one,
-/// and the JSON parser would refuse it at line 1, column 1.
-pub(crate) fn without_bom(text: &str) -> &str {
-    text.strip_prefix('\u{feff}').unwrap_or(text)
-}
-
 /// Parses a JSON document carrying `"format": "<expected>"`, rejecting other formats clearly.
 pub(crate) fn parse_json_with_format<T: serde::de::DeserializeOwned>(
     text: &str,
@@ -48,7 +42,7 @@ pub(crate) fn parse_json_with_format<T: serde::de::DeserializeOwned>(
     expected: &str,
 ) -> Result<T, DatasetError> {
     Ok(odocal_core::parse_tagged_json(
-        without_bom(text),
+        text,
         name,
         expected,
         "is this the right file?",

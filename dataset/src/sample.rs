@@ -377,7 +377,7 @@ impl RobotParams {
         // A parameter odocal does not read (a gear ratio, a wheel radius) would be passed
         // over while its writer expects it used; notes are welcome.
         if let Ok(serde_json::Value::Object(fields)) =
-            serde_json::from_str(crate::error::without_bom(&text))
+            serde_json::from_str(odocal_core::without_bom(&text))
         {
             let known = [
                 "format",
