@@ -309,6 +309,23 @@ fn train_then_correct_a_log() {
     let csv = dir.path().join("corrected.csv");
     let out = ok(&["correct", "--model", p(&model), p(&log), "--out", p(&csv)]);
     assert!(out.contains("corrected end"), "{out}");
+    // Said beside the correction: how good the model is on runs it was not fitted to.
+    let cv = m["metrics"]["cross_validated"]["rel_error"].as_f64().expect("cv");
+    assert!(
+        out.contains(&format!(
+            "the model's end-point error on runs it was not fitted to: {:.2} % of the path (cross-validated over 45 runs)",
+            100.0 * cv
+        )),
+        "{out}"
+    );
+    // Without cross-validation, 7 runs held out for early stopping say little: warned.
+    let res = common::odocal(&["correct", "--model", p(&quick), p(&log)]);
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{e}");
+    assert!(
+        e.contains("no estimate of how well it corrects runs it was not fitted to (an early-stopping split of 7 runs, no cross-validation)"),
+        "{e}"
+    );
     let track = std::fs::read_to_string(&csv).expect("csv");
     assert!(track.starts_with("t,x_raw,y_raw,theta_raw,x_corrected,y_corrected,extrapolated\n"));
     // A log inside the training domain is no guess.

@@ -182,5 +182,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         100.0 * (corrected[0] - raw[0]).hypot(corrected[1] - raw[1]),
         run.path_length_m
     );
+    // The figure the correction is only as good as, said beside it.
+    match model.held_out_error(&name) {
+        Ok((error, measured)) => say!(
+            "the model's end-point error on runs it was not fitted to: {:.2} % of the path ({measured}), about {:.1} cm over this run's; raw odometry's on its training runs {:.2} %",
+            100.0 * error,
+            100.0 * error * run.path_length_m,
+            100.0 * model.metrics.raw_odometry.rel_error
+        ),
+        Err(w) => tell!("warning: {w}"),
+    }
     write_track(&args, run.to_csv())
 }

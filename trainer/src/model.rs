@@ -13,6 +13,10 @@ use crate::train::{TrainSettings, TrainedNet};
 /// The `format` tag of model files.
 pub const MODEL_FORMAT: &str = "odocal.model/1";
 
+/// The fewest runs an early-stopping split needs for its error to stand for the model's on
+/// runs it was not fitted to (one or two runs say little either way).
+pub const MIN_SPLIT_FOR_ESTIMATE: usize = 10;
+
 /// Weights of the perceptron; matrices as rows.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Weights {
@@ -188,6 +192,31 @@ impl ModelFile {
         Some(format!(
             "{name}: {which} kept epoch 0, its random initialisation (no epoch of training bettered it on the validation runs): its corrections are no better than chance; train again with more runs or another --seed, and use the model when `train` no longer names epoch 0"
         ))
+    }
+
+    /// How well the model corrects runs it was not fitted to, as recorded by `train`: its
+    /// cross-validated relative end-point error, else its early-stopping split's when that
+    /// holds at least [`MIN_SPLIT_FOR_ESTIMATE`] runs. `Ok((error, where))`, a fraction and
+    /// where it was measured; `Err` with a warning when neither is there.
+    pub fn held_out_error(&self, name: &str) -> Result<(f64, String), String> {
+        let m = &self.metrics;
+        if let Some(cv) = &m.cross_validated {
+            return Ok((cv.rel_error, format!("cross-validated over {} runs", cv.n)));
+        }
+        match &m.validation {
+            Some(v) if v.n >= MIN_SPLIT_FOR_ESTIMATE => Ok((
+                v.rel_error,
+                format!("on its early-stopping split of {} runs", v.n),
+            )),
+            v => Err(format!(
+                "{name}: no estimate of how well it corrects runs it was not fitted to ({}, no cross-validation): its correction may be worse than raw odometry unseen; train it with cross-validation (without --no-cv), on more runs",
+                v.map_or("no early-stopping split".to_string(), |v| format!(
+                    "an early-stopping split of {} run{}",
+                    v.n,
+                    if v.n == 1 { "" } else { "s" }
+                ))
+            )),
+        }
     }
 
     /// Reads model.json (see [`ModelFile::parse`]).
