@@ -230,6 +230,17 @@ fn sweep_chooses_k_by_nested_cv_and_repeats_byte_for_byte() {
     assert!(out.contains("perceptron 18-k-2, k by nested CV"), "{out}");
     assert!(out.contains("kernel ridge regression (RBF)"), "{out}");
     assert!(out.contains("Perceptron k per outer fold"), "{out}");
+    // Deterministic methods' figures do not vary over restarts: shown without "± 0.00",
+    // which read as no uncertainty, and the caption says what ± spans.
+    let raw_row = out
+        .lines()
+        .find(|l| l.starts_with("| raw odometry"))
+        .expect("raw odometry row");
+    assert!(!raw_row.contains('±'), "{raw_row}");
+    assert!(
+        out.contains("over restarts for the validation figures and Table 2"),
+        "{out}"
+    );
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(a.join("report.json")).expect("report.json"))
             .expect("json");
@@ -310,7 +321,9 @@ fn train_then_correct_a_log() {
     let out = ok(&["correct", "--model", p(&model), p(&log), "--out", p(&csv)]);
     assert!(out.contains("corrected end"), "{out}");
     // Said beside the correction: how good the model is on runs it was not fitted to.
-    let cv = m["metrics"]["cross_validated"]["rel_error"].as_f64().expect("cv");
+    let cv = m["metrics"]["cross_validated"]["rel_error"]
+        .as_f64()
+        .expect("cv");
     assert!(
         out.contains(&format!(
             "the model's end-point error on runs it was not fitted to: {:.2} % of the path (cross-validated over 45 runs)",

@@ -28,7 +28,7 @@ pub use data::{parse_dataset, sha256_hex};
 pub use error::TrainError;
 pub use fit_model::{fit_model, oracle_ends, FittedModel};
 pub use kernel_ridge::{KernelRidge, KernelRidgeParams};
-pub use metrics::{MeanSd, Metrics};
+pub use metrics::{MeanSd, Metrics, SPREAD_NOTE};
 pub use model::{ModelFile, ModelMetrics, MODEL_FORMAT};
 pub use net::{Normalisation, Perceptron};
 pub use path_model_file::{CorrectedPath, PathModelFile, PATH_MODEL_FORMAT};

@@ -55,7 +55,25 @@ pub struct MeanSd {
     pub sd: f64,
 }
 
+/// What a table's "±" spans, said under every table that prints [`MeanSd::shown`].
+pub const SPREAD_NOTE: &str = "± is one standard deviation: over folds and restarts for epochs and training MSE, over restarts for the validation figures and Table 2 (each restart's held-out predictions of all folds pooled); a figure without ± did not vary (a deterministic method, or one restart)";
+
 impl MeanSd {
+    /// "mean ± sd" scaled by `scale` to `prec` decimals; the mean alone when the sd is 0 (one
+    /// value, or a deterministic method's restarts), where "± 0.00" read as no uncertainty.
+    pub fn shown(&self, scale: f64, prec: usize) -> String {
+        if self.sd == 0.0 {
+            format!("{:.p$}", self.mean * scale, p = prec)
+        } else {
+            format!(
+                "{:.p$} ± {:.p$}",
+                self.mean * scale,
+                self.sd * scale,
+                p = prec
+            )
+        }
+    }
+
     /// Mean and sd of `v` (NaN mean for an empty slice).
     pub fn of(v: &[f64]) -> Self {
         let n = v.len();

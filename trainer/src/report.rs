@@ -6,7 +6,7 @@ use crate::crossval::SweepReport;
 use crate::metrics::MeanSd;
 
 fn pm(m: &MeanSd, scale: f64, prec: usize) -> String {
-    format!("{:.p$} ± {:.p$}", m.mean * scale, m.sd * scale, p = prec)
+    m.shown(scale, prec)
 }
 
 /// Table 1 as Markdown (k, parameters, epochs, training and validation MSE).
@@ -14,8 +14,10 @@ pub fn table1_markdown(r: &SweepReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "Table 1: hidden size sweep, {}-fold cross-validation x {} restarts (MSE per coordinate in cm²; 1 cm² = 1e-4 m²; mean ± sd)\n",
-        r.settings.folds, r.settings.restarts
+        "Table 1: hidden size sweep, {}-fold cross-validation x {} restarts (MSE per coordinate in cm²; 1 cm² = 1e-4 m²; {})\n",
+        r.settings.folds,
+        r.settings.restarts,
+        crate::metrics::SPREAD_NOTE
     );
     let _ = writeln!(
         s,

@@ -6,12 +6,14 @@ use super::*;
 pub fn training_section(r: &SweepReport) -> Result<Section, ReportError> {
     let mut s = Section::new("training", "Training: Tables 1 and 2");
     s.blocks.push(Block::Text(format!(
-        "{} samples, {}-fold cross-validation × {} restarts, seed {}. MSE is per coordinate, in cm² (1 cm² = 1e-4 m²); ± is one standard deviation over folds and restarts.",
-        r.n_samples, r.settings.folds, r.settings.restarts, r.settings.seed
+        "{} samples, {}-fold cross-validation × {} restarts, seed {}. MSE is per coordinate, in cm² (1 cm² = 1e-4 m²); {}.",
+        r.n_samples,
+        r.settings.folds,
+        r.settings.restarts,
+        r.settings.seed,
+        odocal_trainer::SPREAD_NOTE
     )));
-    let pm = |m: &odocal_trainer::MeanSd, k: f64, p: usize| {
-        format!("{:.p$} ± {:.p$}", m.mean * k, m.sd * k, p = p)
-    };
+    let pm = |m: &odocal_trainer::MeanSd, k: f64, p: usize| m.shown(k, p);
     let mut t1 = Table {
         caption: "Table 1: hidden-layer size sweep".into(),
         header: vec![
