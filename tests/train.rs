@@ -418,7 +418,17 @@ fn bad_input_is_a_clear_error() {
     assert!(
         fails(&["train", p(&ds), "--out", "m.json", "--method", "sgd"]).contains("unknown method")
     );
-    assert!(fails(&["train", p(&ds), "--out", "m.json", "--max-fail", "0"]).contains("max_fail"));
+    // Options out of range are named as options, with what to give (they were named by
+    // the settings' field names: "settings: max_fail must be at least 1").
+    for (option, value, says) in [
+        ("--max-fail", "0", "--max-fail 0: early stopping waits at least one epoch without improvement; give --max-fail 1 or more (default 2)"),
+        ("--val-fraction", "0.6", "--val-fraction 0.6: the share of the runs held out for early stopping must be from 0 up to (not including) 0.5"),
+        ("--min-improvement", "1", "--min-improvement 1: a share of the validation error, from 0 up to (not including) 1"),
+        ("--weight-decay", "1e9", "--weight-decay 1000000000: give a penalty from 0 to 1000"),
+    ] {
+        let e = fails(&["train", p(&ds), "--out", "m.json", option, value]);
+        assert!(e.contains(says) && !e.contains("settings:"), "{e}");
+    }
     let text = std::fs::read_to_string(&ds).expect("dataset");
     let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
     v["samples"] = serde_json::json!([]);

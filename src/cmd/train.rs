@@ -254,6 +254,12 @@ fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
     }
     let mut s = TrainSettings::new(hidden, method);
     if let Some(v) = args.weight_decay {
+        if !(0.0..=odocal_trainer::MAX_WEIGHT_DECAY).contains(&v) {
+            bail!(
+                "--weight-decay {v}: give a penalty from 0 to {} (normalised units; a heavier one holds every weight at zero, a model that predicts the training's mean end whatever the log says)",
+                odocal_trainer::MAX_WEIGHT_DECAY
+            );
+        }
         s.weight_decay = v;
     }
     if let Some(v) = args.val_fraction {
@@ -269,10 +275,30 @@ fn settings(args: &Args) -> anyhow::Result<TrainSettings> {
         s.max_epochs = v;
     }
     if let Some(v) = args.max_fail {
+        if v == 0 {
+            bail!(
+                "--max-fail 0: early stopping waits at least one epoch without improvement; give --max-fail 1 or more (default {})",
+                s.max_fail
+            );
+        }
         s.max_fail = v;
     }
     if let Some(v) = args.min_improvement {
+        if !(0.0..1.0).contains(&v) {
+            bail!(
+                "--min-improvement {v}: a share of the validation error, from 0 up to (not including) 1; give e.g. --min-improvement {} (the default)",
+                s.min_improvement
+            );
+        }
         s.min_improvement = v;
+    }
+    if let Some(v) = args.val_fraction {
+        if !(0.0..0.5).contains(&v) {
+            bail!(
+                "--val-fraction {v}: the share of the runs held out for early stopping must be from 0 up to (not including) 0.5, so that most runs are fitted; give e.g. --val-fraction {} (the default)",
+                TrainSettings::new(hidden, method).val_fraction
+            );
+        }
     }
     s.validate()?;
     Ok(s)

@@ -32,4 +32,6 @@ pub use metrics::{MeanSd, Metrics, SPREAD_NOTE};
 pub use model::{ModelFile, ModelMetrics, MODEL_FORMAT};
 pub use net::{Normalisation, Perceptron};
 pub use path_model_file::{CorrectedPath, PathModelFile, PATH_MODEL_FORMAT};
-pub use train::{drives_backwards, train, train_runs, Method, TrainSettings, TrainedNet};
+pub use train::{
+    drives_backwards, train, train_runs, Method, TrainSettings, TrainedNet, MAX_WEIGHT_DECAY,
+};
