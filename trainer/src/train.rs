@@ -311,6 +311,24 @@ impl EarlyStop {
     }
 }
 
+/// Why the LM crate stopped, in words (its Debug text read "Converged { ftol: false, xtol:
+/// true }").
+fn converged_why(t: &TerminationReason) -> String {
+    match t {
+        TerminationReason::Converged {
+            ftol: true,
+            xtol: true,
+        } => "the error and the weights stopped changing".into(),
+        TerminationReason::Converged { ftol: true, .. } => "the error stopped falling".into(),
+        TerminationReason::Converged { .. } => "the weights stopped changing".into(),
+        TerminationReason::ResidualsZero => "the fit is exact".into(),
+        TerminationReason::Orthogonal => "the gradient vanished".into(),
+        TerminationReason::LostPatience => "its evaluation budget ran out".into(),
+        TerminationReason::NoImprovementPossible(what) => format!("no step improves {what}"),
+        other => format!("{other:?}"),
+    }
+}
+
 /// Sum of squared residuals of `net` on (xs, ts), normalised units.
 fn sse(net: &Perceptron, xs: &DMatrix<f64>, ts: &DMatrix<f64>) -> f64 {
     let mut res = vec![0.0; xs.nrows() * ts.ncols()];
@@ -482,7 +500,7 @@ pub fn train(
                     let mut relaxed = settings.clone();
                     relaxed.max_epochs = usize::MAX;
                     stop.check(v, &p, &relaxed);
-                    stop.reason = Some(format!("LM converged ({other:?})"));
+                    stop.reason = Some(format!("LM converged: {}", converged_why(&other)));
                 }
             }
             stop
