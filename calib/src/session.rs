@@ -353,8 +353,18 @@ pub fn calibrate_session(
             )
         }));
     }
+    // A ChArUco board taken for a checkerboard is named from its markers in the first view:
+    // OpenCV's checkerboard search fails on it slowly (80 s a 1280x720 view), so the hint
+    // used to come after minutes.
+    let markers = crate::charuco::markers_seen(&images[0]);
+    if let (Some((d, n)), false) = (markers, board.is_charuco()) {
+        return Err(CalibError::Input(format!(
+            "{} shows a ChArUco board ({n} markers of dictionary {d}), not a plain checkerboard: pass --target charuco --dictionary {d}, with --board counting its squares and --marker the side of a marker",
+            images[0].display()
+        )));
+    }
     // A ChArUco board's squares are a checkerboard too: its markers are named below instead.
-    let quick = if crate::charuco::markers_seen(&images[0]).is_none() {
+    let quick = if markers.is_none() {
         crate::detect::quick_board_size_check(&images[0], board)
     } else {
         None
