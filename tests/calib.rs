@@ -178,6 +178,91 @@ fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
     assert!(e.contains("is the truth of 640x720 images"), "{e}");
 }
 
+/// `synth check-calib` judges the floor in the frame of the first floor view given to
+/// `calibrate` (another view given first read as a right floor 1.1 m off), and holds a
+/// camera file without `floor_uncertainty` to 2 mm within 30° of the nadir (such a file with
+/// its floor moved 100 mm passed).
+#[test]
+fn check_calib_judges_the_floor_calibrate_fixed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(
+        d,
+        5,
+        &[
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--views",
+            "12",
+            "--floor-views",
+            "3",
+        ],
+    );
+    let mut args: Vec<String> = images(d, "view_");
+    let floors =
+        ["floor_01.png", "floor_00.png", "floor_02.png"].map(|f| p(&d.join(f)).to_string());
+    let camera = d.join("camera.json");
+    args.push("--floor".into());
+    args.extend(floors);
+    for a in [
+        "--square",
+        "0.05",
+        "--model",
+        "pinhole5",
+        "--out",
+        p(&camera),
+    ] {
+        args.push(a.into());
+    }
+    let mut cmd = vec!["calibrate"];
+    cmd.extend(args.iter().map(String::as_str));
+    ok(&cmd);
+    let truth = d.join("truth.json");
+    let check = |camera: &Path| {
+        odocal(&[
+            "synth",
+            "check-calib",
+            "--camera",
+            p(camera),
+            "--truth",
+            p(&truth),
+        ])
+    };
+    let said = |o: &Output| {
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr)
+    };
+    let nadir_error_mm = |text: &str| -> f64 {
+        let line = text
+            .lines()
+            .find(|l| l.contains("floor seen 0-30° off the nadir: largest mapping error"))
+            .expect("the nadir ring's line");
+        line.rsplit(' ')
+            .nth(1)
+            .and_then(|v| v.parse().ok())
+            .expect("mm")
+    };
+    let text = said(&check(&camera));
+    assert!(nadir_error_mm(&text) < 2.0, "{text}");
+    assert!(!text.contains("floor error"), "{text}");
+    // Without floor_uncertainty, a floor moved 100 mm fails within 30° of the nadir.
+    let mut c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&camera).unwrap()).unwrap();
+    c.as_object_mut().unwrap().remove("floor_uncertainty");
+    let x = c["floor"]["floor_to_camera"]["translation"][0]
+        .as_f64()
+        .unwrap();
+    c["floor"]["floor_to_camera"]["translation"][0] = (x + 0.1).into();
+    let moved = d.join("moved.json");
+    std::fs::write(&moved, c.to_string()).unwrap();
+    let text = said(&check(&moved));
+    assert!(
+        text.contains("mm > 2 mm within 30° of the nadir (the camera file vouches for no floor: it has no floor_uncertainty)"),
+        "{text}"
+    );
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();
