@@ -151,8 +151,13 @@ fn opencv_calibrate(
         f64::EPSILON,
     )?;
     let degenerate = |e: opencv::Error| {
-        // OpenCV's message spans lines; the first says what failed.
-        let first = e.message.lines().next().unwrap_or("").trim().to_string();
+        // OpenCV's message spans lines; the first says what failed, after its version, source
+        // file and line, which say nothing to a user.
+        let first = e.message.lines().next().unwrap_or("").trim();
+        let first = match first.split_once("Assertion failed)") {
+            Some((_, what)) => format!("OpenCV's check {} did not hold", what.trim()),
+            None => first.to_string(),
+        };
         CalibError::Input(format!(
             "{model} calibration failed ({first}); the views are probably degenerate: tilt the board 20-45° in several views"
         ))
