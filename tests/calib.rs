@@ -313,6 +313,72 @@ fn auto_keeps_a_model_one_fold_of_which_opencv_fails() {
     assert!(check.contains("check passed"), "{check}");
 }
 
+/// Views saved as 16-bit PNGs holding 8-bit values (numpy's astype(uint16)) read as black
+/// and were blamed on --board; they are read as the values they hold. Blank frames are named
+/// as blank, not as a wrong --board.
+#[test]
+fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(
+        d,
+        5,
+        &[
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--views",
+            "12",
+            "--floor-views",
+            "0",
+        ],
+    );
+    let deep = d.join("deep");
+    std::fs::create_dir_all(&deep).unwrap();
+    let mut views = Vec::new();
+    for v in images(d, "view_") {
+        let g = image::open(&v).unwrap().to_luma8();
+        let wide: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
+            image::ImageBuffer::from_fn(g.width(), g.height(), |x, y| {
+                image::Luma([u16::from(g.get_pixel(x, y)[0])])
+            });
+        let out = deep.join(Path::new(&v).file_name().unwrap());
+        wide.save(&out).unwrap();
+        views.push(p(&out).to_string());
+    }
+    let calibrate = |views: &[String], out: &Path| {
+        let mut args = vec!["calibrate".to_string()];
+        args.extend(views.iter().cloned());
+        for a in ["--square", "0.05", "--model", "pinhole5", "--out", p(out)] {
+            args.push(a.into());
+        }
+        odocal(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let res = calibrate(&views, &d.join("deep.json"));
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let plain = calibrate(&images(d, "view_"), &d.join("plain.json"));
+    assert!(plain.status.success());
+    let fx = |f: &str| CameraFile::load(&d.join(f)).unwrap().camera.intrinsics.fx;
+    assert_eq!(fx("deep.json"), fx("plain.json"));
+    let black: Vec<String> = (0..3)
+        .map(|i| {
+            let f = d.join(format!("black_{i}.png"));
+            image::GrayImage::new(640, 360).save(&f).unwrap();
+            p(&f).to_string()
+        })
+        .collect();
+    let e = String::from_utf8_lossy(&calibrate(&black, &d.join("black.json")).stderr).into_owned();
+    assert!(
+        e.contains("the image is uniform (every pixel about 0 of 255): a blank or black frame shows no board; none of the 3 calibration image(s) shows anything"),
+        "{e}"
+    );
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();

@@ -179,7 +179,42 @@ pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
             reason: "cannot be decoded as an image (corrupt or not PNG/JPEG/PGM?)".into(),
         });
     }
+    // A 16-bit image holding 8-bit values (numpy's astype(uint16)) reads as black when
+    // scaled to 8 bits: its values are taken as they are.
+    let mut max = 0.0;
+    core::min_max_loc(&img, None, Some(&mut max), None, None, &core::no_array())?;
+    if max < 2.0 {
+        let deep = imgcodecs::imread(path, IMREAD_SENSOR_GRAY | imgcodecs::IMREAD_ANYDEPTH)?;
+        let mut deep_max = 0.0;
+        core::min_max_loc(
+            &deep,
+            None,
+            Some(&mut deep_max),
+            None,
+            None,
+            &core::no_array(),
+        )?;
+        if deep.depth() == core::CV_16U && (2.0..=255.0).contains(&deep_max) {
+            let mut as_8bit = Mat::default();
+            deep.convert_to(&mut as_8bit, core::CV_8U, 1.0, 0.0)?;
+            return Ok(as_8bit);
+        }
+    }
     Ok(img)
+}
+
+/// Why a grey image holds nothing to detect: every pixel within a grey level of one value
+/// (a blank or black frame). The detectors spend minutes on a large one finding nothing.
+pub fn uniform_image(gray: &Mat) -> Result<Option<String>, CalibError> {
+    let (mut mean, mut sd) = (Mat::default(), Mat::default());
+    core::mean_std_dev(gray, &mut mean, &mut sd, &core::no_array())?;
+    let (mean, sd) = (*mean.at::<f64>(0)?, *sd.at::<f64>(0)?);
+    Ok((sd < 1.0).then(|| {
+        format!(
+            "the image is uniform (every pixel about {mean:.0} of 255): a blank {} frame shows no board",
+            if mean < 8.0 { "or black" } else { "or overexposed" }
+        )
+    }))
 }
 
 /// Finds the inner corners of `board` in a grey image, refined to sub-pixel.
@@ -260,6 +295,13 @@ pub fn detect_file(path: &Path, board: &BoardSpec) -> Result<Detection, CalibErr
     let size = gray.size()?;
     let size = (size.width as u32, size.height as u32);
     let image = path.display().to_string();
+    if let Some(reason) = uniform_image(&gray)? {
+        return Ok(Detection::NotFound {
+            image,
+            size,
+            reason,
+        });
+    }
     if let BoardTarget::Charuco { .. } = board.target {
         return Ok(match crate::charuco::find_charuco_corners(&gray, board)? {
             Ok(found) => Detection::Found(BoardView {

@@ -398,6 +398,20 @@ pub fn calibrate_session(
         images.iter().chain(floor).map(PathBuf::as_path),
     ));
     if views.is_empty() {
+        // Blank frames are named as such, not as a wrong --board.
+        if let (Some(first), true) = (
+            skipped.first(),
+            skipped
+                .iter()
+                .all(|s| s.reason.starts_with("the image is uniform")),
+        ) {
+            return Err(CalibError::Input(format!(
+                "{}: {}; none of the {} calibration image(s) shows anything (check the camera's exposure and how the frames were saved)",
+                first.image,
+                first.reason,
+                images.len()
+            )));
+        }
         return Err(no_board_error(images, board, "calibration"));
     }
     if legacy_layout {
