@@ -379,6 +379,56 @@ fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
     );
 }
 
+/// Two cameras' views given together (two folders) fitted one camera of neither's focal
+/// length with a sub-pixel RMS, exit 0; each folder is calibrated on its own and two
+/// cameras are refused. One camera's views split over two folders pass.
+#[test]
+fn views_of_two_cameras_in_two_folders_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let small = ["--width", "640", "--height", "360", "--floor-views", "0"];
+    let (a, b) = (d.join("a"), d.join("b"));
+    synth(&a, 1, &[&small[..], &["--views", "10"]].concat());
+    synth(
+        &b,
+        9,
+        &[&small[..], &["--views", "6", "--hfov", "80"]].concat(),
+    );
+    let calibrate = |views: Vec<String>| {
+        let out = d.join("camera.json");
+        let mut args = vec!["calibrate".to_string()];
+        args.extend(views);
+        for x in ["--square", "0.05", "--model", "pinhole5", "--out", p(&out)] {
+            args.push(x.into());
+        }
+        odocal(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let both = [images(&a, "view_"), images(&b, "view_")].concat();
+    let res = calibrate(both);
+    let e = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("the views are of two cameras or zooms: the 6 views in")
+            && e.contains("calibrate each folder's views on their own"),
+        "{e}"
+    );
+    // One camera's views in two folders, five in each (each calibrated on its own).
+    let half = d.join("half");
+    std::fs::create_dir_all(&half).unwrap();
+    let mut views = images(&a, "view_");
+    for v in views.iter_mut().skip(5) {
+        let moved = half.join(Path::new(v.as_str()).file_name().unwrap());
+        std::fs::rename(v.as_str(), &moved).unwrap();
+        *v = p(&moved).to_string();
+    }
+    let res = calibrate(views);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();
