@@ -195,6 +195,8 @@ pub fn check_board_scale(
     shared: &[SharedView],
     board: &BoardSpec,
 ) -> Result<(), ArenaError> {
+    // (camera, its first shared view, height above the board, height above the floor)
+    let mut heights = Vec::new();
     for (k, file) in files.iter().enumerate() {
         let Some(floor) = &file.floor else { continue };
         let Some(view) = shared
@@ -208,19 +210,43 @@ pub fn check_board_scale(
         };
         // The camera's distance from the board's plane, in the board's frame.
         let above_m = pose.0.inverse().translation.vector.z.abs();
-        let ratio = above_m / floor.camera_height_m;
-        if (ratio - 1.0).abs() > SCALE_TOLERANCE {
-            return Err(ArenaError::Input(format!(
-                "{}: with squares of {} m the board puts camera {k} {above_m:.2} m above it, where its calibration's floor puts it {:.2} m up; a board on the floor with those corners has squares of {:.3} m: give --square {:.3} (or leave --square out if the shared board is the one the cameras were calibrated with)",
-                view.image,
-                board.square_m,
-                floor.camera_height_m,
-                board.square_m / ratio,
-                board.square_m / ratio
-            )));
-        }
+        heights.push((k, view, above_m, floor.camera_height_m));
     }
-    Ok(())
+    if heights.is_empty() {
+        return Ok(());
+    }
+    // A wrong side scales every camera alike; a camera whose calibration is another
+    // camera's is off alone. Judged against the median camera: a side "fitting" the odd
+    // camera only moved the refusal to the others.
+    let mut ratios: Vec<f64> = heights.iter().map(|h| h.2 / h.3).collect();
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ratios.len() / 2];
+    let apart = |a: f64, b: f64| (a / b - 1.0).abs() > SCALE_TOLERANCE;
+    let odd = heights.iter().find(|h| apart(h.2 / h.3, median));
+    let name_odd = |&(k, view, above_m, height_m): &(usize, &BoardView, f64, f64)| {
+        format!(
+            "{}: the board puts camera {k} {above_m:.2} m above it, where its calibration's floor puts it {height_m:.2} m up, unlike the other cameras: camera {k}'s camera.json is not of this camera (or the camera was refocused or moved after calibration); give the camera.json calibrated for it",
+            view.image
+        )
+    };
+    if !apart(median, 1.0) {
+        return match odd {
+            Some(h) => Err(ArenaError::Input(name_odd(h))),
+            None => Ok(()),
+        };
+    }
+    let Some(&(k, view, above_m, height_m)) = heights.iter().find(|h| !apart(h.2 / h.3, median))
+    else {
+        return Ok(());
+    };
+    let also = odd.map_or(String::new(), |h| format!("; and {}", name_odd(h)));
+    Err(ArenaError::Input(format!(
+        "{}: with squares of {} m the board puts camera {k} {above_m:.2} m above it, where its calibration's floor puts it {height_m:.2} m up (as it does the other cameras, scaled alike); a board on the floor with those corners has squares of {:.3} m: give --square {:.3} (or leave --square out if the shared board is the one the cameras were calibrated with){also}",
+        view.image,
+        board.square_m,
+        board.square_m / median,
+        board.square_m / median
+    )))
 }
 
 #[cfg(test)]
