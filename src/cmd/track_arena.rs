@@ -389,6 +389,7 @@ fn track_arena(
     refuse_cameras_without_fixes(&results, &videos, arena_path)?;
     let fuse = FuseOptions {
         max_offset_s: max_clock_offset_s,
+        max_speed_mps: opts.max_speed_mps,
         ..FuseOptions::default()
     };
     let mut tracking =
@@ -422,6 +423,19 @@ fn track_arena(
     // disagree put a sideways step into it that no mount explains.
     for r in &tracking.robots {
         say_disagreements(r, &tracking.offsets, &videos);
+        if let Some(f) = &r.too_fast {
+            tell!(
+                "warning: tag {}: {} fused rows from {:.2} s to {:.2} s (arena clock) left out: the robot would have moved faster than --max-speed {} m/s to reach them from the rest of its trajectory (up to {:.0} mm in {:.0} ms); another tag {} in one camera's view, or a camera whose fixes are off there (see the warnings above): remove the other tag, or give --max-speed if the robot is that fast",
+                r.tag_id,
+                f.rows,
+                f.from_s,
+                f.to_s,
+                opts.max_speed_mps,
+                f.step_m * 1e3,
+                f.step_s * 1e3,
+                r.tag_id
+            );
+        }
         if r.disagreements.is_empty() {
             for w in mount_warnings(&r.trajectory, &opts.tag_to_robot) {
                 tell!("warning: tag {}: {w}", r.tag_id);
