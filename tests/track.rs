@@ -806,6 +806,54 @@ fn several_tags_place_a_filled_drop_at_its_slot() {
     }
 }
 
+/// A second tag 0 lying where the robot started is warned of under --tags as under --tag-id
+/// (before: said only with --tag-id; --tags 0,3 tracked past it without a word).
+#[test]
+fn a_second_tag_of_an_id_is_named_under_tags() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 24, 1, &["--video", "png"]);
+    let frames = d.join("frames");
+    let camera = odocal_calib::CameraFile::load(&d.join("camera.json")).unwrap();
+    let floor = camera.floor.as_ref().unwrap().floor_to_camera;
+    let start = Trajectory::read_csv(&d.join("truth.csv")).unwrap().rows[0]
+        .pose
+        .position();
+    let centre = camera.camera.floor_to_pixel(&floor, &start, 0.08).unwrap();
+    let (x0, y0, side) = (centre.x as u32 - 25, centre.y as u32 - 25, 50);
+    let first = image::open(frames.join("frame_000000.png")).unwrap();
+    let spare = first.crop_imm(x0, y0, side, side);
+    for k in 12..24 {
+        let path = frames.join(format!("frame_{k:06}.png"));
+        let mut img = image::open(&path).unwrap();
+        image::GenericImage::copy_from(&mut img, &spare, x0, y0).unwrap();
+        img.save(&path).unwrap();
+    }
+    let camera_path = d.join("camera.json");
+    let track = |tag: &[&str], out: &str| {
+        let out = d.join(out);
+        let mut args = vec!["track", p(&frames), "--camera", p(&camera_path)];
+        args.extend(tag);
+        args.extend(["--out", p(&out)]);
+        let res = odocal(&args);
+        succeeded(&res);
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    let one = track(&["--tag-id", "0"], "one.csv");
+    assert!(
+        one.contains("another tag 0 than the one tracked was seen in"),
+        "{one}"
+    );
+    let many = track(&["--tags", "0,3"], "many.csv");
+    assert!(
+        many.contains(&format!(
+            "warning: {}: tag 0: another tag 0 than the one tracked was seen in",
+            frames.display()
+        )),
+        "{many}"
+    );
+}
+
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
 /// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
 /// camera file. The family is named, and the ids listed are the most seen few.

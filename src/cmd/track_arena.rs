@@ -247,7 +247,11 @@ fn track_one_video(
     let results = results?;
     say_timing(&args.video, &results);
     for (id, r) in &results {
-        for w in fix_warnings(r, &camera_file, &floor, opts) {
+        let others = r.other_tag_warning(*id);
+        for w in others
+            .into_iter()
+            .chain(fix_warnings(r, &camera_file, &floor, opts))
+        {
             tell!("warning: {}: tag {id}: {w}", args.video.display());
         }
     }
@@ -381,7 +385,8 @@ fn track_arena(
         say_timing(video, per_tag);
         for (id, r) in per_tag {
             let shape = tag_shape_warnings(r, &cam.calibration, &cam.arena_to_camera, opts);
-            for w in few_fixes_warning(r, *id).into_iter().chain(shape) {
+            let few = few_fixes_warning(r, *id);
+            for w in r.other_tag_warning(*id).into_iter().chain(few).chain(shape) {
                 tell!("warning: {}: tag {id}: {w}", video.display());
             }
         }
