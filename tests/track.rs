@@ -854,6 +854,36 @@ fn a_second_tag_of_an_id_is_named_under_tags() {
     );
 }
 
+/// Under --tags each id's warning that few of its frames gave a fix names that id (before:
+/// "tag 3: only 0 of the 5 frames where tag 0 was found", the default --tag-id's).
+#[test]
+fn few_fixes_under_tags_name_their_own_id() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 14, 1, &["--video", "png", "--tag-id", "3"]);
+    // Twice the tag's size: every frame where tag 3 is found fails the geometry.
+    let res = odocal(&[
+        "track",
+        p(&d.join("frames")),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--tags",
+        "0,3",
+        "--tag-size",
+        "0.16",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("tag 3: only 0 of the ")
+            && err.contains("frames where tag 3 was found gave a fix")
+            && !err.contains("where tag 0 was found"),
+        "{err}"
+    );
+}
+
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
 /// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
 /// camera file. The family is named, and the ids listed are the most seen few.

@@ -247,10 +247,15 @@ fn track_one_video(
     let results = results?;
     say_timing(&args.video, &results);
     for (id, r) in &results {
+        // The warnings name the tag by the options' id, which is --tag-id's, not this one.
+        let opts = TrackOptions {
+            tag_id: *id,
+            ..opts.clone()
+        };
         let others = r.other_tag_warning(*id);
         for w in others
             .into_iter()
-            .chain(fix_warnings(r, &camera_file, &floor, opts))
+            .chain(fix_warnings(r, &camera_file, &floor, &opts))
         {
             tell!("warning: {}: tag {id}: {w}", args.video.display());
         }
