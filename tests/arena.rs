@@ -780,6 +780,58 @@ fn an_arena_file_of_other_cameras_is_refused() {
     );
 }
 
+/// An arena file with a camera taken out by hand still named it in its pairs, and `report`
+/// listed "cameras 1 and 3" for an arena of three: refused where the file is read, naming
+/// the pair.
+#[test]
+fn pairs_naming_a_camera_the_arena_lacks_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&[
+        "synth",
+        "arena",
+        "--out",
+        p(d),
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--frames",
+        "2",
+        "--calib-views",
+        "6",
+    ]);
+    let arena = d.join("arena.json");
+    let cams: Vec<String> = (0..4)
+        .map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string())
+        .collect();
+    let mut a = vec!["arena", "--camera"];
+    a.extend(cams.iter().map(String::as_str));
+    let shared = d.join("shared");
+    a.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    ok(&a);
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&arena).unwrap()).unwrap();
+    assert!(v["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|pair| pair["cameras"][1] == 3));
+    v["cameras"].as_array_mut().unwrap().remove(3);
+    let three = d.join("three.json");
+    std::fs::write(&three, v.to_string()).unwrap();
+    let html = d.join("r.html");
+    let e = fails(&["report", "--arena", p(&three), "--out", p(&html)]);
+    assert!(
+        e.contains("three.json")
+            && e.contains("names cameras")
+            && e.contains("but the arena has 3 camera(s), numbered 0 to 2")
+            && e.contains("build it again with `odocal arena`"),
+        "{e}"
+    );
+    assert!(!html.exists());
+}
+
 /// One camera's video turned 180° (the recorder flipped it) is named with its video and the
 /// way to turn it back, exit code 2 (before: "camera 2 never saw a robot at the same time as a
 /// camera tied to the first …", blaming its clock offset); turned 90° (its width and height
