@@ -884,6 +884,30 @@ fn few_fixes_under_tags_name_their_own_id() {
     );
 }
 
+/// `track --help` said `--camera` had "[default: none]", as if it could be left out; it is
+/// required without --arena, which the help says.
+#[test]
+fn the_camera_option_is_not_said_to_have_a_default() {
+    let res = odocal(&["track", "--help"]);
+    succeeded(&res);
+    let help = String::from_utf8_lossy(&res.stdout);
+    let camera = help
+        .split("--camera <CAMERA>")
+        .nth(1)
+        .and_then(|rest| rest.split("\n      --").next())
+        .expect("--camera is in the help");
+    assert!(
+        !camera.contains("[default") && camera.contains("required, except with --arena"),
+        "{camera}"
+    );
+    // Still required without --arena.
+    let e = fails_with(
+        &odocal(&["track", "v.mp4", "--out", "t.csv"]),
+        "--camera <CAMERA>",
+    );
+    assert!(e.contains("required"), "{e}");
+}
+
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
 /// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
 /// camera file. The family is named, and the ids listed are the most seen few.
