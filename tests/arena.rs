@@ -715,6 +715,123 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
     assert_eq!(rows("half_tag0.csv"), rows("robot_tag0.csv"));
 }
 
+/// The arena file of another rig (cameras 3.0 m up, not 2.6 m) given for an arena's videos:
+/// three of the four cameras keep no fix, and the run is refused naming the arena file, with
+/// each camera's found frames and reasons warned of (before: "camera 0 clock offset unknown:
+/// it saw no robot" for three cameras, exit 0, the trajectories camera 1's alone and 228 mm
+/// RMS off). The arena's own file still tracks. True camera files stand in for calibrations.
+#[test]
+fn an_arena_file_of_other_cameras_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let arena_of = |out: &Path, extra: &[&str]| {
+        let mut a = vec!["synth", "arena", "--out", p(out)];
+        a.extend(["--width", "640", "--height", "360", "--calib-views", "6"]);
+        a.extend(extra);
+        ok(&a);
+        let arena = out.join("arena.json");
+        let cams: Vec<String> = (0..4)
+            .map(|k| p(&out.join(format!("cam{k}/camera_true.json"))).to_string())
+            .collect();
+        let mut a = vec!["arena", "--camera"];
+        a.extend(cams.iter().map(String::as_str));
+        let shared = out.join("shared");
+        a.extend(["--shared", p(&shared), "--out", p(&arena)]);
+        ok(&a);
+        arena
+    };
+    let (here, other) = (d.join("here"), d.join("other"));
+    let arena = arena_of(&here, &["--frames", "20"]);
+    let wrong = arena_of(
+        &other,
+        &["--frames", "2", "--seed", "2", "--camera-height", "3.0"],
+    );
+    let videos: Vec<String> = (0..4)
+        .map(|k| p(&here.join(format!("video_c{k}"))).to_string())
+        .collect();
+    let track = |arena: &Path, out: &str| {
+        let mut a = vec!["track", "--arena", p(arena)];
+        a.extend(videos.iter().map(String::as_str));
+        let out = d.join(out);
+        a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out)]);
+        odocal(&a)
+    };
+    let o = track(&wrong, "wrong.csv");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let error = e.lines().last().unwrap();
+    assert!(
+        error.starts_with("odocal: error: 3 of the 4 cameras found a selected tag but kept no fix")
+            && error.contains(&format!("{} (or the camera.json files", wrong.display()))
+            && error.contains("is likely not of these cameras"),
+        "{e}"
+    );
+    assert!(
+        e.contains(&format!("warning: {}: tag 0: only 0 of the", videos[0])),
+        "{e}"
+    );
+    assert!(!d.join("wrong_tag0.csv").exists() && !d.join("wrong_tag3.csv").exists());
+    let o = track(&arena, "right.csv");
+    succeeded(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !e.contains("kept no fix") && !e.contains("only 0 of the"),
+        "{e}"
+    );
+}
+
+/// An arena file with a camera taken out by hand still named it in its pairs, and `report`
+/// listed "cameras 1 and 3" for an arena of three: refused where the file is read, naming
+/// the pair.
+#[test]
+fn pairs_naming_a_camera_the_arena_lacks_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&[
+        "synth",
+        "arena",
+        "--out",
+        p(d),
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--frames",
+        "2",
+        "--calib-views",
+        "6",
+    ]);
+    let arena = d.join("arena.json");
+    let cams: Vec<String> = (0..4)
+        .map(|k| p(&d.join(format!("cam{k}/camera_true.json"))).to_string())
+        .collect();
+    let mut a = vec!["arena", "--camera"];
+    a.extend(cams.iter().map(String::as_str));
+    let shared = d.join("shared");
+    a.extend(["--shared", p(&shared), "--out", p(&arena)]);
+    ok(&a);
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&arena).unwrap()).unwrap();
+    assert!(v["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|pair| pair["cameras"][1] == 3));
+    v["cameras"].as_array_mut().unwrap().remove(3);
+    let three = d.join("three.json");
+    std::fs::write(&three, v.to_string()).unwrap();
+    let html = d.join("r.html");
+    let e = fails(&["report", "--arena", p(&three), "--out", p(&html)]);
+    assert!(
+        e.contains("three.json")
+            && e.contains("names cameras")
+            && e.contains("but the arena has 3 camera(s), numbered 0 to 2")
+            && e.contains("build it again with `odocal arena`"),
+        "{e}"
+    );
+    assert!(!html.exists());
+}
+
 /// One camera's video turned 180° (the recorder flipped it) is named with its video and the
 /// way to turn it back, exit code 2 (before: "camera 2 never saw a robot at the same time as a
 /// camera tied to the first …", blaming its clock offset); turned 90° (its width and height

@@ -806,6 +806,108 @@ fn several_tags_place_a_filled_drop_at_its_slot() {
     }
 }
 
+/// A second tag 0 lying where the robot started is warned of under --tags as under --tag-id
+/// (before: said only with --tag-id; --tags 0,3 tracked past it without a word).
+#[test]
+fn a_second_tag_of_an_id_is_named_under_tags() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 24, 1, &["--video", "png"]);
+    let frames = d.join("frames");
+    let camera = odocal_calib::CameraFile::load(&d.join("camera.json")).unwrap();
+    let floor = camera.floor.as_ref().unwrap().floor_to_camera;
+    let start = Trajectory::read_csv(&d.join("truth.csv")).unwrap().rows[0]
+        .pose
+        .position();
+    let centre = camera.camera.floor_to_pixel(&floor, &start, 0.08).unwrap();
+    let (x0, y0, side) = (centre.x as u32 - 25, centre.y as u32 - 25, 50);
+    let first = image::open(frames.join("frame_000000.png")).unwrap();
+    let spare = first.crop_imm(x0, y0, side, side);
+    for k in 12..24 {
+        let path = frames.join(format!("frame_{k:06}.png"));
+        let mut img = image::open(&path).unwrap();
+        image::GenericImage::copy_from(&mut img, &spare, x0, y0).unwrap();
+        img.save(&path).unwrap();
+    }
+    let camera_path = d.join("camera.json");
+    let track = |tag: &[&str], out: &str| {
+        let out = d.join(out);
+        let mut args = vec!["track", p(&frames), "--camera", p(&camera_path)];
+        args.extend(tag);
+        args.extend(["--out", p(&out)]);
+        let res = odocal(&args);
+        succeeded(&res);
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    let one = track(&["--tag-id", "0"], "one.csv");
+    assert!(
+        one.contains("another tag 0 than the one tracked was seen in"),
+        "{one}"
+    );
+    let many = track(&["--tags", "0,3"], "many.csv");
+    assert!(
+        many.contains(&format!(
+            "warning: {}: tag 0: another tag 0 than the one tracked was seen in",
+            frames.display()
+        )),
+        "{many}"
+    );
+}
+
+/// Under --tags each id's warning that few of its frames gave a fix names that id (before:
+/// "tag 3: only 0 of the 5 frames where tag 0 was found", the default --tag-id's).
+#[test]
+fn few_fixes_under_tags_name_their_own_id() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 14, 1, &["--video", "png", "--tag-id", "3"]);
+    // Twice the tag's size: every frame where tag 3 is found fails the geometry.
+    let res = odocal(&[
+        "track",
+        p(&d.join("frames")),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--tags",
+        "0,3",
+        "--tag-size",
+        "0.16",
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("tag 3: only 0 of the ")
+            && err.contains("frames where tag 3 was found gave a fix")
+            && !err.contains("where tag 0 was found"),
+        "{err}"
+    );
+}
+
+/// `track --help` said `--camera` had "[default: none]", as if it could be left out; it is
+/// required without --arena, which the help says.
+#[test]
+fn the_camera_option_is_not_said_to_have_a_default() {
+    let res = odocal(&["track", "--help"]);
+    succeeded(&res);
+    let help = String::from_utf8_lossy(&res.stdout);
+    let camera = help
+        .split("--camera <CAMERA>")
+        .nth(1)
+        .and_then(|rest| rest.split("\n      --").next())
+        .expect("--camera is in the help");
+    assert!(
+        !camera.contains("[default") && camera.contains("required, except with --arena"),
+        "{camera}"
+    );
+    // Still required without --arena.
+    let e = fails_with(
+        &odocal(&["track", "v.mp4", "--out", "t.csv"]),
+        "--camera <CAMERA>",
+    );
+    assert!(e.contains("required"), "{e}");
+}
+
 /// A tag36h11 tag tracked as tag16h5: its small codes are read all over the tag and the floor
 /// (30 ids, none with a tag's shape), which was blamed on --tag-size, --marker-height and the
 /// camera file. The family is named, and the ids listed are the most seen few.

@@ -190,6 +190,21 @@ impl ArenaFile {
         if let Some(f) = &self.frame_placement {
             f.check()?;
         }
+        // A camera taken out of the file by hand leaves its pairs behind, which the report
+        // would list as pairs of cameras the arena does not have.
+        let n = self.cameras.len();
+        for (i, pair) in self.pairs.iter().enumerate() {
+            let (a, b) = pair.cameras;
+            if a >= n || b >= n {
+                return Err(format!(
+                    "pairs[{i}] names cameras {a} and {b}, but the arena has {n} camera(s), numbered 0 to {}: a camera was removed or the file edited",
+                    n - 1
+                ));
+            }
+            if a == b {
+                return Err(format!("pairs[{i}] pairs camera {a} with itself"));
+            }
+        }
         let c = &self.consistency;
         if !(c.rms_mm.is_finite() && c.rms_mm >= 0.0 && c.max_mm >= c.rms_mm) {
             return Err(format!(

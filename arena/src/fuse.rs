@@ -187,17 +187,22 @@ pub struct FuseOptions {
     /// Largest RMS distance between two cameras' simultaneous fixes at their best offset for
     /// the pair to count as having seen the robot at once, metres.
     pub max_pair_rms_m: f64,
+    /// Fastest plausible robot speed, m/s: fused rows that would have the robot move faster
+    /// to or from the rest of its trajectory are left out ([`FusedTrack::too_fast`]).
+    pub max_speed_mps: f64,
 }
 
 impl Default for FuseOptions {
     /// Gaps up to 2.5 of a camera's frames bridged, offsets up to ±1 s searched, 10
-    /// simultaneous fixes per pair agreeing within 20 mm RMS.
+    /// simultaneous fixes per pair agreeing within 20 mm RMS, robots at most 2 m/s (the
+    /// tracker's default).
     fn default() -> Self {
         Self {
             max_gap_frames: 2.5,
             max_offset_s: 1.0,
             min_matches: 10,
             max_pair_rms_m: 0.02,
+            max_speed_mps: 2.0,
         }
     }
 }
@@ -755,6 +760,65 @@ pub struct FusedTrack {
     pub agreement: Agreement,
     /// Stretches in which a camera disagreed with the others far beyond σ.
     pub disagreements: Vec<Disagreement>,
+    /// The rows left out for a speed no robot has, if any.
+    pub too_fast: Option<TooFast>,
+}
+
+/// Fused rows left out because reaching them from the rest of the trajectory takes more
+/// than [`FuseOptions::max_speed_mps`]: where one camera alone saw a robot, its fixes are
+/// kept however far they lie from the others' (another tag of the id in its view, or its
+/// fixes off), and a small σ would vouch for the teleport.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TooFast {
+    /// Rows left out.
+    pub rows: usize,
+    /// The first and last of them, arena clock, seconds.
+    pub from_s: f64,
+    pub to_s: f64,
+    /// The largest step between two consecutive fused rows beyond the speed: its length,
+    /// metres, and its time, seconds.
+    pub step_m: f64,
+    pub step_s: f64,
+}
+
+/// Slack on the distance a robot may cover at [`FuseOptions::max_speed_mps`], metres: the
+/// tracker's own jump test allows as much for the fixes' noise.
+const SPEED_SLACK_M: f64 = 0.02;
+
+/// Which of `rows` to keep: the most rows that a robot at `max_speed_mps` could have passed
+/// through one after the other. The rows are cut into runs at every step too fast, and the
+/// runs chained by the longest-path rule (each run joined to the best earlier one it can be
+/// reached from), so a stray run is dropped whether it comes first, last or between.
+fn plausible_rows(rows: &[TrajectoryRow], max_speed_mps: f64) -> Vec<bool> {
+    let reach = |a: &TrajectoryRow, b: &TrajectoryRow| {
+        (b.pose.position() - a.pose.position()).norm()
+            <= max_speed_mps * (b.t_s - a.t_s).abs() + SPEED_SLACK_M
+    };
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for i in 0..rows.len() {
+        match runs.last_mut() {
+            Some(run) if reach(&rows[i - 1], &rows[i]) => run.1 = i,
+            _ => runs.push((i, i)),
+        }
+    }
+    // best[j]: the most rows of a chain ending with run j, and the run before it.
+    let mut best: Vec<(usize, Option<usize>)> = Vec::with_capacity(runs.len());
+    for (j, &(first, last)) in runs.iter().enumerate() {
+        let before = (0..j)
+            .filter(|&i| reach(&rows[runs[i].1], &rows[first]))
+            .max_by_key(|&i| (best[i].0, std::cmp::Reverse(i)));
+        let rows_before = before.map_or(0, |i| best[i].0);
+        best.push((rows_before + last - first + 1, before));
+    }
+    let mut keep = vec![false; rows.len()];
+    let mut at = (0..runs.len()).max_by_key(|&j| (best[j].0, std::cmp::Reverse(j)));
+    while let Some(j) = at {
+        keep[runs[j].0..=runs[j].1]
+            .iter_mut()
+            .for_each(|k| *k = true);
+        at = best[j].1;
+    }
+    keep
 }
 
 /// One camera's part in a fused row: its index and its fix at that instant.
@@ -1138,6 +1202,34 @@ pub fn fuse_robot(
         });
         prev = Some(parts);
     }
+    let keep = plausible_rows(&rows, opts.max_speed_mps);
+    let too_fast = keep.iter().any(|k| !k).then(|| {
+        let gone: Vec<f64> = rows
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| !**k)
+            .map(|(r, _)| r.t_s)
+            .collect();
+        let (step_m, step_s) = rows
+            .windows(2)
+            .map(|w| {
+                let d = (w[1].pose.position() - w[0].pose.position()).norm();
+                (d, w[1].t_s - w[0].t_s)
+            })
+            .filter(|(d, dt)| *d > opts.max_speed_mps * dt + SPEED_SLACK_M)
+            .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+        TooFast {
+            rows: gone.len(),
+            from_s: gone[0],
+            to_s: gone[gone.len() - 1],
+            step_m,
+            step_s,
+        }
+    });
+    let mut kept = keep.iter();
+    rows.retain(|_| kept.next().copied().unwrap_or(true));
+    let mut kept = keep.iter();
+    contributions.retain(|_| kept.next().copied().unwrap_or(true));
     // A file has σ on every row or on none.
     if rows.iter().any(|r| r.sigma.is_none()) {
         rows.iter_mut().for_each(|r| r.sigma = None);
@@ -1150,6 +1242,7 @@ pub fn fuse_robot(
         handoffs,
         agreement: agreement(&grid),
         disagreements: stretches(&flags, on.period_s),
+        too_fast,
     })
 }
 
@@ -1250,6 +1343,50 @@ mod tests {
             .map(|h| h.disagreement_m)
             .fold(0.0, f64::max);
         assert!(worst > 0.02, "{worst}");
+    }
+
+    /// A second tag of the robot's id parked at (5, 5) m in camera 0's view, followed by
+    /// camera 0 for five frames while no other camera saw the robot: those rows are left out
+    /// and counted, and no step of the fused trajectory is faster than the robot can drive
+    /// (before: the rows were kept, an 8 m step in 33 ms).
+    #[test]
+    fn rows_no_robot_could_reach_are_left_out() {
+        let mut tr = tracks(&[0.0; 3], 5);
+        let parked = 120..125;
+        let in_window = |t: f64| parked.contains(&((t * 30.0).round() as usize));
+        for track in &mut tr {
+            track
+                .fixes
+                .retain(|f| !in_window(f.t_s) || track.camera == 0);
+        }
+        for f in tr[0].fixes.iter_mut().filter(|f| in_window(f.t_s)) {
+            f.pose = Pose2::new(5.0, 5.0, 0.0);
+        }
+        assert_eq!(tr[0].fixes.iter().filter(|f| in_window(f.t_s)).count(), 5);
+        let opts = FuseOptions::default();
+        let found = estimate_clock_offsets(&tr, 3, &opts, &[]).unwrap();
+        let fused = fuse_robot(7, &tr, &found, &opts, &AT_30).unwrap();
+        let rows = &fused.trajectory.rows;
+        assert_eq!(rows.len(), fused.contributions.len());
+        assert!(rows.iter().all(|r| !in_window(r.t_s)));
+        for w in rows.windows(2) {
+            let d = (w[1].pose.position() - w[0].pose.position()).norm();
+            assert!(d <= 2.0 * (w[1].t_s - w[0].t_s) + SPEED_SLACK_M, "{w:?}");
+        }
+        let too_fast = fused.too_fast.expect("the parked tag's rows are counted");
+        assert_eq!(too_fast.rows, 5, "{too_fast:?}");
+        assert!(
+            (too_fast.from_s - 4.0).abs() < 1e-9 && (too_fast.to_s - 124.0 / 30.0).abs() < 1e-9,
+            "{too_fast:?}"
+        );
+        assert!(
+            too_fast.step_m > 6.0 && too_fast.step_s < 0.04,
+            "{too_fast:?}"
+        );
+        // Without the parked tag nothing is left out.
+        let clean = tracks(&[0.0; 3], 5);
+        let fused = fuse_robot(7, &clean, &found, &opts, &AT_30).unwrap();
+        assert_eq!(fused.too_fast, None);
     }
 
     /// Cameras at 30, 10 and 60 frames/s (a USB camera dropped to 10 among 30, a 60 among

@@ -35,7 +35,7 @@ pub use file::{
 };
 pub use fuse::{
     estimate_clock_offsets, fix_weight, fuse_robot, Agreement, CameraFix, CameraTrack,
-    ClockOffsets, ClockRate, Disagreement, FuseGrid, FuseOptions, FusedTrack, Handoff,
+    ClockOffsets, ClockRate, Disagreement, FuseGrid, FuseOptions, FusedTrack, Handoff, TooFast,
     DISAGREE_SIGMAS, MAX_RATE_PPM, MIN_RATE_SPAN_S,
 };
 pub use graph::{

@@ -23,12 +23,16 @@ use crate::output::{
 pub struct Args {
     /// Video file (MP4/H.264, MJPG AVI, anything FFmpeg reads) or a folder of PNG/JPEG frames.
     pub video: PathBuf,
-    /// camera.json with the floor plane (from `odocal calibrate`).
+    /// camera.json with the floor plane (from `odocal calibrate`); required, except with
+    /// --arena, whose file carries every camera's.
+    // The placeholder default only fills the field under --arena: shown, it read as if the
+    // option could be left out.
     #[arg(
         long,
         required_unless_present = "arena",
         conflicts_with = "arena",
-        default_value = "none"
+        default_value = "none",
+        hide_default_value = true
     )]
     pub camera: PathBuf,
     #[command(flatten)]

@@ -14,8 +14,8 @@ use odocal_core::Trajectory;
 use odocal_synth::arena::ArenaTruth;
 use odocal_tracker::multi::{track_source_multi, TagSelection};
 use odocal_tracker::{
-    fix_warnings, mount_warnings, open_source, quiet_video_logs, tag_shape_warnings, SourceOptions,
-    TimingReport, TrackOptions, TrackResult,
+    few_fixes_warning, fix_warnings, mount_warnings, open_source, quiet_video_logs,
+    tag_shape_warnings, FoundFrames, SourceOptions, TimingReport, TrackOptions, TrackResult,
 };
 
 use crate::output::{
@@ -247,7 +247,16 @@ fn track_one_video(
     let results = results?;
     say_timing(&args.video, &results);
     for (id, r) in &results {
-        for w in fix_warnings(r, &camera_file, &floor, opts) {
+        // The warnings name the tag by the options' id, which is --tag-id's, not this one.
+        let opts = TrackOptions {
+            tag_id: *id,
+            ..opts.clone()
+        };
+        let others = r.other_tag_warning(*id);
+        for w in others
+            .into_iter()
+            .chain(fix_warnings(r, &camera_file, &floor, &opts))
+        {
             tell!("warning: {}: tag {id}: {w}", args.video.display());
         }
     }
@@ -380,13 +389,17 @@ fn track_arena(
     for ((cam, per_tag), video) in arena.cameras.iter().zip(&results).zip(&videos) {
         say_timing(video, per_tag);
         for (id, r) in per_tag {
-            for w in tag_shape_warnings(r, &cam.calibration, &cam.arena_to_camera, opts) {
+            let shape = tag_shape_warnings(r, &cam.calibration, &cam.arena_to_camera, opts);
+            let few = few_fixes_warning(r, *id);
+            for w in r.other_tag_warning(*id).into_iter().chain(few).chain(shape) {
                 tell!("warning: {}: tag {id}: {w}", video.display());
             }
         }
     }
+    refuse_cameras_without_fixes(&results, &videos, arena_path)?;
     let fuse = FuseOptions {
         max_offset_s: max_clock_offset_s,
+        max_speed_mps: opts.max_speed_mps,
         ..FuseOptions::default()
     };
     let mut tracking =
@@ -420,6 +433,19 @@ fn track_arena(
     // disagree put a sideways step into it that no mount explains.
     for r in &tracking.robots {
         say_disagreements(r, &tracking.offsets, &videos);
+        if let Some(f) = &r.too_fast {
+            tell!(
+                "warning: tag {}: {} fused rows from {:.2} s to {:.2} s (arena clock) left out: the robot would have moved faster than --max-speed {} m/s to reach them from the rest of its trajectory (up to {:.0} mm in {:.0} ms); another tag {} in one camera's view, or a camera whose fixes are off there (see the warnings above): remove the other tag, or give --max-speed if the robot is that fast",
+                r.tag_id,
+                f.rows,
+                f.from_s,
+                f.to_s,
+                opts.max_speed_mps,
+                f.step_m * 1e3,
+                f.step_s * 1e3,
+                r.tag_id
+            );
+        }
         if r.disagreements.is_empty() {
             for w in mount_warnings(&r.trajectory, &opts.tag_to_robot) {
                 tell!("warning: tag {}: {w}", r.tag_id);
@@ -427,7 +453,7 @@ fn track_arena(
         }
     }
     say_frame_rates(&tracking);
-    say_clocks(&tracking, &videos, max_clock_offset_s);
+    say_clocks(&tracking, &results, &videos, max_clock_offset_s);
     if tracking.offsets.pairs.is_empty() {
         say!("no two cameras saw a robot at the same time: nothing ties their positions or clocks together");
     } else {
@@ -485,9 +511,70 @@ fn track_arena(
         .collect())
 }
 
+/// Refuses a run in which most cameras (more than half) found a selected tag and kept no fix
+/// of it while another camera did: the fused trajectories would be the few others' alone, and
+/// geometry failing in most cameras at once says the arena's poses or calibrations are not
+/// these cameras' (an arena.json of another rig put a camera's fixes 228 mm off with exit 0).
+/// Where no camera gave a fix, the fusion's own refusal names the reason.
+fn refuse_cameras_without_fixes(
+    results: &[odocal_arena::CameraResult],
+    videos: &[PathBuf],
+    arena_path: &Path,
+) -> anyhow::Result<()> {
+    let counts: Vec<FoundFrames> = results
+        .iter()
+        .map(|per_tag| {
+            per_tag
+                .values()
+                .map(FoundFrames::of)
+                .fold(FoundFrames::default(), |mut all, c| {
+                    all.found += c.found;
+                    all.fixes += c.fixes;
+                    for (reason, n) in c.left_out {
+                        *all.left_out.entry(reason).or_default() += n;
+                    }
+                    all
+                })
+        })
+        .collect();
+    let failed: Vec<(usize, &FoundFrames)> = counts
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.judged() && c.fixes == 0)
+        .collect();
+    if 2 * failed.len() <= results.len() || counts.iter().all(|c| c.fixes == 0) {
+        return Ok(());
+    }
+    let cameras: Vec<String> = failed
+        .iter()
+        .map(|(k, c)| {
+            format!(
+                "camera {k} ({}) found one in {} frames, left out: {}",
+                videos
+                    .get(*k)
+                    .map_or(String::new(), |v| v.display().to_string()),
+                c.found,
+                c.left_out_text()
+            )
+        })
+        .collect();
+    bail!(
+        "{} of the {} cameras found a selected tag but kept no fix of it ({}), so the trajectories would be the other cameras' alone: {} (or the camera.json files it was built from) is likely not of these cameras, or the videos are not in its camera order; build the arena from these cameras' calibrations (`odocal arena`) and give their videos in its order",
+        failed.len(),
+        results.len(),
+        cameras.join("; "),
+        arena_path.display()
+    );
+}
+
 /// Every camera's clock: its offset and rate, and a note for a camera re-based because its
 /// frames' times lie far from the first camera's.
-fn say_clocks(tracking: &odocal_arena::ArenaTracking, videos: &[PathBuf], max_offset_s: f64) {
+fn say_clocks(
+    tracking: &odocal_arena::ArenaTracking,
+    results: &[odocal_arena::CameraResult],
+    videos: &[PathBuf],
+    max_offset_s: f64,
+) {
     for (k, prior) in tracking.prior_s.iter().enumerate() {
         if *prior != 0.0 {
             tell!(
@@ -501,7 +588,17 @@ fn say_clocks(tracking: &odocal_arena::ArenaTracking, videos: &[PathBuf], max_of
     for k in 0..offsets.offset_s.len() {
         let (o, sd) = (offsets.offset_s[k], offsets.sigma_s[k]);
         if sd.is_nan() {
-            say!("camera {k} clock offset unknown: it saw no robot");
+            // A camera whose every fix was rejected did see a robot: saying it saw none
+            // hid the rejection.
+            let counts: Vec<FoundFrames> = results.get(k).map_or(Vec::new(), |per_tag| {
+                per_tag.values().map(FoundFrames::of).collect()
+            });
+            let found: usize = counts.iter().map(|c| c.found).sum();
+            if found > 0 && counts.iter().all(|c| c.fixes == 0) {
+                say!("camera {k} clock offset unknown: it found a selected tag in {found} frames but kept no fix (the warnings above say why)");
+            } else {
+                say!("camera {k} clock offset unknown: it saw no robot");
+            }
             continue;
         }
         let rate = match offsets.rate[k] {

@@ -30,9 +30,9 @@ pub use marker_height::MarkerHeight;
 pub use odocal_core::{PoseSigma, Trajectory, TrajectoryRow};
 pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
 pub use report::{
-    errors_against, fix_warnings, mount_warnings, mount_warnings_of_runs, quiet_video_logs,
-    tag_shape_warnings, track_report, track_video, AgainstTruth, TrackReport, TrackReportTruth,
-    TruthErrors, TRACK_REPORT_FORMAT,
+    errors_against, few_fixes_warning, fix_warnings, mount_warnings, mount_warnings_of_runs,
+    quiet_video_logs, tag_shape_warnings, track_report, track_video, AgainstTruth, FoundFrames,
+    TrackReport, TrackReportTruth, TruthErrors, TRACK_REPORT_FORMAT,
 };
 pub use rolling_shutter::ShutterEstimate;
 pub use source::{

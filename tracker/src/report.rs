@@ -318,32 +318,65 @@ pub fn track_video(
     Ok((result.trajectory()?, warnings))
 }
 
+/// The frames of a run where the tag was found, how many of them gave a fix, and why the
+/// others did not.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FoundFrames {
+    /// Frames where the tag was found, fixed or not.
+    pub found: usize,
+    /// Of those, the frames that gave a fix.
+    pub fixes: usize,
+    /// Why the others gave none: each reason ([`GapReason::as_str`]) with its frames.
+    pub left_out: BTreeMap<&'static str, usize>,
+}
+
+impl FoundFrames {
+    /// Counts the frames of `result`.
+    pub fn of(result: &TrackResult) -> Self {
+        let mut counts = Self::default();
+        for r in &result.records {
+            match &r.outcome {
+                Outcome::Fix(_) => counts.fixes += 1,
+                Outcome::Gap(GapReason::NotDetected) => continue,
+                Outcome::Gap(g) => *counts.left_out.entry(g.as_str()).or_default() += 1,
+            }
+            counts.found += 1;
+        }
+        counts
+    }
+
+    /// The reasons frames were left out, most frequent first ("58 bad geometry, 2 low
+    /// confidence").
+    pub fn left_out_text(&self) -> String {
+        let mut why: Vec<(&str, usize)> = self.left_out.iter().map(|(r, n)| (*r, *n)).collect();
+        why.sort_by_key(|w| std::cmp::Reverse(w.1));
+        why.iter()
+            .map(|(r, n)| format!("{n} {r}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Whether the tag was found in enough frames ([`FEW_FIXES_MIN_FOUND`]) to judge how many
+    /// of them gave a fix: a tag glimpsed at the image's edge for a frame or two is not.
+    pub fn judged(&self) -> bool {
+        self.found >= FEW_FIXES_MIN_FOUND
+    }
+}
+
 /// A warning when fewer than half the frames where the tag was found gave a fix (at least
 /// [`FEW_FIXES_MIN_FOUND`] found): the robot was in view, and a damaged video (frames decoded
 /// as repeats of the last good one), a wrong size or calibration (geometry) or a blurred tag
 /// (confidence) left most of it out. Each reason is counted.
 pub fn few_fixes_warning(result: &TrackResult, tag_id: u32) -> Option<String> {
-    let mut reasons: BTreeMap<&'static str, usize> = BTreeMap::new();
-    let mut fixes = 0;
-    for r in &result.records {
-        match &r.outcome {
-            Outcome::Fix(_) => fixes += 1,
-            Outcome::Gap(GapReason::NotDetected) => {}
-            Outcome::Gap(g) => *reasons.entry(g.as_str()).or_default() += 1,
-        }
-    }
-    let found = fixes + reasons.values().sum::<usize>();
-    if found < FEW_FIXES_MIN_FOUND || 2 * fixes >= found {
+    let counts = FoundFrames::of(result);
+    if !counts.judged() || 2 * counts.fixes >= counts.found {
         return None;
     }
-    let mut why: Vec<(&str, usize)> = reasons.into_iter().collect();
-    why.sort_by_key(|w| std::cmp::Reverse(w.1));
     Some(format!(
-        "only {fixes} of the {found} frames where tag {tag_id} was found gave a fix (left out: {}): the trajectory misses most of the time the robot was in view; the lines above say why (a damaged video decodes frames as repeats of the last good one; a wrong --tag-size or camera file fails the geometry; a smeared tag fails the confidence)",
-        why.iter()
-            .map(|(r, n)| format!("{n} {r}"))
-            .collect::<Vec<_>>()
-            .join(", ")
+        "only {} of the {} frames where tag {tag_id} was found gave a fix (left out: {}): the trajectory misses most of the time the robot was in view; the lines above say why (a damaged video decodes frames as repeats of the last good one; a wrong --tag-size or camera file fails the geometry; a smeared tag fails the confidence)",
+        counts.fixes,
+        counts.found,
+        counts.left_out_text()
     ))
 }
 
