@@ -384,6 +384,28 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!arena.exists());
+    // Camera 1 given another camera's file (a focal length 1.6 times its own): it alone is
+    // off, and is named; a --square "fitting" it was asked for, then the others' square.
+    let cam1 = d.join("cam1/camera_true.json");
+    let mut other: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cam1).unwrap()).unwrap();
+    let fx = other["camera"]["intrinsics"]["fx"].as_f64().unwrap();
+    let fy = other["camera"]["intrinsics"]["fy"].as_f64().unwrap();
+    other["camera"]["intrinsics"]["fx"] = serde_json::json!(fx * 1.6);
+    other["camera"]["intrinsics"]["fy"] = serde_json::json!(fy * 1.6);
+    let other_path = d.join("other-camera.json");
+    std::fs::write(&other_path, other.to_string()).unwrap();
+    let swapped: Vec<&str> = args
+        .iter()
+        .map(|a| if *a == p(&cam1) { p(&other_path) } else { a })
+        .collect();
+    let e = fails(&swapped);
+    assert!(
+        e.contains("unlike the other cameras: camera 1's camera.json is not of this camera")
+            && !e.contains("give --square"),
+        "{e}"
+    );
+    assert!(!arena.exists());
     // A --board that is not the board's: named from the first image in a second or two (a
     // board too small found part of the board in each camera, read as cameras 75 mm apart
     // after a search of about 20 s per image).
