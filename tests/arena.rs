@@ -726,6 +726,30 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!html.exists());
+    // Beside another arena file (here the same cameras, moved 1 m), a tracking drew its
+    // robots over that arena's cameras, exit 0: the arena file it recorded refuses it.
+    let mut moved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&arena).unwrap()).unwrap();
+    let x = moved["cameras"][1]["arena_to_camera"]["translation"][0]
+        .as_f64()
+        .unwrap();
+    moved["cameras"][1]["arena_to_camera"]["translation"][0] = (x + 1.0).into();
+    let moved_path = d.join("moved-arena.json");
+    std::fs::write(&moved_path, moved.to_string()).unwrap();
+    let e = fails(&[
+        "report",
+        "--arena",
+        p(&moved_path),
+        "--arena-track",
+        p(&summary),
+        "--out",
+        p(&html),
+    ]);
+    assert!(
+        e.contains("tracked with another arena file than") && e.contains("moved-arena.json"),
+        "{e}"
+    );
+    assert!(!html.exists());
     assert!(
         said.contains("frame rates 30.000, 15.000, 30.000, 30.000 frames/s")
             && said.contains(

@@ -97,12 +97,18 @@ pub struct ArenaTrackFile {
     pub frame_rates: Vec<FrameRateEntry>,
     /// The robots.
     pub robots: Vec<RobotEntry>,
+    /// SHA-256 of the arena.json the tracking used ([`odocal_core::sha256_hex`]), so a report
+    /// beside another arena is refused; absent in files written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arena_sha256: Option<String>,
 }
 
 impl ArenaTrackFile {
-    /// The summary of a tracking; `files` names each robot's trajectory file, in robot order.
-    pub fn of(tracking: &ArenaTracking, files: &[String]) -> Self {
+    /// The summary of a tracking; `files` names each robot's trajectory file, in robot order;
+    /// `arena_sha256` is that of the arena.json tracked with.
+    pub fn of(tracking: &ArenaTracking, files: &[String], arena_sha256: String) -> Self {
         Self {
+            arena_sha256: Some(arena_sha256),
             format: ARENA_TRACK_FORMAT.into(),
             // Cameras that saw no robot have no offset to write.
             offsets: (0..tracking.offsets.offset_s.len())

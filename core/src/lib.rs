@@ -6,6 +6,7 @@
 //! Convention, stated once for all of odocal: x forward/right on the floor,
 //! y to the left of x, z up; angles counter-clockwise positive, in radians.
 
+mod digest;
 mod file_error;
 mod file_kind;
 mod fit;
@@ -20,6 +21,7 @@ mod tag_mount;
 mod tagged_json;
 mod trajectory;
 
+pub use digest::sha256_hex;
 pub use file_error::{read_text, FileError};
 pub use file_kind::{file_kind, is_video};
 pub use fit::{fit_helmert, fit_rigid, FitError, Helmert2, RigidFit};

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use odocal_arena::{
     fuse_all, track_cameras, ArenaError, ArenaFile, ArenaTrackFile, ClockRate, FuseOptions,
 };
@@ -502,7 +502,10 @@ fn track_arena(
             .iter()
             .map(|r| out_path(&args.out, r.tag_id, single).display().to_string())
             .collect();
-        write_json(p, &ArenaTrackFile::of(&tracking, &files))?;
+        let arena_bytes = std::fs::read(arena_path)
+            .with_context(|| format!("cannot read {}", arena_path.display()))?;
+        let sha = odocal_core::sha256_hex(&arena_bytes);
+        write_json(p, &ArenaTrackFile::of(&tracking, &files, sha))?;
     }
     Ok(tracking
         .robots

@@ -1,15 +1,9 @@
 //! Loading and checking dataset.json for training.
 
+pub use odocal_core::sha256_hex;
 use odocal_dataset::{Dataset, Sample, N_INPUTS};
-use sha2::{Digest, Sha256};
 
 use crate::error::TrainError;
-
-/// Hex SHA-256 of a file's bytes (what `sha256sum` prints).
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    let digest = Sha256::digest(bytes);
-    digest.iter().map(|b| format!("{b:02x}")).collect()
-}
 
 /// Parses dataset.json bytes with the dataset crate's one reader ([`Dataset::parse`]) and
 /// checks that there is something to train on; returns the dataset and the SHA-256 of the

@@ -26,6 +26,24 @@ impl ArenaInput {
             arena: ArenaFile::load(arena).map_err(bad)?,
             track: track.map(ArenaTrackFile::load).transpose().map_err(bad)?,
         };
+        // A tracking of another arena shows its clock offsets and robots over this one's
+        // cameras: refused by the arena file it recorded.
+        if let (Some(tp), Some(sha)) = (
+            track,
+            input.track.as_ref().and_then(|t| t.arena_sha256.as_ref()),
+        ) {
+            let bytes = std::fs::read(arena).map_err(|e| {
+                ReportError::Mismatch(format!("{}: cannot be read ({e})", arena.display()))
+            })?;
+            if odocal_core::sha256_hex(&bytes) != *sha {
+                return Err(ReportError::Mismatch(format!(
+                    "{}: tracked with another arena file than {} (its arena_sha256 {}…): give the --arena the tracking used, or the --arena-track of a tracking with this arena",
+                    tp.display(),
+                    arena.display(),
+                    &sha[..sha.len().min(12)]
+                )));
+            }
+        }
         // A tracking of another arena would list clock offsets of cameras this one lacks
         // beside its footprints.
         if let (Some(t), Some(tp)) = (&input.track, track) {
