@@ -824,6 +824,19 @@ fn an_arena_file_of_other_cameras_is_refused() {
         !e.contains("kept no fix") && !e.contains("only 0 of the"),
         "{e}"
     );
+    // The other rig's truth beside this arena read as clock offsets 90-106 ms off, exit 0:
+    // refused before tracking, naming the cameras' heights.
+    let mut a = vec!["track", "--arena", p(&arena)];
+    a.extend(videos.iter().map(String::as_str));
+    let out = d.join("t.csv");
+    a.extend(["--tags", "0,3", "--tag-size", "0.16", "--out", p(&out)]);
+    a.extend(["--arena-truth", p(&other)]);
+    let e = fails(&a);
+    assert!(
+        e.contains("its camera 0 is 3.0") && e.contains("where the arena file puts it 2.6"),
+        "{e}"
+    );
+    assert!(!out.exists());
 }
 
 /// An arena file with a camera taken out by hand still named it in its pairs, and `report`

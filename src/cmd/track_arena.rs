@@ -365,6 +365,10 @@ fn track_arena(
         .collect();
     odocal_arena::check_frame_folders(&videos)?;
     let arena = ArenaFile::load(arena_path)?;
+    // Judged before the tracking, which takes minutes.
+    if let Some(dir) = &m.arena_truth {
+        check_truth_of_arena(dir, &arena)?;
+    }
     // Files from before the calibrations' covariance was carried through the shared boards
     // give σ that leave out what the calibrations share.
     if arena
@@ -748,6 +752,54 @@ fn say_frame_rates(tracking: &odocal_arena::ArenaTracking) {
 const SHARE_OF_A_ROW: f64 = 0.1;
 
 /// Each robot's error against the synthetic truth, and the offsets against the true ones.
+/// How far (metres) a camera's height, or two cameras' distance, may differ between the
+/// arena file and a truth of it: the arena places cameras to millimetres.
+const TRUTH_PLACEMENT_TOLERANCE_M: f64 = 0.1;
+
+/// Refuses an `--arena-truth` of another arena: its cameras at other heights or distances
+/// than the arena file's (compared without frames: heights above the floor, distances
+/// between cameras). Another arena's truth read as clock offsets 90-106 ms off, a tracker
+/// error, exit 0.
+fn check_truth_of_arena(dir: &Path, arena: &ArenaFile) -> anyhow::Result<()> {
+    let truth = ArenaTruth::read(&dir.join("truth.json"))?;
+    let centres = |poses: Vec<nalgebra::Isometry3<f64>>| -> Vec<nalgebra::Vector3<f64>> {
+        poses
+            .iter()
+            .map(|p| p.inverse().translation.vector)
+            .collect()
+    };
+    let placed = centres(arena.cameras.iter().map(|c| c.arena_to_camera.0).collect());
+    let true_ = centres(truth.cameras.iter().map(|c| c.arena_to_camera.0).collect());
+    if placed.len() != true_.len() {
+        bail!(
+            "--arena-truth {}: the truth of an arena of {} cameras, where the arena file has {}: give the truth of this arena",
+            dir.display(),
+            true_.len(),
+            placed.len()
+        );
+    }
+    let n = placed.len();
+    for k in 0..n {
+        let (a, t) = (placed[k].z, true_[k].z);
+        if (a - t).abs() > TRUTH_PLACEMENT_TOLERANCE_M {
+            bail!(
+                "--arena-truth {}: its camera {k} is {t:.2} m above the floor, where the arena file puts it {a:.2} m up: give the truth of this arena",
+                dir.display()
+            );
+        }
+        for j in k + 1..n {
+            let (a, t) = ((placed[k] - placed[j]).norm(), (true_[k] - true_[j]).norm());
+            if (a - t).abs() > TRUTH_PLACEMENT_TOLERANCE_M {
+                bail!(
+                    "--arena-truth {}: its cameras {k} and {j} are {t:.2} m apart, where the arena file puts them {a:.2} m apart: give the truth of this arena",
+                    dir.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 fn print_against_truth(
     dir: &Path,
     tracking: &odocal_arena::ArenaTracking,
