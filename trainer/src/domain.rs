@@ -79,14 +79,14 @@ impl TrainingDomain {
         let d = raw_end_m[0].hypot(raw_end_m[1]);
         if !(d >= p0 - pm && d <= p1 + pm) {
             why.push(format!(
-                "it ends {d:.3} m from its start (trained on {p0:.3}-{p1:.3} m)"
+                "it ends {d:.3} m from its start (trained on {p0:.3} to {p1:.3} m)"
             ));
         }
         if let (Some([a, b]), Some(t)) = (self.duration_s, duration_s(inputs)) {
             let m = INPUT_MARGIN * (b - a).max(0.1 * b);
             if !(t >= a - m && t <= b + m) {
                 why.push(format!(
-                    "it takes {t:.2} s from its start to its end (t_e − t_b; trained on {a:.2}-{b:.2} s): a speed the training did not drive"
+                    "it takes {t:.2} s from its start to its end (t_e − t_b; trained on {a:.2} to {b:.2} s): a speed the training did not drive"
                 ));
             }
         }
@@ -117,7 +117,7 @@ impl TrainingDomain {
                     _ => String::new(),
                 };
                 why.push(format!(
-                    "input {i} = {v:.4}{what} (trained on {a:.4}-{b:.4})"
+                    "input {i} = {v:.4}{what} (trained on {a:.4} to {b:.4})"
                 ));
                 break;
             }
