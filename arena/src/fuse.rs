@@ -459,7 +459,7 @@ pub fn estimate_clock_offsets(
         .collect();
     if !missing.is_empty() {
         return Err(ArenaError::Refused(format!(
-            "{} {} never saw a robot at the same time as a camera tied to {} (simultaneous fixes over {} frames of the faster camera needed, clock offsets within ±{} s searched): {} unknown; drive a robot through its overlap with another camera, give the videos in the order of the arena's cameras (a video given in another camera's place is mapped through that camera's calibration, so no robot lines up), and if the cameras were started further apart, widen the search (--max-clock-offset-s)",
+            "{} {} never saw a robot at the same time as a camera tied to {} (simultaneous fixes over {} frames of the faster camera needed, clock offsets within ±{} s searched): {} unknown; drive a robot through its overlap with another camera, give the videos in the order of the arena's cameras (a video given in another camera's place is mapped through that camera's calibration, so no robot lines up), check that the arena file places it where it hangs (a camera moved since `odocal arena`, or an arena.json edited, puts its fixes away from the others': run `odocal arena` again), and if the cameras were started further apart, widen the search (--max-clock-offset-s)",
             if missing.len() == 1 { "camera" } else { "cameras" },
             missing.join(", "),
             if reference == 0 {
