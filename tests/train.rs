@@ -688,7 +688,15 @@ fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
     let path_model = dir.path().join("path.json");
     std::fs::write(&path_model, v.to_string()).expect("write");
     let html = dir.path().join("r.html");
-    let e = fails(&["report", "--out", p(&html), "--model", p(&path_model)]);
+    let e = fails(&[
+        "report",
+        "--out",
+        p(&html),
+        "--dataset",
+        p(&ds),
+        "--model",
+        p(&path_model),
+    ]);
     assert!(
         e.contains("(a path model, odocal.path-model/1, from a window dataset, is judged with `odocal evaluate`)"),
         "{e}"
