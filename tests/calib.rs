@@ -186,39 +186,20 @@ fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
 fn check_calib_judges_the_floor_calibrate_fixed() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    synth(
-        d,
-        5,
-        &[
-            "--width",
-            "640",
-            "--height",
-            "360",
-            "--views",
-            "12",
-            "--floor-views",
-            "3",
-        ],
-    );
-    let mut args: Vec<String> = images(d, "view_");
-    let floors =
-        ["floor_01.png", "floor_00.png", "floor_02.png"].map(|f| p(&d.join(f)).to_string());
+    views_640(d, 5, "12", "3", &[]);
+    let floors = ["floor_01.png", "floor_00.png", "floor_02.png"].map(|f| d.join(f));
     let camera = d.join("camera.json");
-    args.push("--floor".into());
-    args.extend(floors);
-    for a in [
+    let mut extra = vec!["--floor"];
+    extra.extend(floors.iter().map(|f| p(f)));
+    extra.extend([
         "--square",
         "0.05",
         "--model",
         "pinhole5",
         "--out",
         p(&camera),
-    ] {
-        args.push(a.into());
-    }
-    let mut cmd = vec!["calibrate"];
-    cmd.extend(args.iter().map(String::as_str));
-    ok(&cmd);
+    ]);
+    succeeded(&calibrate_views(&images(d, "view_"), &extra));
     let truth = d.join("truth.json");
     let check = |camera: &Path| {
         odocal(&[
@@ -289,12 +270,12 @@ fn auto_keeps_a_model_one_fold_of_which_opencv_fails() {
         ],
     );
     let camera = d.join("camera.json");
-    let mut args = vec!["calibrate".to_string()];
-    args.extend(images(d, "view_"));
-    for a in ["--square", "0.08", "--out", p(&camera)] {
-        args.push(a.into());
-    }
-    let out = ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let res = calibrate_views(
+        &images(d, "view_"),
+        &["--square", "0.08", "--out", p(&camera)],
+    );
+    succeeded(&res);
+    let out = String::from_utf8_lossy(&res.stdout).into_owned();
     let chosen = out
         .lines()
         .find(|l| l.ends_with("<- chosen"))
@@ -320,20 +301,7 @@ fn auto_keeps_a_model_one_fold_of_which_opencv_fails() {
 fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    synth(
-        d,
-        5,
-        &[
-            "--width",
-            "640",
-            "--height",
-            "360",
-            "--views",
-            "12",
-            "--floor-views",
-            "0",
-        ],
-    );
+    views_640(d, 5, "12", "0", &[]);
     let deep = d.join("deep");
     std::fs::create_dir_all(&deep).unwrap();
     let mut views = Vec::new();
@@ -348,12 +316,10 @@ fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
         views.push(p(&out).to_string());
     }
     let calibrate = |views: &[String], out: &Path| {
-        let mut args = vec!["calibrate".to_string()];
-        args.extend(views.iter().cloned());
-        for a in ["--square", "0.05", "--model", "pinhole5", "--out", p(out)] {
-            args.push(a.into());
-        }
-        odocal(&args.iter().map(String::as_str).collect::<Vec<_>>())
+        calibrate_views(
+            views,
+            &["--square", "0.05", "--model", "pinhole5", "--out", p(out)],
+        )
     };
     let res = calibrate(&views, &d.join("deep.json"));
     assert!(
@@ -386,22 +352,15 @@ fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
 fn views_of_two_cameras_in_two_folders_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let small = ["--width", "640", "--height", "360", "--floor-views", "0"];
     let (a, b) = (d.join("a"), d.join("b"));
-    synth(&a, 1, &[&small[..], &["--views", "10"]].concat());
-    synth(
-        &b,
-        9,
-        &[&small[..], &["--views", "6", "--hfov", "80"]].concat(),
-    );
+    views_640(&a, 1, "10", "0", &[]);
+    views_640(&b, 9, "6", "0", &["--hfov", "80"]);
+    let out = d.join("camera.json");
     let calibrate = |views: Vec<String>| {
-        let out = d.join("camera.json");
-        let mut args = vec!["calibrate".to_string()];
-        args.extend(views);
-        for x in ["--square", "0.05", "--model", "pinhole5", "--out", p(&out)] {
-            args.push(x.into());
-        }
-        odocal(&args.iter().map(String::as_str).collect::<Vec<_>>())
+        calibrate_views(
+            &views,
+            &["--square", "0.05", "--model", "pinhole5", "--out", p(&out)],
+        )
     };
     let both = [images(&a, "view_"), images(&b, "view_")].concat();
     let res = calibrate(both);
@@ -454,26 +413,37 @@ fn same_seed_same_bytes() {
     }
 }
 
+/// `synth calib` at 640x360 with `views` hand-held and `floor_views` floor views, and `extra`.
+fn views_640(dir: &Path, seed: u64, views: &str, floor_views: &str, extra: &[&str]) -> CalibTruth {
+    let mut args = vec![
+        "--width",
+        "640",
+        "--height",
+        "360",
+        "--views",
+        views,
+        "--floor-views",
+        floor_views,
+    ];
+    args.extend_from_slice(extra);
+    synth(dir, seed, &args)
+}
+
+/// `odocal calibrate` of `views` with `extra` options (after them).
+fn calibrate_views(views: &[String], extra: &[&str]) -> Output {
+    let mut args: Vec<&str> = vec!["calibrate"];
+    args.extend(views.iter().map(String::as_str));
+    args.extend_from_slice(extra);
+    odocal(&args)
+}
+
 fn small_set(dir: &Path) -> CalibTruth {
     six_views_640(dir, "0")
 }
 
 /// Six hand-held views and `floor_views` floor views, 640x360, seed 5.
 fn six_views_640(dir: &Path, floor_views: &str) -> CalibTruth {
-    synth(
-        dir,
-        5,
-        &[
-            "--width",
-            "640",
-            "--height",
-            "360",
-            "--views",
-            "6",
-            "--floor-views",
-            floor_views,
-        ],
-    )
+    views_640(dir, 5, "6", floor_views, &[])
 }
 
 /// Exit code 2 with an error mentioning `needle` (the skipped views are listed before it).
