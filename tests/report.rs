@@ -617,17 +617,18 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         )
     );
     assert!(!html.exists(), "nothing written on refusal");
+    // `report --out r.html --dataset DS` with `extra`: refused, nothing written; the error.
+    let refused_with = |extra: &[&str]| {
+        let mut args = vec!["report", "--out", p(&html), "--dataset", p(&ds)];
+        args.extend_from_slice(extra);
+        let e = fails(&args);
+        assert!(!html.exists(), "nothing written on refusal");
+        e
+    };
     // Another experiment's tracks share the run ids: drawn beside this dataset's odometry,
     // they used to give its heading figure another run's oscillation.
-    let e = fails(&[
-        "report",
-        "--out",
-        p(&html),
-        "--dataset",
-        p(&ds),
-        "--experiment",
-        p(&d.join("exp-other")),
-    ]);
+    let other_exp = d.join("exp-other");
+    let e = refused_with(&["--experiment", p(&other_exp)]);
     assert!(
         e.contains("its tracks end ")
             && e.contains(
@@ -635,7 +636,6 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
             ),
         "{e}"
     );
-    assert!(!html.exists(), "nothing written on refusal");
     // One run in common is named as one run (it read "median over 1 runs").
     let one = d.join("exp-one");
     std::fs::create_dir_all(one.join("runs")).expect("mkdir");
@@ -644,34 +644,16 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         one.join("runs/run001.trajectory.csv"),
     )
     .expect("copy");
-    let e = fails(&[
-        "report",
-        "--out",
-        p(&html),
-        "--dataset",
-        p(&ds),
-        "--experiment",
-        p(&one),
-    ]);
+    let e = refused_with(&["--experiment", p(&one)]);
     assert!(
         e.contains("its track ends ")
             && e.contains("mm from the end point the dataset has for the same run id, where"),
         "{e}"
     );
-    assert!(!html.exists(), "nothing written on refusal");
     // Given beside the right experiment, another experiment's tracks were left unused and
     // unchecked, exit 0; each folder is checked now.
-    let e = fails(&[
-        "report",
-        "--out",
-        p(&html),
-        "--dataset",
-        p(&ds),
-        "--experiment",
-        p(&d.join("exp")),
-        "--trajectories",
-        p(&d.join("exp-other/runs")),
-    ]);
+    let (exp, other_runs) = (d.join("exp"), d.join("exp-other/runs"));
+    let e = refused_with(&["--experiment", p(&exp), "--trajectories", p(&other_runs)]);
     assert!(
         e.contains(&format!(
             "--trajectories {}: its tracks end ",
@@ -679,7 +661,6 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
         )),
         "{e}"
     );
-    assert!(!html.exists(), "nothing written on refusal");
     ok(&[
         "report",
         "--out",
