@@ -1072,6 +1072,44 @@ fn every_lens_model_is_recovered_and_chosen() {
 /// Twelve views of a 150° fisheye that leave the image's corners empty: the three lens
 /// models predict the held-out views alike (0.05 px), so `--model auto` keeps OpenCV's
 /// default, whose covariance vouched for the floor out to 1.86 m where it was 4.2 mm off.
+/// `synth calib --lens` renders each lens at the field of view it is made for unless told
+/// otherwise: a fisheye used to be rendered at the 70° of the five-coefficient lens.
+#[test]
+fn each_lens_is_rendered_at_its_own_field_of_view() {
+    for (lens, hfov_deg) in [("pinhole5", 70.0), ("rational", 110.0), ("fisheye", 150.0)] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().to_str().unwrap();
+        let args = ["synth", "calib", "--out", d, "--lens", lens, "--views", "3"];
+        let res = odocal(
+            &[
+                &args[..],
+                &["--floor-views", "0", "--width", "320", "--height", "240"],
+            ]
+            .concat(),
+        );
+        succeeded(&res);
+        let said = String::from_utf8_lossy(&res.stdout);
+        assert!(
+            said.contains(&format!("{lens} lens, {hfov_deg:.0}° across")),
+            "{said}"
+        );
+        // The true camera's focal length says the same: the image's half width over the
+        // tangent (pinhole5, rational) or the angle (fisheye) of half the field, to within
+        // what the lens's distortion bends.
+        let truth: CalibTruth =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("truth.json")).unwrap())
+                .unwrap();
+        let half = (hfov_deg / 2.0f64).to_radians();
+        let undistorted_fx = if lens == "fisheye" {
+            160.0 / half
+        } else {
+            160.0 / half.tan()
+        };
+        let ratio = truth.camera.intrinsics.fx / undistorted_fx;
+        assert!((0.5..2.0).contains(&ratio), "{lens}: fx ratio {ratio}");
+    }
+}
+
 /// The models part ways where the views leave the image empty; the floor is now vouched for
 /// only where they agree, and that is said.
 #[test]
@@ -1080,7 +1118,17 @@ fn lens_models_the_views_cannot_tell_apart_bound_the_vouched_floor() {
     let truth = synth(
         dir.path(),
         1,
-        &["--lens", "fisheye", "--views", "12", "--floor-views", "2"],
+        // A 70° fisheye: the three models fit its views alike.
+        &[
+            "--lens",
+            "fisheye",
+            "--hfov",
+            "70",
+            "--views",
+            "12",
+            "--floor-views",
+            "2",
+        ],
     );
     let out = dir.path().join("camera.json");
     let res = calibrate(dir.path(), &out, "9x6", "0.08");

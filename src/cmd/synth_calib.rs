@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use clap::Args as ClapArgs;
 use odocal_calib::{CameraFile, LensModel};
 use odocal_synth::board::{
-    calibration_errors, floor_error_over_sigma, lens_preset, visible_share, vouched_floor_error,
-    CalibScene, CalibTruth, FLOOR_RINGS_DEG,
+    calibration_errors, floor_error_over_sigma, lens_preset, typical_hfov_deg, visible_share,
+    vouched_floor_error, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
 };
 use odocal_synth::calib_set::{self, check_scene};
 
@@ -34,9 +34,10 @@ pub struct Args {
     /// Image height, pixels.
     #[arg(long, default_value_t = 720)]
     height: u32,
-    /// Horizontal field of view, degrees (edge to edge through the image centre).
-    #[arg(long, default_value_t = 70.0)]
-    hfov: f64,
+    /// Horizontal field of view, degrees (edge to edge through the image centre) [default:
+    /// the lens's own: 70 (pinhole5), 110 (rational), 150 (fisheye)].
+    #[arg(long)]
+    hfov: Option<f64>,
     /// The true lens: pinhole5 (a 70° lens, OpenCV's five coefficients), rational (a strong
     /// barrel lens, ~110°) or fisheye (Kannala–Brandt, ~150°).
     #[arg(long, default_value = "pinhole5")]
@@ -79,6 +80,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.lens
         )
     })?;
+    let hfov = a.hfov.unwrap_or(typical_hfov_deg(lens));
     let charuco = a.target.target == TargetArg::Charuco;
     let square = a.square.unwrap_or(match (charuco, lens) {
         (true, LensModel::Pinhole5) => 0.04,
@@ -99,7 +101,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         distortion: lens_preset(lens),
         width: a.width,
         height: a.height,
-        hfov_deg: a.hfov,
+        hfov_deg: hfov,
         board,
         views: a.views,
         floor_views: a.floor_views,
@@ -116,7 +118,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             scene.floor_views,
             a.width,
             a.height,
-            a.hfov,
+            hfov,
             scene.camera_height_m
         );
     }
@@ -159,7 +161,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     say!(
         "true camera: {} lens, {:.0}° across, fx {:.2} px, fy {:.2} px, cx {:.2} px, cy {:.2} px (truth.json, camera_true.json)",
-        lens, a.hfov, k.fx, k.fy, k.cx, k.cy
+        lens, hfov, k.fx, k.fy, k.cx, k.cy
     );
     Ok(())
 }
