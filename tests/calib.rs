@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{fails, odocal, ok, p, succeeded};
+use common::{fails, fails_with, odocal, ok, p, succeeded};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use odocal_calib::{BoardTarget, BoardToCamera, CameraFile};
@@ -1108,6 +1108,76 @@ fn each_lens_is_rendered_at_its_own_field_of_view() {
         let ratio = truth.camera.intrinsics.fx / undistorted_fx;
         assert!((0.5..2.0).contains(&ratio), "{lens}: fx ratio {ratio}");
     }
+}
+
+/// `synth calib --target charuco` at 640x360 used to write floor views whose markers are 5 px
+/// across, which `calibrate` cannot place corners between, and say nothing; it now says so and
+/// names a square that is large enough, under which `calibrate` fixes the floor.
+#[test]
+fn charuco_floor_markers_too_small_are_named_by_synth() {
+    let small = |square: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().to_str().unwrap();
+        let res = odocal(&[
+            "synth",
+            "calib",
+            "--out",
+            d,
+            "--target",
+            "charuco",
+            "--width",
+            "640",
+            "--height",
+            "360",
+            "--views",
+            "4",
+            "--floor-views",
+            "1",
+            "--square",
+            square,
+        ]);
+        succeeded(&res);
+        (dir, String::from_utf8_lossy(&res.stderr).into_owned())
+    };
+    let charuco = |dir: &Path, square: &str, marker: &str| {
+        let mut args = vec!["calibrate".to_string()];
+        args.extend(images(dir, "view_"));
+        args.push("--floor".into());
+        args.extend(images(dir, "floor_"));
+        let out = dir.join("camera.json");
+        args.extend(
+            [
+                "--target",
+                "charuco",
+                "--board",
+                "11x8",
+                "--square",
+                square,
+                "--marker",
+                marker,
+                "--dictionary",
+                "4X4_50",
+                "--out",
+                p(&out),
+            ]
+            .map(String::from),
+        );
+        odocal(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let (dir, warned) = small("0.04");
+    assert!(
+        warned.contains("warning: the floor views' markers are")
+            && warned.contains("give --square 0.08 or more"),
+        "{warned}"
+    );
+    fails_with(&charuco(dir.path(), "0.04", "0.03"), "too few pixels");
+    let (dir, warned) = small("0.08");
+    assert!(!warned.contains("warning"), "{warned}");
+    succeeded(&charuco(dir.path(), "0.08", "0.06"));
+    assert!(CameraFile::load(&dir.path().join("camera.json"))
+        .unwrap()
+        .floor
+        .is_some());
 }
 
 /// The models part ways where the views leave the image empty; the floor is now vouched for

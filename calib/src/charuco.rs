@@ -530,7 +530,7 @@ fn refine_half_window(markers: &[Vec<(f64, f64)>], square_per_marker: f64) -> Op
 
 /// Markers smaller than this (side, pixels) are read, but the corners between them are not
 /// placed reliably: the synthetic ChArUco views place them from 13 px markers on.
-const MIN_MARKER_SIDE_PX: f64 = 12.0;
+pub const MIN_MARKER_SIDE_PX: f64 = 12.0;
 
 /// Square outlines that OpenCV found but could not read as markers, fewest that name markers
 /// too small to read (rather than a few stray quadrilaterals in a view of no board).

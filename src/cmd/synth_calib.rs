@@ -3,10 +3,11 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args as ClapArgs;
+use odocal_calib::charuco::MIN_MARKER_SIDE_PX;
 use odocal_calib::{CameraFile, LensModel};
 use odocal_synth::board::{
-    calibration_errors, floor_error_over_sigma, lens_preset, typical_hfov_deg, visible_share,
-    vouched_floor_error, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
+    calibration_errors, floor_error_over_sigma, lens_preset, median_marker_side_px,
+    typical_hfov_deg, visible_share, vouched_floor_error, CalibScene, CalibTruth, FLOOR_RINGS_DEG,
 };
 use odocal_synth::calib_set::{self, check_scene};
 
@@ -120,6 +121,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.height,
             hfov,
             scene.camera_height_m
+        );
+    }
+    let floor_poses: Vec<_> = truth
+        .floor_views
+        .iter()
+        .map(|v| v.board_to_camera)
+        .collect();
+    let marker_px = median_marker_side_px(&truth.camera, &floor_poses, &scene.board);
+    if let Some(side) = marker_px.filter(|side| *side < MIN_MARKER_SIDE_PX) {
+        // Larger squares make larger markers; round the advice up to the next centimetre.
+        let enough_m = (scene.board.square_m * MIN_MARKER_SIDE_PX / side * 100.0).ceil() / 100.0;
+        tell!(
+            "warning: the floor views' markers are {side:.0} px across (median), fewer than the {MIN_MARKER_SIDE_PX:.0} px `calibrate` needs to place the corners between them, so it will not fix the floor from them; give --square {enough_m} or more (the markers scale with it) or a higher resolution"
         );
     }
     let k = truth.camera.intrinsics;
