@@ -1159,6 +1159,15 @@ fn a_board_size_one_corner_short_is_named() {
             "pass --board 9x6",
         ],
     );
+    // Far too small a --board: the grid followed from the part found used to stop short
+    // (4x3 and 5x3 named "6x6") or run a square past the board (3x3 named "at least 10x6");
+    // the sizes around it are now tried with the detector and the board's own is named.
+    for small in ["3x3", "4x3", "5x3"] {
+        let mut args = vec!["calibrate", "--board", small, "--square", "0.05"];
+        args.extend(["--out", p(&out)]);
+        args.extend(all.iter().map(|v| p(v)));
+        refused(dir, &args, &["shows a 9x6 board", "pass --board 9x6"]);
+    }
 }
 
 /// `synth calib --blur` is checked like `--noise`: a negative or NaN blur rendered sharp

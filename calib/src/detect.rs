@@ -349,6 +349,18 @@ pub fn larger_board_around(
     board_around(&read_gray(path).ok()?, board, corners)
 }
 
+/// The board the image at `path` shows, from the size `seen` around a part of it (see
+/// [`larger_board_around`]), checked by the detector as [`quick_board_size_check`]'s is.
+pub fn board_size_confirmed(path: &Path, seen: (u32, u32), board: &BoardSpec) -> BoardSizeSeen {
+    match read_gray(path) {
+        Ok(gray) => confirmed_size(&gray, seen, board),
+        Err(_) => BoardSizeSeen {
+            size: seen,
+            confirmed: false,
+        },
+    }
+}
+
 /// [`larger_board_around`] in an image already read.
 fn board_around(gray: &Mat, board: &BoardSpec, corners: &[Point2<f64>]) -> Option<(u32, u32)> {
     let (cols, rows) = (board.cols as usize, board.rows as usize);
@@ -665,16 +677,49 @@ pub fn quick_board_size_check(path: &Path, board: &BoardSpec) -> Option<BoardSiz
     }
     let gray = read_gray(path).ok()?;
     let size = board_size_seen(&gray, board)?;
-    // Followed square by square, a grid may stop short of a worn or shadowed edge: the size
-    // is only named as the board's when the detector finds a board of that size.
-    let confirmed = find_corners_quick(&gray, size.0, size.1).is_some_and(|corners| {
-        let (c, r) = (size.0 as usize, size.1 as usize);
-        let (_, c2, r2) = regular_part(&corners, c, r);
-        let spec = BoardSpec::checkerboard(size.0, size.1, board.square_m);
-        (c2, r2) == (c, r) && board_around(&gray, &spec, &corners).is_none()
-    });
-    Some(BoardSizeSeen { size, confirmed })
+    Some(confirmed_size(&gray, size, board))
 }
+
+/// The board size `seen` (followed square by square from a part of the board) checked by the
+/// detector: followed that way, a grid may stop short of a worn or shadowed edge, or run a
+/// square past the last one when OpenCV took every other corner, so the sizes around it are
+/// tried too (nearest first, a tenth of a second each at 1280x720); a size is named as the
+/// board's only when the detector finds a whole, regular board of it with no more squares
+/// around it.
+fn confirmed_size(gray: &Mat, seen: (u32, u32), board: &BoardSpec) -> BoardSizeSeen {
+    let whole = |(c, r): (u32, u32)| {
+        find_corners_quick(gray, c, r).is_some_and(|corners| {
+            let (_, c2, r2) = regular_part(&corners, c as usize, r as usize);
+            let spec = BoardSpec::checkerboard(c, r, board.square_m);
+            (c2, r2) == (c as usize, r as usize) && board_around(gray, &spec, &corners).is_none()
+        })
+    };
+    let (c, r) = (seen.0 as i64, seen.1 as i64);
+    let mut around: Vec<(i64, i64)> = (-1..=CONFIRM_MORE_SQUARES)
+        .flat_map(|dc| (-1..=CONFIRM_MORE_SQUARES).map(move |dr| (dc, dr)))
+        .collect();
+    around.sort_by_key(|&(dc, dr)| (dc.abs() + dr.abs(), dc.abs().max(dr.abs())));
+    around
+        .into_iter()
+        .map(|(dc, dr)| (c + dc, r + dr))
+        .filter(|&(a, b)| a >= 2 && b >= 2)
+        .map(|(a, b)| (a as u32, b as u32))
+        .filter(|&size| size != (board.cols, board.rows))
+        .find(|&size| whole(size))
+        .map_or(
+            BoardSizeSeen {
+                size: seen,
+                confirmed: false,
+            },
+            |size| BoardSizeSeen {
+                size: oriented_like(size, board),
+                confirmed: true,
+            },
+        )
+}
+
+/// Squares past a grid followed from part of the board that its true size is looked for.
+const CONFIRM_MORE_SQUARES: i64 = 3;
 
 /// `size` with its sides in the order `board` gives its own (OpenCV finds a board either way
 /// round).

@@ -799,13 +799,25 @@ fn check_board_size(views: &[BoardView], board: &BoardSpec) -> Result<(), CalibE
         .collect();
     let mut sizes: Vec<(u32, u32)> = larger.iter().map(|(_, s)| *s).collect();
     sizes.sort_by_key(|&(c, r)| std::cmp::Reverse(c * r));
-    let (c, r) = sizes[0];
     let example = larger
         .iter()
-        .find(|(_, s)| *s == (c, r))
+        .find(|(_, s)| *s == sizes[0])
         .map_or("", |(v, _)| v.image.as_str());
+    let seen = crate::detect::board_size_confirmed(Path::new(example), sizes[0], board);
+    let (c, r) = seen.size;
+    let (shows, pass) = if seen.confirmed {
+        (
+            format!("a {c}x{r} board"),
+            format!("pass --board {c}x{r} (inner corners)"),
+        )
+    } else {
+        (
+            format!("a board of at least {c}x{r} inner corners"),
+            "count its INNER corners (one fewer than the squares along each side) and pass them as --board".to_string(),
+        )
+    };
     Err(CalibError::Input(format!(
-        "{example} shows a {c}x{r} board, but --board {}x{} finds only part of it ({} of {} views show more corners around or between the corners found; a part found at another place in each view moves the floor origin and fits no one camera); pass --board {c}x{r} (inner corners)",
+        "{example} shows {shows}, but --board {}x{} finds only part of it ({} of {} views show more corners around or between the corners found; a part found at another place in each view moves the floor origin and fits no one camera); {pass}",
         board.cols,
         board.rows,
         larger.len(),
