@@ -139,17 +139,17 @@ fn calibration_matches_truth_for_several_seeds() {
 }
 
 /// `synth check-calib` passes a calibration within the bounds, and refuses one outside them
-/// (a truth whose focal length is 10 % longer) or a truth of other images.
+/// (a focal length 9 % short of the truth's) or a truth of other images.
 fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
-    let args = |truth: &Path| {
+    let args = |camera: &Path, truth: &Path| {
         ["synth", "check-calib", "--camera", p(camera), "--truth"]
             .into_iter()
             .map(str::to_string)
             .chain([p(truth).to_string()])
             .collect::<Vec<String>>()
     };
-    let check = |truth: &Path, passes: bool| {
-        let a = args(truth);
+    let check_file = |camera: &Path, truth: &Path, passes: bool| {
+        let a = args(camera, truth);
         let a: Vec<&str> = a.iter().map(String::as_str).collect();
         if passes {
             ok(&a)
@@ -157,20 +157,23 @@ fn check_calib_gives_a_verdict(dir: &Path, camera: &Path) {
             fails(&a)
         }
     };
+    let check = |truth: &Path, passes: bool| check_file(camera, truth, passes);
     let truth = dir.join("truth.json");
     let text = check(&truth, true);
     assert!(text.contains("check passed"), "{text}");
-    let mut t: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
-    let fx = t["camera"]["intrinsics"]["fx"].as_f64().unwrap();
-    t["camera"]["intrinsics"]["fx"] = (fx * 1.1).into();
-    let longer = dir.join("truth-longer.json");
-    std::fs::write(&longer, t.to_string()).unwrap();
-    let e = check(&longer, false);
+    let mut c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(camera).unwrap()).unwrap();
+    let fx = c["camera"]["intrinsics"]["fx"].as_f64().unwrap();
+    c["camera"]["intrinsics"]["fx"] = (fx / 1.1).into();
+    let shorter = dir.join("camera-shorter.json");
+    std::fs::write(&shorter, c.to_string()).unwrap();
+    let e = check_file(&shorter, &truth, false);
     assert!(
         e.contains("fails the check") && e.contains("fx error 9."),
         "{e}"
     );
+    let mut t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
     t["camera"]["width"] = 640.into();
     let other = dir.join("truth-other.json");
     std::fs::write(&other, t.to_string()).unwrap();
@@ -242,6 +245,38 @@ fn check_calib_judges_the_floor_calibrate_fixed() {
         text.contains("mm > 2 mm within 30° of the nadir (the camera file vouches for no floor: it has no floor_uncertainty)"),
         "{text}"
     );
+    // The truth of another set of the same camera and image size (another seed) was read as
+    // this calibration's error; its board corners are not where calibrate found them, and it
+    // is refused, by check-calib and by the report alike.
+    let other = tempfile::tempdir().unwrap();
+    views_640(other.path(), 6, "12", "3", &[]);
+    let other_truth = other.path().join("truth.json");
+    let res = odocal(
+        &["synth", "check-calib", "--camera", p(&camera)]
+            .into_iter()
+            .chain(["--truth", p(&other_truth)])
+            .collect::<Vec<_>>(),
+    );
+    fails_with(&res, "it is the truth of other images");
+    let html = d.join("report.html");
+    let res = odocal(&[
+        "report",
+        "--out",
+        p(&html),
+        "--camera",
+        p(&camera),
+        "--calib-truth",
+        p(&other_truth),
+    ]);
+    fails_with(&res, "it is the truth of other images");
+    assert!(!html.exists());
+    let res = odocal(
+        &["report", "--out", p(&html), "--camera", p(&camera)]
+            .into_iter()
+            .chain(["--calib-truth", p(&truth)])
+            .collect::<Vec<_>>(),
+    );
+    succeeded(&res);
 }
 
 /// A 150° fisheye whose views OpenCV's fisheye calibration fails on for one fold of the

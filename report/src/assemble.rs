@@ -67,7 +67,7 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
             let truth = inp
                 .calib_truth
                 .as_deref()
-                .map(|t| CalibTruth::read_for(t, &cam.camera))
+                .map(|t| CalibTruth::read_for_file(t, &cam))
                 .transpose()?;
             used.push(format!("camera {}", p.display()));
             if let Some(t) = &inp.calib_truth {

@@ -194,13 +194,9 @@ pub struct CheckArgs {
 /// Runs `odocal synth check-calib`: the calibration's error against the truth.
 pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
     let cam = CameraFile::load(&a.camera)?;
-    let truth = CalibTruth::read_for(&a.truth, &cam.camera)?;
     // The floor frame is the one the first floor view given to `calibrate` fixes: another
     // view given first put a right calibration 1.7 m off.
-    let truth = match cam.floor.as_ref().and_then(|f| f.views.first()) {
-        Some(first) => truth.with_floor_fixed_by(first),
-        None => truth,
-    };
+    let truth = CalibTruth::read_for_file(&a.truth, &cam)?;
     let e = calibration_errors(
         &cam.camera,
         cam.floor.as_ref().map(|f| &f.floor_to_camera),
