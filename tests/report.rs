@@ -461,6 +461,45 @@ fn missing_inputs_are_left_out_with_a_note() {
     }
     let text = std::fs::read_to_string(&html).expect("html");
     assert!(text.contains("Sections left out"));
+    // The laser's truth timed in milliseconds has the time of one pose: the laser section's
+    // figures were over it alone, said only in the HTML's small print, exit 0.
+    let truth = std::fs::read_to_string(lrf.join("truth.csv")).expect("truth");
+    let mut ms = String::new();
+    for (i, line) in truth.lines().enumerate() {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        if i > 0 {
+            let t: f64 = cells[0].parse().expect("t");
+            cells[0] = format!("{}", (t * 1000.0).round());
+        }
+        ms += &(cells.join(",") + "\n");
+    }
+    let truth_ms = d.join("truth_ms.csv");
+    std::fs::write(&truth_ms, ms).expect("write");
+    let bad = d.join("ms.html");
+    let e = fails(&[
+        "report",
+        "--lrf-poses",
+        p(&poses),
+        "--lrf-truth",
+        p(&truth_ms),
+        "--out",
+        p(&bad),
+    ]);
+    assert!(
+        e.contains("it has the time of only 1 of the")
+            && e.contains("timed on one clock, in seconds?"),
+        "{e}"
+    );
+    assert!(!bad.exists());
+    ok(&[
+        "report",
+        "--lrf-poses",
+        p(&poses),
+        "--lrf-truth",
+        p(&lrf.join("truth.csv")),
+        "--out",
+        p(&bad),
+    ]);
     // A file where a folder is read used to leave its section out as if nothing was given.
     for opt in ["--experiment", "--trajectories"] {
         let e = fails(&[

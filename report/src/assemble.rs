@@ -588,6 +588,20 @@ fn check_laser_truth(
             path.display()
         )));
     }
+    // A figure over a few poses reads like one over them all: a truth that times fewer than
+    // half of the confident poses is on another clock or of another part of the recording.
+    let n_ok = log
+        .rows
+        .iter()
+        .filter(|r| r.status == odocal_lrf::Status::Ok)
+        .count();
+    if e.n_ok * 2 < n_ok {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-truth {}: it has the time of only {} of the {n_ok} confident laser poses, so the figures against it would be over those alone: are the scans and the truth timed on one clock, in seconds? (For a truth of part of the recording, localise that part's scans.)",
+            path.display(),
+            e.n_ok
+        )));
+    }
     // Most poses far off is another recording's truth; positions that agree with headings
     // that do not are the truth's headings in another unit or convention, refused as `lrf
     // localize --truth` refuses them (a few headings off are said in the laser section).
