@@ -689,6 +689,19 @@ fn a_model_or_sweep_of_another_dataset_is_refused() {
             && e.contains("mm from the end point the dataset has for the same run id, where"),
         "{e}"
     );
+    // A folder holding no track of the dataset's runs was left out as if not given.
+    let empty = d.join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    for option in ["--experiment", "--trajectories"] {
+        let e = refused_with(&[option, p(&empty)]);
+        assert!(
+            e.contains(&format!(
+                "{option} {}: it holds the track of none of the",
+                p(&empty)
+            )) && e.contains("runs drawn from the dataset"),
+            "{e}"
+        );
+    }
     // Given beside the right experiment, another experiment's tracks were left unused and
     // unchecked, exit 0; each folder is checked now.
     let (exp, other_runs) = (d.join("exp"), d.join("exp-other/runs"));

@@ -199,6 +199,29 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 check_tracks_fit(&own, &format!("{option} {}", folder.display()))?;
                 if own.iter().any(|v| v.real_end_off_m().is_some()) {
                     used.push(format!("{what} {}", folder.display()));
+                } else {
+                    // Given and matching nothing used to read as not given at all.
+                    let looked_for = if experiment.is_some() {
+                        "truth/RUN.true.csv or runs/RUN.trajectory.csv"
+                    } else {
+                        "RUN.trajectory.csv or RUN.csv"
+                    };
+                    return Err(ReportError::Mismatch(format!(
+                        "{option} {}: it holds the track of none of the {} runs drawn from the dataset (looked for {looked_for}, RUN a run's recording id, e.g. {}): give the {what} folder the dataset was built from",
+                        folder.display(),
+                        own.len(),
+                        picked
+                            .first()
+                            .map(|&i| {
+                                let s = &ds.samples[i];
+                                if s.recording_id.is_empty() {
+                                    s.run_id.as_str()
+                                } else {
+                                    s.recording_id.as_str()
+                                }
+                            })
+                            .unwrap_or("?")
+                    )));
                 }
             }
             let views = views_with(inp.experiment.as_deref(), inp.trajectories.as_deref())?;
