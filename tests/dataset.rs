@@ -142,17 +142,18 @@ fn recordings_of_many_runs_are_not_refused_as_mispaired() {
 }
 
 /// A robot's 16-bit encoder counters wrap (unsigned from 65 535 to 0, signed from 32 767 to
-/// −32 768) within its logs: the dataset is the same as from the unwrapped logs, and says
+/// −32 768), or 8-bit ones every 256 ticks, within its logs: the dataset is the same as from the unwrapped logs, and says
 /// where it unwrapped them. A count that flickers by a tick at rest (a wheel on a tick's
 /// edge) before the first run made its log "start during the run's motion", and one a row
 /// later moved t_b 0.4 s early (every input shifted): both are rest, and said.
 #[test]
 fn wrapped_encoder_counters_and_twitches_give_the_same_dataset() {
     let dir = tempfile::tempdir().unwrap();
-    synth(dir.path(), 6, 5, 3);
+    synth(dir.path(), 9, 5, 3);
     let plain = build(dir.path());
     assert!(plain.notes.is_empty(), "{:?}", plain.notes);
-    let wrap = |name: &str, start: i64, signed: bool| {
+    let wrap = |name: &str, start: i64, signed: bool, bits: u32| {
+        let turn = 1i64 << bits;
         let path = dir.path().join("runs").join(name);
         let text = std::fs::read_to_string(&path).unwrap();
         let mut out = String::new();
@@ -162,9 +163,9 @@ fn wrapped_encoder_counters_and_twitches_give_the_same_dataset() {
             } else {
                 let f: Vec<&str> = line.split(',').collect();
                 let w = |v: &str| {
-                    let c = (v.parse::<i64>().unwrap() + start).rem_euclid(65536);
-                    if signed && c > 32767 {
-                        c - 65536
+                    let c = (v.parse::<i64>().unwrap() + start).rem_euclid(turn);
+                    if signed && c >= turn / 2 {
+                        c - turn
                     } else {
                         c
                     }
@@ -175,14 +176,22 @@ fn wrapped_encoder_counters_and_twitches_give_the_same_dataset() {
         }
         std::fs::write(&path, out).unwrap();
     };
-    wrap("rec001.odometry.csv", 65_400, false);
-    wrap("rec002.odometry.csv", 32_700, true);
+    wrap("rec001.odometry.csv", 65_400, false, 16);
+    wrap("rec002.odometry.csv", 32_700, true, 16);
+    // A small motor board's 8-bit counter, which wraps every few runs: its wraps were read as
+    // counter resets and the log refused.
+    wrap("rec003.odometry.csv", 0, false, 8);
     let unwrapped = build(dir.path());
     assert_eq!(unwrapped.samples, plain.samples);
-    assert_eq!(unwrapped.notes.len(), 2, "{:?}", unwrapped.notes);
-    for (n, rec) in unwrapped.notes.iter().zip(["rec001", "rec002"]) {
+    assert_eq!(unwrapped.notes.len(), 3, "{:?}", unwrapped.notes);
+    for (n, (rec, bits)) in
+        unwrapped
+            .notes
+            .iter()
+            .zip([("rec001", "a 16"), ("rec002", "a 16"), ("rec003", "an 8")])
+    {
         assert!(
-            n.contains(&format!("{rec}.odometry.csv: encoder counts unwrapped: left_ticks wraps as a 16-bit counter at line")),
+            n.contains(&format!("{rec}.odometry.csv: encoder counts unwrapped: left_ticks wraps as {bits}-bit counter at line")),
             "{n}"
         );
     }

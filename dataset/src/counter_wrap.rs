@@ -1,11 +1,12 @@
 //! Encoder counters that wrap. A robot's wheel counts are usually a 16- or 32-bit register
-//! (signed or not) that the firmware logs as it is: after 65 536 ticks a 16-bit counter goes
+//! (8-bit on small motor boards), signed or not, that the firmware logs as it is: after 65 536 ticks a 16-bit counter goes
 //! from 65 535 to 0 (or from 32 767 to −32 768), and read as a count that is a step of one
 //! wheel's worth of hundreds of metres in 0.2 s. Such a step is unwrapped where the rest of
 //! the step is what the wheel does between the other rows; any other jump is left for the
 //! dataset's checks to refuse.
 
-/// Widths of the counters unwrapped, bits, widest first: a 32-bit step is also a whole
+/// Widths of the counters unwrapped, bits, widest first (8-bit counters are unwrapped on
+/// their own, see [`unwrap_8_bit`]): a 32-bit step is also a whole
 /// number of 16-bit turns, and is named by its own width.
 const COUNTER_BITS: [u32; 2] = [32, 16];
 
@@ -13,6 +14,9 @@ const COUNTER_BITS: [u32; 2] = [32, 16];
 /// taking out the counter's turns may be this much beyond twice the log's largest ordinary
 /// step (a robot speeding up as its counter wraps).
 const STEP_SLACK_TICKS: f64 = 100.0;
+
+/// [`STEP_SLACK_TICKS`] for an 8-bit counter, whose wheel moves a few ticks a row.
+const EIGHT_BIT_SLACK_TICKS: f64 = 8.0;
 
 /// The range of counts a 16- or 32-bit counter gives, signed or not.
 const COUNTER_RANGE: std::ops::RangeInclusive<f64> = -2_147_483_648.0..=4_294_967_295.0;
@@ -71,8 +75,13 @@ impl std::fmt::Display for CounterWrap {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} wraps as a {}-bit counter at line {} ({} → {})",
-            self.column, self.bits, self.line, self.from, self.to
+            "{} wraps as {} {}-bit counter at line {} ({} → {})",
+            self.column,
+            if self.bits == 8 { "an" } else { "a" },
+            self.bits,
+            self.line,
+            self.from,
+            self.to
         )
     }
 }
@@ -80,6 +89,9 @@ impl std::fmt::Display for CounterWrap {
 /// Unwraps the counts `v` of the wheel `column` in place (`lines[i]` is row i's line in the
 /// file) and returns the wraps taken out.
 pub fn unwrap_counts(v: &mut [f64], column: &'static str, lines: &[u64]) -> Vec<CounterWrap> {
+    if let Some(wraps) = unwrap_8_bit(v, column, lines) {
+        return wraps;
+    }
     let logged = v.to_vec();
     let steps: Vec<f64> = logged.windows(2).map(|w| w[1] - w[0]).collect();
     let half_turn_16 = 2f64.powi(15);
@@ -121,6 +133,54 @@ pub fn unwrap_counts(v: &mut [f64], column: &'static str, lines: &[u64]) -> Vec<
     wraps
 }
 
+/// An 8-bit counter (a small motor board's register): every count lies in 0 to 255 (or −128
+/// to 127) and some step spans half the counter or more. It turns every 256 ticks, so it is
+/// unwrapped only when every step, taken as the nearest to zero of its whole turns, is within
+/// a quarter turn: a wheel that moves more between rows could have turned any number of
+/// times, and is left for the dataset's checks. None when the column is not such a counter.
+fn unwrap_8_bit(v: &mut [f64], column: &'static str, lines: &[u64]) -> Option<Vec<CounterWrap>> {
+    const TURN: f64 = 256.0;
+    let unsigned = v.iter().all(|c| (0.0..TURN).contains(c));
+    let signed = v.iter().all(|c| (-TURN / 2.0..TURN / 2.0).contains(c));
+    let steps: Vec<f64> = v.windows(2).map(|w| w[1] - w[0]).collect();
+    if !(unsigned || signed) || !steps.iter().any(|s| s.abs() >= TURN / 2.0) {
+        return None;
+    }
+    let moved: Vec<f64> = steps
+        .iter()
+        .map(|s| s - (s / TURN).round() * TURN)
+        .collect();
+    // As for the wider counters, a wrap's step must be what the wheel does between the other
+    // rows: 210 → 0 among steps of 10 is a reset, not a wrap of +46.
+    let ordinary = steps
+        .iter()
+        .filter(|s| s.abs() < TURN / 2.0)
+        .fold(0.0, |a: f64, s| a.max(s.abs()));
+    let at_wraps = steps.iter().zip(&moved).filter(|(s, m)| s != m);
+    if moved.iter().any(|m| m.abs() > TURN / 4.0)
+        || at_wraps
+            .into_iter()
+            .any(|(_, m)| m.abs() > 2.0 * ordinary + EIGHT_BIT_SLACK_TICKS)
+    {
+        return None;
+    }
+    let logged = v.to_vec();
+    let mut wraps = Vec::new();
+    for (i, (step, m)) in steps.iter().zip(&moved).enumerate() {
+        if step != m {
+            wraps.push(CounterWrap {
+                column,
+                line: lines.get(i + 1).copied().unwrap_or(0),
+                bits: 8,
+                from: logged[i],
+                to: logged[i + 1],
+            });
+        }
+        v[i + 1] = v[i] + m;
+    }
+    Some(wraps)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -157,6 +217,27 @@ mod tests {
         let w = unwrap_counts(&mut up, "right_ticks", &lines);
         assert_eq!(w.len(), 2);
         assert!(up.windows(2).all(|s| s[1] - s[0] == 9000.0), "{up:?}");
+    }
+
+    #[test]
+    fn eight_bit_wraps_are_taken_out_and_resets_left() {
+        // A small motor board's counter: 253 + 9 − 256 = 6 was called a counter reset.
+        let (v, w) = unwrap(&[235.0, 244.0, 253.0, 6.0, 15.0, 24.0]);
+        assert_eq!(v, vec![235.0, 244.0, 253.0, 262.0, 271.0, 280.0]);
+        assert_eq!(
+            w.iter().map(ToString::to_string).collect::<Vec<_>>(),
+            vec!["left_ticks wraps as an 8-bit counter at line 5 (253 → 6)"]
+        );
+        // Signed, backwards through −128.
+        let (v, w) = unwrap(&[-120.0, -126.0, 124.0, 118.0]);
+        assert_eq!(v, vec![-120.0, -126.0, -132.0, -138.0]);
+        assert_eq!((w.len(), w[0].bits), (1, 8));
+        // A reset to zero among steps of 10, and a wheel too fast for 8 bits: left.
+        for v in [[200.0, 210.0, 0.0, 10.0], [0.0, 100.0, 200.0, 44.0]] {
+            let (u, w) = unwrap(&v);
+            assert!(w.is_empty(), "{w:?}");
+            assert_eq!(u, v.to_vec());
+        }
     }
 
     #[test]
