@@ -715,6 +715,34 @@ fn outputs_inside_input_folders_or_naming_folders_are_refused_before_any_work() 
     );
 }
 
+/// The OpenCV and ROS YAML files `calibrate` writes for other tools, given back as
+/// `--camera`, were refused as "invalid JSON at line 1 column 1"; they are named as what
+/// they are, with the file to give instead.
+#[test]
+fn a_yaml_camera_file_is_named_as_such() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let opencv = d.path().join("camera-opencv.yaml");
+    std::fs::write(
+        &opencv,
+        "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n",
+    )
+    .expect("write");
+    let ros = d.path().join("camera-ros.yaml");
+    std::fs::write(
+        &ros,
+        "image_width: 640\nimage_height: 480\ncamera_name: c\n",
+    )
+    .expect("write");
+    for yaml in [&opencv, &ros] {
+        let out = d.path().join("t.csv");
+        let o = odocal(&["track", "video.mp4", "--camera", p(yaml), "--out", p(&out)]);
+        fails_with(
+            &o,
+            "is a YAML camera file (OpenCV's or ROS's), which odocal writes for other tools but does not read: pass the camera.json",
+        );
+    }
+}
+
 #[test]
 fn an_interrupted_run_leaves_no_temporaries_and_a_killed_ones_are_removed_later() {
     let d = tempfile::tempdir().expect("tempdir");

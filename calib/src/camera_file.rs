@@ -200,8 +200,22 @@ impl CameraFile {
     /// Reads and validates a camera.json ([`CameraFile::check`]); errors name the file.
     pub fn load(path: &Path) -> Result<Self, CalibError> {
         let name = path.display().to_string();
-        let file: CameraFile = odocal_core::read_tagged_json(
-            path,
+        let text = odocal_core::read_text(path)?;
+        // The OpenCV and ROS exports are for other tools; given back to odocal they read as
+        // "invalid JSON at line 1, column 1", which names no way out.
+        let yaml = text.trim_start().starts_with("%YAML")
+            || text
+                .lines()
+                .any(|l| l.starts_with("camera_matrix:") || l.starts_with("image_width:"));
+        if yaml {
+            return Err(CalibError::BadFile {
+                path: name,
+                reason: "is a YAML camera file (OpenCV's or ROS's), which odocal writes for other tools but does not read: pass the camera.json `odocal calibrate` wrote with it".into(),
+            });
+        }
+        let file: CameraFile = odocal_core::parse_tagged_json(
+            &text,
+            &name,
             CAMERA_FORMAT,
             "expected a camera.json written by `odocal calibrate`",
         )?;

@@ -81,6 +81,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         say!("{line}");
     }
     commit()?;
-    say!("wrote {}", a.out.display());
+    let mut wrote = vec![a.out.display().to_string()];
+    if let Some(p) = &a.yaml_opencv {
+        wrote.push(format!("{} (OpenCV)", p.display()));
+    }
+    if let Some(p) = &a.yaml_ros {
+        wrote.push(format!("{} (ROS camera_info)", p.display()));
+    }
+    say!("wrote {}", wrote.join(", "));
     Ok(())
 }
