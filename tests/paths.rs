@@ -1337,3 +1337,67 @@ fn write_robot(dir: &std::path::Path, diameter_m: f64, base_m: f64) -> std::path
     std::fs::write(&robot, json.to_string()).unwrap();
     robot
 }
+
+/// Every trajectory of `exp` written in millimetres, as motion capture often exports them.
+fn trajectories_in_millimetres(exp: &std::path::Path) {
+    for entry in std::fs::read_dir(exp.join("runs")).unwrap() {
+        let path = entry.unwrap().path();
+        if !path.to_string_lossy().ends_with(".trajectory.csv") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mm: Vec<String> = text
+            .lines()
+            .enumerate()
+            .map(|(i, line)| {
+                let mut f: Vec<String> = line.split(',').map(String::from).collect();
+                if i > 0 {
+                    for c in &mut f[1..3] {
+                        *c = (c.parse::<f64>().unwrap() * 1000.0).to_string();
+                    }
+                }
+                f.join(",")
+            })
+            .collect();
+        std::fs::write(&path, mm.join("\n") + "\n").unwrap();
+    }
+}
+
+/// Tours and squares tracked in millimetres were blamed on the counts ("are the ticks
+/// cumulative counts…", a ratio of 1246) and on the robot moving at rest ("frames spread
+/// 738.3 mm"): the unit is named, as for straight runs.
+#[test]
+fn tours_and_squares_in_millimetres_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (model, tours) = small_path_model(dir.path());
+    trajectories_in_millimetres(&tours);
+    let e = fails(&[
+        "dataset",
+        "--manifest",
+        p(&tours.join("manifest.json")),
+        "--layout",
+        "windows",
+        "--out",
+        p(&dir.path().join("w.json")),
+    ]);
+    assert!(
+        e.contains("1000 times: is the trajectory in millimetres? it must be in metres"),
+        "{e}"
+    );
+    let sq = dir.path().join("sq");
+    synth_paths("umbmark", "2", p(&sq), &["--seed", "5"]);
+    trajectories_in_millimetres(&sq);
+    let e = fails(&[
+        "evaluate",
+        p(&sq.join("manifest.json")),
+        "--model",
+        &model,
+        "--umbmark-m",
+        "4",
+    ]);
+    assert!(
+        e.contains("run001: the camera's path spans")
+            && e.contains("1000 times: is the trajectory in millimetres? it must be in metres"),
+        "{e}"
+    );
+}

@@ -48,6 +48,26 @@ pub fn unit_mismatch(
     camera: &Trajectory,
     robot: &RobotParams,
 ) -> Option<String> {
+    extent_mismatch(log, camera, robot).map(|(_, why)| why)
+}
+
+/// [`unit_mismatch`] only where the ratio is a unit's (millimetres or centimetres against
+/// metres): checked before anything else reads the trajectory, whose other checks would
+/// blame the motion (a robot "moving" 738 mm at rest that is 0.7 mm of tracking noise).
+pub fn length_unit_mismatch(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &RobotParams,
+) -> Option<String> {
+    extent_mismatch(log, camera, robot).and_then(|(unit, why)| unit.then_some(why))
+}
+
+/// [`unit_mismatch`]'s message, and whether the ratio is a unit's.
+fn extent_mismatch(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &RobotParams,
+) -> Option<(bool, String)> {
     let revs = log.wheel_revs(robot);
     let geom = WheelGeometry::nominal(robot);
     let odometry = dead_reckon(&revs.rev, &geom);
@@ -80,20 +100,51 @@ pub fn unit_mismatch(
         return None;
     };
     let ratio = cam_m / odo_m;
-    let near = |r: f64, k: f64| (r / k - 1.0).abs() < 0.2;
-    let hint = if near(ratio, 1000.0) {
-        "1000 times: is the trajectory in millimetres? it must be in metres"
-    } else if near(ratio, 100.0) {
-        "100 times: is the trajectory in centimetres? it must be in metres"
-    } else if near(ratio, 0.001) {
-        "1/1000: is the robot's wheel_diameter_m in millimetres? it must be in metres"
-    } else if log.kind == LogKind::Ticks && ratio > 1.0 {
-        "are the ticks cumulative counts (not counts per period), the log paired with the right trajectory, and the robot's parameters its own?"
-    } else {
-        "is the log paired with the right trajectory, and are the robot's parameters its own?"
+    // The true ratio lies between the camera's extent over the whole log's and over its
+    // longest run's; a unit's factor is named when it lies within half again of that range
+    // (the nearest when two do): dead-reckoned tours and squares drift by tens of percent
+    // (their paths in millimetres read 1246 and 1427 times).
+    let (lo, hi) = (cam_m / whole_m, cam_m / run_m.max(f64::MIN_POSITIVE));
+    let off = |k: f64| {
+        let (l, h, k) = (lo.ln(), hi.max(lo).ln(), k.ln());
+        ((l - k).max(k - h).max(0.0), (k - ratio.ln()).abs())
     };
-    Some(format!(
-        "the camera's path spans {cam_m:.3} m and the odometry's{of} {odo_m:.3} m, a ratio of {ratio:.3}; {hint}"
+    let unit_k = [1000.0, 100.0, 0.001]
+        .into_iter()
+        .filter(|&k| off(k).0 < 1.5f64.ln())
+        .min_by(|&a, &b| {
+            off(a)
+                .partial_cmp(&off(b))
+                .unwrap_or(std::cmp::Ordering::Equal)
+        });
+    let (unit, hint) = if unit_k == Some(1000.0) {
+        (
+            true,
+            "1000 times: is the trajectory in millimetres? it must be in metres",
+        )
+    } else if unit_k == Some(100.0) {
+        (
+            true,
+            "100 times: is the trajectory in centimetres? it must be in metres",
+        )
+    } else if unit_k == Some(0.001) {
+        (
+            true,
+            "1/1000: is the robot's wheel_diameter_m in millimetres? it must be in metres",
+        )
+    } else if log.kind == LogKind::Ticks && ratio > 1.0 {
+        (false, "are the ticks cumulative counts (not counts per period), the log paired with the right trajectory, and the robot's parameters its own?")
+    } else {
+        (
+            false,
+            "is the log paired with the right trajectory, and are the robot's parameters its own?",
+        )
+    };
+    Some((
+        unit,
+        format!(
+            "the camera's path spans {cam_m:.3} m and the odometry's{of} {odo_m:.3} m, a ratio of {ratio:.3}; {hint}"
+        ),
     ))
 }
 

@@ -195,6 +195,9 @@ pub fn evaluate_paths(
     for (i, r) in recordings.iter().enumerate() {
         let cam = &r.camera;
         let (t0, t1) = (cam.start_s(), cam.end_s());
+        if let Some(why) = odocal_dataset::units::length_unit_mismatch(&r.log, cam, robot) {
+            return Err(TrainError::Dataset(format!("{}: {why}", r.id)));
+        }
         let start = rest_pose(cam.rows_between(t0, t0 + REST_SPAN_S), &r.id, "start")?;
         let end = rest_pose(cam.rows_between(t1 - REST_SPAN_S, t1), &r.id, "end")?;
         let truth = end.relative_to(&start);
