@@ -1175,29 +1175,7 @@ fn charuco_floor_markers_too_small_are_named_by_synth() {
         (dir, String::from_utf8_lossy(&res.stderr).into_owned())
     };
     let charuco = |dir: &Path, square: &str, marker: &str| {
-        let mut args = vec!["calibrate".to_string()];
-        args.extend(images(dir, "view_"));
-        args.push("--floor".into());
-        args.extend(images(dir, "floor_"));
-        let out = dir.join("camera.json");
-        args.extend(
-            [
-                "--target",
-                "charuco",
-                "--board",
-                "11x8",
-                "--square",
-                square,
-                "--marker",
-                marker,
-                "--dictionary",
-                "4X4_50",
-                "--out",
-                p(&out),
-            ]
-            .map(String::from),
-        );
-        odocal(&args.iter().map(String::as_str).collect::<Vec<_>>())
+        calibrate_charuco(dir, &dir.join("camera.json"), square, marker)
     };
     let (dir, warned) = small("0.04");
     assert!(
