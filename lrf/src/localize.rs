@@ -487,6 +487,7 @@ struct Pass {
 impl Pass {
     /// The pass's poses, with the σ of those left with their sweep's skew widened.
     fn localized(mut self, moved: Vec<MovedLandmark>) -> Localized {
+        let n_unsupported = drop_unsupported(&mut self.log);
         let skewed = widen_skewed(&mut self.log, &self.deskewed, &self.sweeps_s);
         Localized {
             log: self.log,
@@ -494,6 +495,7 @@ impl Pass {
             n_repeated: self.n_repeated,
             unseen: self.unseen,
             moved,
+            n_unsupported,
         }
     }
 }
@@ -591,6 +593,66 @@ fn localize_pass(
         n_repeated,
         unseen: views.unseen(loc),
     }
+}
+
+/// An `ok` pose looks for support among the `ok` poses of this many scans either side.
+pub const SUPPORT_ROWS: usize = 5;
+
+/// Poses of two scans agree when they are no farther apart than a small robot drives and
+/// turns between them (generously: 2 m/s and 360°/s, where `synth lrf` drives 0.5 m/s and
+/// 12°/s) plus the poses' own noise many times over.
+const SUPPORT_SPEED_M_S: f64 = 2.0;
+const SUPPORT_TURN_RAD_S: f64 = std::f64::consts::TAU;
+const SUPPORT_SLACK_M: f64 = 0.05;
+const SUPPORT_SLACK_RAD: f64 = 0.1;
+
+/// In a recording where most scans (repeats aside) are lost, takes the pose from every `ok`
+/// row that no `ok` pose of the [`SUPPORT_ROWS`] scans either side agrees with (status lost,
+/// mode `unsupported`), and returns how many. Scans that fit the map nowhere are of another
+/// room or read wrongly, and the few that pass the chance test among them are coincidences:
+/// a scanner mounted upside down gave one `ok` pose 4.2 m off with a σ of 3 mm among 93 lost
+/// scans. The right poses of such a recording come in runs, each agreeing with the next; a
+/// recording mostly localised keeps its lone poses, as the chance test vouches for them.
+fn drop_unsupported(log: &mut PoseLog) -> usize {
+    let judged = log.rows.iter().filter(|r| r.mode != "repeated").count();
+    let lost = log
+        .rows
+        .iter()
+        .filter(|r| r.status == Status::Lost && r.mode != "repeated")
+        .count();
+    if lost * 2 <= judged {
+        return 0;
+    }
+    let ok: Vec<usize> = (0..log.rows.len())
+        .filter(|&k| log.rows[k].status == Status::Ok && log.rows[k].pose.is_some())
+        .collect();
+    let agree = |a: &PoseLogRow, b: &PoseLogRow| {
+        let (Some(p), Some(q)) = (a.pose, b.pose) else {
+            return false;
+        };
+        let dt = (a.t_s - b.t_s).abs();
+        let dist = ((p.x_m - q.x_m).powi(2) + (p.y_m - q.y_m).powi(2)).sqrt();
+        let turn = odocal_core::wrap_angle(p.theta_rad - q.theta_rad).abs();
+        dist <= SUPPORT_SPEED_M_S * dt + SUPPORT_SLACK_M
+            && turn <= SUPPORT_TURN_RAD_S * dt + SUPPORT_SLACK_RAD
+    };
+    let lone: Vec<usize> = ok
+        .iter()
+        .copied()
+        .filter(|&k| {
+            !ok.iter().any(|&j| {
+                j != k && j.abs_diff(k) <= SUPPORT_ROWS && agree(&log.rows[k], &log.rows[j])
+            })
+        })
+        .collect();
+    for &k in &lone {
+        let r = &mut log.rows[k];
+        r.status = Status::Lost;
+        r.pose = None;
+        r.pose_cov = None;
+        r.mode = "unsupported".into();
+    }
+    lone.len()
 }
 
 /// Adds the matches of `h`, the pose of row `k`, to `fitted` (row, landmark, observation).
@@ -1011,6 +1073,9 @@ pub struct Localized {
     /// scan: moved since the map was made. The poses that matched them were fitted again
     /// without them.
     pub moved: Vec<MovedLandmark>,
+    /// `ok` poses of a mostly lost recording that no neighbouring scan's pose agreed with,
+    /// left without a pose (status lost, mode `unsupported`).
+    pub n_unsupported: usize,
 }
 
 /// Poses whose scans were not de-skewed (no motion was tracked yet, or `--global-only`)
@@ -1084,4 +1149,64 @@ fn widen_skewed(log: &mut PoseLog, deskewed: &[bool], sweeps_s: &[f64]) -> Optio
         }
     }
     (skewed.n_poses > 0 || skewed.n_motion_unknown > 0).then_some(skewed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_core::Pose2;
+
+    /// A log of `n` scans 0.1 s apart, `ok` where `pose_at` gives a pose, lost elsewhere.
+    fn log_of(n: usize, pose_at: impl Fn(usize) -> Option<Pose2>) -> PoseLog {
+        let rows = (0..n)
+            .map(|k| {
+                let pose = pose_at(k);
+                PoseLogRow {
+                    t_s: k as f64 * 0.1,
+                    pose,
+                    status: if pose.is_some() {
+                        Status::Ok
+                    } else {
+                        Status::Lost
+                    },
+                    n_landmarks: if pose.is_some() { 4 } else { 0 },
+                    n_detections: 4,
+                    n_hypotheses: usize::from(pose.is_some()),
+                    score: 4.0,
+                    mode: "global".into(),
+                    scan: k as u64,
+                    pose_cov: None,
+                }
+            })
+            .collect();
+        PoseLog { rows }
+    }
+
+    /// A scanner mounted upside down lost 93 of 100 scans and wrote one `ok` pose 4.2 m off
+    /// with a σ of 3 mm as ground truth: a pose no neighbour agrees with, in a recording
+    /// mostly lost, is taken away; a run of poses that agree with each other is kept.
+    #[test]
+    fn a_lone_pose_among_lost_scans_is_left_out() {
+        let along = |k: usize| Pose2::new(1.0 + 0.05 * k as f64, 2.0, 0.3);
+        let mut log = log_of(100, |k| match k {
+            40 => Some(Pose2::new(5.2, 1.0, 2.0)),
+            70..=74 => Some(along(k)),
+            // A neighbour in time that is somewhere else entirely supports nothing.
+            20 | 22 => Some(Pose2::new(k as f64 * 0.3, 0.0, 0.0)),
+            _ => None,
+        });
+        assert_eq!(drop_unsupported(&mut log), 3);
+        for k in [20, 22, 40] {
+            let r = &log.rows[k];
+            assert_eq!(
+                (r.status, r.pose, r.mode.as_str()),
+                (Status::Lost, None, "unsupported")
+            );
+        }
+        assert!((70..=74).all(|k| log.rows[k].status == Status::Ok));
+        // In a recording mostly localised a lone pose keeps its word.
+        let mut log = log_of(100, |k| (k < 60 || k == 80).then(|| along(k)));
+        assert_eq!(drop_unsupported(&mut log), 0);
+        assert_eq!(log.rows[80].status, Status::Ok);
+    }
 }

@@ -148,6 +148,19 @@ pub struct Scan {
 }
 
 impl Scan {
+    /// The scan as a scanner mounted the other way up takes it: every angle negated, the
+    /// beams listed in increasing angle order again (so in the reverse order of their times).
+    pub fn mirrored(&self) -> Scan {
+        Scan {
+            id: self.id,
+            t_s: self.t_s,
+            angles_rad: self.angles_rad.iter().rev().map(|a| -a).collect(),
+            ranges_m: self.ranges_m.iter().rev().copied().collect(),
+            intensities: self.intensities.iter().rev().copied().collect(),
+            reversed: !self.reversed,
+        }
+    }
+
     /// The angular step of the scan, radians (0 for fewer than two beams).
     pub fn step_rad(&self) -> f64 {
         if self.angles_rad.len() < 2 {

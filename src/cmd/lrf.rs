@@ -6,9 +6,9 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_fov, check_intensity_scale, check_map_report, check_range_unit,
-    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans, read_scan_files,
-    read_truth_csv, wider_noise_finds_poses, Localized, Localizer, LocalizerConfig, Map, ScanFiles,
-    SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
+    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans,
+    mirrored_finds_poses, read_scan_files, read_truth_csv, wider_noise_finds_poses, Localized,
+    Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, commit, progress, write_atomic};
@@ -85,6 +85,11 @@ pub struct LocalizeArgs {
     /// A scan's time is its first beam's; its beams are de-skewed with the tracked motion.
     #[arg(long)]
     pub sweep_s: Option<f64>,
+    /// The scanner is mounted upside down: its angles run clockwise seen from above, and every
+    /// angle is negated before localising (the poses are the scanner's, its x axis along the
+    /// 0 rad beam).
+    #[arg(long)]
+    pub upside_down: bool,
 }
 
 /// Runs a subcommand.
@@ -167,6 +172,11 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     if let Some(note) = reversed_note {
         tell!("note: {note}");
     }
+    if a.upside_down {
+        for s in &mut scans {
+            *s = s.mirrored();
+        }
+    }
     check_range_unit(&scans, a.max_range_m)?;
     drop_beyond_range(&mut scans, a.max_range_m);
     let periods_apart = check_scan_times(&scans, &cfg.sensor)?;
@@ -199,10 +209,37 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         n_repeated,
         unseen,
         moved,
+        n_unsupported,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
     let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
+    // Scans mirrored that find poses where as given they fit the map nowhere: the scanner's
+    // angles run the other way round. Refused before any other word, as every scan's fit
+    // (and every warning drawn from it) is wrong, and the few poses found are coincidences.
+    if count(Status::Lost) * 2 > log.rows.len() {
+        if let Some(m) = mirrored_finds_poses(&loc, &scans, a.rate_hz, a.global_only) {
+            let (looks, fix) = if a.upside_down {
+                (
+                    "the scanner looks mounted the right way up, its angles counter-clockwise as they are",
+                    "drop --upside-down",
+                )
+            } else {
+                (
+                    "the scanner looks mounted upside down, its angles clockwise",
+                    "give --upside-down (which negates every angle), or turn the scanner the right way up",
+                )
+            };
+            anyhow::bail!(
+                "{} of {} scans found no pose, and with their angles mirrored {} of the first {} find one, where {} did: {looks}, so nothing was written; {fix}",
+                count(Status::Lost),
+                log.rows.len(),
+                m.n_ok_mirrored,
+                m.n_scans,
+                m.n_ok_given
+            );
+        }
+    }
     let why_lost = || {
         format!(
             "is {} the map of this room, in metres, and are the scanner's angles counter-clockwise (a scanner mounted upside down mirrors them)? Check --intensity-min {} against the reflectors' returns and --max-range-m {} m",
@@ -415,6 +452,14 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 format!("{n_repeated} scans repeat")
             },
             if n_repeated == 1 { "it was" } else { "they were" }
+        );
+    }
+    if n_unsupported > 0 {
+        tell!(
+            "warning: {n_unsupported} {} no pose of the {} scans either side to agree with, in a recording where most scans found none: a lone pose among lost scans is more likely a coincidence than the scanner's place, so {} left out (status lost, mode unsupported)",
+            if n_unsupported == 1 { "ok pose had" } else { "ok poses had" },
+            odocal_lrf::SUPPORT_ROWS,
+            if n_unsupported == 1 { "it was" } else { "they were" }
         );
     }
     if count(Status::Lost) * 2 > log.rows.len() {
