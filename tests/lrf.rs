@@ -790,6 +790,65 @@ fn expect_error(args: &[&str], want: &str) -> String {
     err
 }
 
+/// Keys of a landmark map that odocal does not read were passed over, and the defaults took
+/// their place: landmarks facing `facing_deg` were read as visible from everywhere, and the
+/// poses' heading RMS was 2.48 times its bound with no word. Each is refused, naming the key,
+/// its line and column and the keys known there.
+#[test]
+fn cli_unknown_map_keys_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 3);
+    let map = std::fs::read_to_string(d.join("map.json")).expect("map");
+    for (from, to, known) in [
+        (
+            "\"facing_rad\"",
+            "facing_deg",
+            "`id`, `x_m`, `y_m`, `facing_rad`, `half_fov_rad`, `visibility_line`",
+        ),
+        (
+            "\"position_sigma_m\"",
+            "position_sigma_mm",
+            "`format`, `reflector_width_m`, `landmarks`, `walls`, `position_sigma_m`, `room_m`",
+        ),
+        (
+            "\"reflector_width_m\"",
+            "reflector_width",
+            "`format`, `reflector_width_m`, `landmarks`, `walls`, `position_sigma_m`, `room_m`",
+        ),
+        ("\"visible\"", "side", "`a`, `b`, `x_m`, `visible`"),
+    ] {
+        let edited = map.replacen(from, &format!("\"{to}\""), 1);
+        let line = edited
+            .lines()
+            .position(|l| l.contains(&format!("\"{to}\"")))
+            .expect("the key")
+            + 1;
+        let bad = d.join(format!("{to}.json"));
+        std::fs::write(&bad, edited).expect("write");
+        for cmd in [
+            vec!["lrf", "check-map", s(&bad)],
+            vec![
+                "lrf",
+                "localize",
+                "--map",
+                s(&bad),
+                s(&d.join("scans.csv")),
+                "--out",
+                s(&d.join("poses.csv")),
+            ],
+        ] {
+            let e = expect_error(&cmd, &format!("{}:{line}:", s(&bad)));
+            assert!(
+                e.contains(&format!("unknown field `{to}`, expected one of {known}")),
+                "{e}"
+            );
+            assert!(e.contains("or remove it"), "{e}");
+        }
+    }
+    assert!(!d.join("poses.csv").exists());
+}
+
 #[test]
 fn cli_bad_input_exits_with_code_2() {
     let dir = tempfile::tempdir().expect("tempdir");

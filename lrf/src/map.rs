@@ -32,6 +32,7 @@ pub enum Side {
 /// A visibility boundary line: `y = a·x + b`, or the vertical line `x = x_m`,
 /// and the side from which the landmark is visible.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct VisibilityLine {
     /// Slope of `y = a·x + b` (absent for a vertical line).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -48,6 +49,7 @@ pub struct VisibilityLine {
 
 /// One landmark as stored in the map file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LandmarkSpec {
     /// Unique identifier.
     pub id: u32,
@@ -67,7 +69,12 @@ pub struct LandmarkSpec {
 }
 
 /// The map file: `{"format": "odocal.lrf-map/1", "reflector_width_m": …, "landmarks": […], "walls": […]}`.
+///
+/// Keys odocal does not read are refused, not passed over: a misspelt or renamed one
+/// (`facing_deg` for `facing_rad`) would leave its default in its place, and the poses
+/// worse with no word.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MapFile {
     /// Must be [`MAP_FORMAT`].
     pub format: String,
@@ -83,6 +90,10 @@ pub struct MapFile {
     /// localiser's default ([`crate::LocalizerConfig::map_sigma_m`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position_sigma_m: Option<f64>,
+    /// The room's width and height, metres, as `odocal synth lrf` writes them: for the
+    /// reader's eye, not used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub room_m: Option<[f64; 2]>,
 }
 
 fn default_width() -> f64 {
@@ -244,6 +255,29 @@ fn seen_together(a: &Landmark, b: &Landmark) -> bool {
     }
 }
 
+/// An unknown key's error with what to do about it: serde names the key, its
+/// line and column and the keys known there, but not that the units are in the names.
+fn with_key_hint(e: odocal_core::FileError) -> odocal_core::FileError {
+    match e {
+        odocal_core::FileError::Parse {
+            path,
+            line,
+            column,
+            message,
+        } if message.starts_with("unknown field") => {
+            odocal_core::FileError::Parse {
+                path,
+                line,
+                column,
+                message: format!(
+                    "{message}; spell the key as one of those known there, in the unit its name says (facing_rad in radians, x_m in metres), or remove it"
+                ),
+            }
+        }
+        other => other,
+    }
+}
+
 impl Map {
     /// Reads and validates a map file.
     pub fn read(path: &Path) -> Result<Map, LrfError> {
@@ -258,7 +292,8 @@ impl Map {
             name,
             MAP_FORMAT,
             "pass a landmark map (e.g. from `odocal synth lrf`)",
-        )?;
+        )
+        .map_err(with_key_hint)?;
         Map::from_file(&file, name)
     }
 
@@ -638,6 +673,7 @@ mod tests {
             landmarks: l,
             walls: vec![],
             position_sigma_m: None,
+            room_m: None,
         }
     }
 
