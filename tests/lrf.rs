@@ -2242,6 +2242,54 @@ fn cli_a_repeated_scan_is_not_localised() {
         "{row}"
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("29 ok"));
+    // Scan 0 republished 30 times: the repeats were warned of and then counted as lost
+    // ("29 of 30 scans found no pose: is map.json the map of this room …", 0.2 detections per
+    // scan); they are neither lost nor in the detection rate.
+    let zero: Vec<Vec<String>> = rows.iter().filter(|r| r[0] == "0").cloned().collect();
+    let stuck = rewrite_scans(&d.join("stuck.csv"), &header, &rows, &|scan| {
+        zero.iter()
+            .map(|b| format!("{},{},{}", scan[0][0], scan[0][1], b[2..].join(",")))
+            .collect()
+    });
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&stuck),
+        "--out",
+        s(&poses),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning: 29 scans repeat"), "{err}");
+    assert!(
+        !err.contains("found no pose") && !err.contains("the map of this room"),
+        "{err}"
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // The rate is scan 0's own, the one scan localised.
+    let written = std::fs::read_to_string(&poses).expect("poses");
+    let n_det: f64 = written
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split(',').nth(6))
+        .and_then(|n| n.parse().ok())
+        .expect("scan 0's detections");
+    let summary = stdout.lines().next().expect("a summary");
+    assert!(
+        summary.starts_with(
+            "lrf localize: 30 scans (tracking mode): 1 ok, 0 ambiguous, 0 lost, 29 repeated; "
+        ),
+        "{summary}"
+    );
+    let rate: f64 = summary
+        .split("; ")
+        .nth(1)
+        .and_then(|r| r.strip_suffix(" detections/scan"))
+        .and_then(|r| r.parse().ok())
+        .expect("a detection rate");
+    assert!((rate - n_det).abs() < 0.051, "{summary}: {n_det}");
 }
 
 /// Map values no room has: a reflector width in millimetres is refused, and a landmark 50 m

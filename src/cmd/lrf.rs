@@ -213,11 +213,25 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
+    // A repeated scan was not localised: it counts as no lost scan, and its detections (none
+    // looked for) in no rate, or a driver republishing its scans read as a wrong map.
+    let count = |s: Status| {
+        log.rows
+            .iter()
+            .filter(|r| r.status == s && r.mode != "repeated")
+            .count()
+    };
+    let n_judged = log.rows.len() - n_repeated;
+    let scans_judged = match (n_judged, n_repeated) {
+        (1, 0) => "1 scan".to_string(),
+        (n, 0) => format!("{n} scans"),
+        (1, r) => format!("1 scan ({r} repeated aside)"),
+        (n, r) => format!("{n} scans ({r} repeated aside)"),
+    };
     // Scans mirrored that find poses where as given they fit the map nowhere: the scanner's
     // angles run the other way round. Refused before any other word, as every scan's fit
     // (and every warning drawn from it) is wrong, and the few poses found are coincidences.
-    if count(Status::Lost) * 2 > log.rows.len() {
+    if count(Status::Lost) * 2 > n_judged {
         if let Some(m) = mirrored_finds_poses(&loc, &scans, a.rate_hz, a.global_only) {
             let (looks, fix) = if a.upside_down {
                 (
@@ -231,9 +245,9 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                 )
             };
             anyhow::bail!(
-                "{} of {} scans found no pose, and with their angles mirrored {} of the first {} find one, where {} did: {looks}, so nothing was written; {fix}",
+                "{} of {} found no pose, and with their angles mirrored {} of the first {} find one, where {} did: {looks}, so nothing was written; {fix}",
                 count(Status::Lost),
-                log.rows.len(),
+                scans_judged,
                 m.n_ok_mirrored,
                 m.n_scans,
                 m.n_ok_given
@@ -295,20 +309,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // the tag was never accepted.
     if !log.rows.is_empty() && count(Status::Ok) == 0 {
         let detections: usize = log.rows.iter().map(|r| r.n_detections).sum();
-        let per_scan = detections as f64 / log.rows.len() as f64;
+        let per_scan = detections as f64 / n_judged.max(1) as f64;
         if let Some(hint) = noise_hint() {
             anyhow::bail!(
-                "none of the {} scans found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written: {hint}",
-                log.rows.len(),
+                "none of the {} found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written: {hint}",
+                scans_judged,
                 count(Status::Ambiguous),
                 count(Status::Lost),
                 a.out.display()
             );
         }
-        if count(Status::Lost) == log.rows.len() {
+        if count(Status::Lost) == n_judged {
             anyhow::bail!(
-                "none of the {} scans found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
-                log.rows.len(),
+                "none of the {} found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
+                scans_judged,
                 a.out.display(),
                 why_lost()
             );
@@ -317,8 +331,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         // scans are of another room, or read wrongly, not of a symmetric layout.
         if !layout_repeats(&loc.map, a.max_range_m) {
             anyhow::bail!(
-                "none of the {} scans found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written; {} has no congruent configuration (`odocal lrf check-map {}`), so no symmetric layout explains the ambiguous ones: {}",
-                log.rows.len(),
+                "none of the {} found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written; {} has no congruent configuration (`odocal lrf check-map {}`), so no symmetric layout explains the ambiguous ones: {}",
+                scans_judged,
                 count(Status::Ambiguous),
                 count(Status::Lost),
                 a.out.display(),
@@ -339,8 +353,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                     format!(" at ({:.2}, {:.2}) m", l.position.x, l.position.y)
                 });
             anyhow::bail!(
-                "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so nothing was written: landmark {id}{at} of {} was not seen in {missed} of the {n} scans it should have been in view in; with it gone the landmarks repeat themselves (a symmetric layout); put it back, or remove it from the map and add one that breaks the symmetry (`odocal lrf check-map {}`)",
-                log.rows.len(),
+                "none of the {} found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so nothing was written: landmark {id}{at} of {} was not seen in {missed} of the {n} scans it should have been in view in; with it gone the landmarks repeat themselves (a symmetric layout); put it back, or remove it from the map and add one that breaks the symmetry (`odocal lrf check-map {}`)",
+                scans_judged,
                 count(Status::Ambiguous),
                 count(Status::Lost),
                 a.map.display(),
@@ -350,8 +364,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         // Ambiguous scans fit the map in several places equally well: the layout repeats
         // itself where the scanner went, which no setting of the scanner changes.
         anyhow::bail!(
-            "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan): the landmarks of {} repeat themselves (a symmetric layout), so every scan fits several places and nothing was written; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
-            log.rows.len(),
+            "none of the {} found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan): the landmarks of {} repeat themselves (a symmetric layout), so every scan fits several places and nothing was written; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
+            scans_judged,
             count(Status::Ambiguous),
             count(Status::Lost),
             a.map.display(),
@@ -413,15 +427,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         }
         commit()?;
     }
-    let n = log.rows.len().max(1);
+    let n = n_judged.max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
     say!(
-        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; {}",
+        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost{}; {:.1} detections/scan; {:.1} µs/scan; {}",
         log.rows.len(),
         if a.global_only { "global" } else { "tracking" },
         n_ok,
         count(Status::Ambiguous),
         count(Status::Lost),
+        if n_repeated > 0 {
+            format!(", {n_repeated} repeated")
+        } else {
+            String::new()
+        },
         n_det_total as f64 / n as f64,
         elapsed.as_secs_f64() * 1e6 / n as f64,
         match (&refused, &a.trajectory) {
@@ -462,21 +481,21 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             if n_unsupported == 1 { "it was" } else { "they were" }
         );
     }
-    if count(Status::Lost) * 2 > log.rows.len() {
+    if count(Status::Lost) * 2 > n_judged {
         tell!(
-            "warning: {} of {} scans found no pose: {}",
+            "warning: {} of {} found no pose: {}",
             count(Status::Lost),
-            log.rows.len(),
+            scans_judged,
             noise_hint().unwrap_or_else(why_lost)
         );
     }
     // A quarter of the scans or more without a pose they could tell from another: the
     // written poses leave out much of the recording, for a reason the user can act on.
-    if count(Status::Ambiguous) * 4 >= log.rows.len() {
+    if count(Status::Ambiguous) * 4 >= n_judged {
         tell!(
-            "warning: {} of {} scans fit the map in several places and have no pose: {}",
+            "warning: {} of {} fit the map in several places and have no pose: {}",
             count(Status::Ambiguous),
-            log.rows.len(),
+            scans_judged,
             if layout_repeats(&loc.map, a.max_range_m) {
                 format!(
                     "the landmarks of {} repeat themselves (a symmetric layout) where the scanner went; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
