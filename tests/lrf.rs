@@ -944,9 +944,19 @@ fn cli_bad_input_exits_with_code_2() {
         &["lrf", "check-map", s(&d.join("missing.json"))],
         "cannot read",
     );
-    // The good inputs are read, but three flat beams show no reflector: a file of nothing but
-    // lost scans is refused, not written.
-    run(loc(&good, &scan), "none of the 1 scans found a pose");
+    // The good inputs are read, but three flat beams show no reflector, none as bright as
+    // --intensity-min: said so, not blamed on the map.
+    run(
+        loc(&good, &scan),
+        "no return of the scans reaches --intensity-min 0.5 (median return 0.1",
+    );
+    // With one bright beam there is a detection but no pose: a file of nothing but lost
+    // scans is refused, not written.
+    let glint = w(
+        "glint.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.9\n0.02,1.0,0.1\n",
+    );
+    run(loc(&good, &glint), "none of the 1 scan found a pose");
 }
 
 /// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
@@ -1157,14 +1167,67 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     );
     assert!(summary(&plain).contains(" ok,"), "{}", summary(&plain));
     std::fs::remove_file(&poses).expect("poses written");
-    // A threshold above every return: no scan can find a pose, and a file of lost rows is
-    // no result.
+    // A threshold above every return: no scan can find a pose, which was blamed on the map
+    // ("none of the 40 scans found a pose … is map.json the map of this room"); the
+    // threshold is named, with one on the scans' scale, which localises as they do.
     let mut a = args(&d.join("scans.csv"));
     a.extend(["--intensity-min".into(), "2".into()]);
-    expect_error(
+    let e = expect_error(
         &a.iter().map(String::as_str).collect::<Vec<_>>(),
-        "none of the",
+        "no return of the scans reaches --intensity-min 2 (median return ",
     );
+    assert!(!e.contains("map of this room"), "{e}");
+    let suggested = e
+        .trim_end()
+        .rsplit("halfway between the median and the brightest 1 %: ")
+        .next()
+        .and_then(|v| v.strip_suffix(')'))
+        .expect("a suggested threshold")
+        .to_string();
+    assert!((0.5..1.0).contains(&num(&suggested)), "{e}");
+    let mut a = args(&d.join("scans.csv"));
+    a.extend(["--intensity-min".into(), suggested.clone()]);
+    let out = odocal(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(
+        summary(&out),
+        summary(&plain),
+        "--intensity-min {suggested}"
+    );
+    std::fs::remove_file(&poses).expect("poses written");
+    // Every intensity 0 (a scanner that records none): asked whether it does.
+    let zero = write(
+        "zero.csv",
+        &|r| {
+            let mut r = r.to_vec();
+            r[4] = "0".into();
+            r
+        },
+        false,
+    );
+    let a = args(&zero);
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "returns is 0, so no return reaches --intensity-min 0.5 and no reflector can be told from a wall: does the scanner record intensity?",
+    );
+    assert!(e.contains("every intensity of the scans' "), "{e}");
+    // Range and intensity swapped: the scale's refusal asked for --intensity-min 4.05, a
+    // typical range.
+    let swapped = write(
+        "swapped.csv",
+        &|r| {
+            let mut r = r.to_vec();
+            r.swap(3, 4);
+            r
+        },
+        false,
+    );
+    let a = args(&swapped);
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "are the range and intensity columns swapped? Put the ranges (metres) under the header's `range`",
+    );
+    assert!(e.contains("every range of the scans lies within 0."), "{e}");
+    assert!(!e.contains("--intensity-min"), "{e}");
     assert!(!poses.exists(), "nothing written on refusal");
     // Mirrored, most scans are lost and the few poses found were coincidences (one `ok`
     // 4.2 m off with a σ of 3 mm was written as ground truth): refused, naming the mounting;

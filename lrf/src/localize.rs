@@ -345,9 +345,16 @@ pub fn drop_beyond_range(scans: &mut [Scan], max_range_m: f64) {
 /// the returns does not tell reflectors from walls.
 const MAX_REFLECTOR_SHARE: f64 = 0.5;
 
+/// Scans whose every range lies within this many metres are of no room: with intensities
+/// beside them that spread like distances, the columns are swapped.
+const MAX_SWAPPED_RANGE_M: f64 = 1.0;
+
 /// Refuses scans whose returns mostly reach `sensor.intensity_min`: their intensities are on
 /// another scale (0–255, or a scanner's raw counts, against the default 0.5 of a 0–1 scale),
-/// and every wall would be taken for a reflector, leaving almost every scan lost.
+/// and every wall would be taken for a reflector, leaving almost every scan lost. Refuses too
+/// scans none of whose returns reach it (every intensity 0: a scanner that does not record
+/// them; or a threshold above the scale), which lost every scan and were blamed on the map, and
+/// scans whose range and intensity columns look swapped.
 pub fn check_intensity_scale(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> {
     let mut returns: Vec<f64> = scans
         .iter()
@@ -358,17 +365,46 @@ pub fn check_intensity_scale(scans: &[Scan], sensor: &SensorConfig) -> Result<()
     if returns.is_empty() {
         return Ok(());
     }
+    returns.sort_by(f64::total_cmp);
+    let median = returns[returns.len() / 2];
+    let top = returns[(returns.len() * 99 / 100).min(returns.len() - 1)];
+    let brightest = returns[returns.len() - 1];
+    // Ranges that all lie within a metre beside "intensities" that spread like a room's
+    // distances: the two columns were swapped, and the threshold asked for below would be a
+    // typical range.
+    let longest = scans
+        .iter()
+        .flat_map(|s| s.ranges_m.iter().copied())
+        .filter(|r| r.is_finite())
+        .fold(0.0, f64::max);
+    if longest <= MAX_SWAPPED_RANGE_M && median >= MIN_MEDIAN_RANGE_M && median > longest {
+        return Err(LrfError::Config(format!(
+            "every range of the scans lies within {longest:.3} m, and their intensities spread like a room's distances (median {median}, up to {brightest}): are the range and intensity columns swapped? Put the ranges (metres) under the header's `range` and the returns' intensities under its `intensity`"
+        )));
+    }
     let bright = returns
         .iter()
         .filter(|i| **i >= sensor.intensity_min)
         .count();
+    // No return bright enough: every scan would be lost, and read as a map of another room.
+    if bright == 0 {
+        if brightest == 0.0 {
+            return Err(LrfError::Config(format!(
+                "every intensity of the scans' {} returns is 0, so no return reaches --intensity-min {} and no reflector can be told from a wall: does the scanner record intensity? Record the scans with their intensities (some drivers publish them only when a parameter asks for them)",
+                returns.len(),
+                sensor.intensity_min
+            )));
+        }
+        return Err(LrfError::Config(format!(
+            "no return of the scans reaches --intensity-min {} (median return {median}, the brightest 1 % from {top}, the brightest {brightest}), so no reflector can be found: give --intensity-min on the scanner's intensity scale, between the walls' returns and the reflectors' (halfway between the median and the brightest 1 %: {})",
+            sensor.intensity_min,
+            (median + top) / 2.0
+        )));
+    }
     let share = bright as f64 / returns.len() as f64;
     if share <= MAX_REFLECTOR_SHARE {
         return Ok(());
     }
-    returns.sort_by(f64::total_cmp);
-    let median = returns[returns.len() / 2];
-    let top = returns[(returns.len() * 99 / 100).min(returns.len() - 1)];
     Err(LrfError::Config(format!(
         "{:.0} % of the scans' returns are at or above --intensity-min {} (median return {median}, the brightest 1 % from {top}), but reflectors give a few percent of a scan: the threshold does not tell them from walls; give --intensity-min on the scanner's intensity scale, between the walls' returns and the reflectors' (halfway between those two: {})",
         share * 100.0,
