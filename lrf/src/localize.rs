@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use nalgebra::{Matrix2, Vector2};
+use odocal_core::Pose2;
 
 use crate::pose_fit::{fit_pose_weighted, pose_shift, Observation};
 use crate::pose_log::{PoseLog, PoseLogRow};
@@ -721,6 +722,8 @@ pub struct MovedLandmark {
     pub sigma_m: f64,
     /// The `ok` scans it was matched in.
     pub n_scans: usize,
+    /// The places those scans were taken from (poses 2 cm and a beam step apart or more).
+    pub n_places: usize,
 }
 
 /// The landmarks whose residuals at the poses of `fitted` (row, landmark, observation) have a
@@ -808,10 +811,14 @@ fn residual_mean(
     deskewed: &[bool],
     l: usize,
 ) -> Option<MovedLandmark> {
-    let r: Vec<Vector2<f64>> = fitted
+    let seen: Vec<(Pose2, &Observation)> = fitted
         .iter()
         .filter(|f| f.1 == l && deskewed[f.0] && log.rows[f.0].status == Status::Ok)
-        .filter_map(|(k, _, o)| Some(log.rows[*k].pose?.isometry() * o.sensor - o.landmark))
+        .filter_map(|(k, _, o)| Some((log.rows[*k].pose?, o)))
+        .collect();
+    let r: Vec<Vector2<f64>> = seen
+        .iter()
+        .map(|(p, o)| p.isometry() * o.sensor - o.landmark)
         .collect();
     let n = r.len();
     if n < MIN_BIAS_SCANS {
@@ -824,13 +831,44 @@ fn residual_mean(
         .sum::<Matrix2<f64>>()
         / (n - 1) as f64;
     let dir = mean.try_normalize(0.0)?;
+    // Scans from one place share which beams hit the strip, and so the error of its centre
+    // along it, which their scatter does not show: the mean is known no better than the
+    // detections' own σ over the places they were seen from (a still robot's 55 scans gave
+    // 0.4 mm, and a correct map was called moved).
+    let step_rad = loc.cfg.sensor.step_rad;
+    let mut places: Vec<Pose2> = Vec::new();
+    for (p, _) in &seen {
+        let same = |q: &Pose2| {
+            (p.x_m - q.x_m).hypot(p.y_m - q.y_m) <= PLACE_M
+                && odocal_core::wrap_angle(p.theta_rad - q.theta_rad).abs() <= step_rad
+        };
+        if !places.iter().any(same) {
+            places.push(*p);
+        }
+    }
+    let own = seen
+        .iter()
+        .map(|(p, o)| {
+            let rot = nalgebra::Rotation2::new(p.theta_rad);
+            let d = rot.inverse() * dir;
+            d.dot(&(o.cov * d))
+        })
+        .sum::<f64>()
+        / n as f64;
+    let var = (dir.dot(&(scatter * dir)) / n as f64).max(own / places.len() as f64);
     Some(MovedLandmark {
         id: loc.map.landmarks[l].id,
         offset_m: mean,
-        sigma_m: (dir.dot(&(scatter * dir)) / n as f64).sqrt(),
+        sigma_m: var.sqrt(),
         n_scans: n,
+        n_places: places.len(),
     })
 }
+
+/// Poses closer than this (and turned less than a beam step) see a landmark from one place:
+/// a reflector's beams at a few metres are about 2 cm apart, so nearer poses hit it with the
+/// same beams.
+const PLACE_M: f64 = 0.02;
 
 /// Calls `f` with each row of `fitted` and that row's matches.
 fn for_each_row(

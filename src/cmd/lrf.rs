@@ -279,13 +279,18 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     for m in moved {
         let dir = m.offset_m.normalize();
         tell!(
-            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? Every scan was localised again with the map without it (the poses it had pulled, and the motion the sweeps are de-skewed with, freed of it); update its position in {}, or remove it ({mistimed})",
+            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans from {} (σ of that mean {:.1} mm): was it moved after mapping? Every scan was localised again with the map without it (the poses it had pulled, and the motion the sweeps are de-skewed with, freed of it); update its position in {}, or remove it ({mistimed})",
             m.id,
             a.map.display(),
             m.offset_m.norm() * 1e3,
             dir.x,
             dir.y,
             m.n_scans,
+            if m.n_places == 1 {
+                "one place".to_string()
+            } else {
+                format!("{} places", m.n_places)
+            },
             m.sigma_m * 1e3,
             a.map.display()
         );
