@@ -892,7 +892,7 @@ fn cli_bad_input_exits_with_code_2() {
     );
     let nan = w(
         "nan.csv",
-        "angle,range,intensity\n0.0,1.0,0.1\n0.01,NaN,0.1\n",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,NaN\n",
     );
     let neg = w(
         "neg.csv",
@@ -927,7 +927,7 @@ fn cli_bad_input_exits_with_code_2() {
     run(loc(&dup, &scan), "share id 1");
     run(loc(&few, &scan), "at least 3 are needed");
     run(loc(&wrong, &scan), "expected \"odocal.lrf-map/1\"");
-    run(loc(&good, &nan), "nan.csv, line 3, column range");
+    run(loc(&good, &nan), "nan.csv, line 3, column intensity");
     run(
         loc(&good, &neg),
         "neg.csv, line 3, column range: range is -0.5",
@@ -957,6 +957,64 @@ fn cli_bad_input_exits_with_code_2() {
         "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.9\n0.02,1.0,0.1\n",
     );
     run(loc(&good, &glint), "none of the 1 scan found a pose");
+}
+
+/// Scan files as other tools write them: a header in capitals (`Scan,T,Angle,Range,
+/// Intensity`) was refused, and so was NaN for a beam without a return (ROS's REP 117), with
+/// "use 0". Read by name in any order and case, with NaN as no return, they give the poses of
+/// the file as `synth lrf` wrote it, byte for byte.
+#[test]
+fn cli_scan_headers_in_any_case_and_nan_ranges_are_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 8);
+    let (_, rows) = scan_rows(d);
+    assert!(
+        rows.iter().any(|r| r[3].parse::<f64>() == Ok(0.0)),
+        "no beam without a return"
+    );
+    let other = rewrite_scans(
+        &d.join("other.csv"),
+        "Intensity,Range,Angle,T,Scan",
+        &rows,
+        &|scan| {
+            scan.iter()
+                .map(|r| {
+                    let range = if r[3].parse::<f64>() == Ok(0.0) {
+                        "NaN"
+                    } else {
+                        &r[3]
+                    };
+                    format!("{},{range},{},{},{}", r[4], r[2], r[1], r[0])
+                })
+                .collect()
+        },
+    );
+    let plain = localize(d, &[]);
+    assert!(
+        plain.status.success(),
+        "{}",
+        String::from_utf8_lossy(&plain.stderr)
+    );
+    let want = std::fs::read_to_string(d.join("poses.csv")).expect("poses");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&other),
+        "--out",
+        s(&d.join("other_poses.csv")),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("other_poses.csv")).expect("poses"),
+        want
+    );
 }
 
 /// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
