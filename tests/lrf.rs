@@ -793,7 +793,7 @@ fn expect_error(args: &[&str], want: &str) -> String {
 /// Keys of a landmark map that odocal does not read were passed over, and the defaults took
 /// their place: landmarks facing `facing_deg` were read as visible from everywhere, and the
 /// poses' heading RMS was 2.48 times its bound with no word. Each is refused, naming the key,
-/// its line and column and the keys known there.
+/// its line and column and the keys known there; a value of the wrong type names its key.
 #[test]
 fn cli_unknown_map_keys_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -847,6 +847,20 @@ fn cli_unknown_map_keys_are_refused() {
         }
     }
     assert!(!d.join("poses.csv").exists());
+    // A string where a number belongs was named by its type alone ("invalid type: string
+    // \"3\", expected u32"): its key is named too.
+    let edited = map.replacen("\"id\": 3,", "\"id\": \"3\",", 1);
+    assert_ne!(edited, map);
+    let bad = d.join("string_id.json");
+    std::fs::write(&bad, edited).expect("write");
+    let e = expect_error(
+        &["lrf", "check-map", s(&bad)],
+        "invalid type: string \"3\", expected u32",
+    );
+    assert!(
+        e.contains(": the value of `id`; give it as the type expected (a number without quotes)"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -255,27 +255,60 @@ fn seen_together(a: &Landmark, b: &Landmark) -> bool {
     }
 }
 
-/// An unknown key's error with what to do about it: serde names the key, its
-/// line and column and the keys known there, but not that the units are in the names.
-fn with_key_hint(e: odocal_core::FileError) -> odocal_core::FileError {
-    match e {
-        odocal_core::FileError::Parse {
-            path,
-            line,
-            column,
-            message,
-        } if message.starts_with("unknown field") => {
-            odocal_core::FileError::Parse {
-                path,
-                line,
-                column,
-                message: format!(
-                    "{message}; spell the key as one of those known there, in the unit its name says (facing_rad in radians, x_m in metres), or remove it"
-                ),
-            }
+/// An unknown key's or a mistyped value's error with what to do about it: serde names an
+/// unknown key, its line and column and the keys known there, but not that the units are in
+/// the names; and a value of the wrong type (`"id": "3"`) by its type alone, not its key,
+/// which is read back from `text` before the place named.
+fn with_key_hint(e: odocal_core::FileError, text: &str) -> odocal_core::FileError {
+    let odocal_core::FileError::Parse {
+        path,
+        line,
+        column,
+        message,
+    } = e
+    else {
+        return e;
+    };
+    let message = if message.starts_with("unknown field") {
+        format!(
+            "{message}; spell the key as one of those known there, in the unit its name says (facing_rad in radians, x_m in metres), or remove it"
+        )
+    } else if message.starts_with("invalid type") {
+        match key_before(text, line, column) {
+            Some(key) => format!(
+                "{message}: the value of `{key}`; give it as the type expected (a number without quotes)"
+            ),
+            None => message,
         }
-        other => other,
+    } else {
+        message
+    };
+    odocal_core::FileError::Parse {
+        path,
+        line,
+        column,
+        message,
     }
+}
+
+/// The last `"key":` before `line`, `column` (1-based, as serde_json counts them) of `text`.
+fn key_before(text: &str, line: u64, column: u64) -> Option<String> {
+    let start: usize = text
+        .split_inclusive('\n')
+        .take(usize::try_from(line).ok()?.saturating_sub(1))
+        .map(str::len)
+        .sum();
+    let rest = text.get(start..)?;
+    let end = start
+        + rest
+            .char_indices()
+            .nth(usize::try_from(column).ok()?)
+            .map_or(rest.len(), |(i, _)| i);
+    let before = text.get(..end)?;
+    let colon = before.rfind(':')?;
+    let key_end = before[..colon].trim_end().strip_suffix('"')?;
+    let key_start = key_end.rfind('"')?;
+    Some(key_end[key_start + 1..].to_string())
 }
 
 impl Map {
@@ -293,7 +326,7 @@ impl Map {
             MAP_FORMAT,
             "pass a landmark map (e.g. from `odocal synth lrf`)",
         )
-        .map_err(with_key_hint)?;
+        .map_err(|e| with_key_hint(e, text))?;
         Map::from_file(&file, name)
     }
 
