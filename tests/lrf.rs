@@ -863,6 +863,18 @@ fn cli_unknown_map_keys_are_refused() {
     );
 }
 
+/// The pose log's `score` column had no meaning or unit said anywhere.
+#[test]
+fn cli_localize_help_says_what_the_score_is() {
+    let out = odocal(&["lrf", "localize", "--help"]);
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        help.contains("score: landmarks matched minus landmarks in view from the pose that were not detected (a count, no unit; 0 when lost"),
+        "{help}"
+    );
+}
+
 #[test]
 fn cli_bad_input_exits_with_code_2() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -49,6 +49,8 @@ pub struct LocalizeArgs {
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan (x,y,theta empty when lost).
+    /// score: landmarks matched minus landmarks in view from the pose that were not detected
+    /// (a count, no unit; 0 when lost; an `ok` pose has at least 1).
     #[arg(long)]
     pub out: PathBuf,
     /// Also write the `ok` poses as a trajectory CSV (`t,x,y,theta,quality,sigma_x,sigma_y,
