@@ -790,6 +790,91 @@ fn expect_error(args: &[&str], want: &str) -> String {
     err
 }
 
+/// Keys of a landmark map that odocal does not read were passed over, and the defaults took
+/// their place: landmarks facing `facing_deg` were read as visible from everywhere, and the
+/// poses' heading RMS was 2.48 times its bound with no word. Each is refused, naming the key,
+/// its line and column and the keys known there; a value of the wrong type names its key.
+#[test]
+fn cli_unknown_map_keys_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 3);
+    let map = std::fs::read_to_string(d.join("map.json")).expect("map");
+    for (from, to, known) in [
+        (
+            "\"facing_rad\"",
+            "facing_deg",
+            "`id`, `x_m`, `y_m`, `facing_rad`, `half_fov_rad`, `visibility_line`",
+        ),
+        (
+            "\"position_sigma_m\"",
+            "position_sigma_mm",
+            "`format`, `reflector_width_m`, `landmarks`, `walls`, `position_sigma_m`, `room_m`",
+        ),
+        (
+            "\"reflector_width_m\"",
+            "reflector_width",
+            "`format`, `reflector_width_m`, `landmarks`, `walls`, `position_sigma_m`, `room_m`",
+        ),
+        ("\"visible\"", "side", "`a`, `b`, `x_m`, `visible`"),
+    ] {
+        let edited = map.replacen(from, &format!("\"{to}\""), 1);
+        let line = edited
+            .lines()
+            .position(|l| l.contains(&format!("\"{to}\"")))
+            .expect("the key")
+            + 1;
+        let bad = d.join(format!("{to}.json"));
+        std::fs::write(&bad, edited).expect("write");
+        for cmd in [
+            vec!["lrf", "check-map", s(&bad)],
+            vec![
+                "lrf",
+                "localize",
+                "--map",
+                s(&bad),
+                s(&d.join("scans.csv")),
+                "--out",
+                s(&d.join("poses.csv")),
+            ],
+        ] {
+            let e = expect_error(&cmd, &format!("{}:{line}:", s(&bad)));
+            assert!(
+                e.contains(&format!("unknown field `{to}`, expected one of {known}")),
+                "{e}"
+            );
+            assert!(e.contains("or remove it"), "{e}");
+        }
+    }
+    assert!(!d.join("poses.csv").exists());
+    // A string where a number belongs was named by its type alone ("invalid type: string
+    // \"3\", expected u32"): its key is named too.
+    let edited = map.replacen("\"id\": 3,", "\"id\": \"3\",", 1);
+    assert_ne!(edited, map);
+    let bad = d.join("string_id.json");
+    std::fs::write(&bad, edited).expect("write");
+    let e = expect_error(
+        &["lrf", "check-map", s(&bad)],
+        "invalid type: string \"3\", expected u32",
+    );
+    assert!(
+        e.contains(": the value of `id`; give it as the type expected (a number without quotes)"),
+        "{e}"
+    );
+}
+
+/// The pose log's `score` column had no meaning or unit said anywhere.
+#[test]
+fn cli_localize_help_says_what_the_score_is() {
+    let out = odocal(&["lrf", "localize", "--help"]);
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        help.contains("score: landmarks matched minus landmarks in view from the pose that were not detected (a count, no unit; 0 when lost"),
+        "{help}"
+    );
+}
+
 #[test]
 fn cli_bad_input_exits_with_code_2() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -833,7 +918,7 @@ fn cli_bad_input_exits_with_code_2() {
     );
     let nan = w(
         "nan.csv",
-        "angle,range,intensity\n0.0,1.0,0.1\n0.01,NaN,0.1\n",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,NaN\n",
     );
     let neg = w(
         "neg.csv",
@@ -868,7 +953,7 @@ fn cli_bad_input_exits_with_code_2() {
     run(loc(&dup, &scan), "share id 1");
     run(loc(&few, &scan), "at least 3 are needed");
     run(loc(&wrong, &scan), "expected \"odocal.lrf-map/1\"");
-    run(loc(&good, &nan), "nan.csv, line 3, column range");
+    run(loc(&good, &nan), "nan.csv, line 3, column intensity");
     run(
         loc(&good, &neg),
         "neg.csv, line 3, column range: range is -0.5",
@@ -885,9 +970,77 @@ fn cli_bad_input_exits_with_code_2() {
         &["lrf", "check-map", s(&d.join("missing.json"))],
         "cannot read",
     );
-    // The good inputs are read, but three flat beams show no reflector: a file of nothing but
-    // lost scans is refused, not written.
-    run(loc(&good, &scan), "none of the 1 scans found a pose");
+    // The good inputs are read, but three flat beams show no reflector, none as bright as
+    // --intensity-min: said so, not blamed on the map.
+    run(
+        loc(&good, &scan),
+        "no return of the scans reaches --intensity-min 0.5 (median return 0.1",
+    );
+    // With one bright beam there is a detection but no pose: a file of nothing but lost
+    // scans is refused, not written.
+    let glint = w(
+        "glint.csv",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.9\n0.02,1.0,0.1\n",
+    );
+    run(loc(&good, &glint), "none of the 1 scan found a pose");
+}
+
+/// Scan files as other tools write them: a header in capitals (`Scan,T,Angle,Range,
+/// Intensity`) was refused, and so was NaN for a beam without a return (ROS's REP 117), with
+/// "use 0". Read by name in any order and case, with NaN as no return, they give the poses of
+/// the file as `synth lrf` wrote it, byte for byte.
+#[test]
+fn cli_scan_headers_in_any_case_and_nan_ranges_are_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 8);
+    let (_, rows) = scan_rows(d);
+    assert!(
+        rows.iter().any(|r| r[3].parse::<f64>() == Ok(0.0)),
+        "no beam without a return"
+    );
+    let other = rewrite_scans(
+        &d.join("other.csv"),
+        "Intensity,Range,Angle,T,Scan",
+        &rows,
+        &|scan| {
+            scan.iter()
+                .map(|r| {
+                    let range = if r[3].parse::<f64>() == Ok(0.0) {
+                        "NaN"
+                    } else {
+                        &r[3]
+                    };
+                    format!("{},{range},{},{},{}", r[4], r[2], r[1], r[0])
+                })
+                .collect()
+        },
+    );
+    let plain = localize(d, &[]);
+    assert!(
+        plain.status.success(),
+        "{}",
+        String::from_utf8_lossy(&plain.stderr)
+    );
+    let want = std::fs::read_to_string(d.join("poses.csv")).expect("poses");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&d.join("map.json")),
+        s(&other),
+        "--out",
+        s(&d.join("other_poses.csv")),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("other_poses.csv")).expect("poses"),
+        want
+    );
 }
 
 /// Scan 272 of `synth lrf --landmarks 200 --seed 2` sees two real reflectors and a glint; the
@@ -951,8 +1104,8 @@ fn a_glint_matching_the_wrong_landmarks_is_never_a_confident_pose() {
 
 /// Scans in the wrong unit or orientation: angles in degrees and ranges in millimetres are
 /// refused with the unit named (degrees gave 15 confident wrong poses, millimetres every scan
-/// lost, both with exit 0); a mirrored scanner (mounted upside down) loses most scans, and
-/// that is said with what to check.
+/// lost, both with exit 0); a mirrored scanner (mounted upside down) loses most scans, its
+/// scans mirrored find poses, and it is refused with --upside-down named.
 #[test]
 fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1098,22 +1251,98 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
     );
     assert!(summary(&plain).contains(" ok,"), "{}", summary(&plain));
     std::fs::remove_file(&poses).expect("poses written");
-    // A threshold above every return: no scan can find a pose, and a file of lost rows is
-    // no result.
+    // A threshold above every return: no scan can find a pose, which was blamed on the map
+    // ("none of the 40 scans found a pose … is map.json the map of this room"); the
+    // threshold is named, with one on the scans' scale, which localises as they do.
     let mut a = args(&d.join("scans.csv"));
     a.extend(["--intensity-min".into(), "2".into()]);
-    expect_error(
+    let e = expect_error(
         &a.iter().map(String::as_str).collect::<Vec<_>>(),
-        "none of the",
+        "no return of the scans reaches --intensity-min 2 (median return ",
+    );
+    assert!(!e.contains("map of this room"), "{e}");
+    let suggested = e
+        .trim_end()
+        .rsplit("halfway between the median and the brightest 1 %: ")
+        .next()
+        .and_then(|v| v.strip_suffix(')'))
+        .expect("a suggested threshold")
+        .to_string();
+    assert!((0.5..1.0).contains(&num(&suggested)), "{e}");
+    let mut a = args(&d.join("scans.csv"));
+    a.extend(["--intensity-min".into(), suggested.clone()]);
+    let out = odocal(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(
+        summary(&out),
+        summary(&plain),
+        "--intensity-min {suggested}"
+    );
+    std::fs::remove_file(&poses).expect("poses written");
+    // Every intensity 0 (a scanner that records none): asked whether it does.
+    let zero = write(
+        "zero.csv",
+        &|r| {
+            let mut r = r.to_vec();
+            r[4] = "0".into();
+            r
+        },
+        false,
+    );
+    let a = args(&zero);
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "returns is 0, so no return reaches --intensity-min 0.5 and no reflector can be told from a wall: does the scanner record intensity?",
+    );
+    assert!(e.contains("every intensity of the scans' "), "{e}");
+    // Range and intensity swapped: the scale's refusal asked for --intensity-min 4.05, a
+    // typical range.
+    let swapped = write(
+        "swapped.csv",
+        &|r| {
+            let mut r = r.to_vec();
+            r.swap(3, 4);
+            r
+        },
+        false,
+    );
+    let a = args(&swapped);
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "are the range and intensity columns swapped? Put the ranges (metres) under the header's `range`",
+    );
+    assert!(e.contains("every range of the scans lies within 0."), "{e}");
+    assert!(!e.contains("--intensity-min"), "{e}");
+    assert!(!poses.exists(), "nothing written on refusal");
+    // Mirrored, most scans are lost and the few poses found were coincidences (one `ok`
+    // 4.2 m off with a σ of 3 mm was written as ground truth): refused, naming the mounting;
+    // with --upside-down the same scans give the poses of the scans as they were.
+    let a = args(&mirrored);
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "scans found no pose, and with their angles mirrored ",
+    );
+    assert!(
+        e.contains("the scanner looks mounted upside down, its angles clockwise, so nothing was written; give --upside-down"),
+        "{e}"
     );
     assert!(!poses.exists(), "nothing written on refusal");
-    let out = run(&mirrored);
-    assert!(out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let mut a = args(&mirrored);
+    a.push("--upside-down".into());
+    let out = odocal(&a.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(
-        err.contains("scans found no pose") && err.contains("mounted upside down"),
-        "{err}"
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
+    assert_eq!(summary(&out), summary(&plain));
+    // Scans the right way up given --upside-down are named the other way round.
+    let mut a = args(&d.join("scans.csv"));
+    a.push("--upside-down".into());
+    let e = expect_error(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        "the scanner looks mounted the right way up",
+    );
+    assert!(e.trim_end().ends_with("drop --upside-down"), "{e}");
     // The scans as they are: no warning.
     let out = run(&d.join("scans.csv"));
     assert!(out.status.success());
@@ -1696,7 +1925,7 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     let (stdout, stderr) = run(&moved);
     assert!(
         stderr.contains(&format!(
-            "warning: landmark 8 of {} sits 46 mm from its mapped position along (0.01, -1.00) in 53 scans (σ of that mean 0.9 mm): was it moved after mapping? Every scan was localised again with the map without it",
+            "warning: landmark 8 of {} sits 46 mm from its mapped position along (0.01, -1.00) in 53 scans from 53 places (σ of that mean 1.0 mm): was it moved after mapping? Every scan was localised again with the map without it",
             s(&moved)
         )),
         "{stderr}"
@@ -1719,6 +1948,41 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     assert!(worst <= 4.0, "the pose at t = {at} s is {worst:.1}σ off");
     let (_, stderr) = run(&surveyed);
     assert!(!stderr.contains("warning: landmark"), "{stderr}");
+}
+
+/// A robot standing still, scanned again and again with fresh noise: its scans share the
+/// viewpoint, and with it which beams hit each strip, so their errors do not average away
+/// scan by scan. The moved-landmark check took the scans for independent and told a correct
+/// map to be edited ("landmark N sits 14 mm from its mapped position … in 97 scans (σ of that
+/// mean 0.5 mm): was it moved after mapping?"). Landmarks really moved are still named
+/// (`cli_reflectors_moved_after_mapping_are_named_and_left_out`).
+#[test]
+fn cli_a_still_robot_does_not_move_its_landmarks() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let sim = simulate(&LrfSimConfig {
+        seed: 2,
+        n_scans: 60,
+        speed_mps: 0.0,
+        ..LrfSimConfig::default()
+    });
+    let mut m: serde_json::Value = serde_json::from_str(&sim.map_json()).expect("json");
+    m["position_sigma_m"] = serde_json::json!(0.001);
+    std::fs::write(d.join("map.json"), m.to_string()).expect("map");
+    std::fs::write(d.join("scans.csv"), sim.scans_csv()).expect("scans");
+    std::fs::write(d.join("truth.csv"), sim.truth_csv()).expect("truth");
+    let sweep = sim.config.sweep_s.to_string();
+    let out = localize(
+        d,
+        &["--truth", s(&d.join("truth.csv")), "--sweep-s", &sweep],
+    );
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("was it moved"), "{stderr}");
+    assert!(stdout.contains("confident wrong poses: 0"), "{stdout}");
 }
 
 /// Scan files are one recording: timed files are taken in the order of their times, whatever
@@ -2160,6 +2424,54 @@ fn cli_a_repeated_scan_is_not_localised() {
         "{row}"
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("29 ok"));
+    // Scan 0 republished 30 times: the repeats were warned of and then counted as lost
+    // ("29 of 30 scans found no pose: is map.json the map of this room …", 0.2 detections per
+    // scan); they are neither lost nor in the detection rate.
+    let zero: Vec<Vec<String>> = rows.iter().filter(|r| r[0] == "0").cloned().collect();
+    let stuck = rewrite_scans(&d.join("stuck.csv"), &header, &rows, &|scan| {
+        zero.iter()
+            .map(|b| format!("{},{},{}", scan[0][0], scan[0][1], b[2..].join(",")))
+            .collect()
+    });
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&stuck),
+        "--out",
+        s(&poses),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning: 29 scans repeat"), "{err}");
+    assert!(
+        !err.contains("found no pose") && !err.contains("the map of this room"),
+        "{err}"
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // The rate is scan 0's own, the one scan localised.
+    let written = std::fs::read_to_string(&poses).expect("poses");
+    let n_det: f64 = written
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split(',').nth(6))
+        .and_then(|n| n.parse().ok())
+        .expect("scan 0's detections");
+    let summary = stdout.lines().next().expect("a summary");
+    assert!(
+        summary.starts_with(
+            "lrf localize: 30 scans (tracking mode): 1 ok, 0 ambiguous, 0 lost, 29 repeated; "
+        ),
+        "{summary}"
+    );
+    let rate: f64 = summary
+        .split("; ")
+        .nth(1)
+        .and_then(|r| r.strip_suffix(" detections/scan"))
+        .and_then(|r| r.parse().ok())
+        .expect("a detection rate");
+    assert!((rate - n_det).abs() < 0.051, "{summary}: {n_det}");
 }
 
 /// Map values no room has: a reflector width in millimetres is refused, and a landmark 50 m

@@ -39,10 +39,10 @@ pub use eval::{
 pub use localize::{
     check_beam_step, check_fov, check_intensity_scale, check_range_unit, check_scan_times,
     drop_beyond_range, localize_scans, read_scan_files, Localized, MovedLandmark, ScanFiles,
-    Skewed,
+    Skewed, SUPPORT_ROWS,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
-pub use noise_probe::{wider_noise_finds_poses, WiderNoise};
+pub use noise_probe::{mirrored_finds_poses, wider_noise_finds_poses, Mirrored, WiderNoise};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{
     extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, ScanFile, SensorConfig,

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use nalgebra::{Matrix2, Vector2};
+use odocal_core::Pose2;
 
 use crate::pose_fit::{fit_pose_weighted, pose_shift, Observation};
 use crate::pose_log::{PoseLog, PoseLogRow};
@@ -345,9 +346,16 @@ pub fn drop_beyond_range(scans: &mut [Scan], max_range_m: f64) {
 /// the returns does not tell reflectors from walls.
 const MAX_REFLECTOR_SHARE: f64 = 0.5;
 
+/// Scans whose every range lies within this many metres are of no room: with intensities
+/// beside them that spread like distances, the columns are swapped.
+const MAX_SWAPPED_RANGE_M: f64 = 1.0;
+
 /// Refuses scans whose returns mostly reach `sensor.intensity_min`: their intensities are on
 /// another scale (0–255, or a scanner's raw counts, against the default 0.5 of a 0–1 scale),
-/// and every wall would be taken for a reflector, leaving almost every scan lost.
+/// and every wall would be taken for a reflector, leaving almost every scan lost. Refuses too
+/// scans none of whose returns reach it (every intensity 0: a scanner that does not record
+/// them; or a threshold above the scale), which lost every scan and were blamed on the map, and
+/// scans whose range and intensity columns look swapped.
 pub fn check_intensity_scale(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> {
     let mut returns: Vec<f64> = scans
         .iter()
@@ -358,17 +366,46 @@ pub fn check_intensity_scale(scans: &[Scan], sensor: &SensorConfig) -> Result<()
     if returns.is_empty() {
         return Ok(());
     }
+    returns.sort_by(f64::total_cmp);
+    let median = returns[returns.len() / 2];
+    let top = returns[(returns.len() * 99 / 100).min(returns.len() - 1)];
+    let brightest = returns[returns.len() - 1];
+    // Ranges that all lie within a metre beside "intensities" that spread like a room's
+    // distances: the two columns were swapped, and the threshold asked for below would be a
+    // typical range.
+    let longest = scans
+        .iter()
+        .flat_map(|s| s.ranges_m.iter().copied())
+        .filter(|r| r.is_finite())
+        .fold(0.0, f64::max);
+    if longest <= MAX_SWAPPED_RANGE_M && median >= MIN_MEDIAN_RANGE_M && median > longest {
+        return Err(LrfError::Config(format!(
+            "every range of the scans lies within {longest:.3} m, and their intensities spread like a room's distances (median {median}, up to {brightest}): are the range and intensity columns swapped? Put the ranges (metres) under the header's `range` and the returns' intensities under its `intensity`"
+        )));
+    }
     let bright = returns
         .iter()
         .filter(|i| **i >= sensor.intensity_min)
         .count();
+    // No return bright enough: every scan would be lost, and read as a map of another room.
+    if bright == 0 {
+        if brightest == 0.0 {
+            return Err(LrfError::Config(format!(
+                "every intensity of the scans' {} returns is 0, so no return reaches --intensity-min {} and no reflector can be told from a wall: does the scanner record intensity? Record the scans with their intensities (some drivers publish them only when a parameter asks for them)",
+                returns.len(),
+                sensor.intensity_min
+            )));
+        }
+        return Err(LrfError::Config(format!(
+            "no return of the scans reaches --intensity-min {} (median return {median}, the brightest 1 % from {top}, the brightest {brightest}), so no reflector can be found: give --intensity-min on the scanner's intensity scale, between the walls' returns and the reflectors' (halfway between the median and the brightest 1 %: {})",
+            sensor.intensity_min,
+            (median + top) / 2.0
+        )));
+    }
     let share = bright as f64 / returns.len() as f64;
     if share <= MAX_REFLECTOR_SHARE {
         return Ok(());
     }
-    returns.sort_by(f64::total_cmp);
-    let median = returns[returns.len() / 2];
-    let top = returns[(returns.len() * 99 / 100).min(returns.len() - 1)];
     Err(LrfError::Config(format!(
         "{:.0} % of the scans' returns are at or above --intensity-min {} (median return {median}, the brightest 1 % from {top}), but reflectors give a few percent of a scan: the threshold does not tell them from walls; give --intensity-min on the scanner's intensity scale, between the walls' returns and the reflectors' (halfway between those two: {})",
         share * 100.0,
@@ -487,6 +524,7 @@ struct Pass {
 impl Pass {
     /// The pass's poses, with the σ of those left with their sweep's skew widened.
     fn localized(mut self, moved: Vec<MovedLandmark>) -> Localized {
+        let n_unsupported = drop_unsupported(&mut self.log);
         let skewed = widen_skewed(&mut self.log, &self.deskewed, &self.sweeps_s);
         Localized {
             log: self.log,
@@ -494,6 +532,7 @@ impl Pass {
             n_repeated: self.n_repeated,
             unseen: self.unseen,
             moved,
+            n_unsupported,
         }
     }
 }
@@ -593,6 +632,66 @@ fn localize_pass(
     }
 }
 
+/// An `ok` pose looks for support among the `ok` poses of this many scans either side.
+pub const SUPPORT_ROWS: usize = 5;
+
+/// Poses of two scans agree when they are no farther apart than a small robot drives and
+/// turns between them (generously: 2 m/s and 360°/s, where `synth lrf` drives 0.5 m/s and
+/// 12°/s) plus the poses' own noise many times over.
+const SUPPORT_SPEED_M_S: f64 = 2.0;
+const SUPPORT_TURN_RAD_S: f64 = std::f64::consts::TAU;
+const SUPPORT_SLACK_M: f64 = 0.05;
+const SUPPORT_SLACK_RAD: f64 = 0.1;
+
+/// In a recording where most scans (repeats aside) are lost, takes the pose from every `ok`
+/// row that no `ok` pose of the [`SUPPORT_ROWS`] scans either side agrees with (status lost,
+/// mode `unsupported`), and returns how many. Scans that fit the map nowhere are of another
+/// room or read wrongly, and the few that pass the chance test among them are coincidences:
+/// a scanner mounted upside down gave one `ok` pose 4.2 m off with a σ of 3 mm among 93 lost
+/// scans. The right poses of such a recording come in runs, each agreeing with the next; a
+/// recording mostly localised keeps its lone poses, as the chance test vouches for them.
+fn drop_unsupported(log: &mut PoseLog) -> usize {
+    let judged = log.rows.iter().filter(|r| r.mode != "repeated").count();
+    let lost = log
+        .rows
+        .iter()
+        .filter(|r| r.status == Status::Lost && r.mode != "repeated")
+        .count();
+    if lost * 2 <= judged {
+        return 0;
+    }
+    let ok: Vec<usize> = (0..log.rows.len())
+        .filter(|&k| log.rows[k].status == Status::Ok && log.rows[k].pose.is_some())
+        .collect();
+    let agree = |a: &PoseLogRow, b: &PoseLogRow| {
+        let (Some(p), Some(q)) = (a.pose, b.pose) else {
+            return false;
+        };
+        let dt = (a.t_s - b.t_s).abs();
+        let dist = ((p.x_m - q.x_m).powi(2) + (p.y_m - q.y_m).powi(2)).sqrt();
+        let turn = odocal_core::wrap_angle(p.theta_rad - q.theta_rad).abs();
+        dist <= SUPPORT_SPEED_M_S * dt + SUPPORT_SLACK_M
+            && turn <= SUPPORT_TURN_RAD_S * dt + SUPPORT_SLACK_RAD
+    };
+    let lone: Vec<usize> = ok
+        .iter()
+        .copied()
+        .filter(|&k| {
+            !ok.iter().any(|&j| {
+                j != k && j.abs_diff(k) <= SUPPORT_ROWS && agree(&log.rows[k], &log.rows[j])
+            })
+        })
+        .collect();
+    for &k in &lone {
+        let r = &mut log.rows[k];
+        r.status = Status::Lost;
+        r.pose = None;
+        r.pose_cov = None;
+        r.mode = "unsupported".into();
+    }
+    lone.len()
+}
+
 /// Adds the matches of `h`, the pose of row `k`, to `fitted` (row, landmark, observation).
 fn add_fitted(fitted: &mut Vec<(usize, usize, Observation)>, k: usize, h: &Hypothesis) {
     let obs = h.matches.iter().zip(&h.observations);
@@ -623,6 +722,8 @@ pub struct MovedLandmark {
     pub sigma_m: f64,
     /// The `ok` scans it was matched in.
     pub n_scans: usize,
+    /// The places those scans were taken from (poses 2 cm and a beam step apart or more).
+    pub n_places: usize,
 }
 
 /// The landmarks whose residuals at the poses of `fitted` (row, landmark, observation) have a
@@ -710,10 +811,14 @@ fn residual_mean(
     deskewed: &[bool],
     l: usize,
 ) -> Option<MovedLandmark> {
-    let r: Vec<Vector2<f64>> = fitted
+    let seen: Vec<(Pose2, &Observation)> = fitted
         .iter()
         .filter(|f| f.1 == l && deskewed[f.0] && log.rows[f.0].status == Status::Ok)
-        .filter_map(|(k, _, o)| Some(log.rows[*k].pose?.isometry() * o.sensor - o.landmark))
+        .filter_map(|(k, _, o)| Some((log.rows[*k].pose?, o)))
+        .collect();
+    let r: Vec<Vector2<f64>> = seen
+        .iter()
+        .map(|(p, o)| p.isometry() * o.sensor - o.landmark)
         .collect();
     let n = r.len();
     if n < MIN_BIAS_SCANS {
@@ -726,13 +831,44 @@ fn residual_mean(
         .sum::<Matrix2<f64>>()
         / (n - 1) as f64;
     let dir = mean.try_normalize(0.0)?;
+    // Scans from one place share which beams hit the strip, and so the error of its centre
+    // along it, which their scatter does not show: the mean is known no better than the
+    // detections' own σ over the places they were seen from (a still robot's 55 scans gave
+    // 0.4 mm, and a correct map was called moved).
+    let step_rad = loc.cfg.sensor.step_rad;
+    let mut places: Vec<Pose2> = Vec::new();
+    for (p, _) in &seen {
+        let same = |q: &Pose2| {
+            (p.x_m - q.x_m).hypot(p.y_m - q.y_m) <= PLACE_M
+                && odocal_core::wrap_angle(p.theta_rad - q.theta_rad).abs() <= step_rad
+        };
+        if !places.iter().any(same) {
+            places.push(*p);
+        }
+    }
+    let own = seen
+        .iter()
+        .map(|(p, o)| {
+            let rot = nalgebra::Rotation2::new(p.theta_rad);
+            let d = rot.inverse() * dir;
+            d.dot(&(o.cov * d))
+        })
+        .sum::<f64>()
+        / n as f64;
+    let var = (dir.dot(&(scatter * dir)) / n as f64).max(own / places.len() as f64);
     Some(MovedLandmark {
         id: loc.map.landmarks[l].id,
         offset_m: mean,
-        sigma_m: (dir.dot(&(scatter * dir)) / n as f64).sqrt(),
+        sigma_m: var.sqrt(),
         n_scans: n,
+        n_places: places.len(),
     })
 }
+
+/// Poses closer than this (and turned less than a beam step) see a landmark from one place:
+/// a reflector's beams at a few metres are about 2 cm apart, so nearer poses hit it with the
+/// same beams.
+const PLACE_M: f64 = 0.02;
 
 /// Calls `f` with each row of `fitted` and that row's matches.
 fn for_each_row(
@@ -1011,6 +1147,9 @@ pub struct Localized {
     /// scan: moved since the map was made. The poses that matched them were fitted again
     /// without them.
     pub moved: Vec<MovedLandmark>,
+    /// `ok` poses of a mostly lost recording that no neighbouring scan's pose agreed with,
+    /// left without a pose (status lost, mode `unsupported`).
+    pub n_unsupported: usize,
 }
 
 /// Poses whose scans were not de-skewed (no motion was tracked yet, or `--global-only`)
@@ -1084,4 +1223,64 @@ fn widen_skewed(log: &mut PoseLog, deskewed: &[bool], sweeps_s: &[f64]) -> Optio
         }
     }
     (skewed.n_poses > 0 || skewed.n_motion_unknown > 0).then_some(skewed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use odocal_core::Pose2;
+
+    /// A log of `n` scans 0.1 s apart, `ok` where `pose_at` gives a pose, lost elsewhere.
+    fn log_of(n: usize, pose_at: impl Fn(usize) -> Option<Pose2>) -> PoseLog {
+        let rows = (0..n)
+            .map(|k| {
+                let pose = pose_at(k);
+                PoseLogRow {
+                    t_s: k as f64 * 0.1,
+                    pose,
+                    status: if pose.is_some() {
+                        Status::Ok
+                    } else {
+                        Status::Lost
+                    },
+                    n_landmarks: if pose.is_some() { 4 } else { 0 },
+                    n_detections: 4,
+                    n_hypotheses: usize::from(pose.is_some()),
+                    score: 4.0,
+                    mode: "global".into(),
+                    scan: k as u64,
+                    pose_cov: None,
+                }
+            })
+            .collect();
+        PoseLog { rows }
+    }
+
+    /// A scanner mounted upside down lost 93 of 100 scans and wrote one `ok` pose 4.2 m off
+    /// with a σ of 3 mm as ground truth: a pose no neighbour agrees with, in a recording
+    /// mostly lost, is taken away; a run of poses that agree with each other is kept.
+    #[test]
+    fn a_lone_pose_among_lost_scans_is_left_out() {
+        let along = |k: usize| Pose2::new(1.0 + 0.05 * k as f64, 2.0, 0.3);
+        let mut log = log_of(100, |k| match k {
+            40 => Some(Pose2::new(5.2, 1.0, 2.0)),
+            70..=74 => Some(along(k)),
+            // A neighbour in time that is somewhere else entirely supports nothing.
+            20 | 22 => Some(Pose2::new(k as f64 * 0.3, 0.0, 0.0)),
+            _ => None,
+        });
+        assert_eq!(drop_unsupported(&mut log), 3);
+        for k in [20, 22, 40] {
+            let r = &log.rows[k];
+            assert_eq!(
+                (r.status, r.pose, r.mode.as_str()),
+                (Status::Lost, None, "unsupported")
+            );
+        }
+        assert!((70..=74).all(|k| log.rows[k].status == Status::Ok));
+        // In a recording mostly localised a lone pose keeps its word.
+        let mut log = log_of(100, |k| (k < 60 || k == 80).then(|| along(k)));
+        assert_eq!(drop_unsupported(&mut log), 0);
+        assert_eq!(log.rows[80].status, Status::Ok);
+    }
 }

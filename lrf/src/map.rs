@@ -32,6 +32,7 @@ pub enum Side {
 /// A visibility boundary line: `y = a·x + b`, or the vertical line `x = x_m`,
 /// and the side from which the landmark is visible.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct VisibilityLine {
     /// Slope of `y = a·x + b` (absent for a vertical line).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -48,6 +49,7 @@ pub struct VisibilityLine {
 
 /// One landmark as stored in the map file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LandmarkSpec {
     /// Unique identifier.
     pub id: u32,
@@ -67,7 +69,12 @@ pub struct LandmarkSpec {
 }
 
 /// The map file: `{"format": "odocal.lrf-map/1", "reflector_width_m": …, "landmarks": […], "walls": […]}`.
+///
+/// Keys odocal does not read are refused, not passed over: a misspelt or renamed one
+/// (`facing_deg` for `facing_rad`) would leave its default in its place, and the poses
+/// worse with no word.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MapFile {
     /// Must be [`MAP_FORMAT`].
     pub format: String,
@@ -83,6 +90,10 @@ pub struct MapFile {
     /// localiser's default ([`crate::LocalizerConfig::map_sigma_m`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position_sigma_m: Option<f64>,
+    /// The room's width and height, metres, as `odocal synth lrf` writes them: for the
+    /// reader's eye, not used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub room_m: Option<[f64; 2]>,
 }
 
 fn default_width() -> f64 {
@@ -244,6 +255,62 @@ fn seen_together(a: &Landmark, b: &Landmark) -> bool {
     }
 }
 
+/// An unknown key's or a mistyped value's error with what to do about it: serde names an
+/// unknown key, its line and column and the keys known there, but not that the units are in
+/// the names; and a value of the wrong type (`"id": "3"`) by its type alone, not its key,
+/// which is read back from `text` before the place named.
+fn with_key_hint(e: odocal_core::FileError, text: &str) -> odocal_core::FileError {
+    let odocal_core::FileError::Parse {
+        path,
+        line,
+        column,
+        message,
+    } = e
+    else {
+        return e;
+    };
+    let message = if message.starts_with("unknown field") {
+        format!(
+            "{message}; spell the key as one of those known there, in the unit its name says (facing_rad in radians, x_m in metres), or remove it"
+        )
+    } else if message.starts_with("invalid type") {
+        match key_before(text, line, column) {
+            Some(key) => format!(
+                "{message}: the value of `{key}`; give it as the type expected (a number without quotes)"
+            ),
+            None => message,
+        }
+    } else {
+        message
+    };
+    odocal_core::FileError::Parse {
+        path,
+        line,
+        column,
+        message,
+    }
+}
+
+/// The last `"key":` before `line`, `column` (1-based, as serde_json counts them) of `text`.
+fn key_before(text: &str, line: u64, column: u64) -> Option<String> {
+    let start: usize = text
+        .split_inclusive('\n')
+        .take(usize::try_from(line).ok()?.saturating_sub(1))
+        .map(str::len)
+        .sum();
+    let rest = text.get(start..)?;
+    let end = start
+        + rest
+            .char_indices()
+            .nth(usize::try_from(column).ok()?)
+            .map_or(rest.len(), |(i, _)| i);
+    let before = text.get(..end)?;
+    let colon = before.rfind(':')?;
+    let key_end = before[..colon].trim_end().strip_suffix('"')?;
+    let key_start = key_end.rfind('"')?;
+    Some(key_end[key_start + 1..].to_string())
+}
+
 impl Map {
     /// Reads and validates a map file.
     pub fn read(path: &Path) -> Result<Map, LrfError> {
@@ -258,7 +325,8 @@ impl Map {
             name,
             MAP_FORMAT,
             "pass a landmark map (e.g. from `odocal synth lrf`)",
-        )?;
+        )
+        .map_err(|e| with_key_hint(e, text))?;
         Map::from_file(&file, name)
     }
 
@@ -638,6 +706,7 @@ mod tests {
             landmarks: l,
             walls: vec![],
             position_sigma_m: None,
+            room_m: None,
         }
     }
 

@@ -1,7 +1,9 @@
 //! Whether a wider range noise than the one given finds the poses a run left lost or
 //! ambiguous: the association gates and the pose search's margins are a few σ of
 //! `sigma_range_m` wide, so a σ below the scanner's own noise turns the true pose away and
-//! reads, from the outside, like a wrong map.
+//! reads, from the outside, like a wrong map. Likewise whether the scans mirrored find them:
+//! a scanner mounted upside down takes its angles clockwise, and its scans fit the map nowhere
+//! (or, by coincidence, somewhere far off).
 
 use crate::localize::localize_scans;
 use crate::scan::Scan;
@@ -72,5 +74,50 @@ pub fn wider_noise_finds_poses(
                     n_ok_given,
                     n_ok_wider,
                 })
+        })
+}
+
+/// Scans found a pose with their angles mirrored ([`Scan::mirrored`]) where as given they
+/// found few.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mirrored {
+    /// Scans probed (the first of the run).
+    pub n_scans: usize,
+    /// Of them, found a pose as given.
+    pub n_ok_given: usize,
+    /// Of them, found a pose mirrored.
+    pub n_ok_mirrored: usize,
+}
+
+/// Localises the first scans again mirrored (angles negated, as a scanner mounted upside
+/// down takes them) and returns the counts when at least 80 % of them, and more than twice as
+/// many as given, find a pose: the scanner's angles run the other way round than the map's.
+/// None otherwise.
+pub fn mirrored_finds_poses(
+    loc: &Localizer,
+    scans: &[Scan],
+    rate_hz: f64,
+    global_only: bool,
+) -> Option<Mirrored> {
+    let scans = &scans[..scans.len().min(PROBE_SCANS)];
+    if scans.is_empty() {
+        return None;
+    }
+    let n_ok = |s: &[Scan]| {
+        let run = localize_scans(loc, s, rate_hz, global_only, &|| {});
+        run.log
+            .rows
+            .iter()
+            .filter(|r| r.status == Status::Ok && r.pose.is_some())
+            .count()
+    };
+    let n_ok_given = n_ok(scans);
+    let mirrored: Vec<Scan> = scans.iter().map(Scan::mirrored).collect();
+    let n_ok_mirrored = n_ok(&mirrored);
+    (n_ok_mirrored > 2 * n_ok_given && n_ok_mirrored as f64 >= MIN_SHARE_OK * scans.len() as f64)
+        .then_some(Mirrored {
+            n_scans: scans.len(),
+            n_ok_given,
+            n_ok_mirrored,
         })
 }

@@ -31,7 +31,8 @@ pub struct PoseLogRow {
     pub n_detections: usize,
     /// Hypotheses considered.
     pub n_hypotheses: usize,
-    /// Score of the best hypothesis.
+    /// Score of the best hypothesis: landmarks matched minus landmarks in view from its pose
+    /// that were not detected (a count; 0 when lost).
     pub score: f64,
     /// How the pose was found ("global", "tracking", ...).
     pub mode: String,

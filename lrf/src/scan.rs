@@ -148,6 +148,19 @@ pub struct Scan {
 }
 
 impl Scan {
+    /// The scan as a scanner mounted the other way up takes it: every angle negated, the
+    /// beams listed in increasing angle order again (so in the reverse order of their times).
+    pub fn mirrored(&self) -> Scan {
+        Scan {
+            id: self.id,
+            t_s: self.t_s,
+            angles_rad: self.angles_rad.iter().rev().map(|a| -a).collect(),
+            ranges_m: self.ranges_m.iter().rev().copied().collect(),
+            intensities: self.intensities.iter().rev().copied().collect(),
+            reversed: !self.reversed,
+        }
+    }
+
     /// The angular step of the scan, radians (0 for fewer than two beams).
     pub fn step_rad(&self) -> f64 {
         if self.angles_rad.len() < 2 {
@@ -507,7 +520,7 @@ pub fn read_scans_csv(path: &Path) -> Result<ScanFile, LrfError> {
 /// unitless), optionally with `scan` (id) and `t` (seconds) columns; rows of
 /// one scan must be contiguous. A scan's beams may be listed in either angle order (they are
 /// kept in increasing order) and may start anywhere, but span at most a full turn. Rejects
-/// NaN or negative values, angles spanning more than a turn (degrees, not radians) and
+/// negative values (a range of NaN or ±inf is no return, 0), angles spanning more than a turn (degrees, not radians) and
 /// unevenly spaced angles with the line and column at fault.
 pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
     let err = |line: usize, column: &str, message: String| LrfError::Scan {
@@ -525,13 +538,15 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
         .headers()
         .map_err(|e| err(1, "-", format!("cannot read the header: {e}")))?
         .clone();
-    let col = |n: &str| headers.iter().position(|h| h == n);
+    // Found by name, in any order and any case: spreadsheets and ROS exports capitalise
+    // their headers (`Scan,T,Angle,Range,Intensity`).
+    let col = |n: &str| headers.iter().position(|h| h.eq_ignore_ascii_case(n));
     let (Some(ca), Some(cr), Some(ci)) = (col("angle"), col("range"), col("intensity")) else {
         return Err(err(
             1,
             "-",
             format!(
-                "header is \"{}\"; a scan file needs the columns angle,range,intensity (optionally scan,t)",
+                "header is \"{}\"; a scan file needs the columns angle,range,intensity (optionally scan,t), named so in its first line, in any order",
                 headers.iter().collect::<Vec<_>>().join(",")
             ),
         ));
@@ -557,13 +572,18 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
                 .map_err(|_| err(line, cname, format!("\"{s}\" is not a number")))
         };
         let angle = num(ca, "angle")?;
-        // ROS drivers write +inf where a beam had no return; odocal's convention for that is 0,
-        // which every consumer of the ranges already reads as "no return".
+        // ROS drivers write +inf where a beam had no return, -inf where the object was too
+        // near and NaN where the measurement failed (REP 117); odocal's convention for all of
+        // them is 0, which every consumer of the ranges already reads as "no return".
         let range = match num(cr, "range")? {
-            r if r == f64::INFINITY => 0.0,
+            r if !r.is_finite() => 0.0,
             r => r,
         };
-        let intensity = num(ci, "intensity")?;
+        // Such a beam's intensity is often NaN too, and nothing is read from it.
+        let intensity = match num(ci, "intensity")? {
+            i if i.is_nan() && range == 0.0 => 0.0,
+            i => i,
+        };
         if !angle.is_finite() {
             return Err(err(
                 line,
@@ -571,7 +591,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
                 format!("angle is {angle}; give a finite angle in radians"),
             ));
         }
-        if range.is_nan() || range < 0.0 {
+        if range < 0.0 {
             return Err(err(
                 line,
                 "range",
@@ -1009,25 +1029,48 @@ mod tests {
         );
     }
 
+    /// ROS's REP 117 writes NaN for a beam without a valid return (and ±inf beyond or below
+    /// the range); these were refused ("range is NaN; … use 0"), and a header in capitals or
+    /// in another order was refused too.
+    #[test]
+    fn non_finite_ranges_are_no_return_and_headers_are_read_by_name() {
+        let f = parse_scans_csv(
+            "Intensity,RANGE,Angle\n0.1,1.0,0.0\nnan,NaN,0.01\n0.2,-inf,0.02\n0.3,inf,0.03\n",
+            "s.csv",
+        )
+        .unwrap();
+        let s = &f.scans[0];
+        assert_eq!(s.ranges_m, vec![1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(s.intensities, vec![0.1, 0.0, 0.2, 0.3]);
+        assert_eq!(s.angles_rad, vec![0.0, 0.01, 0.02, 0.03]);
+        let e = parse_scans_csv("angle,distance,intensity\n0.0,1.0,0.1\n", "s.csv").unwrap_err();
+        assert!(
+            e.to_string().ends_with(
+                "header is \"angle,distance,intensity\"; a scan file needs the columns angle,range,intensity (optionally scan,t), named so in its first line, in any order"
+            ),
+            "{e}"
+        );
+    }
+
     #[test]
     fn rejects_bad_values_with_position() {
         let e = parse_scans_csv(
-            "angle,range,intensity\n0.0,1.0,0.1\n0.01,NaN,0.1\n",
+            "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,NaN\n",
             "s.csv",
         )
         .unwrap_err();
         assert!(
-            e.to_string().starts_with("s.csv, line 3, column range"),
+            e.to_string().starts_with("s.csv, line 3, column intensity"),
             "{e}"
         );
         // The same lines ended as Windows ends them.
         let e = parse_scans_csv(
-            "angle,range,intensity\r\n0.0,1.0,0.1\r\n0.01,NaN,0.1\r\n",
+            "angle,range,intensity\r\n0.0,1.0,0.1\r\n0.01,1.0,NaN\r\n",
             "s.csv",
         )
         .unwrap_err();
         assert!(
-            e.to_string().starts_with("s.csv, line 3, column range"),
+            e.to_string().starts_with("s.csv, line 3, column intensity"),
             "{e}"
         );
         let e = parse_scans_csv("angle,range,intensity\n0.0,1.0,0.1\n0.01,-1,0.1\n", "s.csv")

@@ -27,6 +27,7 @@ pub(crate) fn map_of(pts: &[(f64, f64)]) -> Map {
             landmarks,
             walls: vec![],
             position_sigma_m: None,
+            room_m: None,
         },
         "test",
     )
@@ -212,6 +213,7 @@ fn walled_map() -> Map {
             [x0, y1, x0, y0],
         ],
         position_sigma_m: None,
+        room_m: None,
     };
     file.landmarks = map_of(&PTS)
         .landmarks

@@ -6,9 +6,9 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_fov, check_intensity_scale, check_map_report, check_range_unit,
-    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans, read_scan_files,
-    read_truth_csv, wider_noise_finds_poses, Localized, Localizer, LocalizerConfig, Map, ScanFiles,
-    SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
+    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans,
+    mirrored_finds_poses, read_scan_files, read_truth_csv, wider_noise_finds_poses, Localized,
+    Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
 };
 
 use crate::output::{check_output_file, commit, progress, write_atomic};
@@ -49,6 +49,8 @@ pub struct LocalizeArgs {
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Output CSV: t,x,y,theta,status,n_landmarks,n_detections,n_hypotheses,score,mode,scan (x,y,theta empty when lost).
+    /// score: landmarks matched minus landmarks in view from the pose that were not detected
+    /// (a count, no unit; 0 when lost; an `ok` pose has at least 1).
     #[arg(long)]
     pub out: PathBuf,
     /// Also write the `ok` poses as a trajectory CSV (`t,x,y,theta,quality,sigma_x,sigma_y,
@@ -85,6 +87,11 @@ pub struct LocalizeArgs {
     /// A scan's time is its first beam's; its beams are de-skewed with the tracked motion.
     #[arg(long)]
     pub sweep_s: Option<f64>,
+    /// The scanner is mounted upside down: its angles run clockwise seen from above, and every
+    /// angle is negated before localising (the poses are the scanner's, its x axis along the
+    /// 0 rad beam).
+    #[arg(long)]
+    pub upside_down: bool,
 }
 
 /// Runs a subcommand.
@@ -167,6 +174,11 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     if let Some(note) = reversed_note {
         tell!("note: {note}");
     }
+    if a.upside_down {
+        for s in &mut scans {
+            *s = s.mirrored();
+        }
+    }
     check_range_unit(&scans, a.max_range_m)?;
     drop_beyond_range(&mut scans, a.max_range_m);
     let periods_apart = check_scan_times(&scans, &cfg.sensor)?;
@@ -199,10 +211,51 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         n_repeated,
         unseen,
         moved,
+        n_unsupported,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
-    let count = |s: Status| log.rows.iter().filter(|r| r.status == s).count();
+    // A repeated scan was not localised: it counts as no lost scan, and its detections (none
+    // looked for) in no rate, or a driver republishing its scans read as a wrong map.
+    let count = |s: Status| {
+        log.rows
+            .iter()
+            .filter(|r| r.status == s && r.mode != "repeated")
+            .count()
+    };
+    let n_judged = log.rows.len() - n_repeated;
+    let scans_judged = match (n_judged, n_repeated) {
+        (1, 0) => "1 scan".to_string(),
+        (n, 0) => format!("{n} scans"),
+        (1, r) => format!("1 scan ({r} repeated aside)"),
+        (n, r) => format!("{n} scans ({r} repeated aside)"),
+    };
+    // Scans mirrored that find poses where as given they fit the map nowhere: the scanner's
+    // angles run the other way round. Refused before any other word, as every scan's fit
+    // (and every warning drawn from it) is wrong, and the few poses found are coincidences.
+    if count(Status::Lost) * 2 > n_judged {
+        if let Some(m) = mirrored_finds_poses(&loc, &scans, a.rate_hz, a.global_only) {
+            let (looks, fix) = if a.upside_down {
+                (
+                    "the scanner looks mounted the right way up, its angles counter-clockwise as they are",
+                    "drop --upside-down",
+                )
+            } else {
+                (
+                    "the scanner looks mounted upside down, its angles clockwise",
+                    "give --upside-down (which negates every angle), or turn the scanner the right way up",
+                )
+            };
+            anyhow::bail!(
+                "{} of {} found no pose, and with their angles mirrored {} of the first {} find one, where {} did: {looks}, so nothing was written; {fix}",
+                count(Status::Lost),
+                scans_judged,
+                m.n_ok_mirrored,
+                m.n_scans,
+                m.n_ok_given
+            );
+        }
+    }
     let why_lost = || {
         format!(
             "is {} the map of this room, in metres, and are the scanner's angles counter-clockwise (a scanner mounted upside down mirrors them)? Check --intensity-min {} against the reflectors' returns and --max-range-m {} m",
@@ -228,13 +281,18 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     for m in moved {
         let dir = m.offset_m.normalize();
         tell!(
-            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm): was it moved after mapping? Every scan was localised again with the map without it (the poses it had pulled, and the motion the sweeps are de-skewed with, freed of it); update its position in {}, or remove it ({mistimed})",
+            "warning: landmark {} of {} sits {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans from {} (σ of that mean {:.1} mm): was it moved after mapping? Every scan was localised again with the map without it (the poses it had pulled, and the motion the sweeps are de-skewed with, freed of it); update its position in {}, or remove it ({mistimed})",
             m.id,
             a.map.display(),
             m.offset_m.norm() * 1e3,
             dir.x,
             dir.y,
             m.n_scans,
+            if m.n_places == 1 {
+                "one place".to_string()
+            } else {
+                format!("{} places", m.n_places)
+            },
             m.sigma_m * 1e3,
             a.map.display()
         );
@@ -258,20 +316,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // the tag was never accepted.
     if !log.rows.is_empty() && count(Status::Ok) == 0 {
         let detections: usize = log.rows.iter().map(|r| r.n_detections).sum();
-        let per_scan = detections as f64 / log.rows.len() as f64;
+        let per_scan = detections as f64 / n_judged.max(1) as f64;
         if let Some(hint) = noise_hint() {
             anyhow::bail!(
-                "none of the {} scans found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written: {hint}",
-                log.rows.len(),
+                "none of the {} found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written: {hint}",
+                scans_judged,
                 count(Status::Ambiguous),
                 count(Status::Lost),
                 a.out.display()
             );
         }
-        if count(Status::Lost) == log.rows.len() {
+        if count(Status::Lost) == n_judged {
             anyhow::bail!(
-                "none of the {} scans found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
-                log.rows.len(),
+                "none of the {} found a pose ({per_scan:.1} reflector detections per scan), so {} was not written: {}",
+                scans_judged,
                 a.out.display(),
                 why_lost()
             );
@@ -280,8 +338,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         // scans are of another room, or read wrongly, not of a symmetric layout.
         if !layout_repeats(&loc.map, a.max_range_m) {
             anyhow::bail!(
-                "none of the {} scans found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written; {} has no congruent configuration (`odocal lrf check-map {}`), so no symmetric layout explains the ambiguous ones: {}",
-                log.rows.len(),
+                "none of the {} found a pose ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so {} was not written; {} has no congruent configuration (`odocal lrf check-map {}`), so no symmetric layout explains the ambiguous ones: {}",
+                scans_judged,
                 count(Status::Ambiguous),
                 count(Status::Lost),
                 a.out.display(),
@@ -302,8 +360,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                     format!(" at ({:.2}, {:.2}) m", l.position.x, l.position.y)
                 });
             anyhow::bail!(
-                "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so nothing was written: landmark {id}{at} of {} was not seen in {missed} of the {n} scans it should have been in view in; with it gone the landmarks repeat themselves (a symmetric layout); put it back, or remove it from the map and add one that breaks the symmetry (`odocal lrf check-map {}`)",
-                log.rows.len(),
+                "none of the {} found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan), so nothing was written: landmark {id}{at} of {} was not seen in {missed} of the {n} scans it should have been in view in; with it gone the landmarks repeat themselves (a symmetric layout); put it back, or remove it from the map and add one that breaks the symmetry (`odocal lrf check-map {}`)",
+                scans_judged,
                 count(Status::Ambiguous),
                 count(Status::Lost),
                 a.map.display(),
@@ -313,8 +371,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         // Ambiguous scans fit the map in several places equally well: the layout repeats
         // itself where the scanner went, which no setting of the scanner changes.
         anyhow::bail!(
-            "none of the {} scans found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan): the landmarks of {} repeat themselves (a symmetric layout), so every scan fits several places and nothing was written; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
-            log.rows.len(),
+            "none of the {} found a pose it could tell from another ({} ambiguous, {} lost; {per_scan:.1} reflector detections per scan): the landmarks of {} repeat themselves (a symmetric layout), so every scan fits several places and nothing was written; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
+            scans_judged,
             count(Status::Ambiguous),
             count(Status::Lost),
             a.map.display(),
@@ -376,15 +434,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         }
         commit()?;
     }
-    let n = log.rows.len().max(1);
+    let n = n_judged.max(1);
     let n_det_total: usize = log.rows.iter().map(|r| r.n_detections).sum();
     say!(
-        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost; {:.1} detections/scan; {:.1} µs/scan; {}",
+        "lrf localize: {} scans ({} mode): {} ok, {} ambiguous, {} lost{}; {:.1} detections/scan; {:.1} µs/scan; {}",
         log.rows.len(),
         if a.global_only { "global" } else { "tracking" },
         n_ok,
         count(Status::Ambiguous),
         count(Status::Lost),
+        if n_repeated > 0 {
+            format!(", {n_repeated} repeated")
+        } else {
+            String::new()
+        },
         n_det_total as f64 / n as f64,
         elapsed.as_secs_f64() * 1e6 / n as f64,
         match (&refused, &a.trajectory) {
@@ -417,21 +480,29 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             if n_repeated == 1 { "it was" } else { "they were" }
         );
     }
-    if count(Status::Lost) * 2 > log.rows.len() {
+    if n_unsupported > 0 {
         tell!(
-            "warning: {} of {} scans found no pose: {}",
+            "warning: {n_unsupported} {} no pose of the {} scans either side to agree with, in a recording where most scans found none: a lone pose among lost scans is more likely a coincidence than the scanner's place, so {} left out (status lost, mode unsupported)",
+            if n_unsupported == 1 { "ok pose had" } else { "ok poses had" },
+            odocal_lrf::SUPPORT_ROWS,
+            if n_unsupported == 1 { "it was" } else { "they were" }
+        );
+    }
+    if count(Status::Lost) * 2 > n_judged {
+        tell!(
+            "warning: {} of {} found no pose: {}",
             count(Status::Lost),
-            log.rows.len(),
+            scans_judged,
             noise_hint().unwrap_or_else(why_lost)
         );
     }
     // A quarter of the scans or more without a pose they could tell from another: the
     // written poses leave out much of the recording, for a reason the user can act on.
-    if count(Status::Ambiguous) * 4 >= log.rows.len() {
+    if count(Status::Ambiguous) * 4 >= n_judged {
         tell!(
-            "warning: {} of {} scans fit the map in several places and have no pose: {}",
+            "warning: {} of {} fit the map in several places and have no pose: {}",
             count(Status::Ambiguous),
-            log.rows.len(),
+            scans_judged,
             if layout_repeats(&loc.map, a.max_range_m) {
                 format!(
                     "the landmarks of {} repeat themselves (a symmetric layout) where the scanner went; run `odocal lrf check-map {}` and add or move a landmark to break the symmetry",
