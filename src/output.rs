@@ -185,6 +185,51 @@ pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
     staging::staged_dir(target, option)
 }
 
+/// The file `odocal synth` leaves in every folder it writes: a folder holding it is one synth
+/// wrote, whose files a new synth run may replace.
+pub const SYNTH_MARK: &str = ".odocal-synth";
+
+/// What [`SYNTH_MARK`] says to whoever opens it.
+pub const SYNTH_MARK_TEXT: &[u8] =
+    b"written by odocal synth: its files may be replaced by the next run\n";
+
+/// Refuses a synth `--out` folder that holds files and no [`SYNTH_MARK`]: synth replaces the
+/// files of its outputs' names and series (a user's `view_07.png` beside the `view_00`…`02`
+/// rendered was deleted, `view_00.png` overwritten), so only a new or empty folder, or one
+/// synth wrote before, is written into.
+pub fn check_synth_out(out: &Path, option: &str) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
+    let mut names: Vec<String> = entries
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| temp_owner(n).is_none())
+        .collect();
+    if names.is_empty() || names.iter().any(|n| n == SYNTH_MARK) {
+        return Ok(());
+    }
+    names.sort();
+    let shown = names.iter().take(3).cloned().collect::<Vec<_>>().join(", ");
+    let more = if names.len() > 3 { ", …" } else { "" };
+    anyhow::bail!(
+        "{option} {}: the folder holds {} file(s) synth did not write ({shown}{more}), which it would replace or delete: give a new or empty folder",
+        out.display(),
+        names.len()
+    )
+}
+
+/// [`staged_dir`] for an `odocal synth` output folder: refused as [`check_synth_out`] says,
+/// and marked as synth's.
+pub fn synth_out_dir(out: &Path, option: &str) -> anyhow::Result<PathBuf> {
+    check_synth_out(out, option)?;
+    let dir = staged_dir(out, option)?;
+    let mark = dir.join(SYNTH_MARK);
+    std::fs::write(&mark, SYNTH_MARK_TEXT)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", mark.display()))?;
+    Ok(dir)
+}
+
 /// Deletes the temporaries (`.odocal-<pid>-<n>.tmp`) beside `output` whose process no longer
 /// exists: a run killed with SIGKILL, or before its interrupt handler could act, leaves its
 /// unfinished outputs, and the next run writing to the same folder removes them. Each folder

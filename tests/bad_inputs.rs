@@ -715,6 +715,62 @@ fn outputs_inside_input_folders_or_naming_folders_are_refused_before_any_work() 
     );
 }
 
+/// `synth` replaces the files of its outputs' names and series in `--out`: a folder of the
+/// user's own photos lost `view_07.png` and had `view_00.png` overwritten, exit 0. A folder
+/// holding files synth did not write is refused untouched; one synth wrote is replaced.
+#[test]
+fn synth_refuses_a_folder_of_files_it_did_not_write() {
+    let d = tempfile::tempdir().expect("tempdir");
+    let mine = d.path().join("mine");
+    std::fs::create_dir_all(&mine).expect("mkdir");
+    for name in ["view_00.png", "view_07.png", "map.json"] {
+        std::fs::write(mine.join(name), "photo").expect("write");
+    }
+    let small = [
+        "--views",
+        "3",
+        "--floor-views",
+        "0",
+        "--width",
+        "320",
+        "--height",
+        "240",
+    ];
+    for args in [
+        [&["synth", "calib", "--out", p(&mine)][..], &small[..]].concat(),
+        vec!["synth", "lrf", "--out", p(&mine), "--scans", "3"],
+        vec!["synth", "track", "--out", p(&mine), "--frames", "3"],
+        vec![
+            "synth",
+            "experiment",
+            "--out",
+            p(&mine),
+            "--runs",
+            "1",
+            "--frames",
+            "none",
+        ],
+    ] {
+        fails_with(
+            &odocal(&args),
+            "the folder holds 3 file(s) synth did not write (map.json, view_00.png, view_07.png), which it would replace or delete: give a new or empty folder",
+        );
+    }
+    for name in ["view_00.png", "view_07.png", "map.json"] {
+        assert_eq!(std::fs::read(mine.join(name)).expect("kept"), b"photo");
+    }
+    // A folder synth wrote is written again: fewer views leave none of the earlier ones.
+    let again = d.path().join("again");
+    let calib = |views: &str| {
+        let mut args = vec!["synth", "calib", "--out", p(&again), "--views", views];
+        args.extend_from_slice(&small[2..]);
+        succeeded(&odocal(&args));
+    };
+    calib("4");
+    calib("3");
+    assert!(again.join("view_02.png").exists() && !again.join("view_03.png").exists());
+}
+
 /// The OpenCV and ROS YAML files `calibrate` writes for other tools, given back as
 /// `--camera`, were refused as "invalid JSON at line 1 column 1"; they are named as what
 /// they are, with the file to give instead.

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use odocal_calib::BoardSpec;
 use odocal_synth::arena::{write_arena, ArenaScene};
 
-use crate::output::{commit, progress, staged_dir};
+use crate::output::{commit, progress, synth_out_dir};
 
 /// Arguments of `odocal synth arena`.
 #[derive(clap::Args)]
@@ -66,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..ArenaScene::default()
     };
     scene.check()?;
-    let dir = staged_dir(&args.out, "--out")?;
+    let dir = synth_out_dir(&args.out, "--out")?;
     let bar = progress(
         (4 * (args.calib_views + 8 + args.frames)) as u64,
         "rendering",

@@ -12,7 +12,7 @@ use odocal_synth::board::{
 use odocal_synth::calib_set::{self, check_scene};
 
 use super::board::{TargetArg, TargetArgs};
-use crate::output::{commit, progress, staged_dir};
+use crate::output::{commit, progress, synth_out_dir};
 
 /// Arguments of `odocal synth calib`.
 #[derive(ClapArgs)]
@@ -66,7 +66,7 @@ pub struct Args {
 /// Renders a calibration session into `out` (staged: it appears when the command succeeds).
 pub fn write_calib_set(out: &Path, scene: &CalibScene, seed: u64) -> anyhow::Result<CalibTruth> {
     check_scene(scene)?;
-    let dir = staged_dir(out, "--out")?;
+    let dir = synth_out_dir(out, "--out")?;
     let bar = progress((scene.views + scene.floor_views) as u64, "rendering");
     let truth = calib_set::write_calib_set(&dir, scene, seed, &|| bar.inc(1));
     bar.finish_and_clear();

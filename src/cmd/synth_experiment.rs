@@ -9,7 +9,7 @@ use odocal_synth::experiment::{self, simulate_experiment, ExperimentSettings};
 use odocal_synth::robot::{PathKind, RobotSimConfig};
 
 use crate::cmd::synth_track::CameraArgs;
-use crate::output::{commit, count, progress, staged_dir};
+use crate::output::{commit, count, progress, synth_out_dir};
 
 /// What stands for the camera.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // Everything is written into a staged folder that replaces the outputs in --out only when
     // the whole experiment has been simulated.
-    let out = staged_dir(&args.out, "--out")?;
+    let out = synth_out_dir(&args.out, "--out")?;
     let n_rec = args.runs.div_ceil(args.runs_per_recording.max(1));
     let bar = progress(n_rec as u64, "simulate");
     let summary = simulate_experiment(&out, &settings, &|| bar.inc(1))?;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use odocal_synth::lrf_sim::{simulate, LrfSimConfig};
 
-use crate::output::{commit, write_atomic};
+use crate::output::{check_synth_out, commit, write_atomic, SYNTH_MARK, SYNTH_MARK_TEXT};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -73,6 +73,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let map = args.out.join("map.json");
     let scans = args.out.join("scans.csv");
     let truth = args.out.join("truth.csv");
+    check_synth_out(&args.out, "--out")?;
+    write_atomic(&args.out.join(SYNTH_MARK), SYNTH_MARK_TEXT)?;
     write_atomic(&map, sim.map_json().as_bytes())?;
     write_atomic(&scans, sim.scans_csv().as_bytes())?;
     write_atomic(&truth, sim.truth_csv().as_bytes())?;

@@ -9,7 +9,7 @@ use odocal_synth::scene::{
 };
 use odocal_synth::track_scene::{write_track_scene, TrackScene};
 
-use crate::output::{commit, progress, staged_dir};
+use crate::output::{commit, progress, synth_out_dir};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -245,7 +245,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mocap_hz: args.mocap_hz,
     };
     scene.check()?;
-    let dir = staged_dir(&args.out, "--out")?;
+    let dir = synth_out_dir(&args.out, "--out")?;
     let bar = progress(args.frames as u64, "rendering");
     let written = write_track_scene(&dir, &scene, &|_| bar.inc(1));
     bar.finish_and_clear();
