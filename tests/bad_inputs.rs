@@ -1288,7 +1288,35 @@ fn synth_calib_blur_is_checked() {
         odocal(&args)
     };
     let e = fails_with(&narrow("2", "30"), "could place none of the 2 floor views");
+    assert!(e.contains("give a wider --hfov"), "{e}");
     assert!(!out.exists(), "{e}");
+    // A wide camera's floor squares too small to find were also told "a wider --hfov, a
+    // smaller --square", which made it worse; the square asked for then places them all.
+    let e = fails_with(&narrow("2", "110"), "could place none of the 2 floor views");
+    let at_least = "give a larger --square (at least ";
+    assert!(
+        e.contains("px a board is found at") && e.contains(at_least),
+        "{e}"
+    );
+    let square = e
+        .split(at_least)
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .expect("m");
+    let mut args = vec![
+        "synth",
+        "calib",
+        "--out",
+        p(&out),
+        "--width",
+        "640",
+        "--height",
+    ];
+    args.extend(["360", "--views", "3", "--floor-views", "2", "--hfov", "110"]);
+    args.extend(["--square", square]);
+    let said = ok(&args);
+    assert!(said.contains("and 2 floor views"), "{said}");
+    std::fs::remove_dir_all(&out).expect("rm");
     // Some placed of more asked for was said only by the count written.
     let run = narrow("5", "35");
     succeeded(&run);

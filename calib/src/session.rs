@@ -14,6 +14,10 @@ use crate::{
     CAMERA_FORMAT,
 };
 
+/// Inner corners a side of the largest checkerboard read: a 50x50 board of 2 cm squares is
+/// a metre across.
+const MAX_BOARD_CORNERS: u32 = 50;
+
 impl BoardSpec {
     /// Parses `--board COLSxROWS` (inner corners) with the square side in metres.
     pub fn parse(s: &str, square_m: f64) -> Result<Self, CalibError> {
@@ -31,6 +35,12 @@ impl BoardSpec {
             .map_err(|_| bad(format!("{r:?} is not a number")))?;
         if cols < 3 || rows < 3 {
             return Err(bad("need at least 3x3 inner corners".into()));
+        }
+        // Looking for a board of thousands of corners takes OpenCV minutes to fail.
+        if cols > MAX_BOARD_CORNERS || rows > MAX_BOARD_CORNERS {
+            return Err(bad(format!(
+                "at most {MAX_BOARD_CORNERS} inner corners a side (one fewer than the squares): count the board's inner corners"
+            )));
         }
         if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
             return Err(CalibError::Input(format!(

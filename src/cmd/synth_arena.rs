@@ -51,6 +51,13 @@ pub struct Args {
 
 /// Runs `odocal synth arena`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::synth_count_at_most(
+        args.frames,
+        "--frames",
+        super::synth_track::MAX_FRAMES,
+        "an hour at 30 frames/s",
+    )?;
+    super::synth_count_at_most(args.calib_views, "--calib-views", 500, "views per camera")?;
     let scene = ArenaScene {
         seed: args.seed,
         width: args.width,

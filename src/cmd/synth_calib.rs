@@ -81,6 +81,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.lens
         )
     })?;
+    super::synth_count_at_most(a.views, "--views", 500, "views of a calibration")?;
+    super::synth_count_at_most(a.floor_views, "--floor-views", 100, "floor views")?;
     let hfov = a.hfov.unwrap_or(typical_hfov_deg(lens));
     let charuco = a.target.target == TargetArg::Charuco;
     let square = a.square.unwrap_or(match (charuco, lens) {

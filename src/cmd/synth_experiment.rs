@@ -86,6 +86,8 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::synth_count_at_most(args.runs, "--runs", 10_000, "runs of an experiment")?;
+    super::synth_count_at_most(args.tour_legs, "--tour-legs", 1_000, "legs of a tour")?;
     let config = match &args.config {
         Some(p) => RobotSimConfig::read(p)?,
         None => RobotSimConfig::default(),

@@ -39,6 +39,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.scans == 0 {
         anyhow::bail!("--scans must be at least 1");
     }
+    super::synth_count_at_most(args.scans, "--scans", 1_000_000, "28 hours at 10 Hz")?;
     if args.symmetric && args.landmarks % 2 == 1 {
         anyhow::bail!(
             "--landmarks {} with --symmetric: a symmetric layout places landmarks in pairs; give an even number",

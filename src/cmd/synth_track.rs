@@ -222,7 +222,16 @@ impl CameraArgs {
 }
 
 /// Runs the subcommand.
+/// Frames `synth track` and `synth arena` render at most: an hour at 30 frames/s.
+pub(crate) const MAX_FRAMES: usize = 108_000;
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::synth_count_at_most(
+        args.frames,
+        "--frames",
+        MAX_FRAMES,
+        "an hour at 30 frames/s",
+    )?;
     let format = args.camera.format(args.video.as_deref())?;
     let (exposure_s, effects) = args.camera.effects(format);
     let scene = TrackScene {

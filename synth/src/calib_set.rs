@@ -84,7 +84,7 @@ pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
         return Err(CalibSetError::Settings(format!(
             "--hfov {}: the {model} lens is rendered at 10-{max:.0} degrees{}",
             scene.hfov_deg,
-            if model == odocal_calib::LensModel::Fisheye {
+            if model == odocal_calib::LensModel::Fisheye || !(scene.hfov_deg > max) {
                 ""
             } else {
                 "; wider needs --lens fisheye"
@@ -121,13 +121,21 @@ pub fn write_calib_set(
     // these views would have no floor, which `track` needs. (Some placed of more asked is
     // warned about by `synth calib`.)
     if scene.floor_views > 0 && truth.floor_views.is_empty() {
+        // Under the camera a square is at its largest: too few pixels there is too small a
+        // square (a wide lens or a small image), not too narrow a view.
+        let square_px = truth.camera.intrinsics.fx * scene.board.square_m / scene.camera_height_m;
+        let min_px = crate::board::min_corner_spacing_px(scene.width);
+        let why = if square_px < min_px {
+            format!(
+                "its squares are {square_px:.0} px across under the camera, fewer than the {min_px:.0} px a board is found at; give a larger --square (at least {:.2} m), a larger image, a narrower --hfov, or --floor-views 0",
+                (scene.board.square_m * min_px / square_px * 100.0).ceil() / 100.0
+            )
+        } else {
+            "the floor it sees holds no whole board there; give a wider --hfov, a smaller --square, or --floor-views 0".to_string()
+        };
         return Err(CalibSetError::Settings(format!(
-            "could place none of the {} floor views in a {}x{} image: the floor a {}° camera sees from {} m holds no whole board there; give a wider --hfov, a smaller --square, or --floor-views 0",
-            scene.floor_views,
-            scene.width,
-            scene.height,
-            scene.hfov_deg,
-            scene.camera_height_m,
+            "could place none of the {} floor views in a {}x{} image of a {}° camera {} m up: {why}",
+            scene.floor_views, scene.width, scene.height, scene.hfov_deg, scene.camera_height_m,
         )));
     }
     std::fs::create_dir_all(out).map_err(|e| CalibSetError::Write {
