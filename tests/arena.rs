@@ -414,7 +414,10 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
             "8x5",
             "shows a 9x6 board, not the 8x5 of --board: pass --board 9x6",
         ),
-        ("3x3", "3x3 of --board: count its INNER corners"),
+        (
+            "3x3",
+            "shows a 9x6 board, not the 3x3 of --board: pass --board 9x6",
+        ),
     ] {
         let mut wrong = args.clone();
         wrong.extend(["--board", given]);
