@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use indicatif::{ProgressBar, ProgressStyle};
+pub use odocal_core::staging::discard;
 use odocal_core::staging::{self, temp_owner};
-pub use odocal_core::staging::{commit, discard};
 use odocal_core::FileError;
 
 /// What a failed write to standard output means: a closed pipe (`| head -1`) is a reader
@@ -187,47 +187,83 @@ pub fn staged_dir(target: &Path, option: &str) -> Result<PathBuf, FileError> {
 
 /// The file `odocal synth` leaves in every folder it writes: a folder holding it is one synth
 /// wrote, whose files a new synth run may replace.
-pub const SYNTH_MARK: &str = ".odocal-synth";
+pub const SYNTH_MARK: &str = ".synth-by-odocal";
 
 /// What [`SYNTH_MARK`] says to whoever opens it.
 pub const SYNTH_MARK_TEXT: &[u8] =
     b"written by odocal synth: its files may be replaced by the next run\n";
 
-/// Refuses a synth `--out` folder that holds files and no [`SYNTH_MARK`]: synth replaces the
-/// files of its outputs' names and series (a user's `view_07.png` beside the `view_00`…`02`
-/// rendered was deleted, `view_00.png` overwritten), so only a new or empty folder, or one
-/// synth wrote before, is written into.
-pub fn check_synth_out(out: &Path, option: &str) -> anyhow::Result<()> {
-    let Ok(entries) = std::fs::read_dir(out) else {
-        return Ok(());
-    };
-    let mut names: Vec<String> = entries
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| temp_owner(n).is_none())
+/// The synth output folders staged by [`synth_out_dir`]: (staged folder, `--out`, option).
+static SYNTH_DIRS: Mutex<Vec<(PathBuf, PathBuf, String)>> = Mutex::new(Vec::new());
+
+/// The refusal of a synth `--out` that holds `files` it would replace or delete, of a folder
+/// synth did not write: a user's `view_07.png` beside the `view_00`…`02` rendered was
+/// deleted, and `view_00.png` overwritten, exit 0.
+fn refuse_replacing(out: &Path, option: &str, files: &[PathBuf]) -> FileError {
+    let names: Vec<String> = files
+        .iter()
+        .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
-    if names.is_empty() || names.iter().any(|n| n == SYNTH_MARK) {
-        return Ok(());
-    }
-    names.sort();
-    let shown = names.iter().take(3).cloned().collect::<Vec<_>>().join(", ");
     let more = if names.len() > 3 { ", …" } else { "" };
-    anyhow::bail!(
-        "{option} {}: the folder holds {} file(s) synth did not write ({shown}{more}), which it would replace or delete: give a new or empty folder",
-        out.display(),
-        names.len()
+    FileError::content(
+        &format!("{option} {}", out.display()),
+        format!(
+            "the folder holds {} file(s) synth would replace or delete ({}{more}) and was not written by synth: give a new folder, or one holding none of its outputs",
+            names.len(),
+            names.iter().take(3).cloned().collect::<Vec<_>>().join(", ")
+        ),
     )
 }
 
-/// [`staged_dir`] for an `odocal synth` output folder: refused as [`check_synth_out`] says,
-/// and marked as synth's.
-pub fn synth_out_dir(out: &Path, option: &str) -> anyhow::Result<PathBuf> {
-    check_synth_out(out, option)?;
+/// Refuses the synth outputs `names` in the folder `out` when one of them is there already
+/// and synth did not write the folder (see [`refuse_replacing`]).
+pub fn check_synth_files(out: &Path, names: &[&str], option: &str) -> Result<(), FileError> {
+    if out.join(SYNTH_MARK).exists() {
+        return Ok(());
+    }
+    let there: Vec<PathBuf> = names
+        .iter()
+        .map(|n| out.join(n))
+        .filter(|p| p.exists())
+        .collect();
+    if there.is_empty() {
+        Ok(())
+    } else {
+        Err(refuse_replacing(out, option, &there))
+    }
+}
+
+/// [`staged_dir`] for an `odocal synth` output folder, marked as synth's; [`commit`] refuses
+/// it when it would replace or delete files of a folder synth did not write.
+pub fn synth_out_dir(out: &Path, option: &str) -> Result<PathBuf, FileError> {
     let dir = staged_dir(out, option)?;
     let mark = dir.join(SYNTH_MARK);
-    std::fs::write(&mark, SYNTH_MARK_TEXT)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", mark.display()))?;
+    std::fs::write(&mark, SYNTH_MARK_TEXT).map_err(|e| {
+        FileError::content(&mark.display().to_string(), format!("cannot write: {e}"))
+    })?;
+    SYNTH_DIRS.lock().unwrap_or_else(|e| e.into_inner()).push((
+        dir.clone(),
+        out.to_path_buf(),
+        option.to_string(),
+    ));
     Ok(dir)
+}
+
+/// [`odocal_core::staging::commit`], after checking that no synth output replaces or deletes
+/// a file of a folder synth did not write (the outputs are then discarded, nothing moved).
+pub fn commit() -> Result<(), FileError> {
+    let dirs = std::mem::take(&mut *SYNTH_DIRS.lock().unwrap_or_else(|e| e.into_inner()));
+    for (tmp, out, option) in dirs {
+        if !out.is_dir() || out.join(SYNTH_MARK).exists() || tmp == out {
+            continue;
+        }
+        let replaced = staging::replaced_by_merge(&tmp, &out)?;
+        if !replaced.is_empty() {
+            discard();
+            return Err(refuse_replacing(&out, &option, &replaced));
+        }
+    }
+    staging::commit()
 }
 
 /// Deletes the temporaries (`.odocal-<pid>-<n>.tmp`) beside `output` whose process no longer

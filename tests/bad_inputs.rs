@@ -716,14 +716,16 @@ fn outputs_inside_input_folders_or_naming_folders_are_refused_before_any_work() 
 }
 
 /// `synth` replaces the files of its outputs' names and series in `--out`: a folder of the
-/// user's own photos lost `view_07.png` and had `view_00.png` overwritten, exit 0. A folder
-/// holding files synth did not write is refused untouched; one synth wrote is replaced.
+/// user's own photos lost `view_07.png` and had `view_00.png` overwritten, exit 0. Outputs
+/// that would replace or delete a file of a folder synth did not write are refused, nothing
+/// touched; beside other files they are written; a folder synth wrote is replaced.
 #[test]
-fn synth_refuses_a_folder_of_files_it_did_not_write() {
+fn synth_refuses_to_replace_files_it_did_not_write() {
     let d = tempfile::tempdir().expect("tempdir");
     let mine = d.path().join("mine");
     std::fs::create_dir_all(&mine).expect("mkdir");
-    for name in ["view_00.png", "view_07.png", "map.json"] {
+    let own = ["view_00.png", "view_07.png", "map.json"];
+    for name in own {
         std::fs::write(mine.join(name), "photo").expect("write");
     }
     let small = [
@@ -736,29 +738,34 @@ fn synth_refuses_a_folder_of_files_it_did_not_write() {
         "--height",
         "240",
     ];
-    for args in [
-        [&["synth", "calib", "--out", p(&mine)][..], &small[..]].concat(),
-        vec!["synth", "lrf", "--out", p(&mine), "--scans", "3"],
-        vec!["synth", "track", "--out", p(&mine), "--frames", "3"],
-        vec![
-            "synth",
-            "experiment",
-            "--out",
-            p(&mine),
-            "--runs",
-            "1",
-            "--frames",
-            "none",
-        ],
-    ] {
-        fails_with(
-            &odocal(&args),
-            "the folder holds 3 file(s) synth did not write (map.json, view_00.png, view_07.png), which it would replace or delete: give a new or empty folder",
-        );
-    }
-    for name in ["view_00.png", "view_07.png", "map.json"] {
-        assert_eq!(std::fs::read(mine.join(name)).expect("kept"), b"photo");
-    }
+    let calib = [&["synth", "calib", "--out", p(&mine)][..], &small[..]].concat();
+    fails_with(
+        &odocal(&calib),
+        "the folder holds 2 file(s) synth would replace or delete (view_00.png, view_07.png) and was not written by synth: give a new folder",
+    );
+    let lrf = ["synth", "lrf", "--out", p(&mine), "--scans", "3"];
+    fails_with(
+        &odocal(&lrf),
+        "holds 1 file(s) synth would replace or delete (map.json)",
+    );
+    let kept = |dir: &Path| {
+        for name in own {
+            assert_eq!(std::fs::read(dir.join(name)).expect("kept"), b"photo");
+        }
+    };
+    kept(&mine);
+    assert!(!mine.join("truth.json").exists());
+    // Outputs of other names are written beside the user's files.
+    succeeded(&odocal(&[
+        "synth",
+        "track",
+        "--out",
+        p(&mine),
+        "--frames",
+        "3",
+    ]));
+    kept(&mine);
+    assert!(mine.join("scene.json").exists());
     // A folder synth wrote is written again: fewer views leave none of the earlier ones.
     let again = d.path().join("again");
     let calib = |views: &str| {

@@ -406,19 +406,40 @@ fn remove_temporaries(list: &mut Vec<Staged>) {
 /// A numbered series the new output writes (`view_00.png` … `view_02.png`) replaces the
 /// target's whole series of that name: a `view_07.png` left from an earlier, larger set would
 /// otherwise be picked up by `view_*.png` beside views of another camera.
-fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
-    let mut entries: Vec<(bool, PathBuf)> = std::fs::read_dir(tmp)
+/// The entries of `target` that merging the staged folder `tmp` into it replaces (an entry of
+/// the same name, file or folder) or deletes (a file numbered in a series `tmp` writes, which
+/// a shorter run of it would leave stale: `view_07.png` beside a new `view_00`…`view_02`).
+pub fn replaced_by_merge(tmp: &Path, target: &Path) -> Result<Vec<PathBuf>, FileError> {
+    let (names, stale) = merge_plan(tmp, target)?;
+    let mut out: Vec<PathBuf> = names
+        .iter()
+        .map(|n| target.join(n))
+        .filter(|p| p.exists())
+        .chain(stale)
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
+/// The names of `tmp`'s entries, and the files of `target` a merge deletes as stale
+/// ([`replaced_by_merge`]).
+fn merge_plan(tmp: &Path, target: &Path) -> Result<(Vec<String>, Vec<PathBuf>), FileError> {
+    let entries: Vec<(bool, String)> = std::fs::read_dir(tmp)
         .map_err(|e| io(tmp, e))?
         .filter_map(|e| e.ok())
-        .map(|e| (e.path().is_file(), e.path()))
+        .map(|e| {
+            (
+                e.path().is_file(),
+                e.file_name().to_string_lossy().into_owned(),
+            )
+        })
         .collect();
-    entries.sort();
-    let names: Vec<String> = entries
+    let series: Vec<String> = entries
         .iter()
         .filter(|(is_file, _)| *is_file)
-        .filter_map(|(_, p)| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .filter_map(|(_, n)| series_of(n))
         .collect();
-    let series: Vec<String> = names.iter().filter_map(|n| series_of(n)).collect();
+    let names: Vec<String> = entries.into_iter().map(|(_, n)| n).collect();
     let stale: Vec<PathBuf> = std::fs::read_dir(target)
         .map_err(|e| io(target, e))?
         .filter_map(|e| e.ok())
@@ -429,6 +450,17 @@ fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
         })
         .map(|e| e.path())
         .collect();
+    Ok((names, stale))
+}
+
+fn merge_dir(tmp: &Path, target: &Path) -> Result<(), FileError> {
+    let mut entries: Vec<(bool, PathBuf)> = std::fs::read_dir(tmp)
+        .map_err(|e| io(tmp, e))?
+        .filter_map(|e| e.ok())
+        .map(|e| (e.path().is_file(), e.path()))
+        .collect();
+    entries.sort();
+    let (_, stale) = merge_plan(tmp, target)?;
     for old in stale {
         std::fs::remove_file(&old).map_err(|e| io(&old, e))?;
     }

@@ -53,9 +53,10 @@ pub struct LocalizeArgs {
     /// (a count, no unit; 0 when lost; an `ok` pose has at least 1).
     #[arg(long)]
     pub out: PathBuf,
-    /// Also write the `ok` poses as a trajectory CSV (`t,x,y,theta,quality,sigma_x,sigma_y,
-    /// sigma_theta`, σ from each pose's Cramér–Rao bound): the laser's ground truth in the
-    /// format `odocal dataset` and `odocal evaluate` read from a manifest.
+    /// Also write the `ok` poses as a trajectory CSV
+    /// (`t,x,y,theta,quality,sigma_x,sigma_y,sigma_theta`, σ from each pose's Cramér–Rao
+    /// bound): the laser's ground truth in the format `odocal dataset` and `odocal evaluate`
+    /// read from a manifest.
     #[arg(long)]
     pub trajectory: Option<PathBuf>,
     /// True poses (CSV t,x,y,theta[,n_detected]) to report the error against.
@@ -73,7 +74,9 @@ pub struct LocalizeArgs {
     /// Field of view of the scanner, degrees.
     #[arg(long, default_value_t = 240.0)]
     pub fov_deg: f64,
-    /// Returns at or above this intensity are reflector candidates.
+    /// Returns at or above this intensity are reflector candidates (the scans' intensity
+    /// column, 0 to 1 as `synth lrf` writes it; a scanner's raw counts need a threshold on
+    /// their own scale).
     #[arg(long, default_value_t = 0.5)]
     pub intensity_min: f64,
     /// Scan rate of the scanner, Hz: the times of files without a `t` column, the check that

@@ -12,7 +12,7 @@ use odocal_synth::board::{
 use odocal_synth::calib_set::{self, check_scene};
 
 use super::board::{TargetArg, TargetArgs};
-use crate::output::{commit, progress, synth_out_dir};
+use crate::output::{commit, count, progress, synth_out_dir};
 
 /// Arguments of `odocal synth calib`.
 #[derive(ClapArgs)]
@@ -141,9 +141,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let k = truth.camera.intrinsics;
     if scene.board.is_charuco() {
         say!(
-            "wrote {} board views and {} floor views ({}x{}, {}) to {}",
-            truth.views.len(),
-            truth.floor_views.len(),
+            "wrote {} and {} ({}x{}, {}) to {}",
+            count(truth.views.len(), "board view"),
+            count(truth.floor_views.len(), "floor view"),
             a.width,
             a.height,
             scene.board,
@@ -164,9 +164,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     } else {
         say!(
-            "wrote {} board views and {} floor views ({}x{}, board {}x{} inner corners, {} m squares) to {}",
-            truth.views.len(),
-            truth.floor_views.len(),
+            "wrote {} and {} ({}x{}, board {}x{} inner corners, {} m squares) to {}",
+            count(truth.views.len(), "board view"),
+            count(truth.floor_views.len(), "floor view"),
             a.width,
             a.height,
             scene.board.cols,

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use odocal_synth::lrf_sim::{simulate, LrfSimConfig};
 
-use crate::output::{check_synth_out, commit, write_atomic, SYNTH_MARK, SYNTH_MARK_TEXT};
+use crate::output::{check_synth_files, commit, write_atomic, SYNTH_MARK, SYNTH_MARK_TEXT};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -74,7 +74,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let map = args.out.join("map.json");
     let scans = args.out.join("scans.csv");
     let truth = args.out.join("truth.csv");
-    check_synth_out(&args.out, "--out")?;
+    check_synth_files(&args.out, &["map.json", "scans.csv", "truth.csv"], "--out")?;
     write_atomic(&args.out.join(SYNTH_MARK), SYNTH_MARK_TEXT)?;
     write_atomic(&map, sim.map_json().as_bytes())?;
     write_atomic(&scans, sim.scans_csv().as_bytes())?;

@@ -9,7 +9,7 @@ use odocal_synth::scene::{
 };
 use odocal_synth::track_scene::{write_track_scene, TrackScene};
 
-use crate::output::{commit, progress, synth_out_dir};
+use crate::output::{commit, count, progress, synth_out_dir};
 
 /// Arguments of this subcommand.
 #[derive(clap::Args)]
@@ -260,9 +260,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let written = written?;
     commit()?;
+    // Dropped frames are not in the video: its frame count is what a reader finds.
+    let frames = match written.dropped {
+        0 => count(written.frames, "frame"),
+        d => format!(
+            "{} of the {} frames rendered ({} dropped as a camera drops them)",
+            written.frames - d,
+            written.frames,
+            d
+        ),
+    };
     say!(
-        "wrote {} frames ({}x{}, {} fps) to {}, the true camera.json, truth.csv and frames.csv{}",
-        written.frames,
+        "wrote {frames} ({}x{}, {} fps) to {}, the true camera.json, truth.csv and frames.csv{}",
         written.size_px.0,
         written.size_px.1,
         args.fps,

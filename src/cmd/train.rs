@@ -54,13 +54,14 @@ pub struct Args {
     /// Truth of a synthetic experiment (truth/oracle.json): adds the oracle row to Table 2.
     #[arg(long)]
     pub oracle: Option<PathBuf>,
-    /// Weight decay in normalised units (0 disables it).
+    /// Weight decay in normalised units (0 disables it) [default: 0].
     #[arg(long)]
     pub weight_decay: Option<f64>,
-    /// Fraction of the training samples held out for early stopping (0 disables it).
+    /// Fraction of the training samples held out for early stopping (0 disables it)
+    /// [default: 0.15].
     #[arg(long)]
     pub val_fraction: Option<f64>,
-    /// Upper bound on training epochs.
+    /// Upper bound on training epochs [default: 200 for lm, 20000 for backprop].
     #[arg(long)]
     pub max_epochs: Option<usize>,
     /// Early stopping: epochs without validation improvement before stopping

@@ -108,6 +108,8 @@ struct SceneInfo {
 pub struct TrackSceneSummary {
     /// Frames rendered.
     pub frames: usize,
+    /// Of those, frames left out of the video as a camera drops them (`--drop-rate`).
+    pub dropped: usize,
     /// The video (or frame folder), relative to the output directory.
     pub video: PathBuf,
     /// Image size, pixels.
@@ -357,6 +359,7 @@ pub fn write_track_scene(
     )?;
     Ok(TrackSceneSummary {
         frames: truths.len(),
+        dropped: truths.iter().filter(|t| t.dropped).count(),
         video: PathBuf::from(name),
         size_px: (cfg.camera.width, cfg.camera.height),
     })
