@@ -84,7 +84,10 @@ pub fn check_scene(scene: &CalibScene) -> Result<(), CalibSetError> {
         return Err(CalibSetError::Settings(format!(
             "--hfov {}: the {model} lens is rendered at 10-{max:.0} degrees{}",
             scene.hfov_deg,
-            if model == odocal_calib::LensModel::Fisheye || !(scene.hfov_deg > max) {
+            if model == odocal_calib::LensModel::Fisheye
+                || scene.hfov_deg <= max
+                || scene.hfov_deg.is_nan()
+            {
                 ""
             } else {
                 "; wider needs --lens fisheye"
