@@ -1193,6 +1193,29 @@ fn charuco_floor_markers_too_small_are_named_by_synth() {
         .is_some());
 }
 
+/// A square board (7x7) looks alike turned a quarter, so the floor frame its first floor view
+/// fixes may sit at any of its corners: calibrated without a word, it is now warned of.
+#[test]
+fn a_square_board_under_the_floor_frame_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    views_640(d, 3, "5", "1", &["--board", "7x7"]);
+    let out = d.join("camera.json");
+    let mut extra = vec!["--floor"];
+    let floors = images(d, "floor_");
+    extra.extend(floors.iter().map(String::as_str));
+    extra.extend(["--board", "7x7", "--square", "0.05", "--out", p(&out)]);
+    let res = calibrate_views(&images(d, "view_"), &extra);
+    succeeded(&res);
+    let said = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        said.contains(
+            "warning: the board has as many inner corners along one side as along the other (7x7)"
+        ) && said.contains("use a board whose two counts differ"),
+        "{said}"
+    );
+}
+
 /// The models part ways where the views leave the image empty; the floor is now vouched for
 /// only where they agree, and that is said.
 #[test]

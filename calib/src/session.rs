@@ -666,8 +666,16 @@ fn check_layouts<'a>(
 /// down the first floor view: a board whose counts were given rows first (6x9 for a 9x6) is
 /// found all the same, with the floor frame turned 90° from the one meant.
 fn turned_floor_note(first: &BoardView, board: &BoardSpec) -> Option<String> {
-    if board.is_charuco() || board.cols == board.rows {
+    if board.is_charuco() {
         return None;
+    }
+    // A square board looks the same turned a quarter: which of its corners OpenCV numbers
+    // first, and so the floor frame's origin and axes, is the image's to decide.
+    if board.cols == board.rows {
+        return Some(format!(
+            "warning: the board has as many inner corners along one side as along the other ({}x{}), so it looks alike turned a quarter: the floor frame's origin and axes, which the first floor view {} fixes, may sit at any of its corners (the floor plane itself holds); use a board whose two counts differ (e.g. 9x6) for a frame you can name",
+            board.cols, board.rows, first.image
+        ));
     }
     let cols = board.cols as usize;
     let x_axis = first.corners.get(cols - 1)? - first.corners.first()?;
