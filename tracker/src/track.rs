@@ -1214,6 +1214,10 @@ pub struct TrackResult {
     /// Frames lost inside the file, placed by the robot's motion and confirmed by the
     /// container's frame count: the records after each are timed past them.
     pub lost_in_file: Vec<crate::timing::DroppedFrames>,
+    /// Frames dropped where nothing counts them (a file written at a constant rate after the
+    /// recording dropped them), placed by the robot's motion alone: the records after each
+    /// are timed past them.
+    pub dropped_by_motion: Vec<crate::timing::DroppedFrames>,
     /// Ids seen (any id of the family) and in how many frames.
     pub seen_ids: BTreeMap<u32, usize>,
     /// Frame size, pixels.
@@ -1667,11 +1671,13 @@ pub fn track_source(
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
     crate::repeats::place_repeated_images(&mut records);
-    let lost_in_file = crate::lost_frames::place_lost_frames_of(&mut records, &final_info);
+    let (lost_in_file, dropped_by_motion) =
+        crate::lost_frames::place_lost_frames_of(&mut records, &final_info);
     let result = TrackResult {
         tag_to_robot: opts.tag_to_robot,
         records,
         lost_in_file,
+        dropped_by_motion,
         seen_ids,
         frame_size: (info.width, info.height),
         source: final_info,
