@@ -494,8 +494,8 @@ fn drop_frames(folder: &std::path::Path, drop: std::ops::Range<usize>) {
 /// A frame folder's own timestamps.csv times its frames: `--fps` beside it used to be
 /// preferred silently, and with 5 frames missing from the folder every later pose was 167 ms
 /// early (42.5 mm RMS against the truth). Refused, naming the file and both ways out; moved
-/// aside, `--fps` times by counting. The timings are decided in one place, so `--tags` (one
-/// video, several robots) refuses them alike.
+/// aside, `--fps` times by the files' numbers. The timings are decided in one place, so
+/// `--tags` (one video, several robots) refuses them alike.
 #[test]
 fn fps_beside_a_frame_folders_own_timestamps_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -545,10 +545,11 @@ fn fps_beside_a_frame_folders_own_timestamps_is_refused() {
     let (pos, _, n) = errors(&est, &Trajectory::read_csv(&truth).unwrap());
     assert_eq!(n, 25);
     assert!(pos < 1e-3, "{pos} m");
+    // Moved aside, --fps times the numbered files by their numbers: on time as well.
     std::fs::rename(&own, d.join("aside.csv")).unwrap();
     succeeded(&track(&["--fps", "30"]));
     let est = Trajectory::read_csv(&out).unwrap();
-    assert!((est.rows[20].t_s - 20.0 / 30.0).abs() < 1e-9, "counted");
+    assert!((est.rows[20].t_s - 25.0 / 30.0).abs() < 1e-9, "numbered");
 }
 
 /// Frames numbered without padding (img0, img1, img10, …, img2) used to be read in plain
@@ -2553,4 +2554,101 @@ fn frames_dropped_before_a_constant_rate_file_are_timed_past_and_named() {
     );
     let (rms, n) = rms_against_truth(&out, &d.join("truth.csv"));
     assert!(n == 54 && rms < 0.5e-3, "{n} rows, {:.3} mm RMS", rms * 1e3);
+}
+
+/// A calibrated camera file without the intrinsics' `covariance` gave σ about 8 times too
+/// small (error/σ 2.25), and one without its `floor_uncertainty` map σ of 1.29 mm for errors
+/// of 0.09 mm (error/σ 0.06), both in silence. Each names what is missing and how to have it;
+/// the true camera of `synth track`, which has no calibration error, names nothing.
+#[test]
+fn a_camera_file_without_the_calibrations_uncertainty_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 3, 1);
+    let text = std::fs::read_to_string(d.join("camera.json")).unwrap();
+    let truth: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let out = d.join("t.csv");
+    let res = track_synth(d, &out, &[]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(!err.contains("calibrate again"), "{err}");
+    // As calibrated: a residual, then the 9×9 covariance of the pinhole5 model.
+    let mut calibrated = truth.clone();
+    calibrated["rms_px"] = serde_json::json!(0.05);
+    for (name, covariance, needle) in [
+        ("nocov.json", None, "the camera file has no `covariance` of its intrinsics, so each fix's σ leaves out the calibration's share"),
+        ("nomap.json", Some(vec![vec![0.0; 9]; 9]), "the camera file has no `floor_uncertainty` map, so the calibration's share of each fix's σ is its intrinsics' covariance carried with the floor held fixed"),
+    ] {
+        let mut file = calibrated.clone();
+        if let Some(c) = covariance {
+            file["covariance"] = serde_json::json!(c);
+        }
+        let camera = d.join(name);
+        std::fs::write(&camera, file.to_string()).unwrap();
+        let res = odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&camera),
+            "--out",
+            p(&out),
+        ]);
+        succeeded(&res);
+        let err = String::from_utf8_lossy(&res.stderr);
+        assert!(
+            err.contains(needle)
+                && err.contains("calibrate again with `odocal calibrate` (with --floor views) to have it"),
+            "{name}: {err}"
+        );
+    }
+}
+
+/// Two recordings joined into one video: the tag stands 1.8 m from its last fix after the
+/// join, its first 3 fixes there are rejected as jumps, and the track restarts from the new
+/// place, which left a 13 m/s leap (against --max-speed 2) in the trajectory in silence. The
+/// leap is named with its frames and times.
+#[test]
+fn a_leap_faster_than_max_speed_after_a_gap_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    synth_track(&a, 12, 2);
+    synth_track(&b, 12, 1);
+    let list = dir.path().join("list.txt");
+    std::fs::write(
+        &list,
+        format!(
+            "file '{}'\nfile '{}'\n",
+            p(&a.join("video.avi")),
+            p(&b.join("video.avi"))
+        ),
+    )
+    .unwrap();
+    let joined = dir.path().join("joined.avi");
+    let made = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-f", "concat", "-safe", "0", "-i"])
+        .arg(&list)
+        .args(["-c", "copy"])
+        .arg(&joined)
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let res = odocal(&[
+        "track",
+        p(&joined),
+        "--camera",
+        p(&a.join("camera.json")),
+        "--out",
+        p(&dir.path().join("t.csv")),
+    ]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(
+        err.contains("the tag leaps ")
+            && err.contains(
+                "from frame 11 (0.367 s) to frame 15 (0.500 s), faster than --max-speed 2 m/s"
+            )
+            && err.contains("split the video there"),
+        "{err}"
+    );
+    assert!(number_after(&err, "the tag leaps ") > 1.0, "{err}");
 }
