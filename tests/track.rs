@@ -2652,3 +2652,47 @@ fn a_leap_faster_than_max_speed_after_a_gap_is_named() {
     );
     assert!(number_after(&err, "the tag leaps ") > 1.0, "{err}");
 }
+
+/// A robot standing still, its frames one image in an H.264 MP4: the identical fixes left the
+/// tilt fit no spread, and a tilt of 0.49° ± 0.000° was named "whichever way the robot heads"
+/// with the camera turned on its mount, though the robot never turned (a run that does not
+/// turn is named only from 1°; `tag_tilt`'s unit test a_still_robot shows the fit); and the
+/// summary read "90/90 frames … ids seen: 0 (13 frames)", the repeated frames not counted as
+/// showing the tag.
+#[test]
+fn a_still_robot_is_no_turned_camera_and_its_frames_all_show_the_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A tag 0.5° off flat: a still robot cannot tell it from a camera turned, and under 1°
+    // it is not named.
+    synth_track_with(d, 60, 1, &["--video", "png", "--tag-tilt", "0.5"]);
+    let video = d.join("still.mp4");
+    let made = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-loop", "1", "-framerate", "30", "-i"])
+        .arg(d.join("frames/frame_000020.png"))
+        .args(["-t", "2", "-c:v", "libx264", "-pix_fmt", "yuv420p"])
+        .arg(&video)
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let res = odocal(&[
+        "track",
+        p(&video),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    succeeded(&res);
+    let (out, err) = (
+        String::from_utf8_lossy(&res.stdout),
+        String::from_utf8_lossy(&res.stderr),
+    );
+    assert!(!err.contains("whichever way the robot heads"), "{err}");
+    assert!(!err.contains("has turned on its mount"), "{err}");
+    let all = format!("{out}{err}");
+    assert!(
+        all.contains("tracked tag 0 in 60/60 frames") && all.contains("ids seen: 0 (60 frames)"),
+        "{all}"
+    );
+}

@@ -298,6 +298,28 @@ impl TiltFit {
     }
 }
 
+/// The least turn of the robot over a run, radians, for the tilt on the robot to be told from
+/// the floor-fixed one.
+const MIN_SEPARATING_TURN_RAD: f64 = 0.35;
+
+/// The angle the samples' headings span: the full turn less the widest gap between them.
+fn heading_span_rad(samples: &[Sample]) -> f64 {
+    let tau = std::f64::consts::TAU;
+    let mut h: Vec<f64> = samples
+        .iter()
+        .map(|s| s.heading_rad.rem_euclid(tau))
+        .collect();
+    h.sort_by(f64::total_cmp);
+    let (Some(&first), Some(&last)) = (h.first(), h.last()) else {
+        return 0.0;
+    };
+    let widest = h
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(first + tau - last, f64::max);
+    tau - widest
+}
+
 /// A run's tilt fitted from one kind of reading: the plain mean, and the floor-fixed and
 /// tag-fixed parts when the run's headings tell them apart.
 struct RunFit {
@@ -325,7 +347,12 @@ impl RunFit {
             return None;
         }
         let mean = fit(&kept, false, Some(spread))?;
-        let both = fit(&kept, true, Some(spread))
+        // Identical fixes (a robot standing still, its H.264 frames decoded alike) leave no
+        // spread to judge the fit by: a still robot's 0.49° was split off "whichever way the
+        // robot heads" though it never turned. The headings must span a turn first.
+        let both = (heading_span_rad(&kept) >= MIN_SEPARATING_TURN_RAD)
+            .then(|| fit(&kept, true, Some(spread)))
+            .flatten()
             .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
         Some(Self {
             mean,
@@ -570,6 +597,18 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// A robot standing still: two readings repeated over the run (the frames of a still
+    /// scene H.264 decodes nearly alike), their headings apart by the fixes' noise alone.
+    #[test]
+    fn a_still_robot_does_not_set_the_tilts_apart() {
+        let (camera, tag) = (Vector2::new(0.004, 0.0), Vector2::new(0.0, 0.006));
+        let headings = [0.4, 0.4 + 1e-6];
+        let distinct = samples(camera, tag, &headings);
+        let still: Vec<Sample> = (0..90).map(|i| distinct[i % 2]).collect();
+        let run = RunFit::of(&still).unwrap();
+        assert!(run.both.is_none(), "{:?}", run.both);
     }
 
     #[test]
