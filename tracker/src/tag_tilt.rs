@@ -240,6 +240,14 @@ impl TagTilt {
             "every fix is about {shift_mm:.0} mm off and distances are scaled by up to {scale_pct:.2} % at the farthest fix ({:.2} m from the point under the camera)",
             self.reach_m
         );
+        // A camera's mount turns by a fraction of a degree; a tilt moving every fix by
+        // centimetres is as likely a camera file of another camera, whose tag side a
+        // --tag-size was fitted to (1.10°, 41 mm: 101 mm RMS off the truth).
+        let consequence = if shift_mm >= OTHER_CAMERA_SHIFT_MM {
+            format!("{consequence}. A tilt that large is as often a camera file of another camera (with a --tag-size fitted to the side it reads): check first that the camera file is this camera's; the trajectory is not to be trusted until then")
+        } else {
+            consequence
+        };
         // A tilt given with --tag-tilt was taken off the corners: a wrong one reads here.
         let given_clause = if self.given_rad == Vector2::zeros() {
             (String::new(), String::new())
@@ -297,6 +305,10 @@ impl TiltFit {
         self.floor_rad + rotation(heading_rad) * self.robot_rad
     }
 }
+
+/// A floor-fixed tilt that moves every fix this far, millimetres, names another camera's file
+/// among its causes first.
+const OTHER_CAMERA_SHIFT_MM: f64 = 25.0;
 
 /// The least turn of the robot over a run, radians, for the tilt on the robot to be told from
 /// the floor-fixed one.
@@ -597,6 +609,35 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// A tilt moving every fix by centimetres names another camera's file; the 0.3° of a
+    /// camera turned on its mount (10 mm) does not.
+    #[test]
+    fn a_large_floor_tilt_names_another_cameras_file() {
+        let tilt = |deg: f64| TagTilt {
+            floor_fixed_rad: Vector2::new(deg.to_radians(), 0.0),
+            floor_fixed_se_rad: 1e-4,
+            separated: true,
+            tag_on_robot_rad: None,
+            tag_on_robot_se_rad: f64::INFINITY,
+            given_rad: Vector2::zeros(),
+            fixes: 89,
+            tag_size_m: 0.0665,
+            camera_above_marker_m: 2.1,
+            reach_m: 0.72,
+        };
+        let large = tilt(1.1).warnings().join("\n");
+        assert!(
+            large.contains("every fix is about 40 mm off")
+                && large.contains("check first that the camera file is this camera's"),
+            "{large}"
+        );
+        let small = tilt(0.3).warnings().join("\n");
+        assert!(
+            small.contains("every fix is about 11 mm off") && !small.contains("check first"),
+            "{small}"
+        );
     }
 
     /// A robot standing still: two readings repeated over the run (the frames of a still

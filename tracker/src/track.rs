@@ -1858,12 +1858,26 @@ pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
     v.get(v.len() / 2).copied()
 }
 
+/// A tag side this far from --tag-size (a fraction) names the camera file first.
+const CAMERA_FILE_SIDE_OFF: f64 = 0.10;
+
 /// What to check when the corners fit no square of the tag's size: the side they do span,
 /// when it is not `--tag-size`, names the size (or height) that would fit, since the
 /// residual gate refuses a size a few percent off before the size check's wider bound.
 fn bad_geometry_advice(side_m: Option<f64>, opts: &TrackOptions) -> String {
     let height = format!("--marker-height {} m", opts.marker_height_m);
     match side_m {
+        // A print is scaled by a few percent, not a sixth: a size that far off is most often
+        // another camera's calibration (its focal length scales every side), which a
+        // --tag-size fitted to it only hides (101 mm RMS off, the tag read tilted).
+        Some(side_m) if (side_m / opts.tag_size_m - 1.0).abs() > CAMERA_FILE_SIDE_OFF => format!(
+            "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm, further off than a print's scaling: check first that the camera file is this camera's, calibrated at this resolution, lens and zoom (a camera file of another camera scales every side so), then {height}; only if the tag's black square measures {:.1} mm, give --tag-size {:.4}",
+            side_m * 1e3,
+            100.0 * (side_m / opts.tag_size_m - 1.0),
+            opts.tag_size_m * 1e3,
+            side_m * 1e3,
+            side_m
+        ),
         Some(side_m) if (side_m / opts.tag_size_m - 1.0).abs() > TAG_SIDE_TOLERANCE => format!(
             "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm: if the tag's black square measures that, give --tag-size {:.4}, else check {height} and the camera file",
             side_m * 1e3,
@@ -1880,4 +1894,27 @@ fn bad_geometry_advice(side_m: Option<f64>, opts: &TrackOptions) -> String {
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("–".into(), |x| format!("{x:.digits$}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{bad_geometry_advice, TrackOptions};
+
+    /// Another camera's calibration (60° where the video's lens is wider) read the tag's
+    /// side 16.9 % short, and the advice led with the --tag-size that would fit it, which
+    /// gave a trajectory 101 mm RMS off; a print's few percent still lead with the size.
+    #[test]
+    fn a_side_far_off_names_the_camera_file_first() {
+        let opts = TrackOptions::default();
+        let far = bad_geometry_advice(Some(opts.tag_size_m * 0.831), &opts);
+        assert!(
+            far.contains("-16.9 % from --tag-size 80.0 mm, further off than a print's scaling: check first that the camera file is this camera's"),
+            "{far}"
+        );
+        let near = bad_geometry_advice(Some(opts.tag_size_m * 0.97), &opts);
+        assert!(
+            near.contains("if the tag's black square measures that, give --tag-size 0.0776"),
+            "{near}"
+        );
+    }
 }
