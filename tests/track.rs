@@ -2696,3 +2696,39 @@ fn a_still_robot_is_no_turned_camera_and_its_frames_all_show_the_tag() {
         "{all}"
     );
 }
+
+/// A camera.json whose image size is written with a point (`"width": 1280.0`, as tools that
+/// write every number as a float do) was refused with "invalid type: floating point
+/// `1280.0`, expected u32 at line 4 column 19" after the same place: a whole number is read,
+/// and one that is not is named as a width that must be whole, its place given once.
+#[test]
+fn a_camera_files_size_written_as_a_whole_float_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 2, 1);
+    let text = std::fs::read_to_string(d.join("camera.json")).unwrap();
+    assert!(text.contains("\"width\": 1280,"), "{text}");
+    let out = d.join("t.csv");
+    for (width, refused) in [("1280.0", false), ("1280.5", true)] {
+        let camera = d.join("float.json");
+        std::fs::write(
+            &camera,
+            text.replace("\"width\": 1280,", &format!("\"width\": {width},")),
+        )
+        .unwrap();
+        let res = odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&camera),
+            "--out",
+            p(&out),
+        ]);
+        if refused {
+            let err = fails_with(&res, "width must be a whole number of pixels, not 1280.5");
+            assert!(!err.contains("at line"), "{err}");
+        } else {
+            succeeded(&res);
+        }
+    }
+}
