@@ -2732,3 +2732,48 @@ fn a_camera_files_size_written_as_a_whole_float_is_read() {
         }
     }
 }
+
+/// An MP4 whose recording crashed holds its frames but not its index (MP4 writes the `moov`
+/// box last): it was answered "FFmpeg cannot decode this file: give an MP4 (H.264) or MJPG
+/// AVI video", for an MP4. Named as a recording that did not finish, with how to recover
+/// the frames and to record so that a crash leaves a readable file.
+#[test]
+fn an_mp4_cut_before_its_index_is_named_as_an_unfinished_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = d.join("whole.mp4");
+    let made = std::process::Command::new("ffmpeg")
+        .args([
+            "-v",
+            "error",
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc=size=160x90:rate=30",
+        ])
+        .args(["-frames:v", "30", "-c:v", "libx264", "-pix_fmt", "yuv420p"])
+        .arg(&whole)
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let bytes = std::fs::read(&whole).unwrap();
+    let cut = d.join("cut.mp4");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    synth_track(d, 1, 1);
+    let res = odocal(&[
+        "track",
+        p(&cut),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    let err = fails_with(&res, "an MP4 without its index (no `moov` box");
+    assert!(
+        err.contains("the recording did not finish")
+            && err.contains("untrunc")
+            && err.contains("+frag_keyframe+empty_moov")
+            && !err.contains("give an MP4"),
+        "{err}"
+    );
+}
