@@ -2777,3 +2777,37 @@ fn an_mp4_cut_before_its_index_is_named_as_an_unfinished_recording() {
         "{err}"
     );
 }
+
+/// A mirrored video (a camera's mirror setting) reads no tag at all, and the error blamed
+/// --tag-id and --family ("no tag of this family was seen at all"). The mirror images of a
+/// few frames show the tag: the video is named mirrored, with the ways out.
+#[test]
+fn a_mirrored_video_is_named_mirrored() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track(d, 4, 1);
+    let mirrored = d.join("mirrored.avi");
+    let made = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-i"])
+        .arg(d.join("video.avi"))
+        .args(["-vf", "hflip", "-c:v", "mjpeg", "-q:v", "2"])
+        .arg(&mirrored)
+        .status()
+        .expect("ffmpeg is needed for this test: `make deps` installs it");
+    assert!(made.success());
+    let res = odocal(&[
+        "track",
+        p(&mirrored),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+    ]);
+    let err = fails_with(&res, "but their mirror images show tag 0");
+    assert!(
+        err.contains("the video is mirrored")
+            && err.contains("ffmpeg -i IN -vf hflip OUT")
+            && !err.contains("check --tag-id"),
+        "{err}"
+    );
+}

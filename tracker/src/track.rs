@@ -1701,6 +1701,32 @@ pub fn track_source(
             result.wrong_id_text(opts, &info.path, true),
         ));
     }
+    if result.fixes().next().is_none() && result.seen_ids.is_empty() {
+        // No tag of the family at all: a mirrored video (a camera's mirror setting) reads
+        // none, whatever the id and family, and was blamed on them.
+        let mirrored = crate::detect::read_mirrored(&kept, &opts.family)?;
+        if !mirrored.is_empty() {
+            let ids: Vec<String> = mirrored
+                .iter()
+                .map(|(id, n)| {
+                    format!(
+                        "{id} ({n} of {} frames)",
+                        kept.len().min(crate::detect::FAMILY_PROBE_FRAMES)
+                    )
+                })
+                .collect();
+            return Err(TrackError::NoFix {
+                message: format!(
+                    "no {} tag was seen in {} frames of {}, but their mirror images show tag {}: the video is mirrored (a camera's or recording app's mirror or flip setting): turn the mirror setting off and record again, or unmirror this file (`ffmpeg -i IN -vf hflip OUT`); the camera must be calibrated from unmirrored images too",
+                    opts.family,
+                    result.records.len(),
+                    info.path.display(),
+                    ids.join(", ")
+                ),
+                result: Box::new(result),
+            });
+        }
+    }
     if result.fixes().next().is_none() {
         // Only a run without a fix pays for reading its frames with the other families.
         let probe = if result.family_in_doubt(opts.tag_id) {
