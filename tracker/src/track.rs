@@ -1683,6 +1683,9 @@ pub fn track_source(
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
+    if let Some(message) = time_restart(&records) {
+        return Err(TrackError::bad_input(&info.path, message));
+    }
     crate::repeats::place_repeated_images(&mut records);
     let (lost_in_file, dropped_by_motion) =
         crate::lost_frames::place_lost_frames_of(&mut records, &final_info);
@@ -1740,6 +1743,25 @@ pub fn track_source(
         });
     }
     Ok(result)
+}
+
+/// Where the frames' time starts again: a step back of more than this many usual steps is no
+/// repeated timestamp but a second recording's start.
+const RESTART_STEPS: f64 = 3.0;
+
+/// The error for frames whose time starts again partway (two recordings joined byte for
+/// byte, as `cat a.ts b.ts` gives: MPEG-TS has no header to say where one ends). They gave
+/// three contradictory messages, the last a trajectory row going back in time.
+fn time_restart(records: &[FrameRecord]) -> Option<String> {
+    let times: Vec<(usize, f64)> = records.iter().map(|r| (r.index, r.t_s)).collect();
+    let step = crate::timing::find_drops(&times).0?;
+    let w = times
+        .windows(2)
+        .find(|w| w[1].1 < w[0].1 - RESTART_STEPS * step)?;
+    let ((before, t0), (at, t1)) = (w[0], w[1]);
+    Some(format!(
+        "the frames' time starts again at frame {at}, from {t0:.3} s back to {t1:.3} s after frame {before}: the file holds two recordings joined byte for byte (as `cat a.ts b.ts` makes), whose times cannot be told apart; track each recording from its own file, or join them with FFmpeg's concat demuxer, which times the second after the first (`ffmpeg -f concat -safe 0 -i list.txt -c copy joined.mp4`, list.txt naming each as file 'a.ts')"
+    ))
 }
 
 /// A few frames without a fix, spread over the run, kept for [`crate::detect::read_other_families`]
