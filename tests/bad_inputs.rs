@@ -1130,7 +1130,8 @@ fn track_names_why_every_frame_was_rejected_and_still_writes_the_report() {
         "8 bad geometry (median corner reprojection",
         "accepted up to 1.5 px",
         "the corners span a square of 80.0 mm on the marker plane (median), -33.3 % from --tag-size 120.0 mm",
-        "give --tag-size 0.0800, else check --marker-height 0.08 m and the camera file",
+        "check first that the camera file is this camera's",
+        "only if the tag's black square measures 80.0 mm, give --tag-size 0.0800",
         "per-frame figures in",
     ] {
         assert!(e.contains(needle), "expected {needle:?} in: {e}");

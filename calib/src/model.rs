@@ -316,13 +316,36 @@ impl<'de> Deserialize<'de> for Distortion {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct CameraModel {
     /// Image width, pixels.
+    #[serde(deserialize_with = "whole_width")]
     pub width: u32,
     /// Image height, pixels.
+    #[serde(deserialize_with = "whole_height")]
     pub height: u32,
     /// Pinhole intrinsics.
     pub intrinsics: Intrinsics,
     /// Lens distortion.
     pub distortion: Distortion,
+}
+
+/// An image size in pixels: tools that write every number with a point (`1280.0`) are read
+/// when the number is whole.
+fn whole_pixels<'de, D: serde::Deserializer<'de>>(d: D, field: &str) -> Result<u32, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v.fract() == 0.0 && (0.0..=f64::from(u32::MAX)).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "{field} must be a whole number of pixels, not {v}"
+        )))
+    }
+}
+
+fn whole_width<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    whole_pixels(d, "width")
+}
+
+fn whole_height<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    whole_pixels(d, "height")
 }
 
 /// A rigid transform mapping points in the floor frame (z up, metres) into the

@@ -35,7 +35,15 @@ pub fn parse_tagged_json<T: DeserializeOwned>(
     check_format_tag(&value, name, expected, hint)?;
     // Parsed again from the text (not the value) so that errors carry line and column.
     serde_json::from_str(text)
-        .map_err(|e| FileError::parse(name, e.line() as u64, e.column() as u64, format!("{e}")))
+        .map_err(|e| FileError::parse(name, e.line() as u64, e.column() as u64, without_place(&e)))
+}
+
+/// A JSON error's message without serde_json's " at line L column C": the file's name
+/// already leads with the place, and the message read it twice.
+fn without_place(e: &serde_json::Error) -> String {
+    let text = e.to_string();
+    let place = format!(" at line {} column {}", e.line(), e.column());
+    text.strip_suffix(&place).unwrap_or(&text).to_string()
 }
 
 /// Reads the JSON file at `path` with [`parse_tagged_json`], naming the file in every message.
@@ -62,7 +70,7 @@ pub fn parse_json_value(text: &str, name: &str) -> Result<serde_json::Value, Fil
             name,
             e.line() as u64,
             e.column() as u64,
-            format!("invalid JSON: {e}"),
+            format!("invalid JSON: {}", without_place(&e)),
         )
     })
 }
@@ -123,5 +131,12 @@ mod tests {
         assert!(e.to_string().starts_with("a.json:2:"), "{e}");
         let e = parse_tagged_json::<Doc>(r#"{"format":"x/1"}"#, "a.json", "x/1", "h").unwrap_err();
         assert!(e.to_string().contains("missing field `n`"), "{e}");
+        // The place is named once, ahead of the message.
+        let e = parse_tagged_json::<Doc>("{\"format\":\"x/1\",\n\"n\":true}", "a.json", "x/1", "h")
+            .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "a.json:2:8: invalid type: boolean `true`, expected u32"
+        );
     }
 }

@@ -110,6 +110,46 @@ fn family_distance(family: &str) -> u32 {
         .unwrap_or(0)
 }
 
+/// The ids of `family` read with every bit right in the mirror images of `frames`, each with
+/// the frames it was read in; empty unless read in at least half of them. A tag reads only
+/// the right way round, so a video mirrored by the camera's setting shows no tag at all.
+pub(crate) fn read_mirrored(
+    frames: &[GrayFrame],
+    family: &str,
+) -> Result<Vec<(u32, usize)>, TrackError> {
+    let frames = &frames[..frames.len().min(FAMILY_PROBE_FRAMES)];
+    let mut det = TagDetector::new(family, 0, 2.0)?;
+    let mut tally: std::collections::BTreeMap<u32, usize> = Default::default();
+    for frame in frames {
+        let w = frame.width as usize;
+        let data: Vec<u8> = frame
+            .data
+            .chunks_exact(w.max(1))
+            .flat_map(|row| row.iter().rev().copied())
+            .collect();
+        let mirrored = GrayFrame {
+            width: frame.width,
+            height: frame.height,
+            data,
+        };
+        let mut ids: Vec<u32> = det
+            .detect_raw(&mirrored)?
+            .iter()
+            .filter(|d| d.hamming == 0)
+            .map(|d| d.id)
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        for id in ids {
+            *tally.entry(id).or_insert(0) += 1;
+        }
+    }
+    Ok(tally
+        .into_iter()
+        .filter(|&(_, n)| 2 * n >= frames.len() && n > 0)
+        .collect())
+}
+
 /// Reads `frames` with every AprilTag family but `tracked`, for a video whose tag the
 /// tracked family does not find (or reads only as false, shapeless codes). The tag is the
 /// (family, id) read with every bit right in the most frames, at least half of them; on a

@@ -29,26 +29,98 @@ const MAX_SLOTS_ACROSS: usize = 3;
 const ONE_STEP: f64 = 0.2;
 
 /// [`place_lost_frames`] for the frames of `source`: the frames unaccounted for are those its
-/// container announces beyond those read and those the times show missing.
+/// container announces beyond those read and those the times show missing. Where no count
+/// confirms a loss, [`place_unannounced_drops`] places those whose motion leaves no doubt.
+/// Returns the losses the count confirms and those the motion alone shows.
 pub(crate) fn place_lost_frames_of(
     records: &mut [FrameRecord],
     source: &crate::source::SourceInfo,
-) -> Vec<DroppedFrames> {
-    let Some(announced) = source.frame_count else {
-        return Vec::new();
-    };
+) -> (Vec<DroppedFrames>, Vec<DroppedFrames>) {
     let times: Vec<(usize, f64)> = records.iter().map(|r| (r.index, r.t_s)).collect();
     let (Some(step_s), dropped) = crate::timing::find_drops(&times) else {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     };
-    // Under --fps the container's own times show the frames it knows dropped.
-    let dropped = match crate::timing::container_times(&times, source) {
-        Some(own) => crate::timing::find_drops(&own).1,
+    // Under --fps the container's own times show the frames it knows dropped, and the
+    // timing warnings name the shift counting gives: the motion is not asked again.
+    let own = crate::timing::container_times(&times, source);
+    let dropped = match &own {
+        Some(own) => crate::timing::find_drops(own).1,
         None => dropped,
     };
     let timed_missing: usize = dropped.iter().map(|d| d.missing).sum();
-    let unaccounted = announced.saturating_sub(records.len() + timed_missing);
-    place_lost_frames(records, unaccounted, step_s)
+    let unaccounted = source.frame_count.map_or(0, |announced| {
+        announced.saturating_sub(records.len() + timed_missing)
+    });
+    let lost = place_lost_frames(records, unaccounted, step_s);
+    if !lost.is_empty() || own.is_some() {
+        return (lost, Vec::new());
+    }
+    (Vec::new(), place_unannounced_drops(records, step_s))
+}
+
+/// Without a frame count to confirm a loss (a recording that dropped frames and was then
+/// written at a constant rate: three drops in 87 frames put the trajectory 30 mm RMS off in
+/// silence), the steps on either side agree within this ratio, two on each side.
+const UNANNOUNCED_STEADY_RATIO: f64 = 1.25;
+
+/// How far such a step, in its neighbours' lengths, may lie from a whole number of frames:
+/// this many frames, or this share of the number where a longer loss lets the speed change
+/// more across it (6 frames dropped as a robot braked from 8.0 to 6.7 mm steps left a step
+/// of 6.85 of their mean).
+const UNANNOUNCED_WHOLE_FRAMES: f64 = 0.15;
+const UNANNOUNCED_WHOLE_SHARE: f64 = 0.05;
+
+/// Fixes of consecutive frames: (record position, frame, time, place).
+type Placed = (usize, usize, f64, nalgebra::Point2<f64>);
+
+/// Finds the places where, between two frames one step apart in index and time, the robot
+/// moved a whole number (two or more) of the steps it made on either side, those four steps
+/// steady; and times every frame after each past the frames the step holds beyond one.
+/// Losses recurring at a fixed period are a frame-rate conversion, named by the timing
+/// report, and are left alone. Returns the losses placed.
+pub(crate) fn place_unannounced_drops(
+    records: &mut [FrameRecord],
+    step_s: f64,
+) -> Vec<DroppedFrames> {
+    if step_s.is_nan() || step_s <= 0.0 {
+        return Vec::new();
+    }
+    let fixes: Vec<Placed> = records
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| Some((i, r.index, r.t_s, fix_position(r)?)))
+        .collect();
+    let one_step =
+        |a: &Placed, b: &Placed| b.1 == a.1 + 1 && ((b.2 - a.2) / step_s - 1.0).abs() <= ONE_STEP;
+    let mut losses: Vec<(usize, usize)> = Vec::new();
+    for w in fixes.windows(6) {
+        if !w.windows(2).all(|p| one_step(&p[0], &p[1])) {
+            continue;
+        }
+        let step = |k: usize| (w[k + 1].3 - w[k].3).norm();
+        let sides = [step(0), step(1), step(3), step(4)];
+        let (low, high) = sides
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(l, h), &s| (l.min(s), h.max(s)));
+        if low < MIN_STEP_M || high > UNANNOUNCED_STEADY_RATIO * low {
+            continue;
+        }
+        let frames = step(2) / (0.5 * (sides[1] + sides[2]));
+        let whole = frames.round();
+        let tolerance = UNANNOUNCED_WHOLE_FRAMES.max(UNANNOUNCED_WHOLE_SHARE * whole);
+        if whole >= 2.0 && (frames - whole).abs() <= tolerance {
+            losses.push((w[3].0, whole as usize - 1));
+        }
+    }
+    let periodic = losses.len() >= 3
+        && losses.windows(3).all(|l| {
+            let (a, b) = (l[1].0 - l[0].0, l[2].0 - l[1].0);
+            a.abs_diff(b) <= 1
+        });
+    if periodic {
+        return Vec::new();
+    }
+    retime(records, &losses, step_s)
 }
 
 /// Finds the places where the robot moved several frames' distance over one frame's step in
@@ -101,6 +173,16 @@ pub(crate) fn place_lost_frames(
     if losses.is_empty() || losses.iter().map(|l| l.1).sum::<usize>() > unaccounted {
         return Vec::new();
     }
+    retime(records, &losses, step_s)
+}
+
+/// Times every record from each loss's (record position, frames missing) on past the frames
+/// missing there and before. Returns the losses as placed.
+fn retime(
+    records: &mut [FrameRecord],
+    losses: &[(usize, usize)],
+    step_s: f64,
+) -> Vec<DroppedFrames> {
     let mut placed = Vec::with_capacity(losses.len());
     let mut shift_s = 0.0;
     let mut next = losses.iter().peekable();
@@ -127,4 +209,65 @@ pub(crate) fn place_lost_frames(
         }
     }
     placed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::place_unannounced_drops;
+    use crate::repeats::tests::record;
+
+    const STEP_S: f64 = 1.0 / 30.0;
+
+    /// Records of consecutive frames at the places `x` (metres along a line).
+    fn records(x: &[f64]) -> Vec<crate::FrameRecord> {
+        x.iter().enumerate().map(|(i, &x)| record(i, x)).collect()
+    }
+
+    /// Places of a robot stepping `step(k)` metres in frame k's step.
+    fn path(n: usize, step: impl Fn(usize) -> f64) -> Vec<f64> {
+        (0..n)
+            .scan(0.0, |x, k| {
+                *x += step(k);
+                Some(*x)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn frames_dropped_in_steady_motion_are_timed_past() {
+        // 7 mm a frame; two frames missing between 10 and 11 of those read.
+        let mut x = path(30, |_| 7e-3);
+        for v in x.iter_mut().skip(11) {
+            *v += 14e-3;
+        }
+        let mut r = records(&x);
+        let placed = place_unannounced_drops(&mut r, STEP_S);
+        assert_eq!(placed.len(), 1, "{placed:?}");
+        assert_eq!((placed[0].after_frame, placed[0].missing), (10, 2));
+        assert!((r[11].t_s - 13.0 * STEP_S).abs() < 1e-9);
+        assert!((r[29].t_s - 31.0 * STEP_S).abs() < 1e-9);
+    }
+
+    #[test]
+    fn smooth_acceleration_braking_and_rest_are_not_drops() {
+        // Accelerating 8 % a frame, braking as hard, and standing still (the fixes' noise).
+        let cases = [
+            path(40, |k| 2e-3 * 1.08_f64.powi(k as i32)),
+            path(40, |k| 30e-3 * 0.92_f64.powi(k as i32)),
+            path(40, |k| if k % 2 == 0 { 1e-4 } else { -1e-4 }),
+        ];
+        for x in cases {
+            let mut r = records(&x);
+            assert!(place_unannounced_drops(&mut r, STEP_S).is_empty());
+            assert!((r[39].t_s - 39.0 * STEP_S).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_regular_pattern_of_double_steps_is_left_to_the_conversion_report() {
+        // Every tenth frame left out (30 to 27 fps), the rest on an even grid.
+        let x = path(40, |k| if k % 10 == 5 { 14e-3 } else { 7e-3 });
+        let mut r = records(&x);
+        assert!(place_unannounced_drops(&mut r, STEP_S).is_empty());
+    }
 }

@@ -219,6 +219,7 @@ pub fn track_source_multi(
                     tag_to_robot: opts.tag_to_robot,
                     records: s.records,
                     lost_in_file: Vec::new(),
+                    dropped_by_motion: Vec::new(),
                     seen_ids: seen.clone(),
                     frame_size: (info.width, info.height),
                     source: final_info.clone(),

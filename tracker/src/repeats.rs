@@ -376,6 +376,7 @@ pub(crate) mod tests {
             tag_to_robot: odocal_core::TagToRobot::IDENTITY,
             records,
             lost_in_file: Vec::new(),
+            dropped_by_motion: Vec::new(),
             seen_ids: Default::default(),
             frame_size: (1280, 720),
             source: crate::source::SourceInfo {

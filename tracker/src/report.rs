@@ -393,6 +393,8 @@ pub fn fix_warnings(
 ) -> Vec<String> {
     let mut warnings: Vec<String> = few_fixes_warning(result, options.tag_id)
         .into_iter()
+        .chain(calibration_share_warning(camera))
+        .chain(teleport_warning(result, options))
         .chain(tag_shape_warnings(result, camera, floor, options))
         .collect();
     if let Some(map) = &camera.floor_uncertainty {
@@ -409,6 +411,64 @@ pub fn fix_warnings(
         warnings.extend(mount_warnings_of_runs(&runs, &result.tag_to_robot));
     }
     warnings
+}
+
+/// Where the tag stands farther from its last fix than `--max-speed` allows over the time
+/// between them: the tracker rejects such a fix, but three in a row restart the track from
+/// the new place (the old track taken for the outlier), so a video joined from two
+/// recordings put a 1.8 m leap at 13 m/s into the trajectory after a 3-frame gap, in silence.
+fn teleport_warning(result: &TrackResult, options: &TrackOptions) -> Option<String> {
+    let fixes: Vec<(usize, &crate::Fix)> = result.fixes().map(|(r, f)| (r.index, f)).collect();
+    let leaps: Vec<String> = fixes
+        .windows(2)
+        .filter_map(|w| {
+            let ((i, a), (j, b)) = (w[0], w[1]);
+            let dt = (b.t_s - a.t_s).abs();
+            let dist = (b.pose.position() - a.pose.position()).norm();
+            (dist > options.max_speed_mps * dt + 0.02).then(|| {
+                format!(
+                    "{dist:.3} m in {dt:.3} s ({:.1} m/s) from frame {i} ({:.3} s) to frame {j} ({:.3} s)",
+                    dist / dt.max(1e-9),
+                    a.t_s,
+                    b.t_s
+                )
+            })
+        })
+        .collect();
+    let first = leaps.first()?;
+    let more = match leaps.len() {
+        1 => String::new(),
+        n => format!(" ({} places in all: {})", n, leaps[1..].join(", ")),
+    };
+    Some(format!(
+        "the tag leaps {first}{more}, faster than --max-speed {} m/s: the fixes after it were taken up as a new track, as a video joined from two recordings or a second tag of this id gives; the trajectory holds both sides, so split the video there (or track each part alone), or raise --max-speed if the robot is that fast",
+        options.max_speed_mps
+    ))
+}
+
+/// What a camera file that was calibrated lacks for each fix's σ to hold the calibration's
+/// share: without the intrinsics' covariance the σ are the tag's corner noise alone (8 times
+/// too small against a calibrated camera's error, error/σ 2.25), and without the floor
+/// uncertainty map the intrinsics' covariance is carried with the floor held fixed, which
+/// overstates it many times over (σ 1.29 mm for errors of 0.09 mm, error/σ 0.06). A camera
+/// file written with the true camera (`synth track`) has no calibration error to add.
+pub fn calibration_share_warning(camera: &odocal_calib::CameraFile) -> Option<String> {
+    let calibrated = camera.rms_px > 0.0 || camera.board.is_some() || !camera.views.is_empty();
+    if !calibrated {
+        return None;
+    }
+    let advice = "calibrate again with `odocal calibrate` (with --floor views) to have it";
+    if camera.covariance.is_none() {
+        return Some(format!(
+            "the camera file has no `covariance` of its intrinsics, so each fix's σ leaves out the calibration's share and holds the tag's corner noise alone (several times too small where the calibration's error dominates): {advice}"
+        ));
+    }
+    if camera.floor.is_some() && camera.floor_uncertainty.is_none() {
+        return Some(format!(
+            "the camera file has no `floor_uncertainty` map, so the calibration's share of each fix's σ is its intrinsics' covariance carried with the floor held fixed, which overstates it many times over (σ too large, error/σ far below 1): {advice}"
+        ));
+    }
+    None
 }
 
 /// What a trajectory's motion says about where its tag sits on the robot, one line each. A

@@ -240,6 +240,14 @@ impl TagTilt {
             "every fix is about {shift_mm:.0} mm off and distances are scaled by up to {scale_pct:.2} % at the farthest fix ({:.2} m from the point under the camera)",
             self.reach_m
         );
+        // A camera's mount turns by a fraction of a degree; a tilt moving every fix by
+        // centimetres is as likely a camera file of another camera, whose tag side a
+        // --tag-size was fitted to (1.10°, 41 mm: 101 mm RMS off the truth).
+        let consequence = if shift_mm >= OTHER_CAMERA_SHIFT_MM {
+            format!("{consequence}. A tilt that large is as often a camera file of another camera (with a --tag-size fitted to the side it reads): check first that the camera file is this camera's; the trajectory is not to be trusted until then")
+        } else {
+            consequence
+        };
         // A tilt given with --tag-tilt was taken off the corners: a wrong one reads here.
         let given_clause = if self.given_rad == Vector2::zeros() {
             (String::new(), String::new())
@@ -298,6 +306,32 @@ impl TiltFit {
     }
 }
 
+/// A floor-fixed tilt that moves every fix this far, millimetres, names another camera's file
+/// among its causes first.
+const OTHER_CAMERA_SHIFT_MM: f64 = 25.0;
+
+/// The least turn of the robot over a run, radians, for the tilt on the robot to be told from
+/// the floor-fixed one.
+const MIN_SEPARATING_TURN_RAD: f64 = 0.35;
+
+/// The angle the samples' headings span: the full turn less the widest gap between them.
+fn heading_span_rad(samples: &[Sample]) -> f64 {
+    let tau = std::f64::consts::TAU;
+    let mut h: Vec<f64> = samples
+        .iter()
+        .map(|s| s.heading_rad.rem_euclid(tau))
+        .collect();
+    h.sort_by(f64::total_cmp);
+    let (Some(&first), Some(&last)) = (h.first(), h.last()) else {
+        return 0.0;
+    };
+    let widest = h
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(first + tau - last, f64::max);
+    tau - widest
+}
+
 /// A run's tilt fitted from one kind of reading: the plain mean, and the floor-fixed and
 /// tag-fixed parts when the run's headings tell them apart.
 struct RunFit {
@@ -325,7 +359,12 @@ impl RunFit {
             return None;
         }
         let mean = fit(&kept, false, Some(spread))?;
-        let both = fit(&kept, true, Some(spread))
+        // Identical fixes (a robot standing still, its H.264 frames decoded alike) leave no
+        // spread to judge the fit by: a still robot's 0.49° was split off "whichever way the
+        // robot heads" though it never turned. The headings must span a turn first.
+        let both = (heading_span_rad(&kept) >= MIN_SEPARATING_TURN_RAD)
+            .then(|| fit(&kept, true, Some(spread)))
+            .flatten()
             .filter(|b| b.floor_se_rad <= SEPARABLE_SE_RATIO * mean.floor_se_rad);
         Some(Self {
             mean,
@@ -570,6 +609,47 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// A tilt moving every fix by centimetres names another camera's file; the 0.3° of a
+    /// camera turned on its mount (10 mm) does not.
+    #[test]
+    fn a_large_floor_tilt_names_another_cameras_file() {
+        let tilt = |deg: f64| TagTilt {
+            floor_fixed_rad: Vector2::new(deg.to_radians(), 0.0),
+            floor_fixed_se_rad: 1e-4,
+            separated: true,
+            tag_on_robot_rad: None,
+            tag_on_robot_se_rad: f64::INFINITY,
+            given_rad: Vector2::zeros(),
+            fixes: 89,
+            tag_size_m: 0.0665,
+            camera_above_marker_m: 2.1,
+            reach_m: 0.72,
+        };
+        let large = tilt(1.1).warnings().join("\n");
+        assert!(
+            large.contains("every fix is about 40 mm off")
+                && large.contains("check first that the camera file is this camera's"),
+            "{large}"
+        );
+        let small = tilt(0.3).warnings().join("\n");
+        assert!(
+            small.contains("every fix is about 11 mm off") && !small.contains("check first"),
+            "{small}"
+        );
+    }
+
+    /// A robot standing still: two readings repeated over the run (the frames of a still
+    /// scene H.264 decodes nearly alike), their headings apart by the fixes' noise alone.
+    #[test]
+    fn a_still_robot_does_not_set_the_tilts_apart() {
+        let (camera, tag) = (Vector2::new(0.004, 0.0), Vector2::new(0.0, 0.006));
+        let headings = [0.4, 0.4 + 1e-6];
+        let distinct = samples(camera, tag, &headings);
+        let still: Vec<Sample> = (0..90).map(|i| distinct[i % 2]).collect();
+        let run = RunFit::of(&still).unwrap();
+        assert!(run.both.is_none(), "{:?}", run.both);
     }
 
     #[test]

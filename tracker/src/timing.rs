@@ -32,7 +32,7 @@ pub struct TimingReport {
     pub frame_step_s: Option<f64>,
     /// Runs of dropped frames.
     pub dropped: Vec<DroppedFrames>,
-    /// Dropped frames in all.
+    /// Dropped frames in all (those of `dropped` and of `dropped_by_motion`).
     pub dropped_frames: usize,
     /// Steps in time of several frames across which the robot moved as far as in one frame:
     /// the camera's clock jumped (every later time is off by the jump), no frame was lost.
@@ -42,6 +42,12 @@ pub struct TimingReport {
     /// frame count says that many are missing; the later frames were timed past them.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub lost_in_file: Vec<DroppedFrames>,
+    /// Frames dropped where neither the times nor a frame count show them (a recording that
+    /// dropped frames, then written at a constant rate): the robot moved a whole number of its
+    /// steady steps, two or more, in one frame's time there; the later frames were timed past
+    /// them. They are counted in `dropped_frames`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub dropped_by_motion: Vec<DroppedFrames>,
     /// Frames whose timestamp is not after the previous one (not tracked).
     pub duplicate_times: usize,
     /// Frames identical to the previous one, or whose fix stands where the previous one's
@@ -253,12 +259,14 @@ impl TimingReport {
         // the camera's clock jumping, not frames lost: told apart where the robot moves.
         let (clock_jumps, dropped): (Vec<DroppedFrames>, Vec<DroppedFrames>) =
             dropped.into_iter().partition(|d| is_clock_jump(r, d));
-        // Frames lost inside the file were timed past by tracking, not by the container.
+        // Frames lost inside the file or placed by the motion were timed past by tracking, not
+        // by the container.
         let dropped: Vec<DroppedFrames> = dropped
             .into_iter()
             .filter(|d| {
                 !r.lost_in_file
                     .iter()
+                    .chain(&r.dropped_by_motion)
                     .any(|l| l.after_frame == d.after_frame)
             })
             .collect();
@@ -268,7 +276,11 @@ impl TimingReport {
                 .filter(|x| x.outcome == Outcome::Gap(reason))
                 .count()
         };
-        let dropped_frames: usize = dropped.iter().map(|d| d.missing).sum();
+        let dropped_frames: usize = dropped
+            .iter()
+            .chain(&r.dropped_by_motion)
+            .map(|d| d.missing)
+            .sum();
         let frames_read = r.records.len();
         let lost_frames: usize = r.lost_in_file.iter().map(|d| d.missing).sum();
         let announced = r.source.frame_count;
@@ -323,6 +335,7 @@ impl TimingReport {
             dropped_frames,
             clock_jumps,
             lost_in_file: r.lost_in_file.clone(),
+            dropped_by_motion: r.dropped_by_motion.clone(),
             duplicate_times: count(GapReason::DuplicateTime),
             repeated_images,
             filled_drops,
@@ -404,6 +417,27 @@ impl TimingReport {
         )
     }
 
+    /// The warning naming the frames the robot's motion shows dropped where the times do not.
+    fn dropped_by_motion_warning(&self) -> String {
+        let n: usize = self.dropped_by_motion.iter().map(|d| d.missing).sum();
+        let places: Vec<String> = self
+            .dropped_by_motion
+            .iter()
+            .map(|d| {
+                format!(
+                    "{} after frame {} ({:.3} s)",
+                    d.missing, d.after_frame, d.after_s
+                )
+            })
+            .collect();
+        format!(
+            "{n} frame{} look{} dropped where the file's times step evenly ({}): the robot moved 2 or more of its steady steps in one frame's time there, as a recording that dropped frames and was then written at a constant rate shows; the frames after each were timed past the frames dropped. Check the recording for dropped frames (record with timestamps, or at a rate the camera keeps up with)",
+            if n == 1 { "" } else { "s" },
+            if n == 1 { "s" } else { "" },
+            places.join(", ")
+        )
+    }
+
     /// The warning naming the dropped frames whose slots hold the next frame's image.
     fn filled_drops_warning(&self) -> String {
         let n = self.filled_drops;
@@ -440,7 +474,10 @@ impl TimingReport {
                 if l.missing == 1 { "" } else { "s" },
             ));
         }
-        if self.dropped_frames > 0 {
+        if !self.dropped_by_motion.is_empty() {
+            w.push(self.dropped_by_motion_warning());
+        }
+        if !self.dropped.is_empty() {
             w.push(self.dropped_warning());
         }
         for j in &self.clock_jumps {

@@ -396,6 +396,8 @@ pub struct Tracker {
     last_fix_index: Option<usize>,
     consecutive_jumps: usize,
     seen: BTreeMap<u32, usize>,
+    /// The ids the last frame given to [`Self::process`] showed.
+    ids_in_last_frame: Vec<u32>,
     /// Frames given to [`Self::process`].
     frames_read: usize,
     /// Pooled corner residuals: decayed sums of each fix's squared residuals over what its
@@ -507,6 +509,7 @@ impl Tracker {
             last_fix_index: None,
             consecutive_jumps: 0,
             seen: BTreeMap::new(),
+            ids_in_last_frame: Vec::new(),
             frames_read: 0,
             residual_pool: (0.0, 0.0),
             intrinsics_covariance: None,
@@ -558,6 +561,15 @@ impl Tracker {
         let first_row = if readout < 0.0 { rows - 1.0 } else { 0.0 };
         let read_fraction = ((row_px - first_row) / rows * readout.signum()).clamp(0.0, 1.0);
         t_s + read_fraction * readout.abs()
+    }
+
+    /// Counts the ids of the last frame tracked as seen once more: a frame repeating its
+    /// pixels shows them too (a still robot's identical H.264 frames read "ids seen: 0 (13
+    /// frames)" beside 90 fixes).
+    pub(crate) fn seen_again(&mut self) {
+        for &id in &self.ids_in_last_frame {
+            *self.seen.entry(id).or_insert(0) += 1;
+        }
     }
 
     /// Ids seen so far (any id of the family) and in how many frames.
@@ -842,9 +854,10 @@ impl Tracker {
         }
         ids_in_frame.sort_unstable();
         ids_in_frame.dedup();
-        for id in ids_in_frame {
+        for &id in &ids_in_frame {
             *self.seen.entry(id).or_insert(0) += 1;
         }
+        self.ids_in_last_frame = ids_in_frame;
         let other_tag = others.first().map(|d| self.other_tag(d));
         let (outcome, rejected) = match found {
             None if refused => (Outcome::Gap(GapReason::OtherTagOfId), None),
@@ -1214,6 +1227,10 @@ pub struct TrackResult {
     /// Frames lost inside the file, placed by the robot's motion and confirmed by the
     /// container's frame count: the records after each are timed past them.
     pub lost_in_file: Vec<crate::timing::DroppedFrames>,
+    /// Frames dropped where nothing counts them (a file written at a constant rate after the
+    /// recording dropped them), placed by the robot's motion alone: the records after each
+    /// are timed past them.
+    pub dropped_by_motion: Vec<crate::timing::DroppedFrames>,
     /// Ids seen (any id of the family) and in how many frames.
     pub seen_ids: BTreeMap<u32, usize>,
     /// Frame size, pixels.
@@ -1666,12 +1683,17 @@ pub fn track_source(
     if records.is_empty() {
         return Err(TrackError::bad_input(&info.path, "contains no frames"));
     }
+    if let Some(message) = time_restart(&records) {
+        return Err(TrackError::bad_input(&info.path, message));
+    }
     crate::repeats::place_repeated_images(&mut records);
-    let lost_in_file = crate::lost_frames::place_lost_frames_of(&mut records, &final_info);
+    let (lost_in_file, dropped_by_motion) =
+        crate::lost_frames::place_lost_frames_of(&mut records, &final_info);
     let result = TrackResult {
         tag_to_robot: opts.tag_to_robot,
         records,
         lost_in_file,
+        dropped_by_motion,
         seen_ids,
         frame_size: (info.width, info.height),
         source: final_info,
@@ -1681,6 +1703,32 @@ pub fn track_source(
         return Err(TrackError::Mismatch(
             result.wrong_id_text(opts, &info.path, true),
         ));
+    }
+    if result.fixes().next().is_none() && result.seen_ids.is_empty() {
+        // No tag of the family at all: a mirrored video (a camera's mirror setting) reads
+        // none, whatever the id and family, and was blamed on them.
+        let mirrored = crate::detect::read_mirrored(&kept, &opts.family)?;
+        if !mirrored.is_empty() {
+            let ids: Vec<String> = mirrored
+                .iter()
+                .map(|(id, n)| {
+                    format!(
+                        "{id} ({n} of {} frames)",
+                        kept.len().min(crate::detect::FAMILY_PROBE_FRAMES)
+                    )
+                })
+                .collect();
+            return Err(TrackError::NoFix {
+                message: format!(
+                    "no {} tag was seen in {} frames of {}, but their mirror images show tag {}: the video is mirrored (a camera's or recording app's mirror or flip setting): turn the mirror setting off and record again, or unmirror this file (`ffmpeg -i IN -vf hflip OUT`); the camera must be calibrated from unmirrored images too",
+                    opts.family,
+                    result.records.len(),
+                    info.path.display(),
+                    ids.join(", ")
+                ),
+                result: Box::new(result),
+            });
+        }
     }
     if result.fixes().next().is_none() {
         // Only a run without a fix pays for reading its frames with the other families.
@@ -1695,6 +1743,25 @@ pub fn track_source(
         });
     }
     Ok(result)
+}
+
+/// Where the frames' time starts again: a step back of more than this many usual steps is no
+/// repeated timestamp but a second recording's start.
+const RESTART_STEPS: f64 = 3.0;
+
+/// The error for frames whose time starts again partway (two recordings joined byte for
+/// byte, as `cat a.ts b.ts` gives: MPEG-TS has no header to say where one ends). They gave
+/// three contradictory messages, the last a trajectory row going back in time.
+fn time_restart(records: &[FrameRecord]) -> Option<String> {
+    let times: Vec<(usize, f64)> = records.iter().map(|r| (r.index, r.t_s)).collect();
+    let step = crate::timing::find_drops(&times).0?;
+    let w = times
+        .windows(2)
+        .find(|w| w[1].1 < w[0].1 - RESTART_STEPS * step)?;
+    let ((before, t0), (at, t1)) = (w[0], w[1]);
+    Some(format!(
+        "the frames' time starts again at frame {at}, from {t0:.3} s back to {t1:.3} s after frame {before}: the file holds two recordings joined byte for byte (as `cat a.ts b.ts` makes), whose times cannot be told apart; track each recording from its own file, or join them with FFmpeg's concat demuxer, which times the second after the first (`ffmpeg -f concat -safe 0 -i list.txt -c copy joined.mp4`, list.txt naming each as file 'a.ts')"
+    ))
 }
 
 /// A few frames without a fix, spread over the run, kept for [`crate::detect::read_other_families`]
@@ -1749,6 +1816,9 @@ fn track_batch(
     for frame in batch {
         let before = out.last().map(|(f, _)| f).or(previous.as_ref());
         let unusable = unusable_frame(&frame, before, camera, path)?;
+        if unusable == Some(GapReason::RepeatedImage) {
+            tracker.seen_again();
+        }
         let mut rec = match unusable {
             Some(reason) => FrameRecord {
                 index: frame.index,
@@ -1836,12 +1906,26 @@ pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
     v.get(v.len() / 2).copied()
 }
 
+/// A tag side this far from --tag-size (a fraction) names the camera file first.
+const CAMERA_FILE_SIDE_OFF: f64 = 0.10;
+
 /// What to check when the corners fit no square of the tag's size: the side they do span,
 /// when it is not `--tag-size`, names the size (or height) that would fit, since the
 /// residual gate refuses a size a few percent off before the size check's wider bound.
 fn bad_geometry_advice(side_m: Option<f64>, opts: &TrackOptions) -> String {
     let height = format!("--marker-height {} m", opts.marker_height_m);
     match side_m {
+        // A print is scaled by a few percent, not a sixth: a size that far off is most often
+        // another camera's calibration (its focal length scales every side), which a
+        // --tag-size fitted to it only hides (101 mm RMS off, the tag read tilted).
+        Some(side_m) if (side_m / opts.tag_size_m - 1.0).abs() > CAMERA_FILE_SIDE_OFF => format!(
+            "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm, further off than a print's scaling: check first that the camera file is this camera's, calibrated at this resolution, lens and zoom (a camera file of another camera scales every side so), then {height}; only if the tag's black square measures {:.1} mm, give --tag-size {:.4}",
+            side_m * 1e3,
+            100.0 * (side_m / opts.tag_size_m - 1.0),
+            opts.tag_size_m * 1e3,
+            side_m * 1e3,
+            side_m
+        ),
         Some(side_m) if (side_m / opts.tag_size_m - 1.0).abs() > TAG_SIDE_TOLERANCE => format!(
             "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm: if the tag's black square measures that, give --tag-size {:.4}, else check {height} and the camera file",
             side_m * 1e3,
@@ -1858,4 +1942,27 @@ fn bad_geometry_advice(side_m: Option<f64>, opts: &TrackOptions) -> String {
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("–".into(), |x| format!("{x:.digits$}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{bad_geometry_advice, TrackOptions};
+
+    /// Another camera's calibration (60° where the video's lens is wider) read the tag's
+    /// side 16.9 % short, and the advice led with the --tag-size that would fit it, which
+    /// gave a trajectory 101 mm RMS off; a print's few percent still lead with the size.
+    #[test]
+    fn a_side_far_off_names_the_camera_file_first() {
+        let opts = TrackOptions::default();
+        let far = bad_geometry_advice(Some(opts.tag_size_m * 0.831), &opts);
+        assert!(
+            far.contains("-16.9 % from --tag-size 80.0 mm, further off than a print's scaling: check first that the camera file is this camera's"),
+            "{far}"
+        );
+        let near = bad_geometry_advice(Some(opts.tag_size_m * 0.97), &opts);
+        assert!(
+            near.contains("if the tag's black square measures that, give --tag-size 0.0776"),
+            "{near}"
+        );
+    }
 }

@@ -105,6 +105,39 @@ fn is_frame(path: &Path) -> bool {
     image && !hidden
 }
 
+/// Each file's frame number counted from the first's, in steps of the usual step between
+/// the numbers in the names (the last run of digits in each name): none unless every name
+/// carries a number, the numbers rise, and each step is a whole number of the usual one.
+fn frame_numbers(files: &[PathBuf]) -> Option<Vec<usize>> {
+    let numbers: Vec<u64> = files
+        .iter()
+        .map(|f| {
+            let stem = f.file_stem()?.to_str()?;
+            let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+            let start = stem[..end]
+                .rfind(|c: char| !c.is_ascii_digit())
+                .map_or(0, |i| i + 1);
+            stem[start..end].parse().ok()
+        })
+        .collect::<Option<_>>()?;
+    let mut steps: Vec<u64> = numbers
+        .windows(2)
+        .map(|w| w[1].checked_sub(w[0]).filter(|d| *d > 0))
+        .collect::<Option<_>>()?;
+    steps.sort_unstable();
+    let usual = *steps.get(steps.len() / 2)?;
+    let first = *numbers.first()?;
+    numbers
+        .iter()
+        .map(|n| {
+            let d = n - first;
+            (d % usual == 0)
+                .then(|| usize::try_from(d / usual).ok())
+                .flatten()
+        })
+        .collect()
+}
+
 impl FolderSource {
     /// Lists the images of `dir` and assigns their timestamps.
     pub fn open(dir: &Path, opts: &SourceOptions) -> Result<Self, TrackError> {
@@ -122,13 +155,25 @@ impl FolderSource {
             ));
         }
         let csv = opts.timestamps_file(dir)?;
-        let timing = match (&csv, opts.fps) {
-            (Some(csv), _) => format!("timestamps file {}", csv.display()),
-            (None, fps) => format!("frame count at {} fps (--fps)", fps.unwrap_or(f64::NAN)),
+        // Numbered files that skip numbers are frames the camera dropped: counted one after
+        // another, every later frame would be timed early by them (6 deleted frames put the
+        // trajectory 38 mm RMS off in silence).
+        let numbers = frame_numbers(&files).filter(|n| n.last().copied() != Some(n.len() - 1));
+        let timing = match (&csv, opts.fps, &numbers) {
+            (Some(csv), _, _) => format!("timestamps file {}", csv.display()),
+            (None, fps, Some(_)) => {
+                format!("file numbers at {} fps (--fps)", fps.unwrap_or(f64::NAN))
+            }
+            (None, fps, None) => {
+                format!("frame count at {} fps (--fps)", fps.unwrap_or(f64::NAN))
+            }
         };
         let times: Vec<f64> = match (csv, opts.fps) {
             (Some(csv), _) => read_timestamps(&csv, &files)?,
-            (None, Some(fps)) if (super::MIN_FPS..=super::MAX_FPS).contains(&fps) => (0..files.len()).map(|k| k as f64 / fps).collect(),
+            (None, Some(fps)) if (super::MIN_FPS..=super::MAX_FPS).contains(&fps) => match numbers {
+                Some(n) => n.iter().map(|&k| k as f64 / fps).collect(),
+                None => (0..files.len()).map(|k| k as f64 / fps).collect(),
+            },
             (None, Some(fps)) => return Err(TrackError::Options(format!("--fps {fps}: a camera's frame rate is {} to {} frames/s", super::MIN_FPS, super::MAX_FPS))),
             (None, None) => {
                 return Err(TrackError::bad_input(

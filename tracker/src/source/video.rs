@@ -54,6 +54,54 @@ fn fourcc_string(code: i32) -> String {
         .collect()
 }
 
+/// Why an MP4 whose frames are there but whose index is not cannot be read, and what to do.
+const MP4_WITHOUT_INDEX: &str = "an MP4 without its index (no `moov` box, FFmpeg's \"moov atom not found\"): the recording did not finish (the recorder crashed or lost power, or the file was copied before it was closed), and an MP4 writes its index last. Recover the frames with untrunc and a whole recording of the same camera and settings (`untrunc whole.mp4 this.mp4`), and record with fragmented MP4 (FFmpeg: -movflags +frag_keyframe+empty_moov) so that a crash leaves a readable file";
+
+/// Whether `path` is an MP4 whose top-level boxes hold no `moov` (its index): MP4 writers put
+/// it at the end, so a recording cut short has its frames' data (`mdat`) and no index.
+fn mp4_without_index(path: &Path) -> bool {
+    use std::io::{Read, Seek, SeekFrom};
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return false;
+    };
+    let Ok(len) = f.metadata().map(|m| m.len()) else {
+        return false;
+    };
+    let (mut at, mut ftyp, mut mdat) = (0u64, false, false);
+    while at + 8 <= len {
+        let mut head = [0u8; 16];
+        if f.seek(SeekFrom::Start(at)).is_err() || f.read_exact(&mut head[..8]).is_err() {
+            return false;
+        }
+        let kind: [u8; 4] = [head[4], head[5], head[6], head[7]];
+        let size = match u32::from_be_bytes([head[0], head[1], head[2], head[3]]) {
+            // A 64-bit size follows the type.
+            1 => {
+                if f.read_exact(&mut head[8..16]).is_err() {
+                    return false;
+                }
+                let mut b = [0u8; 8];
+                b.copy_from_slice(&head[8..16]);
+                u64::from_be_bytes(b)
+            }
+            // The box runs to the end of the file.
+            0 => len - at,
+            n => u64::from(n),
+        };
+        match &kind {
+            b"moov" => return false,
+            b"ftyp" => ftyp = true,
+            b"mdat" => mdat = true,
+            _ => {}
+        }
+        if size < 8 {
+            break;
+        }
+        at += size;
+    }
+    ftyp && mdat
+}
+
 impl VideoSource {
     /// Opens `path` with the FFmpeg backend. Frames are timed by the container's presentation
     /// timestamps (so dropped frames leave a gap in time instead of shifting every later
@@ -125,6 +173,9 @@ impl VideoSource {
             let what = match odocal_core::file_kind(path) {
                 Some(kind) if !odocal_core::is_video(kind) => {
                     format!("this is {kind}, not a video")
+                }
+                _ if mp4_without_index(path) => {
+                    return Err(TrackError::bad_input(path, MP4_WITHOUT_INDEX));
                 }
                 _ => "FFmpeg cannot decode this file".to_string(),
             };
