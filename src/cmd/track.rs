@@ -54,7 +54,7 @@ pub struct Args {
     #[arg(long)]
     pub fps: Option<f64>,
     /// CSV of image timestamps for an image folder (`file,t`, or `t` per image in natural name
-    /// order: img2 before img10).
+    /// order: img2 before img10), t in seconds.
     #[arg(long)]
     pub timestamps: Option<PathBuf>,
     /// Detect on the full frame in every frame (no region of interest).
