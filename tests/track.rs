@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{fails_with, odocal, p, succeeded};
+use common::{fails_with, ffmpeg, odocal, p, ran, succeeded};
 use nalgebra::Point2;
 use odocal_core::wrap_angle;
 use odocal_dataset::Trajectory;
@@ -951,7 +951,7 @@ fn an_interlaced_video_is_refused_with_the_command_that_fixes_it() {
     let d = dir.path();
     synth_track_with(d, 2, 1, &["--video", "png"]);
     let video = d.join("i.mp4");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args([
             "-v",
             "error",
@@ -969,10 +969,7 @@ fn an_interlaced_video_is_refused_with_the_command_that_fixes_it() {
             "+ildct+ilme",
         ])
         .args(["-c:v", "libx264"])
-        .arg(&video)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&video));
     let out = d.join("t.csv");
     let res = odocal(&[
         "track",
@@ -1230,7 +1227,7 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
     // drive), and --rolling-shutter-s -0.03 was refused.
     let flipped = d.join("flipped");
     std::fs::create_dir(&flipped).unwrap();
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args([
             "-v",
             "error",
@@ -1239,10 +1236,7 @@ fn an_unnamed_rolling_shutter_is_read_off_the_tags() {
             "-vf",
             "hflip,vflip",
         ])
-        .args(["-c:v", "mjpeg", "-q:v", "1", p(&flipped.join("video.avi"))])
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .args(["-c:v", "mjpeg", "-q:v", "1", p(&flipped.join("video.avi"))]));
     let cam: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&camera).unwrap()).unwrap();
     std::fs::write(
@@ -2049,14 +2043,11 @@ fn a_frame_file_cut_short_is_left_out_and_named() {
     let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
     let jpegs = d.join("jpegs");
     std::fs::create_dir_all(&jpegs).unwrap();
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-loglevel", "error", "-y", "-i"])
         .arg(d.join("frames/frame_%06d.png"))
         .args(["-q:v", "2", "-start_number", "0"])
-        .arg(jpegs.join("frame_%06d.jpg"))
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(jpegs.join("frame_%06d.jpg")));
     let names: Vec<String> = (0..8).map(|k| format!("frame_{k:06}.jpg")).collect();
     let cut_to_half = |path: &std::path::Path| {
         let bytes = std::fs::read(path).unwrap();
@@ -2281,7 +2272,7 @@ fn a_tag_size_a_percent_off_is_named() {
     // square changes by under 1 %: the camera file is named, and no figure the square cannot give.
     std::fs::write(&cam, &original).unwrap();
     let shifted = d.join("shifted.avi");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-v", "error", "-i", p(&d.join("video.avi")), "-vf"])
         .args([
             "crop=1240:700:40:20,pad=1280:720:0:0",
@@ -2290,10 +2281,7 @@ fn a_tag_size_a_percent_off_is_named() {
             "-q:v",
             "2",
         ])
-        .arg(p(&shifted))
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(p(&shifted)));
     let res = odocal(&[
         "track",
         p(&shifted),
@@ -2488,7 +2476,7 @@ fn frames_dropped_before_a_constant_rate_file_are_timed_past_and_named() {
     let d = dir.path();
     synth_track_with(d, 60, 1, &["--video", "png"]);
     let video = d.join("dropped.mp4");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-v", "error", "-framerate", "30", "-i"])
         .arg(d.join("frames/frame_%06d.png"))
         .args([
@@ -2503,10 +2491,7 @@ fn frames_dropped_before_a_constant_rate_file_are_timed_past_and_named() {
             "-pix_fmt",
             "yuv420p",
         ])
-        .arg(&video)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&video));
     let (out, report) = (d.join("t.csv"), d.join("r.json"));
     let camera = d.join("camera.json");
     let res = odocal(&[
@@ -2626,14 +2611,11 @@ fn a_leap_faster_than_max_speed_after_a_gap_is_named() {
     )
     .unwrap();
     let joined = dir.path().join("joined.avi");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-v", "error", "-f", "concat", "-safe", "0", "-i"])
         .arg(&list)
         .args(["-c", "copy"])
-        .arg(&joined)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&joined));
     let res = odocal(&[
         "track",
         p(&joined),
@@ -2669,14 +2651,11 @@ fn a_still_robot_is_no_turned_camera_and_its_frames_all_show_the_tag() {
     // it is not named.
     synth_track_with(d, 60, 1, &["--video", "png", "--tag-tilt", "0.5"]);
     let video = d.join("still.mp4");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-v", "error", "-loop", "1", "-framerate", "30", "-i"])
         .arg(d.join("frames/frame_000020.png"))
         .args(["-t", "2", "-c:v", "libx264", "-pix_fmt", "yuv420p"])
-        .arg(&video)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&video));
     let res = odocal(&[
         "track",
         p(&video),
@@ -2744,7 +2723,7 @@ fn an_mp4_cut_before_its_index_is_named_as_an_unfinished_recording() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let whole = d.join("whole.mp4");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args([
             "-v",
             "error",
@@ -2754,10 +2733,7 @@ fn an_mp4_cut_before_its_index_is_named_as_an_unfinished_recording() {
             "testsrc=size=160x90:rate=30",
         ])
         .args(["-frames:v", "30", "-c:v", "libx264", "-pix_fmt", "yuv420p"])
-        .arg(&whole)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&whole));
     let bytes = std::fs::read(&whole).unwrap();
     let cut = d.join("cut.mp4");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
@@ -2789,14 +2765,11 @@ fn a_mirrored_video_is_named_mirrored() {
     let d = dir.path();
     synth_track(d, 4, 1);
     let mirrored = d.join("mirrored.avi");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-v", "error", "-i"])
         .arg(d.join("video.avi"))
         .args(["-vf", "hflip", "-c:v", "mjpeg", "-q:v", "2"])
-        .arg(&mirrored)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&mirrored));
     let res = odocal(&[
         "track",
         p(&mirrored),
@@ -2825,14 +2798,11 @@ fn recordings_joined_byte_for_byte_are_named_where_time_starts_again() {
     let d = dir.path();
     synth_track(d, 12, 1);
     let ts = d.join("a.ts");
-    let made = std::process::Command::new("ffmpeg")
+    ran(ffmpeg()
         .args(["-v", "error", "-i"])
         .arg(d.join("video.avi"))
         .args(["-c:v", "libx264", "-pix_fmt", "yuv420p"])
-        .arg(&ts)
-        .status()
-        .expect("ffmpeg is needed for this test: `make deps` installs it");
-    assert!(made.success());
+        .arg(&ts));
     let one = std::fs::read(&ts).unwrap();
     let joined = d.join("joined.ts");
     std::fs::write(&joined, [one.clone(), one].concat()).unwrap();

@@ -128,3 +128,22 @@ pub fn with_exif_orientation(jpeg: &[u8], orientation: u16) -> Vec<u8> {
     out.extend_from_slice(&jpeg[2..]);
     out
 }
+
+/// FFmpeg, quiet, overwriting its output: for making test videos (see [`ran`]).
+pub fn ffmpeg() -> std::process::Command {
+    let mut c = std::process::Command::new("ffmpeg");
+    c.args(["-hide_banner", "-y"]);
+    c
+}
+
+/// Runs `cmd` to success, with its error output in the failure.
+pub fn ran(cmd: &mut std::process::Command) {
+    let out = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("{cmd:?} could not run ({e}): `make deps` installs FFmpeg"));
+    assert!(
+        out.status.success(),
+        "{cmd:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
