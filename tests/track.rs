@@ -13,6 +13,18 @@ fn synth_track(dir: &std::path::Path, frames: usize, seed: u64) {
     synth_track_with(dir, frames, seed, &[]);
 }
 
+/// `odocal track VIDEO` with `d`'s camera.json, into `d/t.csv`.
+fn track_in(d: &std::path::Path, video: &std::path::Path) -> std::process::Output {
+    odocal(&[
+        "track",
+        p(video),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("t.csv")),
+    ])
+}
+
 /// As [`synth_track`], with `extra` options.
 fn synth_track_with(dir: &std::path::Path, frames: usize, seed: u64, extra: &[&str]) {
     let (frames, seed) = (frames.to_string(), seed.to_string());
@@ -2157,14 +2169,7 @@ fn a_cameras_tone_curve_is_no_tilt() {
             "0.4",
         ],
     );
-    let res = odocal(&[
-        "track",
-        p(&d.join("video.avi")),
-        "--camera",
-        p(&d.join("camera.json")),
-        "--out",
-        p(&d.join("t.csv")),
-    ]);
+    let res = track_in(d, &d.join("video.avi"));
     succeeded(&res);
     let said = String::from_utf8_lossy(&res.stderr);
     println!("{said}");
@@ -2656,14 +2661,7 @@ fn a_still_robot_is_no_turned_camera_and_its_frames_all_show_the_tag() {
         .arg(d.join("frames/frame_000020.png"))
         .args(["-t", "2", "-c:v", "libx264", "-pix_fmt", "yuv420p"])
         .arg(&video));
-    let res = odocal(&[
-        "track",
-        p(&video),
-        "--camera",
-        p(&d.join("camera.json")),
-        "--out",
-        p(&d.join("t.csv")),
-    ]);
+    let res = track_in(d, &video);
     succeeded(&res);
     let (out, err) = (
         String::from_utf8_lossy(&res.stdout),
@@ -2738,14 +2736,7 @@ fn an_mp4_cut_before_its_index_is_named_as_an_unfinished_recording() {
     let cut = d.join("cut.mp4");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     synth_track(d, 1, 1);
-    let res = odocal(&[
-        "track",
-        p(&cut),
-        "--camera",
-        p(&d.join("camera.json")),
-        "--out",
-        p(&d.join("t.csv")),
-    ]);
+    let res = track_in(d, &cut);
     let err = fails_with(&res, "an MP4 without its index (no `moov` box");
     assert!(
         err.contains("the recording did not finish")
@@ -2770,14 +2761,7 @@ fn a_mirrored_video_is_named_mirrored() {
         .arg(d.join("video.avi"))
         .args(["-vf", "hflip", "-c:v", "mjpeg", "-q:v", "2"])
         .arg(&mirrored));
-    let res = odocal(&[
-        "track",
-        p(&mirrored),
-        "--camera",
-        p(&d.join("camera.json")),
-        "--out",
-        p(&d.join("t.csv")),
-    ]);
+    let res = track_in(d, &mirrored);
     let err = fails_with(&res, "but their mirror images show tag 0");
     assert!(
         err.contains("the video is mirrored")
@@ -2806,14 +2790,7 @@ fn recordings_joined_byte_for_byte_are_named_where_time_starts_again() {
     let one = std::fs::read(&ts).unwrap();
     let joined = d.join("joined.ts");
     std::fs::write(&joined, [one.clone(), one].concat()).unwrap();
-    let res = odocal(&[
-        "track",
-        p(&joined),
-        "--camera",
-        p(&d.join("camera.json")),
-        "--out",
-        p(&d.join("t.csv")),
-    ]);
+    let res = track_in(d, &joined);
     // The first recording's last frame comes out of the decoder's reordering timed a step
     // on: the restart is seen a frame late.
     let err = fails_with(&res, "the frames' time starts again at frame 1");
