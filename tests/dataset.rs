@@ -1325,7 +1325,7 @@ fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected_and_jitter_is_not() {
         p(&out),
     ]);
     let ds = Dataset::read(&out).unwrap();
-    let gap = "rows 99 and 100 are 1.600 s apart, but the robot logs every 0.200 s";
+    let gap = "lines 99 and 100 are 1.600 s apart, but the robot logs every 0.200 s";
     let (gap_rows, _) = gap.split_once(", but").unwrap();
     let spanning: Vec<&str> = ds
         .rejected
@@ -1378,7 +1378,7 @@ fn windows_and_runs_spanning_a_gap_in_the_log_are_rejected_and_jitter_is_not() {
     let why = rejection(&ds, "run002");
     assert!(
         why.contains(
-            "the log's rows 19 and 20 are 1.200 s apart, but the robot logs every 0.200 s"
+            "the log's lines 19 and 20 are 1.200 s apart, but the robot logs every 0.200 s"
         ),
         "{why}"
     );
@@ -1649,4 +1649,88 @@ fn logs_swapped_between_two_rows_are_named_as_a_pair() {
         "{e}"
     );
     assert!(!out.exists(), "a dataset was written");
+}
+
+/// A logger that lost a row or two while the wheels turned: its cumulative counts keep the
+/// travel, but the run was rejected ("rows 16 and 17 are 0.400 s apart … a dropped or extra
+/// row?"), and `correct` refused the log. The lost rows are filled in between the counts
+/// around them and said; the runs come out as from the whole logs.
+#[test]
+fn rows_lost_while_moving_are_filled_in_and_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 6, 4, 1);
+    let (whole, _) = build_said(d);
+    assert_eq!(whole.samples.len(), 6);
+    // Takes `lost` rows out of a run's log where its wheels turn, and gives the log and the
+    // file's lines on either side of the gap.
+    let lose = |run: &str, lost: usize| {
+        let log = d.join(format!("runs/{run}.odometry.csv"));
+        let text = std::fs::read_to_string(&log).unwrap();
+        let rows: Vec<&str> = text.lines().collect();
+        let ticks = |i: usize| rows[i].split_once(',').unwrap().1;
+        let first = (10..rows.len() - 4)
+            .find(|&i| (i - 1..=i + lost).all(|j| ticks(j) != ticks(j + 1)))
+            .expect("the wheels turn");
+        let kept: Vec<&str> = rows
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !(first..first + lost).contains(i))
+            .map(|(_, l)| *l)
+            .collect();
+        std::fs::write(&log, kept.join("\n") + "\n").unwrap();
+        (log, first, first + 1)
+    };
+    let whole_log = d.join("run002.whole.csv");
+    std::fs::copy(d.join("runs/run002.odometry.csv"), &whole_log).unwrap();
+    let (one, a, b) = lose("run002", 1);
+    let (_, c, e) = lose("run003", 2);
+    let (ds, said) = build_said(d);
+    assert_eq!(ds.samples.len(), 6, "{said}");
+    assert!(
+        said.contains(&format!("run002.odometry.csv: 1 row the logger lost while the wheels turned (lines {a} and {b} are 0.400 s apart) filled in")),
+        "{said}"
+    );
+    assert!(
+        said.contains(&format!("run003.odometry.csv: 2 rows the logger lost while the wheels turned (lines {c} and {e} are 0.600 s apart)")),
+        "{said}"
+    );
+    for (a, b) in whole.samples.iter().zip(&ds.samples) {
+        assert_eq!(a.run_id, b.run_id);
+        let inputs = a
+            .inputs
+            .iter()
+            .zip(&b.inputs)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        // The filled rows' counts are a tick or so off the lost ones: a tick of the
+        // reference robot's encoder (12 a turn of a 43 mm wheel) is 11 mm of travel.
+        assert!(inputs < 0.0113, "{}: inputs {inputs} off", a.run_id);
+        let target = (a.target_m[0] - b.target_m[0]).hypot(a.target_m[1] - b.target_m[1]);
+        assert!(target < 1e-4, "{}: target {target} m off", a.run_id);
+    }
+    // `correct` reads the log as the whole one: the corrected end moves by a tick's travel
+    // at most.
+    let model = d.join("model.json");
+    ok(&["train", p(&d.join("dataset.json")), "--out", p(&model)]);
+    let corrected = |log: &Path| {
+        let o = common::odocal(&["correct", "--model", p(&model), p(log)]);
+        succeeded(&o);
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let end = out
+            .split("corrected end: x ")
+            .nth(1)
+            .expect("corrected end");
+        let (x, rest) = end.split_once(" m, y ").expect("x");
+        let y = rest.split_once(" m").expect("y").0;
+        let xy = [x.parse::<f64>().unwrap(), y.parse::<f64>().unwrap()];
+        (xy, String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (from_whole, _) = corrected(&whole_log);
+    let (filled, said) = corrected(&one);
+    assert!(
+        said.contains("1 row the logger lost while the wheels turned"),
+        "{said}"
+    );
+    let moved = (from_whole[0] - filled[0]).hypot(from_whole[1] - filled[1]);
+    assert!(moved < 0.0113, "corrected end moved {moved} m");
 }

@@ -375,7 +375,7 @@ pub(crate) fn process_recording_at(
                 id,
                 format!(
                     "the log's {}: the run's odometry would bridge the gap as one step",
-                    OdometryLog::step_message(k, dt, opts.robot.period_s)
+                    rec.log.step_message(k, dt, opts.robot.period_s)
                 ),
             ));
             continue;

@@ -11,6 +11,7 @@
 //! More than [`MAX_LOST_STEPS`] such steps are no glitches but the log's unit or the robot
 //! file's parameters, and reject the whole recording.
 
+use crate::lost_rows::fill_lost_rows;
 use crate::odometry::{LogKind, OdometryLog, MAX_WHEEL_SPEED_MPS, TICKS_HEADER};
 use crate::RobotParams;
 
@@ -54,14 +55,14 @@ pub struct MendedLog {
 #[derive(Debug, Clone, PartialEq)]
 pub enum LogGlitches {
     /// Few enough to read the log around them (none at all, often).
-    Mended(MendedLog),
+    Mended(Box<MendedLog>),
     /// Too many to be glitches: what is wrong with the first, and how many there are.
     Everywhere(String),
 }
 
-/// `log` with its garbled readings read between their neighbours, and a note on each, when
-/// they are all its impossible steps; else `log` as it is (no notes), for the log checks to
-/// refuse. A model applied to a whole log (`correct`, `evaluate`) can read around a garbled
+/// `log` with the rows it lost while the wheels turned filled in and its garbled readings
+/// read between their neighbours, and a note on each, when those are all its impossible
+/// steps; else `log` as it is (no notes), for the log checks to refuse. A model applied to a whole log (`correct`, `evaluate`) can read around a garbled
 /// count, but not across a step whose travel is lost.
 pub fn mend_garbled_readings(log: &OdometryLog, robot: &RobotParams) -> (OdometryLog, Vec<String>) {
     match mend_glitches(log, robot) {
@@ -72,8 +73,15 @@ pub fn mend_garbled_readings(log: &OdometryLog, robot: &RobotParams) -> (Odometr
 
 /// Finds the glitches of `log` (see the module's documentation).
 pub fn mend_glitches(log: &OdometryLog, robot: &RobotParams) -> LogGlitches {
+    // Rows lost while the wheels turned first: the steps across them would read as a wheel
+    // at twice its speed.
+    let (filled, rows) = fill_lost_rows(log, robot.period_s);
+    let log = &filled;
     let mut out = log.clone();
-    let mut mended = Vec::new();
+    let mut mended: Vec<String> = (rows.rows() > 0)
+        .then(|| rows.to_string())
+        .into_iter()
+        .collect();
     if log.kind == LogKind::Ticks {
         let metres_per_tick = std::f64::consts::PI * robot.wheel_diameter_m / robot.ticks_per_rev;
         for (w, name) in TICKS_HEADER[1..].iter().enumerate() {
@@ -86,7 +94,7 @@ pub fn mend_glitches(log: &OdometryLog, robot: &RobotParams) -> LogGlitches {
                 let Some(read_as) = garbled_reading(column, &log.t_s, k, metres_per_tick) else {
                     continue;
                 };
-                let line = k as u64 + 2;
+                let line = log.line(k);
                 let written = log
                     .count_beyond_counters
                     .as_ref()
@@ -122,11 +130,11 @@ pub fn mend_glitches(log: &OdometryLog, robot: &RobotParams) -> LogGlitches {
     for step in &lost {
         rebase(&mut out, step.row, &lost);
     }
-    LogGlitches::Mended(MendedLog {
+    LogGlitches::Mended(Box::new(MendedLog {
         log: out,
         mended,
         lost,
-    })
+    }))
 }
 
 /// The count read in place of row `k`'s of `column` (at times `t_s`) when it is a garbled
@@ -193,7 +201,7 @@ mod tests {
 
     fn mended(log: &OdometryLog) -> MendedLog {
         match mend_glitches(log, &RobotParams::default()) {
-            LogGlitches::Mended(m) => m,
+            LogGlitches::Mended(m) => *m,
             LogGlitches::Everywhere(why) => panic!("{why}"),
         }
     }
@@ -239,7 +247,7 @@ mod tests {
         assert_eq!(step.row, 7);
         assert!(
             step.reason
-                .starts_with("rows 8 and 9: the left wheel goes from 20 to 40030 ticks"),
+                .starts_with("lines 8 and 9: the left wheel goes from 20 to 40030 ticks"),
             "{}",
             step.reason
         );
@@ -265,7 +273,7 @@ mod tests {
             panic!("read as glitches")
         };
         assert!(
-            why.starts_with("rows 2 and 3: the left wheel goes from 0 to 100 ticks")
+            why.starts_with("lines 2 and 3: the left wheel goes from 0 to 100 ticks")
                 && why.ends_with("; and 10 more such steps, too many for glitches"),
             "{why}"
         );

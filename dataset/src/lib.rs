@@ -9,6 +9,7 @@ mod from_manifest;
 pub mod glitch;
 pub mod heading;
 pub mod kinematics;
+pub mod lost_rows;
 pub mod manifest;
 pub mod odometry;
 pub mod oracle;

@@ -71,6 +71,9 @@ pub struct OdometryLog {
     pub twitches: Vec<Twitch>,
     /// The first count of a tick log that no 16- or 32-bit counter gives, as written.
     pub count_beyond_counters: Option<CountBeyondCounters>,
+    /// The file's line of each row (the header is line 1), for messages; a row filled in
+    /// where the logger lost one ([`crate::lost_rows`]) carries the line of the row after it.
+    pub lines: Vec<u64>,
 }
 
 /// Cumulative wheel revolutions at the log's times, relative to the first row.
@@ -97,6 +100,7 @@ impl OdometryLog {
             counter_wraps: Vec::new(),
             twitches: Vec::new(),
             count_beyond_counters: None,
+            lines: Vec::new(),
         };
         log.validate("<ticks>", |i| i as u64 + 2)?;
         Ok(log)
@@ -116,9 +120,16 @@ impl OdometryLog {
             counter_wraps: Vec::new(),
             twitches: Vec::new(),
             count_beyond_counters: None,
+            lines: Vec::new(),
         };
         log.validate("<speeds>", |i| i as u64 + 2)?;
         Ok(log)
+    }
+
+    /// The file's line of row `k` (0-based): as read, or the row's place after a header
+    /// for a log made in memory.
+    pub fn line(&self, k: usize) -> u64 {
+        self.lines.get(k).copied().unwrap_or(k as u64 + 2)
     }
 
     /// Number of rows.
@@ -230,12 +241,12 @@ impl OdometryLog {
     }
 
     /// What is wrong with the step of [`Self::off_period_step`] ending at row `k` (0-based),
-    /// naming its rows as the file numbers its lines (the header is line 1).
-    pub fn step_message(k: usize, dt: f64, period_s: f64) -> String {
+    /// naming its rows by the file's lines.
+    pub fn step_message(&self, k: usize, dt: f64, period_s: f64) -> String {
         format!(
-            "rows {} and {} are {dt:.3} s apart, but the robot logs every {period_s:.3} s (a dropped or extra row?)",
-            k + 1,
-            k + 2
+            "lines {} and {} are {dt:.3} s apart, but the robot logs every {period_s:.3} s (a dropped or extra row?)",
+            self.line(k - 1),
+            self.line(k)
         )
     }
 
@@ -343,8 +354,9 @@ impl OdometryLog {
             counter_wraps,
             twitches,
             count_beyond_counters,
+            lines,
         };
-        log.validate(name, |i| lines.get(i).copied().unwrap_or(0))?;
+        log.validate(name, |i| log.line(i))?;
         Ok(log)
     }
 
@@ -518,9 +530,9 @@ impl OdometryLog {
                     LogKind::Speeds => "a glitch in the log, or speeds not in m/s? mm/s read 1000 times too fast",
                 };
                 format!(
-                    "rows {} and {}: the {side} wheel {what} over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
-                    k + 1,
-                    k + 2,
+                    "lines {} and {}: the {side} wheel {what} over {dt:.3} s, where a small robot's wheels turn at {MAX_WHEEL_SPEED_MPS} m/s at most ({suspects})",
+                    self.line(k - 1),
+                    self.line(k),
                 )
             })
         })
@@ -563,7 +575,7 @@ impl OdometryLog {
         (1..n)
             .filter(|&k| reset_at(&self.left, k) || reset_at(&self.right, k))
             .map(|k| {
-                let line = k + 2;
+                let line = self.line(k);
                 let drops: Vec<String> =
                     [(TICKS_HEADER[1], &self.left), (TICKS_HEADER[2], &self.right)]
                         .into_iter()

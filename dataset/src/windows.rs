@@ -18,7 +18,7 @@ use crate::build::coarse_of;
 use crate::build::{BuildOptions, Recording, RunOutcome};
 use crate::error::DatasetError;
 use crate::kinematics::{RunOdometry, WheelGeometry};
-use crate::odometry::{OdometryLog, STEP_TOLERANCE_PERIODS};
+use crate::odometry::STEP_TOLERANCE_PERIODS;
 use crate::{RejectedRun, Sample};
 
 /// The feature rule of window datasets, exactly; a model trained on one rule refuses data
@@ -164,7 +164,7 @@ pub(crate) fn window_samples_at(
                 run_id: format!("{}.w{:04}", rec.id, rows.start()),
                 reason: format!(
                     "{}: a window's inputs take each step for one period, so this one would read {dt:.3} s of travel as {:.3} s",
-                    OdometryLog::step_message(k, dt, robot.period_s),
+                    rec.log.step_message(k, dt, robot.period_s),
                     robot.period_s
                 ),
             }));
@@ -231,6 +231,7 @@ pub(crate) fn window_samples_at(
 mod tests {
     use super::*;
     use crate::kinematics::step;
+    use crate::OdometryLog;
     use odocal_core::{Pose2, Trajectory, TrajectoryRow};
 
     /// A 66 s tour of straight legs and turns in place (varied, so no stretch repeats

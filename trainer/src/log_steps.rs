@@ -26,7 +26,7 @@ pub fn log_step_problem(log: &OdometryLog, robot: &RobotParams) -> Option<String
     {
         return Some(format!(
             "{}; record the run again, or leave it out",
-            OdometryLog::step_message(k, dt, robot.period_s)
+            log.step_message(k, dt, robot.period_s)
         ));
     }
     // A step no wheel can take (a glitch, a counter reset to 0) would be corrected, or
