@@ -55,18 +55,18 @@ pub struct Args {
     /// The paths driven (tours and squares: one per recording, with --frames none).
     #[arg(long, value_enum, default_value_t = Paths::Straight)]
     pub paths: Paths,
-    /// Side of the UMBMark square, metres.
-    #[arg(long, default_value_t = 4.0)]
-    pub square_m: f64,
-    /// Speed on the UMBMark square's sides, m/s.
-    #[arg(long, default_value_t = 0.5)]
-    pub square_speed: f64,
-    /// Legs per random tour.
-    #[arg(long, default_value_t = 10)]
-    pub tour_legs: usize,
-    /// Side of the square the tour's waypoints lie in, metres.
-    #[arg(long, default_value_t = 3.0)]
-    pub tour_area_m: f64,
+    /// Side of the UMBMark square, metres (--paths umbmark) [default: 4].
+    #[arg(long)]
+    pub square_m: Option<f64>,
+    /// Speed on the UMBMark square's sides, m/s (--paths umbmark) [default: 0.5].
+    #[arg(long)]
+    pub square_speed: Option<f64>,
+    /// Legs per random tour (--paths tours) [default: 10].
+    #[arg(long)]
+    pub tour_legs: Option<usize>,
+    /// Side of the square the tour's waypoints lie in, metres (--paths tours) [default: 3].
+    #[arg(long)]
+    pub tour_area_m: Option<f64>,
     /// Simulator configuration JSON ("format": "odocal.robotsim/1"; absent fields take defaults).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -87,7 +87,11 @@ pub struct Args {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     super::synth_count_at_most(args.runs, "--runs", 10_000, "runs of an experiment")?;
-    super::synth_count_at_most(args.tour_legs, "--tour-legs", 1_000, "legs of a tour")?;
+    if let Some(why) = unused_option(&args) {
+        anyhow::bail!("{why}");
+    }
+    let tour_legs = args.tour_legs.unwrap_or(10);
+    super::synth_count_at_most(tour_legs, "--tour-legs", 1_000, "legs of a tour")?;
     let config = match &args.config {
         Some(p) => RobotSimConfig::read(p)?,
         None => RobotSimConfig::default(),
@@ -107,10 +111,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Paths::Tours => PathKind::Tours,
             Paths::Umbmark => PathKind::Umbmark,
         },
-        square_side_m: args.square_m,
-        square_speed_mps: args.square_speed,
-        tour_legs: args.tour_legs,
-        tour_area_m: args.tour_area_m,
+        square_side_m: args.square_m.unwrap_or(4.0),
+        square_speed_mps: args.square_speed.unwrap_or(0.5),
+        tour_legs,
+        tour_area_m: args.tour_area_m.unwrap_or(3.0),
         ..ExperimentSettings::straight(
             args.runs,
             args.seed,
@@ -154,4 +158,105 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.out.join(&summary.manifest).display()
     );
     Ok(())
+}
+
+/// The first option given that the experiment's other choices leave unused, as what to do:
+/// a `--square-m` with straight runs, or a camera option with no video, would otherwise be
+/// ignored, and the experiment written without what was asked for.
+fn unused_option(args: &Args) -> Option<String> {
+    let c = &args.camera;
+    let path_options: [(&str, bool, Paths); 5] = [
+        ("--square-m", args.square_m.is_some(), Paths::Umbmark),
+        (
+            "--square-speed",
+            args.square_speed.is_some(),
+            Paths::Umbmark,
+        ),
+        ("--tour-legs", args.tour_legs.is_some(), Paths::Tours),
+        ("--tour-area-m", args.tour_area_m.is_some(), Paths::Tours),
+        (
+            "--runs-per-recording",
+            args.runs_per_recording != 1,
+            Paths::Straight,
+        ),
+    ];
+    let path_name = |p: Paths| match p {
+        Paths::Straight => "straight",
+        Paths::Tours => "tours",
+        Paths::Umbmark => "umbmark",
+    };
+    if let Some((flag, _, needs)) = path_options
+        .into_iter()
+        .find(|(_, given, needs)| *given && *needs != args.paths)
+    {
+        return Some(format!(
+            "{flag} applies to --paths {} only, not {}: give --paths {0}, or leave {flag} out",
+            path_name(needs),
+            path_name(args.paths)
+        ));
+    }
+    if args.frames == Frames::None {
+        let video_options = [
+            ("--no-calib-views", args.no_calib_views),
+            ("--video", args.video.is_some()),
+            ("--exposure-ms", c.exposure_ms.is_some()),
+            ("--rolling-shutter-ms", c.rolling_shutter_ms.is_some()),
+            ("--flicker-hz", c.flicker_hz.is_some()),
+            ("--flicker-depth", c.flicker_depth.is_some()),
+            ("--auto-exposure", c.auto_exposure.is_some()),
+            ("--vignetting", c.vignetting.is_some()),
+            ("--gradient", c.gradient.is_some()),
+            ("--tone-gamma", c.tone_gamma.is_some()),
+            ("--paper-tag", c.paper_tag),
+            ("--paper-contrast", c.paper_contrast.is_some()),
+            ("--paper-gloss", c.paper_gloss.is_some()),
+            ("--occlusion-s", c.occlusion_s.is_some()),
+            ("--drop-rate", c.drop_rate.is_some()),
+            ("--bitrate-kbps", c.bitrate_kbps.is_some()),
+            ("--realistic", c.realistic),
+        ];
+        if let Some((flag, _)) = video_options.into_iter().find(|(_, given)| *given) {
+            return Some(format!(
+                "{flag} is an option of the videos, and --frames none renders none: give --frames video, or leave {flag} out"
+            ));
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    fn unused(cli: &[&str]) -> Option<String> {
+        let args = ["synth", "--out", "x"].iter().chain(cli);
+        unused_option(&Cli::try_parse_from(args).expect("arguments").args)
+    }
+
+    #[test]
+    fn options_the_paths_or_frames_leave_unused_are_named() {
+        assert_eq!(
+            unused(&["--square-m", "2"]).as_deref(),
+            Some("--square-m applies to --paths umbmark only, not straight: give --paths umbmark, or leave --square-m out")
+        );
+        assert!(unused(&["--paths", "umbmark", "--tour-legs", "4"])
+            .is_some_and(|w| w.starts_with("--tour-legs applies to --paths tours only")));
+        assert!(unused(&["--paths", "tours", "--runs-per-recording", "3"])
+            .is_some_and(|w| w.starts_with("--runs-per-recording applies to --paths straight")));
+        assert!(unused(&["--frames", "none", "--realistic"])
+            .is_some_and(|w| w.starts_with("--realistic is an option of the videos")));
+        assert_eq!(unused(&["--paths", "umbmark", "--square-m", "2"]), None);
+        assert_eq!(
+            unused(&["--paths", "tours", "--tour-legs", "4", "--frames", "none"]),
+            None
+        );
+        assert_eq!(unused(&["--realistic", "--runs-per-recording", "3"]), None);
+    }
 }
