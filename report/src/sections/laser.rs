@@ -24,13 +24,15 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     let mut pos_err = Vec::new();
     let mut head_err = Vec::new();
     let mut err_series = Vec::new();
+    // Times from the first scan: epoch times (1.7e9 s) would give every tick one label.
+    let t0 = l.poses.first().map_or(0.0, |p| p.t_s);
     for p in &l.poses {
         if let (Some(e), Some(tp)) = (p.pose, l.truth.at(p.t_s)) {
             if p.status == odocal_lrf::Status::Ok {
                 let d = (e.x_m - tp.pose.x_m).hypot(e.y_m - tp.pose.y_m);
                 pos_err.push(d);
                 head_err.push(wrap_angle(e.theta_rad - tp.pose.theta_rad));
-                err_series.push((p.t_s, 1000.0 * d));
+                err_series.push((p.t_s - t0, 1000.0 * d));
             }
         }
     }
@@ -64,6 +66,9 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     );
     ch.equal_aspect = true;
     ch.size_px = (760, 560);
+    // What was thinned, for the caption: a page of a million dots is a hundred megabytes
+    // that no browser shows, and no eye tells from five thousand.
+    let mut thinned = Vec::new();
     for (st, color) in [("ok", 0usize), ("ambiguous", 4usize)] {
         let pts: Vec<(f64, f64)> = l
             .poses
@@ -72,6 +77,10 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
             .filter_map(|p| p.pose.map(|q| (q.x_m, q.y_m)))
             .collect();
         if !pts.is_empty() {
+            let (pts, every) = every_nth(pts, MAX_DRAWN);
+            if let Some(s) = every {
+                thinned.push(format!("{s} {st} estimates"));
+            }
             ch.series.push(Series::new(
                 &format!("estimate ({st})"),
                 pts,
@@ -82,16 +91,18 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     }
     // The true path last, on top of the estimates.
     if !l.truth.poses().is_empty() {
-        ch.series.push(Series::new(
-            "true path",
-            l.truth
-                .poses()
-                .iter()
-                .map(|p| (p.pose.x_m, p.pose.y_m))
-                .collect(),
-            Mark::Line,
-            6,
-        ));
+        let path = l
+            .truth
+            .poses()
+            .iter()
+            .map(|p| (p.pose.x_m, p.pose.y_m))
+            .collect();
+        let (path, every) = every_nth(path, MAX_DRAWN);
+        if let Some(s) = every {
+            thinned.push(format!("the true path through {s} true poses"));
+        }
+        ch.series
+            .push(Series::new("true path", path, Mark::Line, 6));
     }
     if !l.landmarks_m.is_empty() {
         ch.series.push(Series::new(
@@ -102,16 +113,29 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         ));
     }
     if ch.n_points() > 0 {
+        let drawn = if thinned.is_empty() {
+            String::new()
+        } else {
+            format!(" Drawn: {}.", thinned.join("; "))
+        };
         s.blocks.push(figure(
             "laser-poses",
-            "Sensor positions in the map frame (metres): the true path, the estimates by status, and the reflective landmarks.",
+            &format!("Sensor positions in the map frame (metres): the true path, the estimates by status, and the reflective landmarks.{drawn}"),
             &ch,
         )?);
     }
     if !err_series.is_empty() {
+        let n = err_series.len();
+        let (err_series, per) = largest_of_each(err_series, MAX_DRAWN);
+        let drawn = match per {
+            Some(k) => format!(
+                " Drawn: the largest error of every {k} consecutive ok scans ({n} in all), so no spike is hidden; the figures above are over all of them."
+            ),
+            None => String::new(),
+        };
         let ch = Chart::new(
             "Laser position error over time",
-            "scan time (s)",
+            "time since the first scan (s)",
             "position error (mm)",
         )
         .with(Series::new(
@@ -122,7 +146,9 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         ));
         s.blocks.push(figure(
             "laser-error",
-            "Distance between estimated and true sensor position per ok scan (mm).",
+            &format!(
+                "Distance between estimated and true sensor position per ok scan (mm), against the time since the first scan (at t = {t0:.3} s).{drawn}"
+            ),
             &ch,
         )?);
     } else {
@@ -131,4 +157,48 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         ));
     }
     Ok(s)
+}
+
+/// The most points a laser plot draws per series: thousands of dots already fill the plot,
+/// and more only make the page heavier (a million are a 100 MB page).
+const MAX_DRAWN: usize = 5000;
+
+/// Every n-th point, n the smallest that keeps at most `max`; with "every n-th of N" when
+/// any were left out.
+fn every_nth(pts: Vec<(f64, f64)>, max: usize) -> (Vec<(f64, f64)>, Option<String>) {
+    let n = pts.len();
+    if n <= max {
+        return (pts, None);
+    }
+    let step = n.div_ceil(max.max(1));
+    let kept = pts.into_iter().step_by(step).collect();
+    (kept, Some(format!("every {} of the {n}", ordinal(step))))
+}
+
+/// The point of largest y of each run of k consecutive points, k the smallest that keeps at
+/// most `max`; with k when it is above 1. An error plot thinned by taking every k-th point
+/// would hide the spikes it is read for.
+fn largest_of_each(pts: Vec<(f64, f64)>, max: usize) -> (Vec<(f64, f64)>, Option<usize>) {
+    let n = pts.len();
+    if n <= max {
+        return (pts, None);
+    }
+    let k = n.div_ceil(max.max(1));
+    let kept = pts
+        .chunks(k)
+        .filter_map(|c| c.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1)))
+        .collect();
+    (kept, Some(k))
+}
+
+/// "2nd", "3rd", "11th", "21st".
+fn ordinal(n: usize) -> String {
+    let suffix = match (n % 10, n % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{n}{suffix}")
 }
