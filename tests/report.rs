@@ -1202,3 +1202,40 @@ fn laser_plots_of_many_poses_are_thinned_and_say_so() {
     );
     assert!(!small_page.contains("Drawn:"), "a small input said thinned");
 }
+
+/// A known camera's file (synth calib's camera_true.json) given as --camera made a
+/// calibration section "from 0 views: reprojection RMS 0.000 px", exit 0; it is refused.
+#[test]
+fn a_known_camera_is_not_taken_for_a_calibration() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let calib = d.join("calib");
+    ok(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&calib),
+        "--views",
+        "3",
+        "--floor-views",
+        "0",
+        "--width",
+        "320",
+        "--height",
+        "240",
+    ]);
+    let html = d.join("r.html");
+    let e = fails(&[
+        "report",
+        "--camera",
+        p(&calib.join("camera_true.json")),
+        "--out",
+        p(&html),
+    ]);
+    assert!(
+        e.contains("has no calibration views (reprojection RMS 0 px from none)")
+            && e.contains("give the camera.json `odocal calibrate` wrote"),
+        "{e}"
+    );
+    assert!(!html.exists());
+}

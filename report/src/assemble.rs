@@ -70,6 +70,15 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     match &inp.camera {
         Some(p) => {
             let cam = CameraFile::load(p)?;
+            // A known camera (synth calib's camera_true.json, an arena's) has no views: its
+            // section read "Zhang calibration from 0 views: reprojection RMS 0.000 px".
+            if cam.views.is_empty() {
+                return Err(ReportError::Mismatch(format!(
+                    "--camera {}: has no calibration views (reprojection RMS {} px from none): it is a known camera's file, such as `synth calib`'s camera_true.json, not a calibration; give the camera.json `odocal calibrate` wrote",
+                    p.display(),
+                    cam.rms_px
+                )));
+            }
             let truth = inp
                 .calib_truth
                 .as_deref()
