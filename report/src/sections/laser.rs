@@ -36,16 +36,29 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
             }
         }
     }
+    let n_ok = count("ok");
+    // With no ok scan against the truth there is no error to give: "RMS NaN mm (max 0.0 mm)"
+    // read as a figure.
+    let against = if !pos_err.is_empty() {
+        format!(
+            "Against the truth ({} ok scans with a true pose): position RMS {:.1} mm (max {:.1} mm), heading RMS {:.3} deg.",
+            pos_err.len(),
+            1000.0 * rms(&pos_err),
+            1000.0 * pos_err.iter().fold(0.0f64, |m, e| m.max(*e)),
+            rms(&head_err).to_degrees()
+        )
+    } else if l.truth.poses().is_empty() {
+        "No truth given: no error figures.".to_string()
+    } else if n_ok == 0 {
+        "No scan is ok (ambiguous poses are not judged): no error against the truth.".to_string()
+    } else {
+        "No ok scan has a true pose at its time: no error against the truth.".to_string()
+    };
     s.blocks.push(Block::Text(format!(
-        "{} scans: {} ok, {} ambiguous, {} lost. Against the truth ({} ok scans with a true pose): position RMS {:.1} mm (max {:.1} mm), heading RMS {:.3} deg.",
+        "{} scans: {n_ok} ok, {} ambiguous, {} lost. {against}",
         l.poses.len(),
-        count("ok"),
         count("ambiguous"),
         count("lost"),
-        pos_err.len(),
-        1000.0 * rms(&pos_err),
-        1000.0 * pos_err.iter().fold(0.0f64, |m, e| m.max(*e)),
-        rms(&head_err).to_degrees()
     )));
     // Positions that agree with headings that do not: the truth's theta is in another unit
     // or convention, and the heading figure above judges the truth, not the poses.
@@ -153,7 +166,7 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         )?);
     } else {
         s.blocks.push(Block::Note(
-            "No ok scan has a true pose at its time: no error plot.".into(),
+            "No error plot: no ok scan with a true pose.".into(),
         ));
     }
     Ok(s)

@@ -147,6 +147,58 @@ mod tests {
         assert_eq!(ordinal(112), "112th");
     }
 
+    /// Ambiguous poses alone against a truth read "position RMS NaN mm (max 0.0 mm)".
+    #[test]
+    fn laser_section_without_an_ok_pose_gives_no_error_figure() {
+        let row = |k: usize, status| odocal_lrf::PoseLogRow {
+            t_s: 0.1 * k as f64,
+            pose: Some(Pose2::new(1.0 + 0.01 * k as f64, 2.0, 0.3)),
+            status,
+            n_landmarks: 4,
+            n_detections: 5,
+            n_hypotheses: 2,
+            score: 4.0,
+            mode: "global".into(),
+            scan: k as u64,
+            pose_cov: None,
+        };
+        let truth = LaserTruth::new(
+            (0..5)
+                .map(|k| odocal_lrf::TruthPose {
+                    t_s: 0.1 * k as f64,
+                    pose: Pose2::new(1.0 + 0.01 * k as f64, 2.0, 0.3),
+                    n_detected: None,
+                })
+                .collect(),
+        )
+        .unwrap();
+        let text = |poses| {
+            let s = laser_section(&LaserInput {
+                poses,
+                truth: truth.clone(),
+                landmarks_m: vec![],
+            })
+            .unwrap();
+            match &s.blocks[0] {
+                Block::Text(t) => t.clone(),
+                _ => panic!("no text"),
+            }
+        };
+        let amb = text(
+            (0..5)
+                .map(|k| row(k, odocal_lrf::Status::Ambiguous))
+                .collect(),
+        );
+        assert!(!amb.contains("NaN") && !amb.contains("max 0.0"), "{amb}");
+        assert!(amb.contains("No scan is ok"), "{amb}");
+        // The same poses ok are exact: 0.0 mm over 5 scans.
+        let ok = text((0..5).map(|k| row(k, odocal_lrf::Status::Ok)).collect());
+        assert!(
+            ok.contains("(5 ok scans with a true pose): position RMS 0.0 mm"),
+            "{ok}"
+        );
+    }
+
     #[test]
     fn run_view_puts_everything_in_the_start_frame() {
         let (s, robot) = sample();
