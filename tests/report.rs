@@ -1239,3 +1239,51 @@ fn a_known_camera_is_not_taken_for_a_calibration() {
     );
     assert!(!html.exists());
 }
+
+/// Trajectory files of the runs that reach no run's end (cut to one pose) were reported as
+/// a folder holding "the track of none of the runs", looked for under names it had.
+#[test]
+fn trajectories_cut_short_are_named_as_found() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let (exp, ds) = (d.join("exp"), d.join("dataset.json"));
+    experiment_dataset(&exp, &ds, 6, 2);
+    let cut = d.join("cut");
+    std::fs::create_dir_all(&cut).expect("mkdir");
+    let runs = sorted_files(&exp.join("runs"), "run");
+    let mut n = 0;
+    for f in runs.iter().filter(|f| f.ends_with(".trajectory.csv")) {
+        let text = std::fs::read_to_string(f).expect("read");
+        let first_two: Vec<&str> = text.lines().take(2).collect();
+        let name = Path::new(f).file_name().expect("name");
+        std::fs::write(cut.join(name), first_two.join("\n") + "\n").expect("write");
+        n += 1;
+    }
+    assert!(n >= 3, "{n} trajectories");
+    let html = d.join("r.html");
+    let e = fails(&[
+        "report",
+        "--dataset",
+        p(&ds),
+        "--trajectories",
+        p(&cut),
+        "--out",
+        p(&html),
+    ]);
+    assert!(
+        e.contains("it has the tracks of 3 of the 3 runs drawn from the dataset, but none reaches its run's end"),
+        "{e}"
+    );
+    assert!(!html.exists());
+    // The whole tracks are drawn.
+    let out = ok(&[
+        "report",
+        "--dataset",
+        p(&ds),
+        "--trajectories",
+        p(&exp.join("runs")),
+        "--out",
+        p(&html),
+    ]);
+    assert!(out.contains("report: 3 sections"), "{out}");
+}

@@ -214,6 +214,15 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 check_tracks_fit(&own, &format!("{option} {}", folder.display()))?;
                 if own.iter().any(|v| v.real_end_off_m().is_some()) {
                     used.push(format!("{what} {}", folder.display()));
+                } else if own.iter().any(|v| !v.real_source.is_empty()) {
+                    // The files are there but reach no run's end: "holds the track of none"
+                    // sent the user looking for files that were there.
+                    let n_found = own.iter().filter(|v| !v.real_source.is_empty()).count();
+                    return Err(ReportError::Mismatch(format!(
+                        "{option} {}: it has the tracks of {n_found} of the {} runs drawn from the dataset, but none reaches its run's end (no pose within 0.1 s of it on the robot's clock): are they empty, cut short, or on another clock? Give the {what} the dataset was built from",
+                        folder.display(),
+                        own.len()
+                    )));
                 } else {
                     // Given and matching nothing used to read as not given at all.
                     let looked_for = if experiment.is_some() {
