@@ -2633,7 +2633,7 @@ fn cli_a_truth_with_headings_in_degrees_is_named() {
     with_map.extend(["--lrf-map", s(&shifted_path)]);
     expect_error(
         &with_map,
-        "confident laser poses matched more landmarks than it has within 70 m of them (30 landmarks in all): the poses were localised against another map",
+        "confident laser poses matched more landmarks than it has facing them within the scanner's range (5.6 m) and field of view (240°)",
     );
     assert!(!html2.exists());
     with_map[6] = s(&map);

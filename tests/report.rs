@@ -875,3 +875,415 @@ fn tracking_conditions_from_track_reports() {
     let e = fails(&["report", "--track-report", p(&plain), "--out", p(&html)]);
     assert!(e.contains("--truth"), "{e}");
 }
+
+/// `f` applied to every data row's cells of a CSV file (the header kept), written to `to`.
+fn map_csv(from: &Path, to: &Path, f: impl Fn(&mut Vec<String>)) {
+    let text = std::fs::read_to_string(from).expect("read csv");
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        if i > 0 {
+            f(&mut cells);
+        }
+        out += &(cells.join(",") + "\n");
+    }
+    std::fs::write(to, out).expect("write csv");
+}
+
+/// `map.json` with every landmark, visibility line and wall moved by (dx, dy) metres.
+fn shifted_map(from: &Path, to: &Path, dx: f64, dy: f64) {
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(from).expect("read map")).expect("json");
+    for l in m["landmarks"].as_array_mut().expect("landmarks") {
+        l["x_m"] = serde_json::json!(l["x_m"].as_f64().expect("x") + dx);
+        l["y_m"] = serde_json::json!(l["y_m"].as_f64().expect("y") + dy);
+        let v = &mut l["visibility_line"];
+        if let Some(x) = v["x_m"].as_f64() {
+            v["x_m"] = serde_json::json!(x + dx);
+        } else if let (Some(a), Some(b)) = (v["a"].as_f64(), v["b"].as_f64()) {
+            v["b"] = serde_json::json!(b + dy - a * dx);
+        }
+    }
+    for w in m["walls"].as_array_mut().expect("walls") {
+        for (k, d) in [(0, dx), (1, dy), (2, dx), (3, dy)] {
+            w[k] = serde_json::json!(w[k].as_f64().expect("wall") + d);
+        }
+    }
+    std::fs::write(to, m.to_string()).expect("write map");
+}
+
+/// Laser inputs that drew a misleading section with exit 0 are refused, and nothing written:
+/// the report named as a plot's SVG (lost under it), a map of another place (poses drawn 12 m
+/// from any landmark they matched), the poses as their own truth ("position RMS 0.0 mm"), a
+/// pose log with no pose.
+#[test]
+fn laser_inputs_that_would_mislead_are_refused() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let lrf = d.join("lrf");
+    laser_poses(&lrf, "40");
+    let (poses, truth, map) = (
+        lrf.join("poses.csv"),
+        lrf.join("truth.csv"),
+        lrf.join("map.json"),
+    );
+    let html = d.join("r.html");
+    let laser = |extra: &[&str]| {
+        let mut a = vec!["report", "--lrf-poses", p(&poses), "--out", p(&html)];
+        a.extend_from_slice(extra);
+        a.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    let run_fails = |extra: &[&str]| {
+        let a = laser(extra);
+        let e = fails(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(!html.exists(), "written though refused: {e}");
+        e
+    };
+    // The right map: drawn, with no warning.
+    let out = ok(&laser(&["--lrf-map", p(&map), "--lrf-truth", p(&truth)])
+        .iter()
+        .map(String::as_str)
+        .collect::<Vec<_>>());
+    assert!(out.contains("report: 1 sections, 2 plots"), "{out}");
+    let page = std::fs::read_to_string(&html).expect("html");
+    assert!(!page.contains("WARNING"), "a warning over the right map");
+    std::fs::remove_file(&html).expect("rm");
+
+    // 8: the report's own path is the laser plot's SVG.
+    let plots = d.join("plots");
+    let as_plot = plots.join("laser-poses.svg");
+    let a = [
+        "report",
+        "--lrf-poses",
+        p(&poses),
+        "--lrf-map",
+        p(&map),
+        "--svg-dir",
+        p(&plots),
+        "--out",
+        p(&as_plot),
+    ];
+    let e = fails(&a);
+    assert!(
+        e.contains("the plot --svg-dir") && e.contains("give --out another path"),
+        "{e}"
+    );
+    assert!(!as_plot.exists() && !plots.join("laser-error.svg").exists());
+
+    // 9: the map 20 m off (walls and all, or without walls), and a map of another layout of
+    // the same room: every confident pose matched landmarks the map does not have within
+    // the scanner's 5.6 m and 240°.
+    let far = d.join("far.json");
+    shifted_map(&map, &far, 20.0, 0.0);
+    let e = run_fails(&["--lrf-map", p(&far)]);
+    let n_ok = std::fs::read_to_string(&poses)
+        .expect("poses")
+        .lines()
+        .filter(|l| l.contains(",ok,"))
+        .count();
+    assert!(
+        e.contains(&format!(
+            "{n_ok} of the {n_ok} confident laser poses matched more landmarks"
+        )) && e.contains("localised against another map or frame"),
+        "{e}"
+    );
+    let other = d.join("other");
+    ok(&[
+        "synth",
+        "lrf",
+        "--out",
+        p(&other),
+        "--scans",
+        "2",
+        "--seed",
+        "3",
+    ]);
+    let e = run_fails(&["--lrf-map", p(&other.join("map.json"))]);
+    assert!(
+        e.contains("confident laser poses matched more landmarks"),
+        "{e}"
+    );
+    // The scanner's range is the user's to give: at 2 m the right map has too few.
+    let e = run_fails(&["--lrf-map", p(&map), "--lrf-max-range-m", "2"]);
+    assert!(e.contains("scanner's range (2 m)"), "{e}");
+
+    // 10: the poses as their own truth, by the same path or a copy.
+    let e = run_fails(&["--lrf-truth", p(&poses)]);
+    assert!(e.contains("is the same file as --lrf-poses"), "{e}");
+    let copy = d.join("copy.csv");
+    std::fs::copy(&poses, &copy).expect("copy");
+    let e = run_fails(&["--lrf-truth", p(&copy)]);
+    assert!(
+        e.contains("has the columns status, n_hypotheses, mode of a pose log"),
+        "{e}"
+    );
+
+    // 13: a header only, and every scan lost.
+    let header = d.join("header.csv");
+    let text = std::fs::read_to_string(&poses).expect("poses");
+    std::fs::write(
+        &header,
+        format!("{}\n", text.lines().next().expect("header")),
+    )
+    .expect("w");
+    for (file, says) in [
+        (header.clone(), "has no scans (a header only)".to_string()),
+        (
+            d.join("lost.csv"),
+            format!("all {} scans are lost", text.lines().count() - 1),
+        ),
+    ] {
+        if !file.exists() {
+            map_csv(&poses, &file, |c| {
+                for cell in &mut c[1..4] {
+                    cell.clear();
+                }
+                c[4] = "lost".into();
+                c[5] = "0".into();
+            });
+        }
+        let e = fails(&["report", "--lrf-poses", p(&file), "--out", p(&html)]);
+        assert!(e.contains(&says), "{e}");
+        assert!(!html.exists());
+    }
+}
+
+/// Epoch times and surveyed coordinates gave every tick one label ("1.7e9", "5.4e6"); the
+/// same poses 512 345 m east, 5 412 345 m north and 1.7e9 s later are drawn from origins the
+/// labels state, with the time since the first scan, and the same error figures.
+#[test]
+fn laser_plots_of_surveyed_coordinates_and_epoch_times_are_readable() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let lrf = d.join("lrf");
+    laser_poses(&lrf, "30");
+    let (e0, x0, y0) = (1.7e9, 512_345.0, 5_412_345.0);
+    let shift = |c: &mut Vec<String>| {
+        let t: f64 = c[0].parse().expect("t");
+        c[0] = format!("{:.4}", t + e0);
+        if !c[1].is_empty() {
+            let x: f64 = c[1].parse().expect("x");
+            let y: f64 = c[2].parse().expect("y");
+            c[1] = format!("{:.6}", x + x0);
+            c[2] = format!("{:.6}", y + y0);
+        }
+    };
+    map_csv(&lrf.join("poses.csv"), &d.join("poses.csv"), shift);
+    map_csv(&lrf.join("truth.csv"), &d.join("truth.csv"), shift);
+    shifted_map(&lrf.join("map.json"), &d.join("map.json"), x0, y0);
+    let report = |dir: &Path, svgs: &Path| {
+        ok(&[
+            "report",
+            "--lrf-poses",
+            p(&dir.join("poses.csv")),
+            "--lrf-truth",
+            p(&dir.join("truth.csv")),
+            "--lrf-map",
+            p(&dir.join("map.json")),
+            "--svg-dir",
+            p(svgs),
+            "--out",
+            p(&svgs.join("r.html")),
+        ]);
+        let page = std::fs::read_to_string(svgs.join("r.html")).expect("html");
+        let at = page.find("position RMS").expect("figure");
+        page[at..at + 40].to_string()
+    };
+    let near = report(&lrf, &d.join("near"));
+    let far = report(d, &d.join("far"));
+    assert_eq!(near, far, "the error figures moved with the frame");
+    let texts = |svg: &Path| -> Vec<String> {
+        let s = std::fs::read_to_string(svg).expect("svg");
+        s.split("<text")
+            .skip(1)
+            .filter_map(|t| {
+                Some(
+                    t.split_once('>')?
+                        .1
+                        .split_once("</text>")?
+                        .0
+                        .trim()
+                        .to_string(),
+                )
+            })
+            .collect()
+    };
+    let poses = texts(&d.join("far/laser-poses.svg"));
+    assert!(
+        poses.contains(&"x, map frame (m) − 512300".to_string()),
+        "{poses:?}"
+    );
+    assert!(
+        poses.contains(&"y, map frame (m) − 5412300".to_string()),
+        "{poses:?}"
+    );
+    let err = texts(&d.join("far/laser-error.svg"));
+    assert!(
+        err.contains(&"time since the first scan (s)".to_string()),
+        "{err:?}"
+    );
+    for t in poses.iter().chain(&err) {
+        assert!(
+            !t.contains("e5") && !t.contains("e6") && !t.contains("e9"),
+            "tick {t}"
+        );
+    }
+    // The scans are 0.1 s apart: 3 s of them have ticks 0 to 3 s.
+    assert!(
+        err.contains(&"0".to_string()) && err.contains(&"2".to_string()),
+        "{err:?}"
+    );
+}
+
+/// Half a million poses made a 96 MB page of a million dots; the plots draw at most 5000 per
+/// series, say so, and the figures are still over all of them.
+#[test]
+fn laser_plots_of_many_poses_are_thinned_and_say_so() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let lrf = d.join("lrf");
+    laser_poses(&lrf, "20");
+    let poses = std::fs::read_to_string(lrf.join("poses.csv")).expect("poses");
+    let truth = std::fs::read_to_string(lrf.join("truth.csv")).expect("truth");
+    // The 20 scans over and over: 60 000 poses, 0.1 s apart.
+    let n = 60_000;
+    let repeat = |text: &str| {
+        let mut lines = text.lines();
+        let mut out = format!("{}\n", lines.next().expect("header"));
+        let rows: Vec<&str> = lines.collect();
+        for k in 0..n {
+            let row = rows[k % rows.len()];
+            let rest = row.split_once(',').expect("row").1;
+            out += &format!("{:.1},{rest}\n", k as f64 * 0.1);
+        }
+        out
+    };
+    std::fs::write(d.join("poses.csv"), repeat(&poses)).expect("w");
+    std::fs::write(d.join("truth.csv"), repeat(&truth)).expect("w");
+    let html = d.join("r.html");
+    let small = d.join("small.html");
+    for (dir, out) in [(d, &html), (lrf.as_path(), &small)] {
+        ok(&[
+            "report",
+            "--lrf-poses",
+            p(&dir.join("poses.csv")),
+            "--lrf-truth",
+            p(&dir.join("truth.csv")),
+            "--out",
+            p(out),
+        ]);
+    }
+    let page = std::fs::read_to_string(&html).expect("html");
+    let n_ok = repeat(&poses)
+        .lines()
+        .filter(|l| l.contains(",ok,"))
+        .count();
+    let dots = page.matches("<circle").count();
+    assert!(dots <= 3 * 5000 + 20, "{dots} dots");
+    assert!(page.len() < 3_000_000, "{} bytes", page.len());
+    let step = n_ok.div_ceil(5000);
+    assert!(
+        page.contains(&format!("of the {n_ok} ok estimates"))
+            && page.contains(&format!(
+                "the largest error of every {step} consecutive ok scans ({n_ok} in all)"
+            )),
+        "no caption of the thinning"
+    );
+    // The figures are over every pose: those of the 20 scans, which repeat.
+    let figure = |page: &str| {
+        let at = page.find("position RMS").expect("figure");
+        page[at..at + 40].to_string()
+    };
+    let small_page = std::fs::read_to_string(&small).expect("html");
+    assert_eq!(figure(&page), figure(&small_page));
+    assert!(
+        page.contains(&format!("{n} scans: {n_ok} ok")),
+        "not over all poses"
+    );
+    assert!(!small_page.contains("Drawn:"), "a small input said thinned");
+}
+
+/// A known camera's file (synth calib's camera_true.json) given as --camera made a
+/// calibration section "from 0 views: reprojection RMS 0.000 px", exit 0; it is refused.
+#[test]
+fn a_known_camera_is_not_taken_for_a_calibration() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let calib = d.join("calib");
+    ok(&[
+        "synth",
+        "calib",
+        "--out",
+        p(&calib),
+        "--views",
+        "3",
+        "--floor-views",
+        "0",
+        "--width",
+        "320",
+        "--height",
+        "240",
+    ]);
+    let html = d.join("r.html");
+    let e = fails(&[
+        "report",
+        "--camera",
+        p(&calib.join("camera_true.json")),
+        "--out",
+        p(&html),
+    ]);
+    assert!(
+        e.contains("has no calibration views (reprojection RMS 0 px from none)")
+            && e.contains("give the camera.json `odocal calibrate` wrote"),
+        "{e}"
+    );
+    assert!(!html.exists());
+}
+
+/// Trajectory files of the runs that reach no run's end (cut to one pose) were reported as
+/// a folder holding "the track of none of the runs", looked for under names it had.
+#[test]
+fn trajectories_cut_short_are_named_as_found() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let (exp, ds) = (d.join("exp"), d.join("dataset.json"));
+    experiment_dataset(&exp, &ds, 6, 2);
+    let cut = d.join("cut");
+    std::fs::create_dir_all(&cut).expect("mkdir");
+    let runs = sorted_files(&exp.join("runs"), "run");
+    let mut n = 0;
+    for f in runs.iter().filter(|f| f.ends_with(".trajectory.csv")) {
+        let text = std::fs::read_to_string(f).expect("read");
+        let first_two: Vec<&str> = text.lines().take(2).collect();
+        let name = Path::new(f).file_name().expect("name");
+        std::fs::write(cut.join(name), first_two.join("\n") + "\n").expect("write");
+        n += 1;
+    }
+    assert!(n >= 3, "{n} trajectories");
+    let html = d.join("r.html");
+    let e = fails(&[
+        "report",
+        "--dataset",
+        p(&ds),
+        "--trajectories",
+        p(&cut),
+        "--out",
+        p(&html),
+    ]);
+    assert!(
+        e.contains("it has the tracks of 3 of the 3 runs drawn from the dataset, but none reaches its run's end"),
+        "{e}"
+    );
+    assert!(!html.exists());
+    // The whole tracks are drawn.
+    let out = ok(&[
+        "report",
+        "--dataset",
+        p(&ds),
+        "--trajectories",
+        p(&exp.join("runs")),
+        "--out",
+        p(&html),
+    ]);
+    assert!(out.contains("report: 3 sections"), "{out}");
+}

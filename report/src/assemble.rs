@@ -38,6 +38,12 @@ pub struct ReportInputs {
     pub lrf_truth: Option<PathBuf>,
     /// The landmark map.
     pub lrf_map: Option<PathBuf>,
+    /// The scanner's range the poses were localised with (`lrf localize --max-range-m`),
+    /// metres; None: that command's default.
+    pub lrf_max_range_m: Option<f64>,
+    /// The scanner's field of view (`lrf localize --fov-deg`), degrees; None: that command's
+    /// default.
+    pub lrf_fov_deg: Option<f64>,
     /// The arena file and, optionally, the arena tracking summary.
     pub arena: Option<(PathBuf, Option<PathBuf>)>,
     /// Track reports of `odocal track --truth … --report` (one tracking condition each).
@@ -64,6 +70,15 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     match &inp.camera {
         Some(p) => {
             let cam = CameraFile::load(p)?;
+            // A known camera (synth calib's camera_true.json, an arena's) has no views: its
+            // section read "Zhang calibration from 0 views: reprojection RMS 0.000 px".
+            if cam.views.is_empty() {
+                return Err(ReportError::Mismatch(format!(
+                    "--camera {}: has no calibration views (reprojection RMS {} px from none): it is a known camera's file, such as `synth calib`'s camera_true.json, not a calibration; give the camera.json `odocal calibrate` wrote",
+                    p.display(),
+                    cam.rms_px
+                )));
+            }
             let truth = inp
                 .calib_truth
                 .as_deref()
@@ -199,6 +214,15 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 check_tracks_fit(&own, &format!("{option} {}", folder.display()))?;
                 if own.iter().any(|v| v.real_end_off_m().is_some()) {
                     used.push(format!("{what} {}", folder.display()));
+                } else if own.iter().any(|v| !v.real_source.is_empty()) {
+                    // The files are there but reach no run's end: "holds the track of none"
+                    // sent the user looking for files that were there.
+                    let n_found = own.iter().filter(|v| !v.real_source.is_empty()).count();
+                    return Err(ReportError::Mismatch(format!(
+                        "{option} {}: it has the tracks of {n_found} of the {} runs drawn from the dataset, but none reaches its run's end (no pose within 0.1 s of it on the robot's clock): are they empty, cut short, or on another clock? Give the {what} the dataset was built from",
+                        folder.display(),
+                        own.len()
+                    )));
                 } else {
                     // Given and matching nothing used to read as not given at all.
                     let looked_for = if experiment.is_some() {
@@ -270,8 +294,10 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
     match (&inp.lrf_poses, &inp.lrf_truth) {
         (Some(pp), tp) => {
             let log = odocal_lrf::PoseLog::read(pp)?;
+            check_laser_poses(&log, pp)?;
             let truth = match tp {
                 Some(t) => {
+                    check_not_pose_log(t)?;
                     let truth = odocal_lrf::read_truth_csv(t)?;
                     check_laser_truth(&log, &truth, t)?;
                     used.push(format!("laser truth {}", t.display()));
@@ -279,10 +305,18 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
                 }
                 None => odocal_lrf::LaserTruth::default(),
             };
+            let mut map_note = None;
             let landmarks_m = match &inp.lrf_map {
                 Some(m) => {
                     let map = odocal_lrf::Map::read(m)?;
-                    check_laser_map(&log, &map, m)?;
+                    let range_m = inp
+                        .lrf_max_range_m
+                        .unwrap_or(odocal_lrf::SensorConfig::default().max_range_m);
+                    let fov_rad = inp
+                        .lrf_fov_deg
+                        .map_or(odocal_lrf::SensorConfig::default().fov_rad, f64::to_radians);
+                    map_note = check_laser_map(&log, &map, m, range_m, fov_rad)?;
+                    used.push(format!("landmark map {}", m.display()));
                     map.landmarks
                         .iter()
                         .map(|l| (l.position.x, l.position.y))
@@ -292,11 +326,15 @@ pub fn assemble(inp: &ReportInputs) -> Result<Report, ReportError> {
             };
             let poses = log.rows;
             used.push(format!("laser poses {}", pp.display()));
-            let sec = laser_section(&LaserInput {
+            let mut sec = laser_section(&LaserInput {
                 poses,
                 truth,
                 landmarks_m,
             })?;
+            if let Some(n) = map_note {
+                sec.blocks
+                    .insert(1.min(sec.blocks.len()), crate::Block::Note(n));
+            }
             report.sections.push(sec);
             if tp.is_none() {
                 omit(
@@ -554,46 +592,150 @@ fn find_track(
     Ok(None)
 }
 
-/// The farthest a reflector navigator sees a reflector, metres (SICK's NAV350: 70 m).
-const LONGEST_REFLECTOR_RANGE_M: f64 = 70.0;
+/// How far past the scanner's range a matched landmark may lie, metres: a pose is
+/// centimetres off, and a strip's centre lies behind the edge the scanner reaches.
+const REACH_SLACK_M: f64 = 0.1;
 
-/// Refuses a landmark map the poses were not localised against: most confident poses
-/// matched more of its landmarks than lie within any scanner's reach of them (a map of
-/// another room, in another frame or in millimetres). Drawn, the poses would sit among
-/// landmarks they never saw.
+/// How far behind a strip's plane a scanner that saw it may seem (as a fraction of its
+/// distance, about 3°): a pose is centimetres off, a surveyed facing a degree or two.
+const FRONT_SLACK: f64 = 0.05;
+
+/// How far past the edge of the scanner's field of view a matched landmark may lie (1°): a
+/// pose's heading is a fraction of a degree off.
+const VIEW_SLACK_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
+
+/// Refuses a pose log with no pose to draw (a header only, every scan lost): a laser section
+/// asked for and empty is most likely the wrong file, or a localisation that failed.
+fn check_laser_poses(log: &odocal_lrf::PoseLog, path: &Path) -> Result<(), ReportError> {
+    if log.rows.is_empty() {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-poses {}: has no scans (a header only): give the --out of `odocal lrf localize` run on the recording's scans",
+            path.display()
+        )));
+    }
+    if log.rows.iter().all(|r| r.pose.is_none()) {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-poses {}: all {} scans are lost, so the laser section would show nothing: localise them again with `odocal lrf localize` against the room's map (with the scanner's --max-range-m and --fov-deg), or leave --lrf-poses out",
+            path.display(),
+            log.rows.len()
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a pose log given as the truth (`--lrf-truth poses.csv`, or another run's poses):
+/// its `t,x,y,theta` read as true poses, and the poses were judged against an estimate.
+fn check_not_pose_log(path: &Path) -> Result<(), ReportError> {
+    let text = odocal_core::read_text(path)?;
+    let header = text.lines().next().unwrap_or("");
+    let cols: Vec<&str> = header
+        .split(',')
+        .map(str::trim)
+        .filter(|c| matches!(*c, "status" | "mode" | "n_hypotheses"))
+        .collect();
+    if !cols.is_empty() {
+        return Err(ReportError::Mismatch(format!(
+            "--lrf-truth {}: has the column{} {} of a pose log of `odocal lrf localize`, not true poses: give the true sensor poses (truth.csv of `odocal synth lrf`, or a motion-capture track, columns t,x,y,theta)",
+            path.display(),
+            if cols.len() > 1 { "s" } else { "" },
+            cols.join(", ")
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a landmark map the poses were not localised against (another room's, in another
+/// frame, shifted, of another layout): confident poses matched more landmarks than the map has
+/// facing them, unhidden by its walls, within the scanner's range `range_m` and field of
+/// view `fov_rad`, which a pose of this map cannot. Drawn, the poses would sit among
+/// landmarks they never saw. A few such poses (wrong ones) are said in a note (returned).
 fn check_laser_map(
     log: &odocal_lrf::PoseLog,
     map: &odocal_lrf::Map,
     path: &Path,
-) -> Result<(), ReportError> {
-    let confident: Vec<(odocal_core::Pose2, usize)> = log
-        .rows
+    range_m: f64,
+    fov_rad: f64,
+) -> Result<Option<String>, ReportError> {
+    let reach = range_m + REACH_SLACK_M;
+    let half_fov = 0.5 * fov_rad + VIEW_SLACK_RAD;
+    // The landmarks a scanner at `s` heading `theta` can see: facing it (a pose is
+    // centimetres off: 5 cm on the visible side's line), in its field of view and not behind
+    // a wall, as `lrf localize` counts them.
+    let seen = |s: &nalgebra::Point2<f64>, theta: f64, l: &odocal_lrf::Landmark| {
+        let d = l.position - s;
+        let in_view = fov_rad >= std::f64::consts::TAU
+            || odocal_core::wrap_angle(d.y.atan2(d.x) - theta).abs() <= half_fov;
+        // In front of the strip: a strip is matched even seen edge-on, past its acceptance
+        // cone, but never from behind.
+        let in_front = l
+            .facing
+            .is_none_or(|f| f.dot(&(-d)) >= -FRONT_SLACK * d.norm());
+        in_view && in_front && !map.occluded(s, &l.position, 0.05)
+    };
+    let mut n_confident = 0usize;
+    let mut short: Vec<(nalgebra::Point2<f64>, f64, usize)> = Vec::new();
+    for r in &log.rows {
+        let (odocal_lrf::Status::Ok, Some(p), true) = (r.status, r.pose, r.n_landmarks > 0) else {
+            continue;
+        };
+        n_confident += 1;
+        let s = nalgebra::Point2::new(p.x_m, p.y_m);
+        let mut n = 0;
+        map.for_each_within(&s, reach, |i| {
+            let l = &map.landmarks[i];
+            if (l.position - s).norm() <= reach && seen(&s, p.theta_rad, l) {
+                n += 1;
+            }
+        });
+        // Only the landmarks matched: the score's count of those missed is of the
+        // hypothesis, and a tracked pose's refit may match more than it.
+        let in_view = r.n_landmarks;
+        if n < in_view {
+            short.push((s, p.theta_rad, in_view));
+        }
+    }
+    if short.is_empty() {
+        return Ok(None);
+    }
+    // How far the map says the poses would have had to see: the distance to the k-th
+    // nearest landmark in view, k the landmarks matched (median over a sample of them).
+    let mut needed: Vec<f64> = short
         .iter()
-        .filter(|r| r.status == odocal_lrf::Status::Ok)
-        .filter_map(|r| r.pose.map(|p| (p, r.n_landmarks)))
-        .collect();
-    let out_of_reach = confident
-        .iter()
-        .filter(|(p, matched)| {
-            let within = map
+        .step_by(short.len().div_ceil(200))
+        .map(|(s, theta, k)| {
+            let mut d: Vec<f64> = map
                 .landmarks
                 .iter()
-                .filter(|l| {
-                    (l.position.x - p.x_m).hypot(l.position.y - p.y_m) <= LONGEST_REFLECTOR_RANGE_M
-                })
-                .count();
-            within < *matched
+                .filter(|l| seen(s, *theta, l))
+                .map(|l| (l.position - s).norm())
+                .collect();
+            d.sort_by(f64::total_cmp);
+            d.get(k - 1).copied().unwrap_or(f64::INFINITY)
         })
-        .count();
-    if out_of_reach * 2 > confident.len() {
+        .collect();
+    needed.sort_by(f64::total_cmp);
+    let median = needed[needed.len() / 2];
+    let how_far = if median.is_finite() {
+        format!("{median:.1} m (median)")
+    } else {
+        "farther than any landmark facing them".to_string()
+    };
+    let fov_deg = fov_rad.to_degrees();
+    // A pose this map cannot have is a wrong pose or another map's: one in twenty is more
+    // wrong poses than `lrf localize` calls ok, over five maps of one room tried against
+    // another's poses, a third were let through at one in ten.
+    if short.len() * 20 > n_confident {
         return Err(ReportError::Mismatch(format!(
-            "--lrf-map {}: {out_of_reach} of the {} confident laser poses matched more landmarks than it has within {LONGEST_REFLECTOR_RANGE_M:.0} m of them ({} landmarks in all): the poses were localised against another map; give the map given to `odocal lrf localize` (in metres)",
+            "--lrf-map {}: {} of the {n_confident} confident laser poses matched more landmarks than it has facing them within the scanner's range ({range_m} m) and field of view ({fov_deg:.0}°) (it would have had to reach {how_far}): the poses were localised against another map or frame; give the map given to `odocal lrf localize`, or its --max-range-m and --fov-deg as --lrf-max-range-m and --lrf-fov-deg",
             path.display(),
-            confident.len(),
-            map.landmarks.len()
+            short.len(),
         )));
     }
-    Ok(())
+    Ok(Some(format!(
+        "WARNING: {} of the {n_confident} ok poses matched more landmarks than the map {} has facing them within the scanner's range ({range_m} m) and field of view ({fov_deg:.0}°) (they would have had to reach {how_far}): those poses are wrong, or the map was changed since they were localised.",
+        short.len(),
+        path.display()
+    )))
 }
 
 /// Refuses a laser truth that is not the truth of the poses, as `lrf localize --truth` does:

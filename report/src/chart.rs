@@ -151,8 +151,32 @@ impl Chart {
             .count()
     }
 
-    /// Renders the chart to SVG text.
+    /// Renders the chart to SVG text. An axis far from 0 for its span (surveyed coordinates,
+    /// epoch times) is drawn from a round origin its label states: its ticks would otherwise
+    /// all read "5.4e6".
     pub fn to_svg(&self) -> Result<String, ReportError> {
+        let (xr, yr) = self.ranges();
+        let (ox, oy) = (axis_origin(xr), axis_origin(yr));
+        if ox == 0.0 && oy == 0.0 {
+            return self.render();
+        }
+        let mut c = self.clone();
+        for s in &mut c.series {
+            for p in &mut s.points {
+                *p = (p.0 - ox, p.1 - oy);
+            }
+        }
+        c.x_range = c.x_range.map(|r| (r.0 - ox, r.1 - ox));
+        c.y_range = c.y_range.map(|r| (r.0 - oy, r.1 - oy));
+        if let Some(cells) = &mut c.cells {
+            cells.origin = (cells.origin.0 - ox, cells.origin.1 - oy);
+        }
+        c.x_label = label_from(&c.x_label, ox);
+        c.y_label = label_from(&c.y_label, oy);
+        c.render()
+    }
+
+    fn render(&self) -> Result<String, ReportError> {
         if self.n_points() == 0 {
             return Err(ReportError::Plot(format!(
                 "'{}': no finite data to plot",
@@ -371,6 +395,31 @@ impl Chart {
     }
 }
 
+/// A round origin for an axis spanning `r` whose ticks would need more digits than they
+/// show (values of 10 000 and more, spanning less than a tenth of their size), else 0: the
+/// span's power of ten below the axis' start, so the ticks count up from it.
+fn axis_origin(r: (f64, f64)) -> f64 {
+    let (lo, hi) = r;
+    let size = lo.abs().max(hi.abs());
+    let span = hi - lo;
+    if !(size.is_finite() && span.is_finite()) || size < 1e4 || span * 10.0 >= size {
+        return 0.0;
+    }
+    let unit = 10f64.powf(span.max(1e-9).log10().ceil());
+    (lo / unit).floor() * unit
+}
+
+/// `label` of an axis drawn from `origin`: "x (m) − 512300" reads as the tick plus 512300.
+fn label_from(label: &str, origin: f64) -> String {
+    if origin == 0.0 {
+        label.to_string()
+    } else if origin > 0.0 {
+        format!("{label} − {origin}")
+    } else {
+        format!("{label} + {}", -origin)
+    }
+}
+
 /// Tick label: few significant digits, no trailing noise.
 fn fmt_tick(v: f64) -> String {
     let a = v.abs();
@@ -442,6 +491,41 @@ mod tests {
             !svg.contains(">-"),
             "negative tick labels in a y-down chart"
         );
+    }
+
+    /// Surveyed coordinates (512 345 m east) and epoch times (1.7e9 s) gave every tick one
+    /// label ("5.1e5"); the axis is drawn from a round origin its label states.
+    #[test]
+    fn far_axes_are_drawn_from_a_stated_origin() {
+        let c = Chart::new("Far", "x (m)", "t (s)").with(Series::new(
+            "",
+            vec![(512_345.0, 1.7e9 + 3.0), (512_355.0, 1.7e9 + 40.0)],
+            Mark::Dots,
+            0,
+        ));
+        let svg = c.to_svg().unwrap();
+        assert!(svg.contains("x (m) − 512300"), "no origin in the x label");
+        assert!(
+            svg.contains("t (s) − 1700000000"),
+            "no origin in the y label"
+        );
+        // The texts of the SVG: tick labels, axis labels, title.
+        let texts: Vec<&str> = svg
+            .split("<text")
+            .skip(1)
+            .filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim()))
+            .collect();
+        assert!(
+            !texts.iter().any(|t| t.contains("e5") || t.contains("e9")),
+            "{texts:?}"
+        );
+        // Ticks count up from the origin: 50 m past it is labelled, as is 37 s past it.
+        assert!(texts.contains(&"50"), "no tick at 512350 m: {texts:?}");
+        assert!(texts.contains(&"40"), "no tick at 1.7e9 + 40 s: {texts:?}");
+        assert_eq!(axis_origin((0.0, 20.0)), 0.0);
+        assert_eq!(axis_origin((9000.0, 9010.0)), 0.0);
+        assert_eq!(axis_origin((5_412_340.0, 5_412_352.0)), 5_412_300.0);
+        assert_eq!(axis_origin((-512_352.0, -512_340.0)), -512_400.0);
     }
 
     #[test]

@@ -54,6 +54,14 @@ pub struct Args {
     /// Landmark map (map.json) to draw the landmarks.
     #[arg(long)]
     pub lrf_map: Option<PathBuf>,
+    /// The scanner's range the laser poses were localised with (`lrf localize --max-range-m`),
+    /// metres: the map is checked to have the landmarks each pose matched within it.
+    #[arg(long, default_value_t = odocal_lrf::SensorConfig::default().max_range_m)]
+    pub lrf_max_range_m: f64,
+    /// The scanner's field of view the laser poses were localised with (`lrf localize
+    /// --fov-deg`), degrees.
+    #[arg(long, default_value_t = 240.0)]
+    pub lrf_fov_deg: f64,
     /// arena.json from `odocal arena` (draws the cameras' views and overlaps).
     #[arg(long)]
     pub arena: Option<PathBuf>,
@@ -110,6 +118,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !d.is_dir() {
             bail!("--demo-dir {}: no such folder", d.display());
         }
+    }
+    if !(a.lrf_max_range_m.is_finite() && a.lrf_max_range_m > 0.0) {
+        bail!(
+            "--lrf-max-range-m {}: need the scanner's range in metres, above 0 (the --max-range-m given to `odocal lrf localize`; default 5.6)",
+            a.lrf_max_range_m
+        );
+    }
+    if !(a.lrf_fov_deg > 0.0 && a.lrf_fov_deg <= 360.0) {
+        bail!(
+            "--lrf-fov-deg {}: need the scanner's field of view in degrees, above 0 and at most 360 (the --fov-deg given to `odocal lrf localize`; default 240)",
+            a.lrf_fov_deg
+        );
     }
     if a.runs == 0 {
         bail!("--runs 0: the trajectory and heading figures would draw no run; give 1 or more (default 3)");
@@ -186,6 +206,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
 
+    // The poses given as their own truth agree with themselves to the last digit: a
+    // "position RMS 0.0 mm" that judges nothing.
+    if let (Some(pp), Some(tp)) = (&lrf_poses, &lrf_truth) {
+        if same_file(pp) == same_file(tp) {
+            bail!(
+                "--lrf-truth {}: is the same file as --lrf-poses, so the poses would be judged against themselves; give the true sensor poses (truth.csv of `odocal synth lrf`, or a motion-capture track)",
+                tp.display()
+            );
+        }
+    }
     check_output_file(&a.out, "--out")?;
     // The files found in --demo-dir are not arguments, so the check of --out against the
     // arguments cannot see them (`--demo-dir d --out d/model.json`).
@@ -229,6 +259,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         lrf_poses,
         lrf_truth,
         lrf_map,
+        lrf_max_range_m: Some(a.lrf_max_range_m),
+        lrf_fov_deg: Some(a.lrf_fov_deg),
         arena: match input(&a.arena, &None, "")? {
             Some(p) => Some((p, input(&a.arena_track, &None, "")?)),
             None => None,
@@ -265,6 +297,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.out.display()
         );
     }
+    // A plot's SVG written after the report would replace it (`--out plots/laser-poses.svg
+    // --svg-dir plots`), and the report be lost though said written.
+    if let Some(dir) = &a.svg_dir {
+        let plots: Vec<PathBuf> = report
+            .figures()
+            .iter()
+            .map(|(name, _)| dir.join(format!("{name}.svg")))
+            .collect();
+        check_output_not_input(
+            &a.out,
+            "--out",
+            &plots,
+            &format!("the plot --svg-dir {} writes there", dir.display()),
+        )?;
+    }
     write_atomic(&a.out, report.to_html().as_bytes())?;
     if let Some(dir) = &a.svg_dir {
         for (name, svg) in report.figures() {
@@ -284,6 +331,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     for (t, why) in &report.omitted {
         say!("  left out: {t}: {why}");
+    }
+    // A warning in the page alone is read by whoever opens the page, not by the script that
+    // made it.
+    for s in &report.sections {
+        for b in &s.blocks {
+            if let odocal_report::Block::Note(n) = b {
+                if let Some(w) = n.strip_prefix("WARNING: ") {
+                    tell!("warning: {}: {w}", s.title);
+                }
+            }
+        }
     }
     Ok(())
 }

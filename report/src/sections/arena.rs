@@ -178,6 +178,7 @@ pub fn arena_section(inp: &ArenaInput) -> Result<Section, ReportError> {
             k % 6,
         ));
     }
+    let mut thinned = Vec::new();
     if let Some(t) = &inp.track {
         for k in 0..a.cameras.len() {
             let pts: Vec<(f64, f64)> = t
@@ -188,6 +189,10 @@ pub fn arena_section(inp: &ArenaInput) -> Result<Section, ReportError> {
                 .map(|row| (row.x_m, row.y_m))
                 .collect();
             if !pts.is_empty() {
+                let (pts, every) = every_nth(pts, MAX_DRAWN);
+                if let Some(e) = every {
+                    thinned.push(format!("{e} poses camera {k} weighed most"));
+                }
                 ch.series.push(Series::new(
                     &format!("robot poses, camera {k} weighed most"),
                     pts,
@@ -197,9 +202,14 @@ pub fn arena_section(inp: &ArenaInput) -> Result<Section, ReportError> {
             }
         }
     }
+    let drawn = if thinned.is_empty() {
+        String::new()
+    } else {
+        format!(" Drawn: {}.", thinned.join("; "))
+    };
     s.blocks.push(figure(
         "arena",
-        "Each camera's view of the floor (its image border on the floor, metres), the floor two or more cameras see (grey), and the robots' fused poses coloured by the camera that weighed most in each.",
+        &format!("Each camera's view of the floor (its image border on the floor, metres), the floor two or more cameras see (grey), and the robots' fused poses coloured by the camera that weighed most in each.{drawn}"),
         &ch,
     )?);
     s.blocks.push(Block::Table(Table {

@@ -24,26 +24,41 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     let mut pos_err = Vec::new();
     let mut head_err = Vec::new();
     let mut err_series = Vec::new();
+    // Times from the first scan: epoch times (1.7e9 s) would give every tick one label.
+    let t0 = l.poses.first().map_or(0.0, |p| p.t_s);
     for p in &l.poses {
         if let (Some(e), Some(tp)) = (p.pose, l.truth.at(p.t_s)) {
             if p.status == odocal_lrf::Status::Ok {
                 let d = (e.x_m - tp.pose.x_m).hypot(e.y_m - tp.pose.y_m);
                 pos_err.push(d);
                 head_err.push(wrap_angle(e.theta_rad - tp.pose.theta_rad));
-                err_series.push((p.t_s, 1000.0 * d));
+                err_series.push((p.t_s - t0, 1000.0 * d));
             }
         }
     }
+    let n_ok = count("ok");
+    // With no ok scan against the truth there is no error to give: "RMS NaN mm (max 0.0 mm)"
+    // read as a figure.
+    let against = if !pos_err.is_empty() {
+        format!(
+            "Against the truth ({} ok scans with a true pose): position RMS {:.1} mm (max {:.1} mm), heading RMS {:.3} deg.",
+            pos_err.len(),
+            1000.0 * rms(&pos_err),
+            1000.0 * pos_err.iter().fold(0.0f64, |m, e| m.max(*e)),
+            rms(&head_err).to_degrees()
+        )
+    } else if l.truth.poses().is_empty() {
+        "No truth given: no error figures.".to_string()
+    } else if n_ok == 0 {
+        "No scan is ok (ambiguous poses are not judged): no error against the truth.".to_string()
+    } else {
+        "No ok scan has a true pose at its time: no error against the truth.".to_string()
+    };
     s.blocks.push(Block::Text(format!(
-        "{} scans: {} ok, {} ambiguous, {} lost. Against the truth ({} ok scans with a true pose): position RMS {:.1} mm (max {:.1} mm), heading RMS {:.3} deg.",
+        "{} scans: {n_ok} ok, {} ambiguous, {} lost. {against}",
         l.poses.len(),
-        count("ok"),
         count("ambiguous"),
         count("lost"),
-        pos_err.len(),
-        1000.0 * rms(&pos_err),
-        1000.0 * pos_err.iter().fold(0.0f64, |m, e| m.max(*e)),
-        rms(&head_err).to_degrees()
     )));
     // Positions that agree with headings that do not: the truth's theta is in another unit
     // or convention, and the heading figure above judges the truth, not the poses.
@@ -64,6 +79,9 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     );
     ch.equal_aspect = true;
     ch.size_px = (760, 560);
+    // What was thinned, for the caption: a page of a million dots is a hundred megabytes
+    // that no browser shows, and no eye tells from five thousand.
+    let mut thinned = Vec::new();
     for (st, color) in [("ok", 0usize), ("ambiguous", 4usize)] {
         let pts: Vec<(f64, f64)> = l
             .poses
@@ -72,6 +90,10 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
             .filter_map(|p| p.pose.map(|q| (q.x_m, q.y_m)))
             .collect();
         if !pts.is_empty() {
+            let (pts, every) = every_nth(pts, MAX_DRAWN);
+            if let Some(s) = every {
+                thinned.push(format!("{s} {st} estimates"));
+            }
             ch.series.push(Series::new(
                 &format!("estimate ({st})"),
                 pts,
@@ -82,16 +104,18 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
     }
     // The true path last, on top of the estimates.
     if !l.truth.poses().is_empty() {
-        ch.series.push(Series::new(
-            "true path",
-            l.truth
-                .poses()
-                .iter()
-                .map(|p| (p.pose.x_m, p.pose.y_m))
-                .collect(),
-            Mark::Line,
-            6,
-        ));
+        let path = l
+            .truth
+            .poses()
+            .iter()
+            .map(|p| (p.pose.x_m, p.pose.y_m))
+            .collect();
+        let (path, every) = every_nth(path, MAX_DRAWN);
+        if let Some(s) = every {
+            thinned.push(format!("the true path through {s} true poses"));
+        }
+        ch.series
+            .push(Series::new("true path", path, Mark::Line, 6));
     }
     if !l.landmarks_m.is_empty() {
         ch.series.push(Series::new(
@@ -102,16 +126,29 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         ));
     }
     if ch.n_points() > 0 {
+        let drawn = if thinned.is_empty() {
+            String::new()
+        } else {
+            format!(" Drawn: {}.", thinned.join("; "))
+        };
         s.blocks.push(figure(
             "laser-poses",
-            "Sensor positions in the map frame (metres): the true path, the estimates by status, and the reflective landmarks.",
+            &format!("Sensor positions in the map frame (metres): the true path, the estimates by status, and the reflective landmarks.{drawn}"),
             &ch,
         )?);
     }
     if !err_series.is_empty() {
+        let n = err_series.len();
+        let (err_series, per) = largest_of_each(err_series, MAX_DRAWN);
+        let drawn = match per {
+            Some(k) => format!(
+                " Drawn: the largest error of every {k} consecutive ok scans ({n} in all), so no spike is hidden; the figures above are over all of them."
+            ),
+            None => String::new(),
+        };
         let ch = Chart::new(
             "Laser position error over time",
-            "scan time (s)",
+            "time since the first scan (s)",
             "position error (mm)",
         )
         .with(Series::new(
@@ -122,12 +159,14 @@ pub fn laser_section(l: &LaserInput) -> Result<Section, ReportError> {
         ));
         s.blocks.push(figure(
             "laser-error",
-            "Distance between estimated and true sensor position per ok scan (mm).",
+            &format!(
+                "Distance between estimated and true sensor position per ok scan (mm), against the time since the first scan (at t = {t0:.3} s).{drawn}"
+            ),
             &ch,
         )?);
     } else {
         s.blocks.push(Block::Note(
-            "No ok scan has a true pose at its time: no error plot.".into(),
+            "No error plot: no ok scan with a true pose.".into(),
         ));
     }
     Ok(s)

@@ -48,6 +48,50 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
+/// The most points a plot draws per series: thousands of dots already fill a plot, and more
+/// only make the page heavier (a million laser poses were a 100 MB page).
+const MAX_DRAWN: usize = 5000;
+
+/// Every n-th point, n the smallest that keeps at most `max`; with "every n-th of N" when
+/// any were left out.
+fn every_nth(pts: Vec<(f64, f64)>, max: usize) -> (Vec<(f64, f64)>, Option<String>) {
+    let n = pts.len();
+    if n <= max {
+        return (pts, None);
+    }
+    let step = n.div_ceil(max.max(1));
+    let kept = pts.into_iter().step_by(step).collect();
+    (kept, Some(format!("every {} of the {n}", ordinal(step))))
+}
+
+/// The point of largest y of each run of k consecutive points, k the smallest that keeps at
+/// most `max`; with k when it is above 1. An error plot thinned by taking every k-th point
+/// would hide the spikes it is read for.
+fn largest_of_each(pts: Vec<(f64, f64)>, max: usize) -> (Vec<(f64, f64)>, Option<usize>) {
+    let n = pts.len();
+    if n <= max {
+        return (pts, None);
+    }
+    let k = n.div_ceil(max.max(1));
+    let kept = pts
+        .chunks(k)
+        .filter_map(|c| c.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1)))
+        .collect();
+    (kept, Some(k))
+}
+
+/// "2nd", "3rd", "11th", "21st".
+fn ordinal(n: usize) -> String {
+    let suffix = match (n % 10, n % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{n}{suffix}")
+}
+
 // ---------------------------------------------------------------- calibration
 
 #[cfg(test)]
@@ -80,6 +124,79 @@ mod tests {
             ..Sample::default()
         };
         (s, robot)
+    }
+
+    /// Plots of many points draw every n-th (said), an error plot each run's largest: a
+    /// lone spike among 10 001 points stays drawn.
+    #[test]
+    fn many_points_are_thinned_and_said() {
+        let pts: Vec<(f64, f64)> = (0..10_001).map(|k| (k as f64, 1.0)).collect();
+        let (kept, said) = every_nth(pts.clone(), 5000);
+        assert_eq!(kept.len(), 3334);
+        assert_eq!(said.as_deref(), Some("every 3rd of the 10001"));
+        assert_eq!(every_nth(pts[..5000].to_vec(), 5000).1, None);
+        let mut spiky = pts;
+        spiky[4321].1 = 250.0;
+        let (kept, k) = largest_of_each(spiky, 5000);
+        assert_eq!(k, Some(3));
+        assert!(
+            kept.contains(&(4321.0, 250.0)),
+            "the spike was thinned away"
+        );
+        assert_eq!(ordinal(21), "21st");
+        assert_eq!(ordinal(112), "112th");
+    }
+
+    /// Ambiguous poses alone against a truth read "position RMS NaN mm (max 0.0 mm)".
+    #[test]
+    fn laser_section_without_an_ok_pose_gives_no_error_figure() {
+        let row = |k: usize, status| odocal_lrf::PoseLogRow {
+            t_s: 0.1 * k as f64,
+            pose: Some(Pose2::new(1.0 + 0.01 * k as f64, 2.0, 0.3)),
+            status,
+            n_landmarks: 4,
+            n_detections: 5,
+            n_hypotheses: 2,
+            score: 4.0,
+            mode: "global".into(),
+            scan: k as u64,
+            pose_cov: None,
+        };
+        let truth = LaserTruth::new(
+            (0..5)
+                .map(|k| odocal_lrf::TruthPose {
+                    t_s: 0.1 * k as f64,
+                    pose: Pose2::new(1.0 + 0.01 * k as f64, 2.0, 0.3),
+                    n_detected: None,
+                })
+                .collect(),
+        )
+        .unwrap();
+        let text = |poses| {
+            let s = laser_section(&LaserInput {
+                poses,
+                truth: truth.clone(),
+                landmarks_m: vec![],
+            })
+            .unwrap();
+            match &s.blocks[0] {
+                Block::Text(t) => t.clone(),
+                _ => panic!("no text"),
+            }
+        };
+        let amb = text(
+            (0..5)
+                .map(|k| row(k, odocal_lrf::Status::Ambiguous))
+                .collect(),
+        );
+        assert!(!amb.contains("NaN") && !amb.contains("max 0.0"), "{amb}");
+        assert!(amb.contains("No scan is ok"), "{amb}");
+        // The same poses ok are exact: 0.0 mm over 5 scans.
+        let ok = text((0..5).map(|k| row(k, odocal_lrf::Status::Ok)).collect());
+        assert!(
+            ok.contains("(5 ok scans with a true pose): position RMS 0.0 mm"),
+            "{ok}"
+        );
     }
 
     #[test]
