@@ -1401,3 +1401,41 @@ fn tours_and_squares_in_millimetres_are_named() {
         "{e}"
     );
 }
+
+#[test]
+fn a_window_dataset_csv_holds_every_window_under_its_own_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).display().to_string();
+    synth_paths("tours", "3", &d("b1"), &[]);
+    window_dataset(
+        &d("b1/manifest.json"),
+        &d("b1.json"),
+        &["--csv", &d("b1.csv")],
+    );
+    let ds: Value = serde_json::from_str(&std::fs::read_to_string(d("b1.json")).unwrap()).unwrap();
+    let samples = ds["samples"].as_array().unwrap();
+    let text = std::fs::read_to_string(d("b1.csv")).unwrap();
+    assert!(text.ends_with('\n'), "no final newline");
+    // The synthetic ids hold no comma or quote: each line splits on its commas.
+    let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<&str>>());
+    let header = lines.next().unwrap();
+    let steps = samples[0]["inputs"].as_array().unwrap().len() / 2;
+    // 13 columns of the window, then each step's left and right travel.
+    assert_eq!(header.len(), 13 + 2 * steps, "{header:?}");
+    assert_eq!(header[0], "window_id");
+    assert_eq!(header[6], "target_theta");
+    let rows: Vec<Vec<&str>> = lines.collect();
+    // Before, 1 row of the 41 windows was written, under the straight runs' 27 columns.
+    assert_eq!(rows.len(), samples.len());
+    assert!(rows.len() > 30, "{} windows", rows.len());
+    for (row, s) in rows.iter().zip(samples) {
+        assert_eq!(row.len(), header.len());
+        assert_eq!(row[0], s["run_id"].as_str().unwrap());
+        let f = |i: usize| row[i].parse::<f64>().unwrap();
+        // JSON is read back to within a unit in the last place.
+        let same = |a: f64, b: &Value| (a - b.as_f64().unwrap()).abs() <= 1e-12 * a.abs().max(1.0);
+        assert!(same(f(4), &s["target_m"][0]), "{row:?}");
+        assert!(same(f(6), &s["target_theta_rad"]), "{row:?}");
+        assert!(same(f(13), &s["inputs"][0]), "{row:?}");
+    }
+}
