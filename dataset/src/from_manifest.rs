@@ -450,8 +450,21 @@ impl TruthErrors {
                     1e3 * self.offset_rms_s
                 )
             };
+            // Clock offsets within a few milliseconds of the truth's are this experiment's
+            // clocks: then the targets themselves are off (a mirrored or turned frame), and
+            // the dataset is no training set whatever the truth file.
+            let own_clocks = far_target && self.offset_rms_s <= TRUTH_MISMATCH_S;
+            let targets = if own_clocks {
+                format!(
+                    " Its clock offsets are within {:.0} ms of the truth's, so it likely is, and the targets are {:.0} mm RMS off where a dataset's own are about 2 mm: do not train on it before finding why (a trajectory frame mirrored, turned or scaled?)",
+                    1e3 * self.offset_rms_s,
+                    1e3 * self.target_rms_m
+                )
+            } else {
+                String::new()
+            };
             format!(
-                "the dataset is {what} from {name}: is that the truth of the experiment the dataset was built from?"
+                "the dataset is {what} from {name}: is that the truth of the experiment the dataset was built from?{targets}"
             )
         })
     }
