@@ -1774,3 +1774,44 @@ fn straight_runs_in_a_mirrored_floor_frame_are_refused() {
     );
     assert!(!out.exists());
 }
+
+/// A window dataset's robot file is judged on the wheels' travel against the camera's, step
+/// by step over whole recordings. Before, ticks_per_rev 24 for 12 rejected 176 of 178 windows
+/// as off the clock and wrote 2 (exit 0), and 60 s windows with the right robot file were
+/// refused on one window's end point, "1.835 times the camera's (0.0215 would fit)".
+#[test]
+fn a_window_dataset_names_a_robot_file_of_another_scale_and_no_other() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 4, 1, &["--paths", "tours"]);
+    let (manifest, out, robot) = (d.join("manifest.json"), d.join("w.json"), d.join("r.json"));
+    for (ticks, factor, fits) in [(24, 0.517, "(12 would fit)"), (48, 0.258, "(12 would fit)")] {
+        std::fs::write(
+            &robot,
+            format!(r#"{{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":{ticks},"wheel_base_m":0.1,"period_s":0.2}}"#),
+        )
+        .unwrap();
+        let e = fails(&dataset_args(
+            &manifest,
+            &out,
+            &["--layout", "windows", "--robot", p(&robot)],
+        ));
+        let at = e.find("the odometry's distances are ").expect(&e) + 29;
+        let read: f64 = e[at..at + 5].parse().expect(&e);
+        // The synthetic wheels are 3 % larger than nominal on average.
+        assert!((read / factor - 1.0).abs() < 0.03, "{e}");
+        assert!(e.contains(fits) && !e.contains("clock"), "{e}");
+        assert!(!out.exists());
+    }
+    for window_s in ["60", "55", "10"] {
+        ok(&dataset_args(
+            &manifest,
+            &out,
+            &["--layout", "windows", "--window-s", window_s],
+        ));
+        let ds = Dataset::read(&out).expect("dataset.json");
+        let t = ds.summary.travel_scale.expect("travel scale");
+        assert!((t.ratio - 1.03).abs() < 0.03, "{t:?}");
+        assert!(!ds.samples.is_empty() && ds.rejected.is_empty());
+    }
+}

@@ -128,7 +128,7 @@ pub struct Alignment {
 
 /// Travel of a pose `a` to `b` along their mean heading, metres: negative when the robot
 /// backs up.
-fn forward_step(a: &Pose2, b: &Pose2) -> f64 {
+pub(crate) fn forward_step(a: &Pose2, b: &Pose2) -> f64 {
     let mid = a.theta_rad + 0.5 * wrap_angle(b.theta_rad - a.theta_rad);
     (b.x_m - a.x_m) * mid.cos() + (b.y_m - a.y_m) * mid.sin()
 }

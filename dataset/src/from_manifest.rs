@@ -26,7 +26,16 @@ pub type VideoTracker<'a> = dyn Fn(&ManifestRow, &Path) -> Result<Trajectory, St
 
 /// A row's runs, the notes on what reading its log took out of it, and its turns against its
 /// camera's (pooled over the manifest: see [`TurnEvidence`]).
-type RowOutcome = (Vec<RunOutcome>, Vec<String>, TurnEvidence);
+type RowOutcome = (Vec<RunOutcome>, Vec<String>, RowEvidence);
+
+/// What a row says about the whole manifest, pooled over its rows.
+#[derive(Default)]
+struct RowEvidence {
+    /// Its log's small turns against its camera's.
+    turns: TurnEvidence,
+    /// Its wheel travel against the camera's ([`crate::units::travel_against_camera`]).
+    travel: Option<[f64; 2]>,
+}
 
 /// A row's log (glitches mended) and camera trajectory, once both are read: what the search
 /// for swapped pairs compares.
@@ -86,7 +95,7 @@ fn one_row(
                     })
                 })
                 .collect();
-            return Ok((rejected, notes, TurnEvidence::default()));
+            return Ok((rejected, notes, RowEvidence::default()));
         }
     };
     let at_log = |what: &str| format!("{}: {what}", log_path.display());
@@ -186,14 +195,15 @@ fn one_row(
     {
         return mismatch(why);
     }
-    let turns = coarse.as_ref().map_or(TurnEvidence::default(), |c| {
-        TurnEvidence::of(&log, &traj, &opts.robot, &opts.align, c)
+    let evidence = coarse.as_ref().map_or(RowEvidence::default(), |c| RowEvidence {
+        turns: TurnEvidence::of(&log, &traj, &opts.robot, &opts.align, c),
+        travel: crate::units::travel_against_camera(&log, &traj, &opts.robot, &opts.align, c),
     });
     let runs = match opts.layout {
         Layout::StraightRuns => process_recording_at(&rec, opts, coarse, &lost),
         Layout::Windows(w) => window_samples_at(&rec, opts, &w, coarse, &lost),
     }?;
-    Ok((runs, notes, turns))
+    Ok((runs, notes, evidence))
 }
 
 /// Why `camera` cannot be the trajectory of the robot that wrote `log`, judged on the
@@ -331,11 +341,13 @@ pub fn build_from_manifest(
     let mut outcomes = Vec::with_capacity(results.len());
     let mut notes = Vec::new();
     let mut turns = TurnEvidence::default();
+    let mut travel = Vec::new();
     for (r, _) in results {
-        let (runs, note, turn) = r?;
+        let (runs, note, evidence) = r?;
         outcomes.push(runs);
         notes.extend(note);
-        turns.add(&turn);
+        turns.add(&evidence.turns);
+        travel.extend(evidence.travel);
     }
     // Each straight run turns too little to judge on its own; all of them together show a
     // mirrored floor frame, which left the alignment untouched and every run accepted with
@@ -352,6 +364,7 @@ pub fn build_from_manifest(
     ds.notes = notes;
     if let Layout::Windows(_) = opts.layout {
         ds.feature_rule = WINDOW_RULE.to_string();
+        ds.summary.travel_scale = crate::units::travel_scale(&travel);
     }
     Ok(ds)
 }

@@ -317,6 +317,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         String::new()
     };
+    let robot_file = match &args.robot {
+        Some(p) => p.display().to_string(),
+        None => "the default robot (give yours with --robot robot.json)".into(),
+    };
+    // Before the rejections are judged: a robot file of another scale rejects a window
+    // dataset's windows one by one as off the clock.
+    match odocal_dataset::units::robot_scale_mismatch(&ds, &opts.robot) {
+        Err(why) => bail!("{robot_file}: {why}; nothing was written"),
+        Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
+        Ok(None) => {}
+    }
     if ds.samples.is_empty() && ds.rejected.is_empty() && args.layout == LayoutArg::Windows {
         // Windows where the robot stands still are no samples and no rejections either.
         bail!(
@@ -396,15 +407,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ds.notes.len() - NOTES_SHOWN,
             args.out.display()
         );
-    }
-    let robot_file = match &args.robot {
-        Some(p) => p.display().to_string(),
-        None => "the default robot (give yours with --robot robot.json)".into(),
-    };
-    match odocal_dataset::units::robot_scale_mismatch(&ds.samples, &opts.robot) {
-        Err(why) => bail!("{robot_file}: {why}; nothing was written"),
-        Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
-        Ok(None) => {}
     }
     // Compared before anything is written or said to be, so a wrong truth leaves nothing.
     let against_truth = match (&args.truth, &oracle) {
