@@ -1439,3 +1439,35 @@ fn a_window_dataset_csv_holds_every_window_under_its_own_header() {
         assert!(same(f(13), &s["inputs"][0]), "{row:?}");
     }
 }
+
+/// A path model fitted to one recording: its figures are the fit's own windows, and held out
+/// the perceptron's 65 mm against the kinematic fit's 117 mm flipped. They are labelled
+/// training-set figures, and the few recordings warned of.
+#[test]
+fn a_path_model_of_one_recording_labels_its_figures_and_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).display().to_string();
+    synth_paths("tours", "1", &d("one"), &[]);
+    window_dataset(&d("one/manifest.json"), &d("one.json"), &[]);
+    let o = odocal(&["train", &d("one.json"), "--out", &d("one-model.json")]);
+    succeeded(&o);
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(
+        out.contains("from 1 recording; chained window end vs camera, training-set figures"),
+        "{out}"
+    );
+    assert!(
+        err.contains("warning: the path model was fitted to 1 recording (")
+            && err.contains("judge the model with `odocal evaluate` on held-out recordings"),
+        "{err}"
+    );
+    // Three recordings are no warning of their number.
+    synth_paths("tours", "3", &d("three"), &[]);
+    window_dataset(&d("three/manifest.json"), &d("three.json"), &[]);
+    let o = odocal(&["train", &d("three.json"), "--out", &d("three-model.json")]);
+    succeeded(&o);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("the path model was fitted to"));
+}
