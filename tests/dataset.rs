@@ -1842,11 +1842,74 @@ fn a_50_ms_logger_keeps_every_run() {
     let ds = Dataset::read(&out).expect("dataset.json");
     assert!(ds.rejected.is_empty(), "{:?}", ds.rejected);
     assert_eq!(ds.samples.len(), 9);
-    assert!(ds.summary.max_alignment_residual_mps < 0.04, "{:?}", ds.summary);
+    assert!(
+        ds.summary.max_alignment_residual_mps < 0.04,
+        "{:?}",
+        ds.summary
+    );
     let oracle = OracleFile::read(&exp.join("truth/oracle.json")).unwrap();
     for s in &ds.samples {
         let truth = oracle.runs.iter().find(|r| r.run_id == s.run_id).unwrap();
         let e = (s.target_m[0] - truth.true_end_m[0]).hypot(s.target_m[1] - truth.true_end_m[1]);
         assert!(e < 0.002, "{}: target {e} m off", s.run_id);
     }
+}
+
+/// Every log a speed log in km/h: a speed log's distances use no robot parameter, so the
+/// factor of 3.6 is named as km/h, where it was blamed on ticks_per_rev ("3.695 times … (48
+/// would fit)"); in m/s the same logs pass.
+#[test]
+fn speed_logs_in_km_per_hour_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_with(d, 4, 2, &[]);
+    let metres_per_tick = std::f64::consts::PI * 0.043 / 12.0;
+    let write_speeds = |unit: f64| {
+        for i in 1..=4 {
+            let path = d.join(format!("runs/run{i:03}.odometry.csv"));
+            let text = std::fs::read_to_string(&path).unwrap();
+            let rows: Vec<Vec<f64>> = text
+                .lines()
+                .skip(1)
+                .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+                .collect();
+            let mut speeds = vec![
+                "t,v_left,v_right".to_string(),
+                format!("{},0,0", rows[0][0]),
+            ];
+            for w in rows.windows(2) {
+                let dt = w[1][0] - w[0][0];
+                let v = |c: usize| unit * (w[1][c] - w[0][c]) * metres_per_tick / dt;
+                speeds.push(format!("{},{},{}", w[1][0], v(1), v(2)));
+            }
+            std::fs::write(
+                d.join(format!("runs/run{i:03}.speeds.csv")),
+                speeds.join("\n") + "\n",
+            )
+            .unwrap();
+        }
+        let m = std::fs::read_to_string(d.join("manifest.json")).unwrap();
+        std::fs::write(
+            d.join("speeds.json"),
+            m.replace(".odometry.csv", ".speeds.csv"),
+        )
+        .unwrap();
+    };
+    let out = d.join("ds.json");
+    let args = dataset_args(&d.join("speeds.json"), &out, &[]);
+    write_speeds(3.6);
+    let e = fails(&args);
+    assert!(
+        e.contains("times the camera's")
+            && e.contains("a factor of 3.6 is km/h")
+            && !e.contains("ticks_per_rev"),
+        "{e}"
+    );
+    let at = e.find("distances are ").unwrap() + 14;
+    let factor: f64 = e[at..at + 5].parse().expect(&e);
+    // The synthetic wheels are about 3 % larger than nominal.
+    assert!((factor / 3.6 - 1.0).abs() < 0.05, "{e}");
+    assert!(!out.exists());
+    write_speeds(1.0);
+    ok(&args);
 }

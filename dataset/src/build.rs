@@ -678,7 +678,12 @@ fn run_rows(ds: &Dataset) -> Vec<Vec<String>> {
 /// raw odometry's, then each step's nominal wheel travel. Written under the straight runs'
 /// header, a window's 2W travels ran past it, and the writer stopped after the first row.
 fn window_rows(ds: &Dataset) -> Vec<Vec<String>> {
-    let steps = ds.samples.iter().map(|s| s.inputs.len() / 2).max().unwrap_or(0);
+    let steps = ds
+        .samples
+        .iter()
+        .map(|s| s.inputs.len() / 2)
+        .max()
+        .unwrap_or(0);
     let mut header: Vec<String> = [
         "window_id",
         "recording_id",

@@ -58,10 +58,10 @@ fn one_row(
         .collect();
     if let Some(why) = log.period_mismatch(opts.robot.period_s) {
         // Times in milliseconds are the log's unit: another robot file would not mend them.
-        let advice = if log.times_in_milliseconds(opts.robot.period_s) {
-            "; write the log's times in seconds (divide them by 1000)"
-        } else {
-            " (period_s); give the robot's own file with --robot, or a log of this robot"
+        let advice = match log.time_unit(opts.robot.period_s) {
+            Some((_, k)) => format!("; write the log's times in seconds (divide them by {k:.0})"),
+            None => " (period_s); give the robot's own file with --robot, or a log of this robot"
+                .to_string(),
         };
         return Err(DatasetError::Mismatch(format!(
             "{}: {why}{advice}",
@@ -195,10 +195,12 @@ fn one_row(
     {
         return mismatch(why);
     }
-    let evidence = coarse.as_ref().map_or(RowEvidence::default(), |c| RowEvidence {
-        turns: TurnEvidence::of(&log, &traj, &opts.robot, &opts.align, c),
-        travel: crate::units::travel_against_camera(&log, &traj, &opts.robot, &opts.align, c),
-    });
+    let evidence = coarse
+        .as_ref()
+        .map_or(RowEvidence::default(), |c| RowEvidence {
+            turns: TurnEvidence::of(&log, &traj, &opts.robot, &opts.align, c),
+            travel: crate::units::travel_against_camera(&log, &traj, &opts.robot, &opts.align, c),
+        });
     let runs = match opts.layout {
         Layout::StraightRuns => process_recording_at(&rec, opts, coarse, &lost),
         Layout::Windows(w) => window_samples_at(&rec, opts, &w, coarse, &lost),
@@ -353,7 +355,10 @@ pub fn build_from_manifest(
     // mirrored floor frame, which left the alignment untouched and every run accepted with
     // its target on the wrong side (332 mm RMS from the truth over 40 runs).
     if let Some(why) = turns.mirrored(outcomes.len()) {
-        return Err(DatasetError::Mismatch(format!("{}: {why}", m.source_name())));
+        return Err(DatasetError::Mismatch(format!(
+            "{}: {why}",
+            m.source_name()
+        )));
     }
     crate::units::reject_scale_outliers(&mut outcomes, matches!(opts.layout, Layout::Windows(_)));
     // A window's inputs hold no times.

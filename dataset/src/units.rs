@@ -5,13 +5,13 @@
 
 use odocal_core::Trajectory;
 
+use crate::align::{AlignOptions, CoarseOffset};
 use crate::build::RunOutcome;
 use crate::build::DEFAULT_MIN_GAP_S;
 use crate::kinematics::{dead_reckon, WheelGeometry};
 use crate::odometry::{LogKind, OdometryLog};
-use crate::segment::split_runs;
-use crate::align::{AlignOptions, CoarseOffset};
 use crate::sample::TravelScale;
+use crate::segment::split_runs;
 use crate::{Dataset, RejectedRun, RobotParams, Sample};
 
 /// The largest ratio between the camera path's extent and the odometry's that can still be
@@ -396,7 +396,11 @@ pub fn reject_clock_outliers(outcomes: &mut [Vec<RunOutcome>]) {
 /// encoder's four edges per line, a radius given as the diameter), `Ok(Some)` with a warning
 /// beyond 20 %, `Ok(None)` within. Alignment cannot see it: it matches the speed profiles'
 /// shapes, whatever their scale.
-pub fn robot_scale_mismatch(ds: &Dataset, robot: &RobotParams) -> Result<Option<String>, String> {
+pub fn robot_scale_mismatch(
+    ds: &Dataset,
+    robot: &RobotParams,
+    speed_logs: bool,
+) -> Result<Option<String>, String> {
     // A window's end point is bent by its turns and, over a long window, by the heading's
     // drift: one 60 s window read 1.835 times the camera's with the right robot file. The
     // wheels' travel against the camera's, log step by log step over whole recordings, is
@@ -425,6 +429,28 @@ pub fn robot_scale_mismatch(ds: &Dataset, robot: &RobotParams) -> Result<Option<
         (scale, format!("median over {n} samples"))
     };
     let near = |k: f64| (scale / k - 1.0).abs() < 0.1;
+    // A speed log's distances are its speeds times its times, whatever the wheels: the robot
+    // file cannot scale them, their unit does. km/h read as m/s were blamed on ticks_per_rev.
+    if speed_logs {
+        let hint = if [3.6, 1.0 / 3.6].into_iter().any(near) {
+            "a factor of 3.6 is km/h: the logs' v_left and v_right must be m/s (divide km/h by 3.6)"
+                .to_string()
+        } else if [100.0, 0.01].into_iter().any(near) {
+            "a factor of 100 is cm/s: the logs' v_left and v_right must be m/s (divide cm/s by 100)"
+                .to_string()
+        } else {
+            "a speed log's distances do not depend on the robot file's wheels or ticks: are v_left and v_right in m/s, each the wheel's mean over the period ending at its row?".to_string()
+        };
+        let text = format!(
+            "the odometry's distances are {scale:.3} times the camera's ({over}) with these speed logs; {hint}"
+        );
+        if !(1.0 / MAX_ODOMETRY_SCALE..=MAX_ODOMETRY_SCALE).contains(&scale) {
+            return Err(text);
+        }
+        return Ok(
+            (!(1.0 / WARN_ODOMETRY_SCALE..=WARN_ODOMETRY_SCALE).contains(&scale)).then_some(text),
+        );
+    }
     // The odometry's distances scale with the diameter and inversely with the ticks per
     // turn: the value of either that would remove the factor `k`.
     let fits = |k: f64| (robot.wheel_diameter_m / k, robot.ticks_per_rev * k);

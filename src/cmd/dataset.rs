@@ -323,8 +323,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // Before the rejections are judged: a robot file of another scale rejects a window
     // dataset's windows one by one as off the clock.
-    match odocal_dataset::units::robot_scale_mismatch(&ds, &opts.robot) {
+    // Speed logs (t,v_left,v_right) carry no ticks: their scale is the speeds' unit.
+    let speed_logs = manifest.runs.iter().all(|r| {
+        odocal_dataset::OdometryLog::read_csv(&manifest.resolve(&r.odometry))
+            .is_ok_and(|l| l.kind == odocal_dataset::LogKind::Speeds)
+    });
+    match odocal_dataset::units::robot_scale_mismatch(&ds, &opts.robot, speed_logs) {
+        Err(why) if speed_logs => bail!("{why}; nothing was written"),
         Err(why) => bail!("{robot_file}: {why}; nothing was written"),
+        Ok(Some(w)) if speed_logs => tell!("warning: {w}"),
         Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
         Ok(None) => {}
     }
