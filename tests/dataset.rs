@@ -1507,7 +1507,7 @@ fn a_counter_glitch_spoils_the_run_across_it_not_its_recording() {
     let why = rejection(&ds, "rec001.2");
     assert!(
         why.contains(&format!(
-            "rec001.odometry.csv: rows {} and {jump_line}: the left wheel goes from ",
+            "rec001.odometry.csv: lines {} and {jump_line}: the left wheel goes from ",
             jump_line - 1
         )) && why.contains("the run's travel across it is unknown"),
         "{why}"
@@ -1895,8 +1895,8 @@ fn speed_logs_in_km_per_hour_are_named() {
         )
         .unwrap();
     };
-    let out = d.join("ds.json");
-    let args = dataset_args(&d.join("speeds.json"), &out, &[]);
+    let (manifest, out) = (d.join("speeds.json"), d.join("ds.json"));
+    let args = dataset_args(&manifest, &out, &[]);
     write_speeds(3.6);
     let e = fails(&args);
     assert!(

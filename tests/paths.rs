@@ -280,7 +280,8 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("{said}"));
     assert!((20.0..30.0).contains(&pct), "{said}");
-    // A calibration square with two rows lost would give E_d and E_b from a misread step.
+    // A calibration square with three rows lost would give E_d and E_b from a misread step
+    // (two lost while the wheels turn are filled in from the cumulative counts).
     let (gapped, _, row) = recording_with_gap(
         &dir.path().join("squares-cal"),
         "run001",
@@ -298,7 +299,7 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     ]);
     assert!(
         e.contains(&format!(
-            "run001: rows {row} and {} are 0.600 s apart, but the robot logs every 0.200 s",
+            "run001: lines {row} and {} are 0.800 s apart, but the robot logs every 0.200 s",
             row + 1
         )),
         "{e}"
@@ -796,8 +797,8 @@ fn recording_with_gap(
     recording_with_gap_at(from, id, to, None)
 }
 
-/// [`recording_with_gap`] with data rows `m` and `m + 1` (0-based) cut, the middle ones when
-/// `None`.
+/// [`recording_with_gap`] with data rows `m` to `m + 2` (0-based) cut, the middle ones when
+/// `None`: three rows, as a tick log's two lost while the wheels turn are filled in.
 fn recording_with_gap_at(
     from: &std::path::Path,
     id: &str,
@@ -807,13 +808,13 @@ fn recording_with_gap_at(
     std::fs::create_dir_all(to).unwrap();
     let log = std::fs::read_to_string(from.join(format!("runs/{id}.odometry.csv"))).unwrap();
     let lines: Vec<&str> = log.lines().collect();
-    // Data row m (0-based) is at index m + 1 of the lines; rows m and m + 1 go, so line m + 1
+    // Data row m (0-based) is at index m + 1 of the lines; rows m to m + 2 go, so line m + 1
     // (numbered from 1) is the last before the gap.
     let m = m.unwrap_or(lines.len() / 2);
     let kept: Vec<&str> = lines
         .iter()
         .enumerate()
-        .filter(|(i, _)| *i != m + 1 && *i != m + 2)
+        .filter(|(i, _)| !(m + 1..=m + 3).contains(i))
         .map(|(_, l)| *l)
         .collect();
     let odo = to.join(format!("{id}.odometry.csv"));
@@ -840,11 +841,11 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
     let (model, tours) = small_path_model(dir.path());
     let (manifest, odo, row) = recording_with_gap(&tours, "run001", &dir.path().join("gap"));
     let gap = format!(
-        "rows {row} and {} are 0.600 s apart, but the robot logs every 0.200 s (a dropped or extra row?); record the run again, or leave it out",
+        "lines {row} and {} are 0.800 s apart, but the robot logs every 0.200 s (a dropped or extra row?); record the run again, or leave it out",
         row + 1
     );
     let out = dir.path().join("ev.json");
-    // The 0.6 s step read as one 0.2 s step would pass for a wheel three times as fast:
+    // The 0.8 s step read as one 0.2 s step would pass for a wheel four times as fast:
     // the gap is named, before the speed, with or without --allow-extrapolation.
     for extra in [&[][..], &["--allow-extrapolation"][..]] {
         let mut args = vec![

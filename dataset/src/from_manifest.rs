@@ -541,6 +541,33 @@ pub fn errors_against_truth(
 mod tests {
     use super::*;
 
+    /// Targets 332 mm from the truth at its own clock offsets (a mirrored frame) were warned
+    /// of only as another experiment's truth; they are said to be the dataset's own error.
+    #[test]
+    fn targets_far_from_the_truth_at_its_own_clocks_are_the_datasets_error() {
+        let e = |target_rms_m: f64, offset_rms_s: f64| TruthErrors {
+            target_rms_m,
+            target_max_m: target_rms_m,
+            offset_rms_s,
+            offset_max_s: offset_rms_s,
+            rate_max_ppm: 0.0,
+            n: 40,
+        };
+        assert_eq!(e(0.0012, 0.003).mismatch_warning("o.json"), None);
+        let own = e(0.332, 0.006).mismatch_warning("o.json").expect("warned");
+        assert!(
+            own.contains("within 6 ms of the truth's")
+                && own.contains("the targets are 332 mm RMS off")
+                && own.contains("do not train on it"),
+            "{own}"
+        );
+        let other = e(0.332, 2.5).mismatch_warning("o.json").expect("warned");
+        assert!(
+            other.ends_with("is that the truth of the experiment the dataset was built from?"),
+            "{other}"
+        );
+    }
+
     /// A manifest of `n` rows with a video each (never opened: the tracker below is a stand-in)
     /// and a log of the robot standing still, in a folder of its own.
     fn manifest_of_videos(n: usize, name: &str) -> Manifest {
