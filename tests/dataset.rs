@@ -1853,6 +1853,24 @@ fn a_50_ms_logger_keeps_every_run() {
         let e = (s.target_m[0] - truth.true_end_m[0]).hypot(s.target_m[1] - truth.true_end_m[1]);
         assert!(e < 0.002, "{}: target {e} m off", s.run_id);
     }
+    // Tours' windows at 50 ms: none beyond the residual's limit, and no clock rate read into
+    // a true clock (one recording of 12 was told 345 ppm slow).
+    let tours = d.join("tours");
+    synth_with(&tours, 4, 1, &["--paths", "tours", "--config", p(&sim)]);
+    ok(&dataset_args(
+        &tours.join("manifest.json"),
+        &out,
+        &["--robot", p(&robot), "--layout", "windows"],
+    ));
+    let ds = Dataset::read(&out).expect("dataset.json");
+    assert!(ds.rejected.is_empty(), "{:?}", ds.rejected);
+    assert!(ds.samples.len() > 40, "{} windows", ds.samples.len());
+    assert!(ds.samples.iter().all(|s| s.clock_rate.is_none()));
+    assert!(
+        ds.summary.max_alignment_residual_mps < 0.05,
+        "{:?}",
+        ds.summary
+    );
 }
 
 /// Every log a speed log in km/h: a speed log's distances use no robot parameter, so the

@@ -543,10 +543,13 @@ pub fn clock_rate(
     ];
     // Each wheel's speed, so that turns in place time a stretch as well as its starts and
     // stops (the mean speed of a tour's turn is nil).
+    // Over spans of a tick's worth of time, as the coarse offset compares speeds.
+    let h = speed_span_steps(t);
     let v_wheels: Vec<[f64; 2]> = (1..t.len())
         .map(|k| {
-            let dt = t[k] - t[k - 1];
-            [0, 1].map(|w| (revs.rev[k][w] - revs.rev[k - 1][w]) * circ[w] / dt)
+            let j = k.saturating_sub(h);
+            let dt = t[k] - t[j];
+            [0, 1].map(|w| (revs.rev[k][w] - revs.rev[j][w]) * circ[w] / dt)
         })
         .collect();
     let moving: Vec<usize> = (1..log.len()).filter(|&i| log.moving_at(i)).collect();
@@ -582,6 +585,7 @@ pub fn clock_rate(
             half,
             opts,
             gap,
+            h,
         )
         .map(|o| (mid(r), o))
     };
@@ -624,6 +628,7 @@ fn stretch_offset(
     half: f64,
     opts: &AlignOptions,
     gap: f64,
+    h: usize,
 ) -> Option<f64> {
     let p = best_lag(
         clock.offset_s - half,
@@ -631,7 +636,8 @@ fn stretch_offset(
         opts.coarse_step_s,
         |lag, a, b| {
             for k in rows.clone() {
-                let (t0, t1) = (lag + clock.rate * t[k - 1], lag + clock.rate * t[k]);
+                let j = k.saturating_sub(h);
+                let (t0, t1) = (lag + clock.rate * t[j], lag + clock.rate * t[k]);
                 let (Some(p0), Some(p1)) = (traj.pose_at(t0, gap), traj.pose_at(t1, gap)) else {
                     continue;
                 };
