@@ -280,7 +280,8 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("{said}"));
     assert!((20.0..30.0).contains(&pct), "{said}");
-    // A calibration square with two rows lost would give E_d and E_b from a misread step.
+    // A calibration square with three rows lost would give E_d and E_b from a misread step
+    // (two lost while the wheels turn are filled in from the cumulative counts).
     let (gapped, _, row) = recording_with_gap(
         &dir.path().join("squares-cal"),
         "run001",
@@ -298,7 +299,7 @@ fn a_path_corrector_trained_on_tours_closes_held_out_squares_as_well_as_the_true
     ]);
     assert!(
         e.contains(&format!(
-            "run001: rows {row} and {} are 0.600 s apart, but the robot logs every 0.200 s",
+            "run001: lines {row} and {} are 0.800 s apart, but the robot logs every 0.200 s",
             row + 1
         )),
         "{e}"
@@ -796,8 +797,8 @@ fn recording_with_gap(
     recording_with_gap_at(from, id, to, None)
 }
 
-/// [`recording_with_gap`] with data rows `m` and `m + 1` (0-based) cut, the middle ones when
-/// `None`.
+/// [`recording_with_gap`] with data rows `m` to `m + 2` (0-based) cut, the middle ones when
+/// `None`: three rows, as a tick log's two lost while the wheels turn are filled in.
 fn recording_with_gap_at(
     from: &std::path::Path,
     id: &str,
@@ -807,13 +808,13 @@ fn recording_with_gap_at(
     std::fs::create_dir_all(to).unwrap();
     let log = std::fs::read_to_string(from.join(format!("runs/{id}.odometry.csv"))).unwrap();
     let lines: Vec<&str> = log.lines().collect();
-    // Data row m (0-based) is at index m + 1 of the lines; rows m and m + 1 go, so line m + 1
+    // Data row m (0-based) is at index m + 1 of the lines; rows m to m + 2 go, so line m + 1
     // (numbered from 1) is the last before the gap.
     let m = m.unwrap_or(lines.len() / 2);
     let kept: Vec<&str> = lines
         .iter()
         .enumerate()
-        .filter(|(i, _)| *i != m + 1 && *i != m + 2)
+        .filter(|(i, _)| !(m + 1..=m + 3).contains(i))
         .map(|(_, l)| *l)
         .collect();
     let odo = to.join(format!("{id}.odometry.csv"));
@@ -840,11 +841,11 @@ fn evaluate_refuses_a_held_out_log_with_a_gap_naming_its_rows_as_correct_does() 
     let (model, tours) = small_path_model(dir.path());
     let (manifest, odo, row) = recording_with_gap(&tours, "run001", &dir.path().join("gap"));
     let gap = format!(
-        "rows {row} and {} are 0.600 s apart, but the robot logs every 0.200 s (a dropped or extra row?); record the run again, or leave it out",
+        "lines {row} and {} are 0.800 s apart, but the robot logs every 0.200 s (a dropped or extra row?); record the run again, or leave it out",
         row + 1
     );
     let out = dir.path().join("ev.json");
-    // The 0.6 s step read as one 0.2 s step would pass for a wheel three times as fast:
+    // The 0.8 s step read as one 0.2 s step would pass for a wheel four times as fast:
     // the gap is named, before the speed, with or without --allow-extrapolation.
     for extra in [&[][..], &["--allow-extrapolation"][..]] {
         let mut args = vec![
@@ -1400,4 +1401,74 @@ fn tours_and_squares_in_millimetres_are_named() {
             && e.contains("1000 times: is the trajectory in millimetres? it must be in metres"),
         "{e}"
     );
+}
+
+#[test]
+fn a_window_dataset_csv_holds_every_window_under_its_own_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).display().to_string();
+    synth_paths("tours", "3", &d("b1"), &[]);
+    window_dataset(
+        &d("b1/manifest.json"),
+        &d("b1.json"),
+        &["--csv", &d("b1.csv")],
+    );
+    let ds: Value = serde_json::from_str(&std::fs::read_to_string(d("b1.json")).unwrap()).unwrap();
+    let samples = ds["samples"].as_array().unwrap();
+    let text = std::fs::read_to_string(d("b1.csv")).unwrap();
+    assert!(text.ends_with('\n'), "no final newline");
+    // The synthetic ids hold no comma or quote: each line splits on its commas.
+    let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<&str>>());
+    let header = lines.next().unwrap();
+    let steps = samples[0]["inputs"].as_array().unwrap().len() / 2;
+    // 13 columns of the window, then each step's left and right travel.
+    assert_eq!(header.len(), 13 + 2 * steps, "{header:?}");
+    assert_eq!(header[0], "window_id");
+    assert_eq!(header[6], "target_theta");
+    let rows: Vec<Vec<&str>> = lines.collect();
+    // Before, 1 row of the 41 windows was written, under the straight runs' 27 columns.
+    assert_eq!(rows.len(), samples.len());
+    assert!(rows.len() > 30, "{} windows", rows.len());
+    for (row, s) in rows.iter().zip(samples) {
+        assert_eq!(row.len(), header.len());
+        assert_eq!(row[0], s["run_id"].as_str().unwrap());
+        let f = |i: usize| row[i].parse::<f64>().unwrap();
+        // JSON is read back to within a unit in the last place.
+        let same = |a: f64, b: &Value| (a - b.as_f64().unwrap()).abs() <= 1e-12 * a.abs().max(1.0);
+        assert!(same(f(4), &s["target_m"][0]), "{row:?}");
+        assert!(same(f(6), &s["target_theta_rad"]), "{row:?}");
+        assert!(same(f(13), &s["inputs"][0]), "{row:?}");
+    }
+}
+
+/// A path model fitted to one recording: its figures are the fit's own windows, and held out
+/// the perceptron's 65 mm against the kinematic fit's 117 mm flipped. They are labelled
+/// training-set figures, and the few recordings warned of.
+#[test]
+fn a_path_model_of_one_recording_labels_its_figures_and_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).display().to_string();
+    synth_paths("tours", "1", &d("one"), &[]);
+    window_dataset(&d("one/manifest.json"), &d("one.json"), &[]);
+    let o = odocal(&["train", &d("one.json"), "--out", &d("one-model.json")]);
+    succeeded(&o);
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(
+        out.contains("from 1 recording; chained window end vs camera, training-set figures"),
+        "{out}"
+    );
+    assert!(
+        err.contains("warning: the path model was fitted to 1 recording (")
+            && err.contains("judge the model with `odocal evaluate` on held-out recordings"),
+        "{err}"
+    );
+    // Three recordings are no warning of their number.
+    synth_paths("tours", "3", &d("three"), &[]);
+    window_dataset(&d("three/manifest.json"), &d("three.json"), &[]);
+    let o = odocal(&["train", &d("three.json"), "--out", &d("three-model.json")]);
+    succeeded(&o);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("the path model was fitted to"));
 }

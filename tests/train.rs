@@ -345,8 +345,8 @@ fn train_then_correct_a_log() {
     // A log inside the training domain is no guess.
     assert!(track.lines().skip(1).all(|l| l.ends_with(",0")), "{track}");
     assert!(track.lines().count() > 5);
-    // Two rows lost while the wheels turn: the run's speeds would be read off a 0.6 s step as
-    // one 0.2 s step.
+    // Three rows lost while the wheels turn (two are filled in from the cumulative counts):
+    // the run's speeds would be read off a 0.8 s step as one 0.2 s step.
     let text = std::fs::read_to_string(&log).expect("log");
     let lines: Vec<&str> = text.lines().collect();
     let counts = |l: &str| l.split_once(',').map(|(_, c)| c.to_string());
@@ -354,21 +354,21 @@ fn train_then_correct_a_log() {
         .find(|&i| counts(lines[i]) != counts(lines[1]))
         .expect("the run moves");
     assert!(moves > 4, "the robot stands still for the first rows");
-    let cut = |from: usize, name: &str| {
+    let cut = |from: usize, rows: usize, name: &str| {
         let gapped: Vec<&str> = lines[..from]
             .iter()
-            .chain(&lines[from + 2..])
+            .chain(&lines[from + rows..])
             .copied()
             .collect();
         let gap = dir.path().join(name);
         std::fs::write(&gap, gapped.join("\n") + "\n").expect("write");
         gap
     };
-    let gap = cut(moves + 2, "gap.odometry.csv");
+    let gap = cut(moves + 2, 3, "gap.odometry.csv");
     let e = fails(&["correct", "--model", p(&model), p(&gap)]);
     assert!(
         e.contains(&format!(
-            "{}: rows {} and {} are 0.600 s apart, but the robot logs every 0.200 s",
+            "{}: lines {} and {} are 0.800 s apart, but the robot logs every 0.200 s",
             p(&gap),
             moves + 2,
             moves + 3
@@ -377,7 +377,7 @@ fn train_then_correct_a_log() {
     );
     // Rows lost at rest (t = 0.2, 0.4 s, counts unchanged) change no dead reckoning, nor
     // the run's features: the log is corrected as the whole one is.
-    let rest = cut(2, "rest.odometry.csv");
+    let rest = cut(2, 2, "rest.odometry.csv");
     let corrected = ok(&["correct", "--model", p(&model), p(&rest)]);
     assert!(corrected.contains("corrected end"), "{corrected}");
     assert_eq!(corrected, ok(&["correct", "--model", p(&model), p(&log)]));

@@ -128,7 +128,7 @@ pub struct Alignment {
 
 /// Travel of a pose `a` to `b` along their mean heading, metres: negative when the robot
 /// backs up.
-fn forward_step(a: &Pose2, b: &Pose2) -> f64 {
+pub(crate) fn forward_step(a: &Pose2, b: &Pose2) -> f64 {
     let mid = a.theta_rad + 0.5 * wrap_angle(b.theta_rad - a.theta_rad);
     (b.x_m - a.x_m) * mid.cos() + (b.y_m - a.y_m) * mid.sin()
 }
@@ -152,12 +152,32 @@ fn travel(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
         .collect()
 }
 
-/// The wheels' mean speed over each log interval (the k-th is rows k to k + 1), m/s on the
-/// robot's clock.
-fn robot_speeds(revs: &WheelRevs, geom: &WheelGeometry) -> Vec<f64> {
+/// Shortest span over which the wheels' speed is compared with the camera's, seconds. One
+/// tick of a 12-count encoder on 43 mm wheels is 11 mm: over a 200 ms period a 0.06 m/s
+/// step of speed, over 50 ms a 0.22 m/s one, and every slow run logged at 50 ms was refused
+/// (speed profiles correlating at 0.59) where the same runs at 200 ms correlate at 0.95.
+const SPEED_SPAN_S: f64 = 0.2;
+
+/// Log steps per speed compared: the whole number of `t`'s median steps nearest
+/// [`SPEED_SPAN_S`]; one on a 200 ms log (a jittery one's 189 ms median too), four at 50 ms.
+pub(crate) fn speed_span_steps(t: &[f64]) -> usize {
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    match steps.get(steps.len() / 2) {
+        Some(&m) if m > 0.0 => ((SPEED_SPAN_S / m).round() as usize).max(1),
+        _ => 1,
+    }
+}
+
+/// The wheels' mean speed over the `h` log intervals up to each row (the (k-1)-th ends at row
+/// k), m/s on the robot's clock.
+fn robot_speeds(revs: &WheelRevs, geom: &WheelGeometry, h: usize) -> Vec<f64> {
     let (r, t) = (travel(revs, geom), &revs.t_s);
     (1..r.len())
-        .map(|k| (r[k] - r[k - 1]) / (t[k] - t[k - 1]))
+        .map(|k| {
+            let j = k.saturating_sub(h);
+            (r[k] - r[j]) / (t[k] - t[j])
+        })
         .collect()
 }
 
@@ -229,7 +249,8 @@ pub fn coarse_offset(
             (c1 - c0).max(0.0)
         )));
     }
-    let v_robot = robot_speeds(revs, geom);
+    let h = speed_span_steps(t);
+    let v_robot = robot_speeds(revs, geom, h);
     let first = m0.saturating_sub(5).max(1);
     let last = (m1 + 5).min(n - 1);
     let mut a = Vec::with_capacity(last - first + 1);
@@ -246,7 +267,7 @@ pub fn coarse_offset(
             .count();
         let mut moving_ok = 0;
         for k in first..=last {
-            let Some(v) = camera_speed(traj, t[k - 1] + lag, t[k] + lag, gap) else {
+            let Some(v) = camera_speed(traj, t[k.saturating_sub(h)] + lag, t[k] + lag, gap) else {
                 continue;
             };
             if log.moving_at(k) {
@@ -337,7 +358,7 @@ pub fn coarse_offset(
                 part(lag_of(jq))
             )));
         }
-        return Ok(rematch_near(traj, t, &v_robot, first..=last, p, opts));
+        return Ok(rematch_near(traj, t, &v_robot, h, first..=last, p, opts));
     }
     match (whole.flatten(), peak(&scores, lo, opts.coarse_step_s)) {
         (Some(w), Some(p)) => Ok(if w.correlation >= p.correlation { w } else { p }),
@@ -358,6 +379,7 @@ fn rematch_near(
     traj: &Trajectory,
     t: &[f64],
     v_robot: &[f64],
+    h: usize,
     rows: std::ops::RangeInclusive<usize>,
     p: CoarseOffset,
     opts: &AlignOptions,
@@ -369,7 +391,7 @@ fn rematch_near(
         .collect();
     best_lag(p.offset_s - near, near, opts.coarse_step_s, |lag, a, b| {
         for &k in &rows {
-            if let Some(v) = camera_speed(traj, t[k - 1] + lag, t[k] + lag, gap) {
+            if let Some(v) = camera_speed(traj, t[k.saturating_sub(h)] + lag, t[k] + lag, gap) {
                 a.push(v_robot[k - 1]);
                 b.push(v);
             }
@@ -521,10 +543,13 @@ pub fn clock_rate(
     ];
     // Each wheel's speed, so that turns in place time a stretch as well as its starts and
     // stops (the mean speed of a tour's turn is nil).
+    // Over spans of a tick's worth of time, as the coarse offset compares speeds.
+    let h = speed_span_steps(t);
     let v_wheels: Vec<[f64; 2]> = (1..t.len())
         .map(|k| {
-            let dt = t[k] - t[k - 1];
-            [0, 1].map(|w| (revs.rev[k][w] - revs.rev[k - 1][w]) * circ[w] / dt)
+            let j = k.saturating_sub(h);
+            let dt = t[k] - t[j];
+            [0, 1].map(|w| (revs.rev[k][w] - revs.rev[j][w]) * circ[w] / dt)
         })
         .collect();
     let moving: Vec<usize> = (1..log.len()).filter(|&i| log.moving_at(i)).collect();
@@ -560,6 +585,7 @@ pub fn clock_rate(
             half,
             opts,
             gap,
+            h,
         )
         .map(|o| (mid(r), o))
     };
@@ -602,6 +628,7 @@ fn stretch_offset(
     half: f64,
     opts: &AlignOptions,
     gap: f64,
+    h: usize,
 ) -> Option<f64> {
     let p = best_lag(
         clock.offset_s - half,
@@ -609,7 +636,8 @@ fn stretch_offset(
         opts.coarse_step_s,
         |lag, a, b| {
             for k in rows.clone() {
-                let (t0, t1) = (lag + clock.rate * t[k - 1], lag + clock.rate * t[k]);
+                let j = k.saturating_sub(h);
+                let (t0, t1) = (lag + clock.rate * t[j], lag + clock.rate * t[k]);
                 let (Some(p0), Some(p1)) = (traj.pose_at(t0, gap), traj.pose_at(t1, gap)) else {
                     continue;
                 };
@@ -689,13 +717,20 @@ pub(crate) fn wheel_speed_residual_mps(
         .map(|&t| traj.pose_at(clock.camera_s(t), gap))
         .collect::<Option<Vec<Pose2>>>()?;
     let mut sq = Vec::with_capacity(2 * t_s.len());
-    for k in 1..t_s.len() {
-        let dt = clock.rate * (t_s[k] - t_s[k - 1]);
-        let ds = forward_step(&poses[k - 1], &poses[k]);
-        let turn =
-            0.5 * geom.wheel_base_m * wrap_angle(poses[k].theta_rad - poses[k - 1].theta_rad);
+    // Over spans of a tick's worth of time: at 50 ms one tick is a 0.22 m/s step of speed.
+    let h = speed_span_steps(t_s);
+    for k in h.min(t_s.len())..t_s.len() {
+        let j = k - h;
+        let dt = clock.rate * (t_s[k] - t_s[j]);
+        // The camera's travel step by step, as the wheels' is summed over the span.
+        let (mut ds, mut dth) = (0.0, 0.0);
+        for i in j + 1..=k {
+            ds += forward_step(&poses[i - 1], &poses[i]);
+            dth += wrap_angle(poses[i].theta_rad - poses[i - 1].theta_rad);
+        }
+        let turn = 0.5 * geom.wheel_base_m * dth;
         for (w, cam) in [ds - turn, ds + turn].into_iter().enumerate() {
-            let odo = (rev[k][w] - rev[k - 1][w]) * circ[w];
+            let odo = (rev[k][w] - rev[j][w]) * circ[w];
             sq.push(((odo - cam) / dt).powi(2));
         }
     }
@@ -1038,16 +1073,18 @@ pub fn refine_offset(
         return Err("the travel fit failed (degenerate camera motion)".into());
     };
     let model: Vec<f64> = pm.iter().map(|&x| c[0] + c[1] * x + c[2] * x * x).collect();
+    // Speeds over spans of a tick's worth of time, as the coarse offset compares them.
+    let h = speed_span_steps(&fine.t);
     let mut sq = 0.0;
-    for k in 1..fine.t.len() {
-        let dt = fine.t[k] - fine.t[k - 1];
-        let e = ((rm[k] - rm[k - 1]) - (model[k] - model[k - 1])) * len / dt;
+    for k in h.min(fine.t.len())..fine.t.len() {
+        let dt = fine.t[k] - fine.t[k - h];
+        let e = ((rm[k] - rm[k - h]) - (model[k] - model[k - h])) * len / dt;
         sq += e * e;
     }
     Ok(Alignment {
         offset_s: offset,
         residual_m: (sse / fine.t.len() as f64).sqrt() * len,
-        residual_mps: (sq / (fine.t.len() - 1).max(1) as f64).sqrt(),
+        residual_mps: (sq / fine.t.len().saturating_sub(h).max(1) as f64).sqrt(),
         rows_used: fine.t.len(),
     })
 }

@@ -611,9 +611,30 @@ pub fn assemble(robot: RobotParams, outcomes: Vec<Vec<RunOutcome>>) -> Dataset {
     Dataset::new(robot, samples, rejected, recordings)
 }
 
-/// The samples as CSV: id, speed, the 18 inputs, target, raw end, path length, offset, residuals.
+/// The samples as CSV: of straight runs, id, speed, the 18 inputs, target, raw end, path
+/// length, offset, residuals; of windows, the columns of [`window_rows`].
 /// A run id with a comma, quote or line break is quoted, as CSV readers expect.
 pub fn samples_csv(ds: &Dataset) -> String {
+    let rows = if ds.is_windows() {
+        window_rows(ds)
+    } else {
+        run_rows(ds)
+    };
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new());
+    for row in &rows {
+        // Every row is as wide as the header (built from the same layout), so writing into
+        // memory fails only on a field too long for memory.
+        if w.write_record(row).is_err() {
+            break;
+        }
+    }
+    String::from_utf8_lossy(&w.into_inner().unwrap_or_default()).into_owned()
+}
+
+/// The straight runs' rows: the 18 inputs, then the target and what the build measured.
+fn run_rows(ds: &Dataset) -> Vec<Vec<String>> {
     let mut header = vec!["run_id".to_string(), "speed_mps".to_string()];
     for i in 1..=8 {
         header.extend([format!("x{i}"), format!("y{i}")]);
@@ -650,16 +671,69 @@ pub fn samples_csv(ds: &Dataset) -> String {
         );
         rows.push(row);
     }
-    let mut w = csv::WriterBuilder::new()
-        .terminator(csv::Terminator::Any(b'\n'))
-        .from_writer(Vec::new());
-    for row in &rows {
-        // Writing into memory fails only on a field too long for memory.
-        if w.write_record(row).is_err() {
-            break;
-        }
+    rows
+}
+
+/// The windows' rows: the window and its recording, the target pose change (with heading),
+/// raw odometry's, then each step's nominal wheel travel. Written under the straight runs'
+/// header, a window's 2W travels ran past it, and the writer stopped after the first row.
+fn window_rows(ds: &Dataset) -> Vec<Vec<String>> {
+    let steps = ds
+        .samples
+        .iter()
+        .map(|s| s.inputs.len() / 2)
+        .max()
+        .unwrap_or(0);
+    let mut header: Vec<String> = [
+        "window_id",
+        "recording_id",
+        "t_start_s",
+        "t_end_s",
+        "target_x",
+        "target_y",
+        "target_theta",
+        "raw_x",
+        "raw_y",
+        "raw_theta",
+        "wheel_travel_m",
+        "clock_offset_s",
+        "alignment_residual_mps",
+    ]
+    .map(String::from)
+    .to_vec();
+    for i in 1..=steps {
+        header.extend([format!("left_m_{i}"), format!("right_m_{i}")]);
     }
-    String::from_utf8_lossy(&w.into_inner().unwrap_or_default()).into_owned()
+    let width = header.len();
+    let mut rows = vec![header];
+    for smp in &ds.samples {
+        let t = &smp.odometry.t_s;
+        let raw = smp
+            .odometry
+            .poses(&crate::kinematics::WheelGeometry::nominal(&ds.robot));
+        let raw_theta = raw.last().map_or(0.0, |p| p.theta_rad);
+        let mut row = vec![smp.run_id.clone(), smp.recording_id.clone()];
+        row.extend(
+            [
+                t.first().copied().unwrap_or(f64::NAN),
+                t.last().copied().unwrap_or(f64::NAN),
+                smp.target_m[0],
+                smp.target_m[1],
+                smp.target_theta_rad,
+                smp.raw_end_m[0],
+                smp.raw_end_m[1],
+                raw_theta,
+                smp.path_length_m,
+                smp.clock_offset_s,
+                smp.alignment_residual_mps,
+            ]
+            .map(|v| v.to_string()),
+        );
+        row.extend(smp.inputs.iter().map(f64::to_string));
+        row.resize(width, String::new());
+        rows.push(row);
+    }
+    rows
 }
 
 #[cfg(test)]

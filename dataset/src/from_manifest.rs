@@ -16,6 +16,7 @@ use crate::manifest::{Manifest, ManifestRow};
 use crate::odometry::OdometryLog;
 use crate::oracle::OracleFile;
 use crate::sample::Dataset;
+use crate::turn_sides::TurnEvidence;
 use crate::windows::{window_samples_at, Layout, WINDOW_RULE};
 use crate::DatasetError;
 
@@ -23,8 +24,18 @@ use crate::DatasetError;
 /// row and the video's resolved path in, the trajectory or a message out.
 pub type VideoTracker<'a> = dyn Fn(&ManifestRow, &Path) -> Result<Trajectory, String> + Sync + 'a;
 
-/// A row's runs, and the notes on what reading its log took out of it.
-type RowOutcome = (Vec<RunOutcome>, Vec<String>);
+/// A row's runs, the notes on what reading its log took out of it, and its turns against its
+/// camera's (pooled over the manifest: see [`TurnEvidence`]).
+type RowOutcome = (Vec<RunOutcome>, Vec<String>, RowEvidence);
+
+/// What a row says about the whole manifest, pooled over its rows.
+#[derive(Default)]
+struct RowEvidence {
+    /// Its log's small turns against its camera's.
+    turns: TurnEvidence,
+    /// Its wheel travel against the camera's ([`crate::units::travel_against_camera`]).
+    travel: Option<[f64; 2]>,
+}
 
 /// A row's log (glitches mended) and camera trajectory, once both are read: what the search
 /// for swapped pairs compares.
@@ -47,10 +58,10 @@ fn one_row(
         .collect();
     if let Some(why) = log.period_mismatch(opts.robot.period_s) {
         // Times in milliseconds are the log's unit: another robot file would not mend them.
-        let advice = if log.times_in_milliseconds(opts.robot.period_s) {
-            "; write the log's times in seconds (divide them by 1000)"
-        } else {
-            " (period_s); give the robot's own file with --robot, or a log of this robot"
+        let advice = match log.time_unit(opts.robot.period_s) {
+            Some((_, k)) => format!("; write the log's times in seconds (divide them by {k:.0})"),
+            None => " (period_s); give the robot's own file with --robot, or a log of this robot"
+                .to_string(),
         };
         return Err(DatasetError::Mismatch(format!(
             "{}: {why}{advice}",
@@ -84,7 +95,7 @@ fn one_row(
                     })
                 })
                 .collect();
-            return Ok((rejected, notes));
+            return Ok((rejected, notes, RowEvidence::default()));
         }
     };
     let at_log = |what: &str| format!("{}: {what}", log_path.display());
@@ -184,11 +195,17 @@ fn one_row(
     {
         return mismatch(why);
     }
+    let evidence = coarse
+        .as_ref()
+        .map_or(RowEvidence::default(), |c| RowEvidence {
+            turns: TurnEvidence::of(&log, &traj, &opts.robot, &opts.align, c),
+            travel: crate::units::travel_against_camera(&log, &traj, &opts.robot, &opts.align, c),
+        });
     let runs = match opts.layout {
         Layout::StraightRuns => process_recording_at(&rec, opts, coarse, &lost),
         Layout::Windows(w) => window_samples_at(&rec, opts, &w, coarse, &lost),
     }?;
-    Ok((runs, notes))
+    Ok((runs, notes, evidence))
 }
 
 /// Why `camera` cannot be the trajectory of the robot that wrote `log`, judged on the
@@ -325,10 +342,23 @@ pub fn build_from_manifest(
     }
     let mut outcomes = Vec::with_capacity(results.len());
     let mut notes = Vec::new();
+    let mut turns = TurnEvidence::default();
+    let mut travel = Vec::new();
     for (r, _) in results {
-        let (runs, note) = r?;
+        let (runs, note, evidence) = r?;
         outcomes.push(runs);
         notes.extend(note);
+        turns.add(&evidence.turns);
+        travel.extend(evidence.travel);
+    }
+    // Each straight run turns too little to judge on its own; all of them together show a
+    // mirrored floor frame, which left the alignment untouched and every run accepted with
+    // its target on the wrong side (332 mm RMS from the truth over 40 runs).
+    if let Some(why) = turns.mirrored(outcomes.len()) {
+        return Err(DatasetError::Mismatch(format!(
+            "{}: {why}",
+            m.source_name()
+        )));
     }
     crate::units::reject_scale_outliers(&mut outcomes, matches!(opts.layout, Layout::Windows(_)));
     // A window's inputs hold no times.
@@ -339,6 +369,7 @@ pub fn build_from_manifest(
     ds.notes = notes;
     if let Layout::Windows(_) = opts.layout {
         ds.feature_rule = WINDOW_RULE.to_string();
+        ds.summary.travel_scale = crate::units::travel_scale(&travel);
     }
     Ok(ds)
 }
@@ -358,7 +389,7 @@ fn swapped_pair(
             let (log, camera) = pair.as_ref()?;
             let sampled = r
                 .as_ref()
-                .is_ok_and(|(runs, _)| runs.iter().any(|o| matches!(o, RunOutcome::Sample(_))));
+                .is_ok_and(|(runs, _, _)| runs.iter().any(|o| matches!(o, RunOutcome::Sample(_))));
             (!sampled).then_some((i, log, camera))
         })
         .collect();
@@ -437,8 +468,21 @@ impl TruthErrors {
                     1e3 * self.offset_rms_s
                 )
             };
+            // Clock offsets within a few milliseconds of the truth's are this experiment's
+            // clocks: then the targets themselves are off (a mirrored or turned frame), and
+            // the dataset is no training set whatever the truth file.
+            let own_clocks = far_target && self.offset_rms_s <= TRUTH_MISMATCH_S;
+            let targets = if own_clocks {
+                format!(
+                    " Its clock offsets are within {:.0} ms of the truth's, so it likely is, and the targets are {:.0} mm RMS off where a dataset's own are about 2 mm: do not train on it before finding why (a trajectory frame mirrored, turned or scaled?)",
+                    1e3 * self.offset_rms_s,
+                    1e3 * self.target_rms_m
+                )
+            } else {
+                String::new()
+            };
             format!(
-                "the dataset is {what} from {name}: is that the truth of the experiment the dataset was built from?"
+                "the dataset is {what} from {name}: is that the truth of the experiment the dataset was built from?{targets}"
             )
         })
     }
@@ -496,6 +540,33 @@ pub fn errors_against_truth(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Targets 332 mm from the truth at its own clock offsets (a mirrored frame) were warned
+    /// of only as another experiment's truth; they are said to be the dataset's own error.
+    #[test]
+    fn targets_far_from_the_truth_at_its_own_clocks_are_the_datasets_error() {
+        let e = |target_rms_m: f64, offset_rms_s: f64| TruthErrors {
+            target_rms_m,
+            target_max_m: target_rms_m,
+            offset_rms_s,
+            offset_max_s: offset_rms_s,
+            rate_max_ppm: 0.0,
+            n: 40,
+        };
+        assert_eq!(e(0.0012, 0.003).mismatch_warning("o.json"), None);
+        let own = e(0.332, 0.006).mismatch_warning("o.json").expect("warned");
+        assert!(
+            own.contains("within 6 ms of the truth's")
+                && own.contains("the targets are 332 mm RMS off")
+                && own.contains("do not train on it"),
+            "{own}"
+        );
+        let other = e(0.332, 2.5).mismatch_warning("o.json").expect("warned");
+        assert!(
+            other.ends_with("is that the truth of the experiment the dataset was built from?"),
+            "{other}"
+        );
+    }
 
     /// A manifest of `n` rows with a video each (never opened: the tracker below is a stand-in)
     /// and a log of the robot standing still, in a folder of its own.

@@ -327,11 +327,29 @@ fn parse_csv(text: &str, name: &str) -> Result<(Manifest, Vec<u64>), DatasetErro
     let mut lines = Vec::new();
     for &(line, ref rec) in &table.rows {
         if rec.len() != h.len() {
+            // A spreadsheet set to a decimal comma writes 0.2 as "0,2": two fields of digits
+            // side by side, one column too many.
+            let fields: Vec<&str> = rec.iter().collect();
+            let digits = |f: &str| !f.is_empty() && f.chars().all(|c| c.is_ascii_digit());
+            let hint = if rec.len() > h.len() {
+                fields
+                    .windows(2)
+                    .find(|w| digits(w[0]) && digits(w[1]))
+                    .map(|w| {
+                        format!(
+                            ": \"{0},{1}\" looks like the number {0}.{1} written with a decimal comma; write decimals with a point ({0}.{1}), as odocal reads comma-separated CSV",
+                            w[0], w[1]
+                        )
+                    })
+                    .unwrap_or_default()
+            } else {
+                String::new()
+            };
             return Err(DatasetError::parse(
                 name,
                 line,
                 rec.len().min(h.len()) as u64 + 1,
-                format!("expected {} fields, found {}", h.len(), rec.len()),
+                format!("expected {} fields, found {}{hint}", h.len(), rec.len()),
             ));
         }
         let get = |col: &str| -> Option<String> {
@@ -469,6 +487,17 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.to_string(), "m.csv:2:4: \"fast\" is not a number");
+        // A decimal comma: "expected 4 fields, found 5", with no hint, before.
+        let e = parse_csv(
+            "id,trajectory,odometry,speed_mps\nr1,a.csv,b.csv,0,2\n",
+            "m.csv",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("m.csv:2:5: expected 4 fields, found 5: \"0,2\" looks like the number 0.2 written with a decimal comma"),
+            "{e}"
+        );
         let (mut m, l) = parse_csv("id,trajectory,odometry\nr1,a,b\nr1,c,d\n", "m.csv").unwrap();
         m.lines = l;
         let e = m.check("m.csv").unwrap_err();

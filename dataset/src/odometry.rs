@@ -185,10 +185,11 @@ impl OdometryLog {
         let p = self
             .mean_period_s()
             .filter(|p| (p / period_s - 1.0).abs() > PERIOD_TOLERANCE + 1e-9)?;
-        let unit = if Self::in_milliseconds(p, period_s) {
-            " (1000 times that: are the times in milliseconds? they must be in seconds)"
-        } else {
-            ""
+        let unit = match Self::unit_of(p, period_s) {
+            Some((unit, k)) => {
+                format!(" ({k:.0} times that: are the times in {unit}? they must be in seconds)")
+            }
+            None => String::new(),
         };
         Some(format!(
             "rows are {p:.3} s apart, but the robot logs every {period_s:.3} s{unit}"
@@ -198,12 +199,25 @@ impl OdometryLog {
     /// Whether the log's mean period is `period_s` in milliseconds, so that
     /// [`Self::period_mismatch`] is the log's unit, which no robot file mends.
     pub fn times_in_milliseconds(&self, period_s: f64) -> bool {
-        self.mean_period_s()
-            .is_some_and(|p| Self::in_milliseconds(p, period_s))
+        self.time_unit(period_s).is_some_and(|(_, k)| k == 1e3)
     }
 
-    fn in_milliseconds(mean_period_s: f64, period_s: f64) -> bool {
-        (mean_period_s / period_s / 1000.0 - 1.0).abs() < 0.05
+    /// The unit the log's times are in when its mean period is `period_s` in milliseconds,
+    /// microseconds or nanoseconds (its name and how many make a second): a logger stamping
+    /// `micros()` wrote rows "200000 s apart", and was told to give another robot file.
+    pub fn time_unit(&self, period_s: f64) -> Option<(&'static str, f64)> {
+        let p = self.mean_period_s()?;
+        Self::unit_of(p, period_s)
+    }
+
+    fn unit_of(mean_period_s: f64, period_s: f64) -> Option<(&'static str, f64)> {
+        [
+            ("milliseconds", 1e3),
+            ("microseconds", 1e6),
+            ("nanoseconds", 1e9),
+        ]
+        .into_iter()
+        .find(|&(_, k)| (mean_period_s / period_s / k - 1.0).abs() < 0.05)
     }
 
     /// The first step among rows `first..=last` (0-based) whose interval is off the robot's
@@ -297,6 +311,17 @@ impl OdometryLog {
             LogKind::Ticks
         } else if fields == SPEEDS_HEADER {
             LogKind::Speeds
+        } else if fields.len() == 1 && fields[0].contains('\t') {
+            // A spreadsheet's or a logger's tab-separated export reads as one column.
+            return Err(DatasetError::parse(
+                name,
+                *line,
+                1,
+                format!(
+                    "the header \"{}\" is separated by tabs, but odocal reads comma-separated CSV; separate the columns with commas (\"t,left_ticks,right_ticks\" or \"t,v_left,v_right\"), e.g. tr '\\t' ',' < log.tsv > log.csv",
+                    fields[0].replace('\t', "\\t")
+                ),
+            ));
         } else {
             return Err(DatasetError::parse(
                 name,
@@ -314,6 +339,16 @@ impl OdometryLog {
         let mut lines = Vec::new();
         let mut count_beyond_counters = None;
         for &(line, ref rec) in &table.rows {
+            if let Some(t) = rec.get(0).filter(|t| looks_like_a_date(t)) {
+                return Err(DatasetError::parse(
+                    name,
+                    line,
+                    1,
+                    format!(
+                        "\"{t}\" is a date or clock time, but t must be seconds (a number, e.g. seconds since the log's start or Unix time): convert the times to seconds"
+                    ),
+                ));
+            }
             let vals: [f64; 3] = numeric_row(name, line, rec)?;
             if kind == LogKind::Ticks {
                 if let Some(c) = (1..3).find(|&c| vals[c].fract() != 0.0) {
@@ -652,6 +687,14 @@ impl OdometryLog {
     }
 }
 
+/// Whether a log's time field is a date or a clock time (`2024-05-01T12:00:00.000`,
+/// `12:00:00.2`) rather than a number of seconds.
+fn looks_like_a_date(field: &str) -> bool {
+    field.parse::<f64>().is_err()
+        && field.chars().any(|c| c.is_ascii_digit())
+        && (field.contains(':') || field.matches('-').count() >= 2)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -711,6 +754,14 @@ mod tests {
         let ms = every(200.0).period_mismatch(0.2).expect("ms");
         assert!(ms.contains("are the times in milliseconds?"), "{ms}");
         assert!(every(200.0).times_in_milliseconds(0.2));
+        // A logger stamping micros() or a nanosecond clock was told to give another robot file.
+        for (p, unit, k) in [(2e5, "microseconds", 1e6), (2e8, "nanoseconds", 1e9)] {
+            let log = every(p);
+            let why = log.period_mismatch(0.2).expect("off");
+            assert!(why.contains(&format!("are the times in {unit}?")), "{why}");
+            assert_eq!(log.time_unit(0.2), Some((unit, k)));
+            assert!(!log.times_in_milliseconds(0.2));
+        }
         assert!(!every(0.4).times_in_milliseconds(0.2) && !every(0.2).times_in_milliseconds(0.2));
     }
 
@@ -871,6 +922,18 @@ mod tests {
         assert!(err("time,a,b\n0,0,0\n").starts_with("log.csv:1:1: header"));
         assert!(err("t,left_ticks,right_ticks\n0,0,0\n0.2,1.5,1\n").contains("whole tick count"));
         assert!(err("").contains("empty odometry log"));
+        // Tabs and dates were "header is …, expected …" and "is not a number", no more.
+        let tabs = err("t\tleft_ticks\tright_ticks\n0\t0\t0\n");
+        assert!(
+            tabs.starts_with("log.csv:1:1: the header") && tabs.contains("separated by tabs"),
+            "{tabs}"
+        );
+        let date = err("t,left_ticks,right_ticks\n2024-05-01T12:00:00.000,0,0\n");
+        assert!(
+            date.starts_with("log.csv:2:1:") && date.contains("t must be seconds"),
+            "{date}"
+        );
+        assert!(err("t,left_ticks,right_ticks\n12:00:00.2,0,0\n").contains("t must be seconds"));
         assert!(err("t,left_ticks,right_ticks\n0,0,0\n").contains("need at least 2"));
     }
 }

@@ -157,6 +157,21 @@ pub struct DatasetSummary {
     pub mean_path_length_m: f64,
     /// Largest speed-profile alignment residual, m/s.
     pub max_alignment_residual_mps: f64,
+    /// A window dataset's wheel travel against the camera's over its recordings (absent for
+    /// straight runs, whose end points give the scale, and in older files).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub travel_scale: Option<TravelScale>,
+}
+
+/// The wheels' travel against the camera's over a dataset's recordings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TravelScale {
+    /// The wheels' travel (nominal robot) over the camera's.
+    pub ratio: f64,
+    /// The camera's travel compared, metres.
+    pub camera_m: f64,
+    /// Recordings compared.
+    pub recordings: usize,
 }
 
 impl Dataset {
@@ -187,6 +202,7 @@ impl Dataset {
                 .iter()
                 .map(|s| s.alignment_residual_mps)
                 .fold(0.0, f64::max),
+            travel_scale: None,
         };
         Self {
             format: DATASET_FORMAT.to_string(),

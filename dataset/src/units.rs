@@ -5,12 +5,14 @@
 
 use odocal_core::Trajectory;
 
+use crate::align::{AlignOptions, CoarseOffset};
 use crate::build::RunOutcome;
 use crate::build::DEFAULT_MIN_GAP_S;
 use crate::kinematics::{dead_reckon, WheelGeometry};
 use crate::odometry::{LogKind, OdometryLog};
+use crate::sample::TravelScale;
 use crate::segment::split_runs;
-use crate::{RejectedRun, RobotParams, Sample};
+use crate::{Dataset, RejectedRun, RobotParams, Sample};
 
 /// The largest ratio between the camera path's extent and the odometry's that can still be
 /// the same motion (odometry drifts by percent, not by factors).
@@ -216,6 +218,61 @@ pub fn odometry_scale(samples: &[Sample]) -> Option<(f64, usize)> {
     upper_median(ratios).map(|m| (m, n))
 }
 
+/// The camera's travel below which a recording's wheel travel is not compared with it,
+/// metres: a robot standing still, or a camera that saw little.
+const MIN_CAMERA_TRAVEL_M: f64 = 0.5;
+
+/// A recording's wheel travel against the camera's: the wheels' mean travel and the camera's
+/// along the robot's heading, both summed unsigned over every log step in which the wheels
+/// turned and the camera saw the robot, with the clocks `coarse` apart; `None` when the
+/// offset is not sure or the camera saw less than [`MIN_CAMERA_TRAVEL_M`]. A turn in place
+/// adds to neither, so tours compare as straight runs do.
+pub fn travel_against_camera(
+    log: &OdometryLog,
+    camera: &Trajectory,
+    robot: &RobotParams,
+    align: &AlignOptions,
+    coarse: &CoarseOffset,
+) -> Option<[f64; 2]> {
+    if coarse.correlation < align.min_correlation {
+        return None;
+    }
+    let geom = WheelGeometry::nominal(robot);
+    let revs = log.wheel_revs(robot);
+    let circ = [
+        std::f64::consts::PI * geom.left_wheel_diameter_m,
+        std::f64::consts::PI * geom.right_wheel_diameter_m,
+    ];
+    let gap = align.frame_gap_s(camera);
+    let (mut odo, mut cam) = (0.0, 0.0);
+    for k in 1..revs.t_s.len() {
+        let d = |w: usize| (revs.rev[k][w] - revs.rev[k - 1][w]) * circ[w];
+        if d(0) == 0.0 && d(1) == 0.0 {
+            continue;
+        }
+        let at = |i: usize| camera.pose_at(coarse.camera_s(revs.t_s[i]), gap);
+        let (Some(a), Some(b)) = (at(k - 1), at(k)) else {
+            continue;
+        };
+        odo += (0.5 * (d(0) + d(1))).abs();
+        cam += crate::align::forward_step(&a, &b).abs();
+    }
+    (cam >= MIN_CAMERA_TRAVEL_M).then_some([odo, cam])
+}
+
+/// The wheels' travel against the camera's over recordings, from their
+/// [`travel_against_camera`] sums.
+pub fn travel_scale(sums: &[[f64; 2]]) -> Option<TravelScale> {
+    let (odo, cam) = sums
+        .iter()
+        .fold((0.0, 0.0), |(o, c), s| (o + s[0], c + s[1]));
+    (!sums.is_empty() && cam > 0.0).then(|| TravelScale {
+        ratio: odo / cam,
+        camera_m: cam,
+        recordings: sums.len(),
+    })
+}
+
 /// The factor, either way, by which a run's odometry-to-camera distance ratio may differ from
 /// the median of the runs' before the run is taken for another robot's log. The synthetic
 /// robot's runs lie within 1.4 % of their median (four seeds of 60 runs), a window dataset's
@@ -340,13 +397,60 @@ pub fn reject_clock_outliers(outcomes: &mut [Vec<RunOutcome>]) {
 /// beyond 20 %, `Ok(None)` within. Alignment cannot see it: it matches the speed profiles'
 /// shapes, whatever their scale.
 pub fn robot_scale_mismatch(
-    samples: &[Sample],
+    ds: &Dataset,
     robot: &RobotParams,
+    speed_logs: bool,
 ) -> Result<Option<String>, String> {
-    let Some((scale, n)) = odometry_scale(samples) else {
-        return Ok(None);
+    // A window's end point is bent by its turns and, over a long window, by the heading's
+    // drift: one 60 s window read 1.835 times the camera's with the right robot file. The
+    // wheels' travel against the camera's, log step by log step over whole recordings, is
+    // neither; and it is measured before any window is rejected, where a wrong scale used
+    // to reject windows one by one as off the clock.
+    let (scale, over) = if ds.is_windows() {
+        let Some(t) = ds.summary.travel_scale else {
+            return Ok(None);
+        };
+        (
+            t.ratio,
+            format!(
+                "over {:.1} m of the camera's travel in {}",
+                t.camera_m,
+                if t.recordings == 1 {
+                    "1 recording".to_string()
+                } else {
+                    format!("{} recordings", t.recordings)
+                }
+            ),
+        )
+    } else {
+        let Some((scale, n)) = odometry_scale(&ds.samples) else {
+            return Ok(None);
+        };
+        (scale, format!("median over {n} samples"))
     };
     let near = |k: f64| (scale / k - 1.0).abs() < 0.1;
+    // A speed log's distances are its speeds times its times, whatever the wheels: the robot
+    // file cannot scale them, their unit does. km/h read as m/s were blamed on ticks_per_rev.
+    if speed_logs {
+        let hint = if [3.6, 1.0 / 3.6].into_iter().any(near) {
+            "a factor of 3.6 is km/h: the logs' v_left and v_right must be m/s (divide km/h by 3.6)"
+                .to_string()
+        } else if [100.0, 0.01].into_iter().any(near) {
+            "a factor of 100 is cm/s: the logs' v_left and v_right must be m/s (divide cm/s by 100)"
+                .to_string()
+        } else {
+            "a speed log's distances do not depend on the robot file's wheels or ticks: are v_left and v_right in m/s, each the wheel's mean over the period ending at its row?".to_string()
+        };
+        let text = format!(
+            "the odometry's distances are {scale:.3} times the camera's ({over}) with these speed logs; {hint}"
+        );
+        if !(1.0 / MAX_ODOMETRY_SCALE..=MAX_ODOMETRY_SCALE).contains(&scale) {
+            return Err(text);
+        }
+        return Ok(
+            (!(1.0 / WARN_ODOMETRY_SCALE..=WARN_ODOMETRY_SCALE).contains(&scale)).then_some(text),
+        );
+    }
     // The odometry's distances scale with the diameter and inversely with the ticks per
     // turn: the value of either that would remove the factor `k`.
     let fits = |k: f64| (robot.wheel_diameter_m / k, robot.ticks_per_rev * k);
@@ -371,7 +475,7 @@ pub fn robot_scale_mismatch(
         )
     };
     let text = format!(
-        "the odometry's distances are {scale:.3} times the camera's (median over {n} samples) with this robot file; {hint}"
+        "the odometry's distances are {scale:.3} times the camera's ({over}) with this robot file; {hint}"
     );
     if !(1.0 / MAX_ODOMETRY_SCALE..=MAX_ODOMETRY_SCALE).contains(&scale) {
         return Err(format!(

@@ -317,6 +317,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         String::new()
     };
+    let robot_file = match &args.robot {
+        Some(p) => p.display().to_string(),
+        None => "the default robot (give yours with --robot robot.json)".into(),
+    };
+    // Before the rejections are judged: a robot file of another scale rejects a window
+    // dataset's windows one by one as off the clock.
+    // Speed logs (t,v_left,v_right) carry no ticks: their scale is the speeds' unit.
+    let speed_logs = manifest.runs.iter().all(|r| {
+        odocal_dataset::OdometryLog::read_csv(&manifest.resolve(&r.odometry))
+            .is_ok_and(|l| l.kind == odocal_dataset::LogKind::Speeds)
+    });
+    match odocal_dataset::units::robot_scale_mismatch(&ds, &opts.robot, speed_logs) {
+        Err(why) if speed_logs => bail!("{why}; nothing was written"),
+        Err(why) => bail!("{robot_file}: {why}; nothing was written"),
+        Ok(Some(w)) if speed_logs => tell!("warning: {w}"),
+        Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
+        Ok(None) => {}
+    }
     if ds.samples.is_empty() && ds.rejected.is_empty() && args.layout == LayoutArg::Windows {
         // Windows where the robot stands still are no samples and no rejections either.
         bail!(
@@ -396,15 +414,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ds.notes.len() - NOTES_SHOWN,
             args.out.display()
         );
-    }
-    let robot_file = match &args.robot {
-        Some(p) => p.display().to_string(),
-        None => "the default robot (give yours with --robot robot.json)".into(),
-    };
-    match odocal_dataset::units::robot_scale_mismatch(&ds.samples, &opts.robot) {
-        Err(why) => bail!("{robot_file}: {why}; nothing was written"),
-        Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
-        Ok(None) => {}
     }
     // Compared before anything is written or said to be, so a wrong truth leaves nothing.
     let against_truth = match (&args.truth, &oracle) {

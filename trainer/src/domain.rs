@@ -105,8 +105,11 @@ impl TrainingDomain {
                 // The 18 inputs of the feature rule: x_k, y_k of the dead-reckoned run at eight
                 // times, then t_b and t_e on the robot's clock.
                 let what = match i {
-                    16 => " (t_b, the run's start on the robot's clock, s: does this log's clock start where the training logs' did?)".to_string(),
-                    17 => " (t_e, the run's end on the robot's clock, s)".to_string(),
+                    // The source's rule reads the run's times themselves: a robot that waits
+                    // longer at rest before the run (identical motion, 2 s later) is outside
+                    // the training, and was blamed on the log's clock.
+                    16 => format!(" (t_b, the run's start on the robot's clock: it starts moving at {v:.2} s, after its wait at rest, where the training runs started at {a:.2} to {b:.2} s; the net reads this time itself, so a longer or shorter wait at rest before the run, or a clock that does not count from the log's start as the training's did, is outside what it learned: start the log about as long before the run as the training logs were)"),
+                    17 => " (t_e, the run's end on the robot's clock, s: it moves with the wait at rest before the run, t_b, and with the run's duration)".to_string(),
                     _ if i < 16 => format!(
                         " ({}_{}, the dead-reckoned {} at {}/9 of the run, m)",
                         if i % 2 == 0 { "x" } else { "y" },
@@ -286,7 +289,9 @@ pub fn check_same_robot(
     given: &RobotParams,
     whose: &str,
 ) -> Result<(), crate::TrainError> {
-    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
+    // A robot file written by hand or by another program carries the same values to a few
+    // digits (0.0430000001 for 0.043 was refused); no robot differs by a millionth.
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * a.abs().max(b.abs()).max(1e-12);
     let params = [
         (
             "wheel diameter",
@@ -346,6 +351,31 @@ pub fn check_same_robot(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run whose robot waited 2 s longer at rest before it, its motion the same: the net
+    /// reads t_b itself, so it is outside, and the refusal names the wait at rest (it asked
+    /// whether the log's clock started where the training logs' did).
+    #[test]
+    fn a_longer_wait_at_rest_is_named_as_such() {
+        let text = include_str!("../../tests/data/parsers/dataset.json");
+        let ds = odocal_dataset::Dataset::parse(text, "dataset.json").expect("parses");
+        let domain = TrainingDomain::of(&ds.samples).expect("a domain");
+        let mut later = ds.samples[0].inputs.clone();
+        let (lo, hi) = (domain.input_min[16], domain.input_max[16]);
+        later[16] = hi + 2.0;
+        later[17] += hi + 2.0 - ds.samples[0].inputs[16];
+        let why = domain.outside(&later, ds.samples[0].raw_end_m);
+        let t_b = why
+            .iter()
+            .find(|w| w.starts_with("input 16 = "))
+            .expect("t_b named");
+        assert!(
+            t_b.contains(&format!(
+                "it starts moving at {:.2} s, after its wait at rest, where the training runs started at {lo:.2} to {hi:.2} s"
+            , hi + 2.0)) && !t_b.contains("does this log's clock start"),
+            "{t_b}"
+        );
+    }
 
     /// A run at a speed the training never drove, its every input within the training's
     /// range with its margin (its t_e among theirs after a longer wait at rest), was
@@ -456,6 +486,17 @@ mod tests {
     fn another_robot_is_named_by_the_parameters_that_differ_with_units() {
         let robot = RobotParams::default();
         assert!(check_same_robot(&robot, &robot, "run.csv").is_ok());
+        let written_elsewhere = RobotParams {
+            wheel_diameter_m: 0.0430000001,
+            wheel_base_m: 0.1 * (1.0 + 9e-7),
+            ..robot
+        };
+        assert!(check_same_robot(&robot, &written_elsewhere, "run.csv").is_ok());
+        let a_micron_in_a_metre_more = RobotParams {
+            wheel_base_m: 0.1 * (1.0 + 2e-6),
+            ..robot
+        };
+        assert!(check_same_robot(&robot, &a_micron_in_a_metre_more, "run.csv").is_err());
         let other = RobotParams {
             wheel_diameter_m: 0.045,
             period_s: 0.1,
