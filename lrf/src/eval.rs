@@ -163,7 +163,8 @@ pub struct Evaluation {
     /// Largest position error over the accuracy set, metres.
     pub position_max_m: f64,
     /// `ok` scans whose pose is wrong (> 0.05 m or > 1° from the truth) by more than its own
-    /// σ allows (3σ: [`COVERED_SIGMAS`]): confident wrong poses.
+    /// σ allows (3σ: [`COVERED_SIGMAS`]), or off by more than [`BEYOND_SIGMAS`] of its σ in x,
+    /// y or heading: confident wrong poses.
     pub n_wrong_ok: usize,
     /// Scans whose truth says ≥ 3 landmarks were detected.
     pub n_eligible: usize,
@@ -215,6 +216,10 @@ pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
 /// 3 cm, and 6 cm off is then what it says.
 pub const COVERED_SIGMAS: f64 = 3.0;
 
+/// An `ok` pose off by more than this many of its own σ in x, y or heading is a confident
+/// wrong one however small its error: a Gaussian error goes that far once in 600 000 poses.
+pub const BEYOND_SIGMAS: f64 = 5.0;
+
 /// Compares estimated poses with the truth at their times.
 pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
     let mut e = Evaluation::default();
@@ -245,9 +250,18 @@ pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
             dp <= COVERED_SIGMAS * (c[(0, 0)] + c[(1, 1)]).sqrt()
                 && dh <= COVERED_SIGMAS * c[(2, 2)].sqrt()
         });
-        if !correct {
-            e.n_wrong_ok += usize::from(!covered);
-        } else if eligible {
+        // A pose within 5 cm and 1° can still be far beyond what its σ claims: 13 mm off
+        // with a σ of 1 mm is ground truth quietly wrong.
+        let beyond = r.cov.is_some_and(|c| {
+            let d = p.position() - tp.pose.position();
+            d.x.abs() > BEYOND_SIGMAS * c[(0, 0)].sqrt()
+                || d.y.abs() > BEYOND_SIGMAS * c[(1, 1)].sqrt()
+                || dh > BEYOND_SIGMAS * c[(2, 2)].sqrt()
+        });
+        if (!correct && !covered) || beyond {
+            e.n_wrong_ok += 1;
+        }
+        if correct && eligible {
             e.n_correct_eligible += 1;
         }
         if n_lm >= 3 {

@@ -3,10 +3,10 @@
 
 use std::path::PathBuf;
 
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use odocal_core::Pose2;
 
-use crate::pose_fit::{fit_pose_weighted, pose_shift, Observation};
+use crate::pose_fit::{fit_pose_weighted, mahalanobis2, pose_shift, Observation};
 use crate::pose_log::{PoseLog, PoseLogRow};
 use crate::scan::{read_scans_csv, Scan, SensorConfig};
 use crate::scan_track::ScanTracker;
@@ -468,7 +468,107 @@ pub fn localize_scans(
     global_only: bool,
     on_scan: &dyn Fn(),
 ) -> Localized {
-    let mut first = localize_pass(loc, scans, rate_hz, global_only, on_scan);
+    let first = localize_pass(loc, scans, rate_hz, global_only, on_scan);
+    let Some(before) = systematic(loc, &first.log, &first.fitted, &[]).filter(calls_for_correction)
+    else {
+        return finish_passes(loc, scans, rate_hz, global_only, first);
+    };
+    // Fitted again after each correction: the gates dropped the matches the bias pushed
+    // farthest, so one fit finds most of it (17 of 20 mm), not all.
+    let (mut offset_m, mut scale) = (0.0, 1.0);
+    let mut step = before;
+    let mut best: Option<(Localizer, Vec<Scan>, Pass, Systematic)> = None;
+    for _ in 0..MAX_CORRECTIONS {
+        offset_m += step.range_offset_m.0;
+        scale *= 1.0 + step.angle_scale.0;
+        let corrected: Vec<Scan> = scans.iter().map(|s| s.corrected(offset_m, scale)).collect();
+        let mut cfg = loc.cfg;
+        cfg.sensor.step_rad /= scale;
+        let again = Localizer::new(loc.map.clone(), cfg);
+        let pass = localize_pass(&again, &corrected, rate_hz, global_only, &|| {});
+        let Some(after) = systematic(&again, &pass.log, &pass.fitted, &[]) else {
+            break;
+        };
+        // Once found, a bias is taken out while it is still significant, however little the
+        // χ² shows of what is left.
+        let more = bias_significant(&after);
+        step = after;
+        best = Some((again, corrected, pass, after));
+        if !more {
+            break;
+        }
+    }
+    match best {
+        Some((again, corrected, pass, after)) if after.ratio < CORRECTION_GAIN * before.ratio => {
+            let mut out = finish_passes(&again, &corrected, rate_hz, global_only, pass);
+            out.calibration = Some(Calibration {
+                range_offset_m: offset_m,
+                angle_scale: scale,
+                ratio_before: before.ratio,
+                ratio_after: after.ratio,
+                residual: after,
+            });
+            out
+        }
+        _ => finish_passes(loc, scans, rate_hz, global_only, first),
+    }
+}
+
+/// A range offset or angle scale is corrected only when the fit is this many standard errors
+/// from none...
+const SYSTEMATIC_SIGMAS: f64 = 6.0;
+/// ... and the recording's residuals exceed the detections' noise by this factor (χ² over its
+/// degrees of freedom; about 1.0 for the synthetic recordings).
+const SYSTEMATIC_RATIO: f64 = 1.3;
+/// ... and it is larger than this, metres (range) and parts (angle scale): below these the
+/// poses move by less than their noise.
+const MIN_RANGE_OFFSET_M: f64 = 0.001;
+const MIN_ANGLE_SCALE: f64 = 2e-4;
+/// Corrections fitted one after the other at most.
+const MAX_CORRECTIONS: usize = 3;
+/// The corrected scans are taken only if their χ² over its degrees of freedom is below this
+/// share of the scans' as given.
+const CORRECTION_GAIN: f64 = 0.8;
+
+/// True if the residuals call for a range offset or angle scale (see [`SYSTEMATIC_SIGMAS`]).
+fn calls_for_correction(s: &Systematic) -> bool {
+    s.ratio > SYSTEMATIC_RATIO && bias_significant(s)
+}
+
+/// True if the range offset or the angle scale of `s` is beyond its noise and large enough to
+/// matter.
+fn bias_significant(s: &Systematic) -> bool {
+    let (b, sb) = s.range_offset_m;
+    let (k, sk) = s.angle_scale;
+    (b.abs() > SYSTEMATIC_SIGMAS * sb && b.abs() > MIN_RANGE_OFFSET_M)
+        || (k.abs() > SYSTEMATIC_SIGMAS * sk && k.abs() > MIN_ANGLE_SCALE)
+}
+
+/// A range offset and angle scale found in the scans and taken out of them before they were
+/// localised ([`localize_scans`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// The ranges read this much long, metres; subtracted from every range.
+    pub range_offset_m: f64,
+    /// The angles read this many times the true ones; every angle divided by it.
+    pub angle_scale: f64,
+    /// The recording's χ² over its degrees of freedom before the correction ...
+    pub ratio_before: f64,
+    /// ... and after it.
+    pub ratio_after: f64,
+    /// What the corrected scans' residuals still show.
+    pub residual: Systematic,
+}
+
+/// The rest of [`localize_scans`] once `first` is localised: moved landmarks found, and the
+/// scans localised again without them.
+fn finish_passes(
+    loc: &Localizer,
+    scans: &[Scan],
+    rate_hz: f64,
+    global_only: bool,
+    mut first: Pass,
+) -> Localized {
     let (mut moved, kept) = moved_landmarks(loc, &mut first.log, &first.fitted, &first.deskewed);
     let ids: Vec<u32> = moved.iter().map(|m| m.id).collect();
     let again = loc
@@ -478,7 +578,7 @@ pub fn localize_scans(
         .map(|map| Localizer::new(map, loc.cfg));
     let Some(again) = again else {
         widen_kept(loc, &mut first.log, &first.fitted, &kept, &moved);
-        return first.localized(moved);
+        return first.localized(loc, moved);
     };
     let mut second = localize_pass(&again, scans, rate_hz, global_only, &|| {});
     // A landmark moved by less than the others hid behind their pull.
@@ -504,8 +604,177 @@ pub fn localize_scans(
             second.deskewed[k] = first.deskewed[k];
         }
     }
-    moved.extend(more);
-    second.localized(moved)
+    let all: Vec<MovedLandmark> = moved.iter().chain(&more).cloned().collect();
+    let mut out = second.localized(&again, more);
+    out.moved = all;
+    out
+}
+
+/// A pose's χ² beyond this quantile of its distribution is more than its detections' noise:
+/// the standard normal quantile of 99 %.
+const INCONSISTENT_Z: f64 = 2.326;
+
+/// The quantile of the χ² distribution with `dof` degrees of freedom whose standard normal
+/// quantile is `z` (Wilson–Hilferty: within a few percent from 1 degree of freedom on).
+fn chi2_quantile(dof: f64, z: f64) -> f64 {
+    let a = 2.0 / (9.0 * dof);
+    dof * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+/// Judges every `ok` pose of `fitted` by the χ² of its matches (those of landmarks not in
+/// `skip`) at its pose. A pose whose χ² lies beyond its 99 % quantile fits its landmarks
+/// worse than their noise explains, and its Cramér–Rao σ does not hold: its covariance is
+/// scaled by the χ² over its degrees of freedom, and the spread of the poses fitted with each
+/// match left out is added (one landmark off its place pulls the pose by about as much as
+/// leaving it out moves it).
+fn judge_fits(
+    loc: &Localizer,
+    log: &mut PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    skip: &[u32],
+) -> FitQuality {
+    let mut q = FitQuality::default();
+    let (mut chi2_sum, mut dof_sum) = (0.0, 0.0);
+    for_each_row(fitted, |k, row| {
+        let r = &mut log.rows[k];
+        let Some(pose) = r.pose.filter(|_| r.status == Status::Ok) else {
+            return;
+        };
+        let obs: Vec<Observation> = row
+            .iter()
+            .filter(|(_, l, _)| !skip.contains(&loc.map.landmarks[*l].id))
+            .map(|(_, _, o)| *o)
+            .collect();
+        if obs.len() < 2 {
+            return;
+        }
+        let Some(chi2) = obs
+            .iter()
+            .map(|o| mahalanobis2(&pose, o))
+            .sum::<Option<f64>>()
+        else {
+            return;
+        };
+        let dof = (2 * obs.len() - 3) as f64;
+        q.n_poses += 1;
+        chi2_sum += chi2;
+        dof_sum += dof;
+        if chi2 <= chi2_quantile(dof, INCONSISTENT_Z) {
+            return;
+        }
+        let mut spread = Matrix3::zeros();
+        for i in 0..obs.len() {
+            let mut rest = obs.clone();
+            rest.remove(i);
+            if let Some((p, _)) = fit_pose_weighted(pose, &rest) {
+                let dp = Vector3::new(
+                    p.x_m - pose.x_m,
+                    p.y_m - pose.y_m,
+                    odocal_core::wrap_angle(p.theta_rad - pose.theta_rad),
+                );
+                spread += dp * dp.transpose();
+            }
+        }
+        if let Some(cov) = r.pose_cov.as_mut() {
+            *cov = *cov * (chi2 / dof) + spread;
+            q.n_widened += 1;
+        }
+    });
+    if dof_sum > 0.0 {
+        q.ratio = chi2_sum / dof_sum;
+    }
+    q
+}
+
+/// A range offset and an angle scale common to every scan, fitted with the poses to the
+/// matches of `fitted` at the `ok` poses of `log` (one Gauss–Newton step from none, the poses
+/// eliminated scan by scan), with the recording's χ² over its degrees of freedom: a scanner
+/// whose ranges read long or whose angle step is not the one logged leaves every landmark's
+/// residuals off alike, and no landmark moved.
+fn systematic(
+    loc: &Localizer,
+    log: &PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    skip: &[u32],
+) -> Option<Systematic> {
+    let (mut s, mut t) = (Matrix2::zeros(), Vector2::zeros());
+    let (mut chi2_sum, mut dof_sum) = (0.0, 0.0);
+    for_each_row(fitted, |k, row| {
+        let r = &log.rows[k];
+        let Some(pose) = r.pose.filter(|_| r.status == Status::Ok) else {
+            return;
+        };
+        let obs: Vec<&Observation> = row
+            .iter()
+            .filter(|(_, l, _)| !skip.contains(&loc.map.landmarks[*l].id))
+            .map(|(_, _, o)| o)
+            .collect();
+        if obs.len() < 2 {
+            return;
+        }
+        let inv = pose.isometry().inverse();
+        let m = *nalgebra::Rotation2::new(-pose.theta_rad).matrix();
+        let (mut hpp, mut hpg, mut hgg) = (
+            Matrix3::zeros(),
+            nalgebra::Matrix3x2::zeros(),
+            Matrix2::zeros(),
+        );
+        let (mut bp, mut bg) = (Vector3::zeros(), Vector2::zeros());
+        let mut chi2 = 0.0;
+        for o in &obs {
+            let Some(w) = o.cov.try_inverse() else {
+                return;
+            };
+            // The detection predicted from the pose, sensor frame, and its derivatives by the
+            // pose (x, y, θ) and by the range offset and the angle scale less 1.
+            let h = inv * o.landmark;
+            let range = h.coords.norm();
+            let u = h.coords / range;
+            let v = Vector2::new(-u.y, u.x);
+            let e = o.sensor - h;
+            let jp =
+                nalgebra::Matrix2x3::new(-m[(0, 0)], -m[(0, 1)], h.y, -m[(1, 0)], -m[(1, 1)], -h.x);
+            let jg = Matrix2::from_columns(&[u, v * (range * h.y.atan2(h.x))]);
+            hpp += jp.transpose() * w * jp;
+            hpg += jp.transpose() * w * jg;
+            hgg += jg.transpose() * w * jg;
+            bp += jp.transpose() * w * e;
+            bg += jg.transpose() * w * e;
+            chi2 += e.dot(&(w * e));
+        }
+        let Some(hpp_inv) = hpp.try_inverse() else {
+            return;
+        };
+        s += hgg - hpg.transpose() * hpp_inv * hpg;
+        t += bg - hpg.transpose() * hpp_inv * bp;
+        chi2_sum += chi2;
+        dof_sum += (2 * obs.len() - 3) as f64;
+    });
+    if dof_sum <= 0.0 {
+        return None;
+    }
+    let ratio = chi2_sum / dof_sum;
+    let s_inv = s.try_inverse()?;
+    let g = s_inv * t;
+    let cov = s_inv * ratio.max(1.0);
+    Some(Systematic {
+        ratio,
+        range_offset_m: (g.x, cov[(0, 0)].sqrt()),
+        angle_scale: (g.y, cov[(1, 1)].sqrt()),
+    })
+}
+
+/// See [`systematic`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Systematic {
+    /// The recording's χ² over its degrees of freedom (about 1 when the residuals are the
+    /// detections' noise).
+    pub ratio: f64,
+    /// The range offset (ranges read this much long), metres, and its standard error.
+    pub range_offset_m: (f64, f64),
+    /// The angle scale less 1 (angles read 1 + this times the true ones), and its standard
+    /// error.
+    pub angle_scale: (f64, f64),
 }
 
 /// One pass of [`localize_scans`] over the scans, before moved landmarks are looked for.
@@ -523,8 +792,10 @@ struct Pass {
 
 impl Pass {
     /// The pass's poses, with the σ of those left with their sweep's skew widened.
-    fn localized(mut self, moved: Vec<MovedLandmark>) -> Localized {
+    fn localized(mut self, loc: &Localizer, moved: Vec<MovedLandmark>) -> Localized {
         let n_unsupported = drop_unsupported(&mut self.log);
+        let skip: Vec<u32> = moved.iter().map(|m| m.id).collect();
+        let fit = judge_fits(loc, &mut self.log, &self.fitted, &skip);
         let skewed = widen_skewed(&mut self.log, &self.deskewed, &self.sweeps_s);
         Localized {
             log: self.log,
@@ -533,6 +804,8 @@ impl Pass {
             unseen: self.unseen,
             moved,
             n_unsupported,
+            fit,
+            calibration: None,
         }
     }
 }
@@ -702,7 +975,7 @@ fn add_fitted(fitted: &mut Vec<(usize, usize, Observation)>, k: usize, h: &Hypot
 /// taken for a bias: over the seeds 1–4 of `synth lrf` the largest was 3.6 (the standard
 /// error is from the residuals' scatter, and scans in a row share some of their errors, so
 /// this is more than a Gaussian's tail would need). Reflectors moved 5 cm gave 12–20.
-const MIN_BIAS_SIGMAS: f64 = 8.0;
+const MIN_BIAS_SIGMAS: f64 = 5.0;
 
 /// ... and at least this many times the map's survey σ: a landmark surveyed within its σ has
 /// its residuals' mean within it too.
@@ -811,14 +1084,28 @@ fn residual_mean(
     deskewed: &[bool],
     l: usize,
 ) -> Option<MovedLandmark> {
-    let seen: Vec<(Pose2, &Observation)> = fitted
+    // Each residual at the pose the row's other matches give: at the row's own pose, the
+    // landmark pulls the pose towards itself, and its residual shows a part of its offset
+    // (12 of 50 mm with three landmarks in view), too little to name it.
+    let seen: Vec<(Pose2, &Observation, Matrix3<f64>)> = fitted
         .iter()
         .filter(|f| f.1 == l && deskewed[f.0] && log.rows[f.0].status == Status::Ok)
-        .filter_map(|(k, _, o)| Some((log.rows[*k].pose?, o)))
+        .filter_map(|(k, _, o)| {
+            let pose = log.rows[*k].pose?;
+            let start = fitted.partition_point(|f| f.0 < *k);
+            let end = fitted.partition_point(|f| f.0 <= *k);
+            let others: Vec<Observation> = fitted[start..end]
+                .iter()
+                .filter(|f| f.1 != l)
+                .map(|f| f.2)
+                .collect();
+            let (p, cov) = fit_pose_weighted(pose, &others)?;
+            Some((p, o, cov))
+        })
         .collect();
     let r: Vec<Vector2<f64>> = seen
         .iter()
-        .map(|(p, o)| p.isometry() * o.sensor - o.landmark)
+        .map(|(p, o, _)| p.isometry() * o.sensor - o.landmark)
         .collect();
     let n = r.len();
     if n < MIN_BIAS_SCANS {
@@ -837,7 +1124,7 @@ fn residual_mean(
     // 0.4 mm, and a correct map was called moved).
     let step_rad = loc.cfg.sensor.step_rad;
     let mut places: Vec<Pose2> = Vec::new();
-    for (p, _) in &seen {
+    for (p, _, _) in &seen {
         let same = |q: &Pose2| {
             (p.x_m - q.x_m).hypot(p.y_m - q.y_m) <= PLACE_M
                 && odocal_core::wrap_angle(p.theta_rad - q.theta_rad).abs() <= step_rad
@@ -848,10 +1135,12 @@ fn residual_mean(
     }
     let own = seen
         .iter()
-        .map(|(p, o)| {
+        .map(|(p, o, cov)| {
             let rot = nalgebra::Rotation2::new(p.theta_rad);
             let d = rot.inverse() * dir;
-            d.dot(&(o.cov * d))
+            let rz = rot * o.sensor.coords;
+            let j = nalgebra::Matrix2x3::new(1.0, 0.0, -rz.y, 0.0, 1.0, rz.x);
+            d.dot(&(o.cov * d)) + dir.dot(&(j * cov * j.transpose() * dir))
         })
         .sum::<f64>()
         / n as f64;
@@ -1150,6 +1439,27 @@ pub struct Localized {
     /// `ok` poses of a mostly lost recording that no neighbouring scan's pose agreed with,
     /// left without a pose (status lost, mode `unsupported`).
     pub n_unsupported: usize,
+    /// How well the `ok` poses fit their landmarks against the detections' own noise.
+    pub fit: FitQuality,
+    /// The range offset and angle scale taken out of the scans, when their residuals showed
+    /// one.
+    pub calibration: Option<Calibration>,
+}
+
+/// How well the `ok` poses fit their matched landmarks, against the noise the detections'
+/// covariances say (χ²): a landmark off its mapped place, a range offset or an angle step
+/// that is not the scanner's leaves residuals beyond that noise, and the pose off by more
+/// than its σ says.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FitQuality {
+    /// `ok` poses judged (with at least two matches).
+    pub n_poses: usize,
+    /// Of those, the poses whose χ² lay beyond its 99 % quantile: their σ were widened by the
+    /// χ² over its degrees of freedom and by how far leaving out each match moves the pose.
+    pub n_widened: usize,
+    /// The recording's χ² over its degrees of freedom: about 1 when the residuals are the
+    /// detections' noise.
+    pub ratio: f64,
 }
 
 /// Poses whose scans were not de-skewed (no motion was tracked yet, or `--global-only`)

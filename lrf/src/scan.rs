@@ -161,6 +161,26 @@ impl Scan {
         }
     }
 
+    /// The scan of a scanner whose ranges read `offset_m` long and whose angles read `scale`
+    /// times the true ones, corrected: beams without a return keep their range.
+    pub fn corrected(&self, offset_m: f64, scale: f64) -> Scan {
+        Scan {
+            angles_rad: self.angles_rad.iter().map(|a| a / scale).collect(),
+            ranges_m: self
+                .ranges_m
+                .iter()
+                .map(|&r| {
+                    if r > 0.0 && r.is_finite() {
+                        r - offset_m
+                    } else {
+                        r
+                    }
+                })
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     /// The angular step of the scan, radians (0 for fewer than two beams).
     pub fn step_rad(&self) -> f64 {
         if self.angles_rad.len() < 2 {

@@ -215,6 +215,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         unseen,
         moved,
         n_unsupported,
+        fit,
+        calibration,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
@@ -267,6 +269,39 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.max_range_m
         )
     };
+    // Said first: the landmarks, poses and counts below are of the corrected scans.
+    if let Some(c) = calibration {
+        let (_, sb) = c.residual.range_offset_m;
+        let (_, sk) = c.residual.angle_scale;
+        let mut found = Vec::new();
+        if c.range_offset_m.abs() >= 1e-3 {
+            found.push(format!(
+                "the ranges read {:.1} ± {:.1} mm {}",
+                c.range_offset_m.abs() * 1e3,
+                sb * 1e3,
+                if c.range_offset_m > 0.0 {
+                    "long"
+                } else {
+                    "short"
+                }
+            ));
+        }
+        if (c.angle_scale - 1.0).abs() >= 2e-4 {
+            found.push(format!(
+                "the angles read {:.5} ± {:.5} times the true ones (an angle step of {:.7} rad, where the scans step {:.7} rad)",
+                c.angle_scale,
+                sk,
+                loc.cfg.sensor.step_rad / c.angle_scale,
+                loc.cfg.sensor.step_rad
+            ));
+        }
+        tell!(
+            "warning: the landmarks' residuals were {:.1} times the detections' noise (χ² per degree of freedom), off alike at every landmark as a miscalibrated scanner leaves them: fitted over the recording, {}; every range and angle was corrected by that and the scans localised again (χ² per degree of freedom now {:.2}). Calibrate the scanner (its range offset, the angle_increment its driver reports), or give the scans corrected",
+            c.ratio_before,
+            found.join(" and "),
+            c.ratio_after
+        );
+    }
     // Said before any refusal: a reflector gone from a symmetric room leaves every scan
     // ambiguous.
     for &(id, n, missed) in &unseen {
@@ -298,6 +333,18 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             },
             m.sigma_m * 1e3,
             a.map.display()
+        );
+    }
+    // Poses that fit their landmarks worse than the noise explains: more than chance would
+    // make (1 % of them, and three standard deviations of that count) is a cause to find.
+    let by_chance = 0.01 * fit.n_poses as f64;
+    if fit.n_widened as f64 > by_chance + 3.0 * by_chance.sqrt() + 1.0 {
+        tell!(
+            "warning: {} of {} ok poses fit their landmarks worse than the detections' noise explains (χ² beyond its 99 % quantile, where about {:.0} would by chance; over the recording χ² is {:.2} times its degrees of freedom): their σ were widened by that excess and by how far leaving out each landmark moves the pose. A landmark off its mapped place (moved, or surveyed wrong) or a shiny object taken for a reflector does this: check the landmarks named above, the map's position_sigma_m and --sigma-range-m",
+            fit.n_widened,
+            fit.n_poses,
+            by_chance,
+            fit.ratio
         );
     }
     // A range noise given too small turns the true poses away and reads like a wrong map:
