@@ -355,6 +355,33 @@ mod tests {
         assert_eq!((covered.n_wrong_ok, covered.n_correct_eligible), (0, 0));
     }
 
+    /// A map with one landmark surveyed 2 cm off gave poses 13 mm off with a σ of 1 mm (12.9σ),
+    /// and `--truth` said "confident wrong poses: 0", as they were within 5 cm: a pose beyond
+    /// 5σ on an axis is a confident wrong one, and still a correct one by the 5 cm rule.
+    #[test]
+    fn a_pose_far_beyond_its_sigma_is_confident_and_wrong_however_near() {
+        let truth = LaserTruth::new(vec![TruthPose {
+            t_s: 0.0,
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            n_detected: None,
+        }])
+        .expect("one row");
+        let near = |sigma: f64| EstimatedPose {
+            t_s: 0.0,
+            status: Status::Ok,
+            pose: Some(Pose2::new(0.0, 0.013, 0.0)),
+            n_landmarks: 3,
+            cov: Some(Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                sigma * sigma,
+                sigma * sigma,
+                1e-6,
+            ))),
+        };
+        let e = evaluate(&[near(0.001)], &truth);
+        assert_eq!((e.n_wrong_ok, e.n_correct_eligible), (1, 1));
+        assert_eq!(evaluate(&[near(0.003)], &truth).n_wrong_ok, 0);
+    }
+
     #[test]
     fn truth_rows_out_of_time_order_are_refused_by_line() {
         let dir = tempfile::tempdir().expect("tempdir");

@@ -610,6 +610,67 @@ fn finish_passes(
     out
 }
 
+/// The landmarks the fits of `log`'s `ok` poses left out (`left_out`: row, landmark,
+/// observation) in [`MIN_BIAS_SCANS`] scans or more, at least as often as they used them
+/// (`fitted`), with their residuals' mean beyond [`MIN_BIAS_SIGMAS`] standard errors and
+/// [`MIN_BIAS_MAP_SIGMAS`] of the map's σ: detected off their place every time, too far for
+/// the fit to take (a reflector moved 5 cm was left out of every pose, and named nowhere).
+fn left_out_landmarks(
+    loc: &Localizer,
+    log: &PoseLog,
+    fitted: &[(usize, usize, Observation)],
+    left_out: &[(usize, usize, Observation)],
+) -> Vec<MovedLandmark> {
+    let map_sigma_m = loc.map.position_sigma_m.unwrap_or(loc.cfg.map_sigma_m);
+    let ok = |k: usize| log.rows[k].status == Status::Ok;
+    let mut out = Vec::new();
+    for l in 0..loc.map.landmarks.len() {
+        let r: Vec<(Pose2, Vector2<f64>)> = left_out
+            .iter()
+            .filter(|f| f.1 == l && ok(f.0))
+            .filter_map(|(k, _, o)| {
+                let p = log.rows[*k].pose?;
+                Some((p, p.isometry() * o.sensor - o.landmark))
+            })
+            .collect();
+        let n = r.len();
+        let used = fitted.iter().filter(|f| f.1 == l && ok(f.0)).count();
+        if n < MIN_BIAS_SCANS || n < used {
+            continue;
+        }
+        let mean = r.iter().map(|x| x.1).sum::<Vector2<f64>>() / n as f64;
+        let Some(dir) = mean.try_normalize(0.0) else {
+            continue;
+        };
+        let var = r
+            .iter()
+            .map(|x| (x.1 - mean).dot(&dir).powi(2))
+            .sum::<f64>()
+            / ((n - 1) as f64 * n as f64);
+        let sigma_m = var.sqrt();
+        let d = mean.norm();
+        if d > MIN_BIAS_SIGMAS * sigma_m && d > MIN_BIAS_MAP_SIGMAS * map_sigma_m {
+            let mut places: Vec<Pose2> = Vec::new();
+            for (p, _) in &r {
+                if !places
+                    .iter()
+                    .any(|q| (p.x_m - q.x_m).hypot(p.y_m - q.y_m) <= PLACE_M)
+                {
+                    places.push(*p);
+                }
+            }
+            out.push(MovedLandmark {
+                id: loc.map.landmarks[l].id,
+                offset_m: mean,
+                sigma_m,
+                n_scans: n,
+                n_places: places.len(),
+            });
+        }
+    }
+    out
+}
+
 /// A pose's χ² beyond this quantile of its distribution is more than its detections' noise:
 /// the standard normal quantile of 99 %.
 const INCONSISTENT_Z: f64 = 2.326;
@@ -786,6 +847,8 @@ struct Pass {
     sweeps_s: Vec<f64>,
     /// The matches of every `ok` pose, (row, landmark, observation), by row.
     fitted: Vec<(usize, usize, Observation)>,
+    /// The matches its fit left out as beyond their noise, (row, landmark, observation).
+    left_out: Vec<(usize, usize, Observation)>,
     n_repeated: usize,
     unseen: Vec<(u32, usize, usize)>,
 }
@@ -796,6 +859,7 @@ impl Pass {
         let n_unsupported = drop_unsupported(&mut self.log);
         let skip: Vec<u32> = moved.iter().map(|m| m.id).collect();
         let fit = judge_fits(loc, &mut self.log, &self.fitted, &skip);
+        let left_out = left_out_landmarks(loc, &self.log, &self.fitted, &self.left_out);
         let skewed = widen_skewed(&mut self.log, &self.deskewed, &self.sweeps_s);
         Localized {
             log: self.log,
@@ -806,6 +870,7 @@ impl Pass {
             n_unsupported,
             fit,
             calibration: None,
+            left_out,
         }
     }
 }
@@ -826,6 +891,7 @@ fn localize_pass(
     let mut views = LandmarkViews::new(loc.map.landmarks.len());
     // The matches of every `ok` pose, (row, landmark, observation).
     let mut fitted: Vec<(usize, usize, Observation)> = Vec::new();
+    let mut left_out: Vec<(usize, usize, Observation)> = Vec::new();
     for (k, scan) in scans.iter().enumerate() {
         let t_s = scan.t_s.unwrap_or(k as f64 / rate_hz);
         sweeps_s.push(
@@ -853,6 +919,7 @@ fn localize_pass(
             let b = g.best();
             if let (Status::Ok, Some(h)) = (g.status, b) {
                 add_fitted(&mut fitted, k, h);
+                left_out.extend(h.outliers.iter().map(|(l, o)| (k, *l, *o)));
             }
             deskewed.push(false);
             PoseLogRow {
@@ -873,6 +940,7 @@ fn localize_pass(
             deskewed.push(r.deskewed);
             if let (Status::Ok, Some(h)) = (r.status, r.hypotheses.first()) {
                 add_fitted(&mut fitted, k, h);
+                left_out.extend(h.outliers.iter().map(|(l, o)| (k, *l, *o)));
             }
             PoseLogRow {
                 t_s,
@@ -900,6 +968,7 @@ fn localize_pass(
         deskewed,
         sweeps_s,
         fitted,
+        left_out,
         n_repeated,
         unseen: views.unseen(loc),
     }
@@ -1444,6 +1513,9 @@ pub struct Localized {
     /// The range offset and angle scale taken out of the scans, when their residuals showed
     /// one.
     pub calibration: Option<Calibration>,
+    /// Landmarks detected off their mapped position the same way scan after scan, too far to
+    /// be used: each fit left them out as beyond their noise (a reflector moved 4–10 cm).
+    pub left_out: Vec<MovedLandmark>,
 }
 
 /// How well the `ok` poses fit their matched landmarks, against the noise the detections'

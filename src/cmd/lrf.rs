@@ -217,6 +217,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         n_unsupported,
         fit,
         calibration,
+        left_out,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
@@ -345,6 +346,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             fit.n_poses,
             by_chance,
             fit.ratio
+        );
+    }
+    for m in left_out {
+        let dir = m.offset_m.normalize();
+        tell!(
+            "warning: landmark {} of {} was detected {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm), too far to fit, and was left out of their poses each time: was it moved after mapping? Update its position in {}, or remove it",
+            m.id,
+            a.map.display(),
+            m.offset_m.norm() * 1e3,
+            dir.x,
+            dir.y,
+            m.n_scans,
+            m.sigma_m * 1e3,
+            a.map.display()
         );
     }
     // A range noise given too small turns the true poses away and reads like a wrong map:
