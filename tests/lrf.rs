@@ -2793,7 +2793,7 @@ fn cli_poses_far_beyond_their_bound_name_the_noise_given() {
 
 /// `synth lrf`'s scans in `d` rewritten into `out`, each data row's (angle, range, intensity)
 /// passed through `f`.
-fn rewrite_scans(d: &Path, out: &Path, f: impl Fn(f64, f64, f64) -> (f64, f64)) {
+fn beams_rewritten(d: &Path, out: &Path, f: impl Fn(f64, f64, f64) -> (f64, f64)) {
     let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
     let mut lines = text.lines();
     let header = lines.next().expect("header");
@@ -2825,14 +2825,14 @@ fn cli_a_range_offset_or_angle_scale_is_named_and_corrected() {
         d.join("truth.csv"),
     );
     let long = d.join("long.csv");
-    rewrite_scans(d, &long, |a, r, _| (a, if r > 0.0 { r + 0.02 } else { r }));
+    beams_rewritten(d, &long, |a, r, _| (a, if r > 0.0 { r + 0.02 } else { r }));
     let short = d.join("short.csv");
     // Only the reflectors' returns read short (a range walk with intensity).
-    rewrite_scans(d, &short, |a, r, i| {
+    beams_rewritten(d, &short, |a, r, i| {
         (a, if r > 0.0 && i >= 0.5 { r - 0.04 } else { r })
     });
     let scaled = d.join("scaled.csv");
-    rewrite_scans(d, &scaled, |a, r, _| (a * 0.995, r));
+    beams_rewritten(d, &scaled, |a, r, _| (a * 0.995, r));
     for (scans, said) in [
         (&long, "the ranges read 20.1 ± 0.2 mm long"),
         (&short, "the ranges read 39.8 ± 0.2 mm short"),

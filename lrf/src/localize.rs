@@ -671,6 +671,77 @@ fn left_out_landmarks(
     out
 }
 
+/// Between two scans a small robot's speed and turn rate change by at most this much per
+/// second squared (m/s², rad/s²): a pose may lie off the midpoint of its neighbours' by half
+/// that times the scan period squared. `synth lrf` accelerates by less than 0.5 m/s² and
+/// 0.2 rad/s².
+const TRACK_ACCEL_M_S2: f64 = 2.0;
+const TRACK_ACCEL_RAD_S2: f64 = 2.0;
+
+/// A pose off the track by more than this Mahalanobis distance (x, y, θ) is off it.
+const OFF_TRACK_SIGMAS: f64 = 5.0;
+
+/// Widens the σ of every `ok` pose off the track its two `ok` neighbours give (their
+/// interpolation at its time) by more than [`OFF_TRACK_SIGMAS`] of their σ and the robot's
+/// acceleration, by how far off it is; returns how many. Three landmarks fit by a glint in
+/// place of one of them fit as well as the right three, and a pose 88 mm off kept its σ of
+/// 7 mm (11.5σ) while the scans either side agreed with each other. A pose off the track
+/// pulls its neighbours' tests by half as much: only the one farthest off among them is taken.
+fn widen_off_track(log: &mut PoseLog) -> usize {
+    let rows = &log.rows;
+    let ok = |r: &PoseLogRow| r.status == Status::Ok && r.pose.is_some() && r.pose_cov.is_some();
+    let off: Vec<Option<(f64, Vector3<f64>)>> = (0..rows.len())
+        .map(|k| {
+            if k == 0 || k + 1 >= rows.len() {
+                return None;
+            }
+            let (a, r, b) = (&rows[k - 1], &rows[k], &rows[k + 1]);
+            if !(ok(a) && ok(r) && ok(b)) {
+                return None;
+            }
+            let (pa, p, pb) = (a.pose?, r.pose?, b.pose?);
+            let span = b.t_s - a.t_s;
+            if !(span > 1e-6 && span <= MAX_CENTRED_SPAN_S) {
+                return None;
+            }
+            let w = (r.t_s - a.t_s) / span;
+            let turn = odocal_core::wrap_angle(pb.theta_rad - pa.theta_rad);
+            let d = Vector3::new(
+                p.x_m - (pa.x_m + w * (pb.x_m - pa.x_m)),
+                p.y_m - (pa.y_m + w * (pb.y_m - pa.y_m)),
+                odocal_core::wrap_angle(p.theta_rad - (pa.theta_rad + w * turn)),
+            );
+            let dt2 = (r.t_s - a.t_s) * (b.t_s - r.t_s);
+            let (sp, sh) = (0.5 * TRACK_ACCEL_M_S2 * dt2, 0.5 * TRACK_ACCEL_RAD_S2 * dt2);
+            let cov = r.pose_cov?
+                + a.pose_cov? * (1.0 - w).powi(2)
+                + b.pose_cov? * (w * w)
+                + Matrix3::from_diagonal(&Vector3::new(sp * sp, sp * sp, sh * sh));
+            let z2 = d.dot(&(cov.try_inverse()? * d));
+            Some((z2, d))
+        })
+        .collect();
+    let mut n = 0;
+    for k in 0..log.rows.len() {
+        let Some((z2, d)) = off[k] else { continue };
+        let beside = |i: Option<usize>| {
+            i.and_then(|i| off.get(i).copied().flatten())
+                .map_or(0.0, |x| x.0)
+        };
+        if z2 <= OFF_TRACK_SIGMAS.powi(2)
+            || z2 < beside(k.checked_sub(1))
+            || z2 < beside(Some(k + 1))
+        {
+            continue;
+        }
+        if let Some(cov) = log.rows[k].pose_cov.as_mut() {
+            *cov += d * d.transpose();
+            n += 1;
+        }
+    }
+    n
+}
+
 /// A pose's χ² beyond this quantile of its distribution is more than its detections' noise:
 /// the standard normal quantile of 99 %.
 const INCONSISTENT_Z: f64 = 2.326;
@@ -860,6 +931,7 @@ impl Pass {
         let skip: Vec<u32> = moved.iter().map(|m| m.id).collect();
         let fit = judge_fits(loc, &mut self.log, &self.fitted, &skip);
         let left_out = left_out_landmarks(loc, &self.log, &self.fitted, &self.left_out);
+        let n_off_track = widen_off_track(&mut self.log);
         let skewed = widen_skewed(&mut self.log, &self.deskewed, &self.sweeps_s);
         Localized {
             log: self.log,
@@ -871,6 +943,7 @@ impl Pass {
             fit,
             calibration: None,
             left_out,
+            n_off_track,
         }
     }
 }
@@ -1516,6 +1589,9 @@ pub struct Localized {
     /// Landmarks detected off their mapped position the same way scan after scan, too far to
     /// be used: each fit left them out as beyond their noise (a reflector moved 4–10 cm).
     pub left_out: Vec<MovedLandmark>,
+    /// `ok` poses off the track their neighbours give by more than their σ and the robot's
+    /// acceleration allow: their σ were widened to cover how far off they are.
+    pub n_off_track: usize,
 }
 
 /// How well the `ok` poses fit their matched landmarks, against the noise the detections'

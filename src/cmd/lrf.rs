@@ -218,6 +218,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         fit,
         calibration,
         left_out,
+        n_off_track,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
@@ -360,6 +361,15 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             m.n_scans,
             m.sigma_m * 1e3,
             a.map.display()
+        );
+    }
+    if n_off_track > 0 {
+        tell!(
+            "warning: {n_off_track} ok {} off the track the poses either side give by more than {} σ and a small robot's acceleration allow: {} widened to cover how far off {} (a shiny object taken for a reflector in place of one can fit as well as the right landmarks); check the scans at those times for glints, or raise --intensity-min",
+            if n_off_track == 1 { "pose lay" } else { "poses lay" },
+            if n_off_track == 1 { "its" } else { "their" },
+            if n_off_track == 1 { "its σ was" } else { "their σ were" },
+            if n_off_track == 1 { "it is" } else { "they are" },
         );
     }
     // A range noise given too small turns the true poses away and reads like a wrong map:
