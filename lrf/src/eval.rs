@@ -163,9 +163,11 @@ pub struct Evaluation {
     /// Largest position error over the accuracy set, metres.
     pub position_max_m: f64,
     /// `ok` scans whose pose is wrong (> 0.05 m or > 1° from the truth) by more than its own
-    /// σ allows (3σ: [`COVERED_SIGMAS`]), or off by more than [`BEYOND_SIGMAS`] of its σ in x,
-    /// y or heading: confident wrong poses.
+    /// σ allows (3σ: [`COVERED_SIGMAS`]): confident wrong poses.
     pub n_wrong_ok: usize,
+    /// The other `ok` scans whose pose is off by more than [`BEYOND_SIGMAS`] of its σ in x, y
+    /// or heading: confident wrong poses too, however near.
+    pub n_beyond_sigma_ok: usize,
     /// Scans whose truth says ≥ 3 landmarks were detected.
     pub n_eligible: usize,
     /// Eligible scans localised correctly (`ok` and within 0.05 m and 1°).
@@ -258,8 +260,10 @@ pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
                 || d.y.abs() > BEYOND_SIGMAS * c[(1, 1)].sqrt()
                 || dh > BEYOND_SIGMAS * c[(2, 2)].sqrt()
         });
-        if (!correct && !covered) || beyond {
+        if !correct && !covered {
             e.n_wrong_ok += 1;
+        } else if beyond {
+            e.n_beyond_sigma_ok += 1;
         }
         if correct && eligible {
             e.n_correct_eligible += 1;
@@ -378,8 +382,11 @@ mod tests {
             ))),
         };
         let e = evaluate(&[near(0.001)], &truth);
-        assert_eq!((e.n_wrong_ok, e.n_correct_eligible), (1, 1));
-        assert_eq!(evaluate(&[near(0.003)], &truth).n_wrong_ok, 0);
+        assert_eq!(
+            (e.n_wrong_ok, e.n_beyond_sigma_ok, e.n_correct_eligible),
+            (0, 1, 1)
+        );
+        assert_eq!(evaluate(&[near(0.003)], &truth).n_beyond_sigma_ok, 0);
     }
 
     #[test]

@@ -34,7 +34,7 @@ pub use check::{
 pub use error::LrfError;
 pub use eval::{
     evaluate, read_truth_csv, truth_unit_hint, EstimatedPose, Evaluation, LaserTruth, TruthAt,
-    TruthPose, CORRECT_POS_M,
+    TruthPose, BEYOND_SIGMAS, CORRECT_POS_M,
 };
 pub use localize::{
     check_beam_step, check_fov, check_intensity_scale, check_range_unit, check_scan_times,

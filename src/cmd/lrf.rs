@@ -628,8 +628,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             )
         };
         say!(
-            "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %){}",
-            e.n_wrong_ok,
+            "vs truth: {accuracy}; confident wrong poses: {}{}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %){}",
+            e.n_wrong_ok + e.n_beyond_sigma_ok,
+            if e.n_beyond_sigma_ok > 0 {
+                format!(
+                    " ({} of them within 5 cm and 1° but more than {} of their σ off)",
+                    e.n_beyond_sigma_ok,
+                    odocal_lrf::BEYOND_SIGMAS
+                )
+            } else {
+                String::new()
+            },
             e.n_correct_eligible,
             e.n_eligible,
             100.0 * e.n_correct_eligible as f64 / e.n_eligible.max(1) as f64,
