@@ -1435,8 +1435,10 @@ fn cli_laser_poses_as_a_trajectory() {
     // pose left with its sweep's skew.
     assert!(worst <= 3.5, "a pose {worst:.1}σ off");
     assert!(!stderr.contains("de-skewed"), "{stderr}");
+    // The poses that fit their landmarks worst, or lie off the track, have their σ widened,
+    // which covers a part of the skew (error/σ 2.8 where it was 3.6), not all of it.
     let (_, z, h, _, _) = run("skewed", &["--sweep-s", "0"]);
-    assert!(z > 3.0 && h > 4.0, "error/σ RMS {z:.2}, heading {h:.2}");
+    assert!(z > 2.5 && h > 4.0, "error/σ RMS {z:.2}, heading {h:.2}");
     let (n_ok, z, h, _, stderr) = run("global", &["--global-only"]);
     assert!(n_ok >= 100, "{n_ok} ok");
     assert!(z <= 1.6 && h <= 1.6, "error/σ RMS {z:.2}, heading {h:.2}");
