@@ -451,7 +451,7 @@ pub fn check_beam_step(loc: &Localizer, scans: &[Scan]) -> Option<String> {
 
 /// Localises every scan: with the tracker (prediction from the previous poses, global search
 /// as the fallback; the detections de-skewed with the tracked motion), or with `global_only`
-/// each scan on its own. Scans without a time stamp are timed at `index / rate_hz`. A pose
+/// each scan on its own. Scans without a time stamp are timed by [`untimed_times`]. A pose
 /// refers to its scan's time, the first beam's. `on_scan` is called after each scan (for a
 /// progress bar).
 ///
@@ -984,8 +984,9 @@ fn localize_pass(
     // The matches of every `ok` pose, (row, landmark, observation).
     let mut fitted: Vec<(usize, usize, Observation)> = Vec::new();
     let mut left_out: Vec<(usize, usize, Observation)> = Vec::new();
+    let untimed = untimed_times(scans, rate_hz);
     for (k, scan) in scans.iter().enumerate() {
-        let t_s = scan.t_s.unwrap_or(k as f64 / rate_hz);
+        let t_s = scan.t_s.unwrap_or(untimed[k]);
         sweeps_s.push(
             loc.cfg.sensor.beam_interval_s(scan) * scan.angles_rad.len().saturating_sub(1) as f64,
         );
@@ -1064,6 +1065,23 @@ fn localize_pass(
         n_repeated,
         unseen: views.unseen(loc),
     }
+}
+
+/// The times of `scans` for those without a `t` column, seconds: each id's periods of
+/// `rate_hz` after the first scan's when the ids increase (a logger numbers every scan it
+/// takes, so a gap in them is scans dropped; timed by their order, scans after a drop were
+/// de-skewed with a motion too fast, 38 of 173 poses beyond 5σ), else each scan's place.
+pub fn untimed_times(scans: &[Scan], rate_hz: f64) -> Vec<f64> {
+    let by_id = scans.windows(2).all(|w| w[0].id < w[1].id);
+    let first = scans.first().map_or(0, |s| s.id);
+    scans
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let n = if by_id { s.id - first } else { k as u64 };
+            n as f64 / rate_hz
+        })
+        .collect()
 }
 
 /// An `ok` pose looks for support among the `ok` poses of this many scans either side.

@@ -202,6 +202,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     cfg.sensor.check()?;
     check_fov(&scans, &cfg.sensor)?;
     check_intensity_scale(&scans, &cfg.sensor)?;
+    // Untimed scans are timed by their ids: a gap in them is scans dropped, said so.
+    if scans.iter().all(|s| s.t_s.is_none()) && scans.windows(2).all(|w| w[0].id < w[1].id) {
+        if let (Some(first), Some(last)) = (scans.first(), scans.last()) {
+            let missing = (last.id - first.id + 1) as usize - scans.len();
+            if missing > 0 {
+                tell!(
+                    "note: the scans have no t column and {missing} of the scan ids from {} to {} are missing: each scan is timed by its id at --rate-hz {} (a gap is scans dropped), so the motion between the scans either side of a gap is that of the time it spans; give each scan's time in a t column if the ids do not count the scanner's sweeps",
+                    first.id,
+                    last.id,
+                    a.rate_hz
+                );
+            }
+        }
+    }
     let loc = Localizer::new(map, cfg);
     if let Some(w) = check_beam_step(&loc, &scans) {
         tell!("warning: {w}");
