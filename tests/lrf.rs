@@ -2040,8 +2040,9 @@ fn cli_scan_files_are_taken_in_time_order_and_twice_is_refused() {
     expect_error(
         &args.iter().map(String::as_str).collect::<Vec<_>>(),
         &format!(
-            "{}: its first scan's time 0 s does not come after 1.4 s",
-            s(&copy)
+            "{}: its scans from 0 s to 1.4 s overlap those of {}, which run to 1.4 s: the two files hold scans of the same time",
+            s(&copy),
+            s(&a)
         ),
     );
     assert!(!poses.exists(), "nothing written");

@@ -79,8 +79,11 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
     for (p, s) in files {
         if let (Some((prev, prev_file)), Some(t)) = (last, s.first().and_then(|s| s.t_s)) {
             if t <= prev {
+                // Sorted by their first times, files that still do not follow each other
+                // overlap: both hold scans of the same stretch of time.
+                let end = s.iter().rev().find_map(|s| s.t_s).unwrap_or(t);
                 return Err(LrfError::Config(format!(
-                    "{}: its first scan's time {t} s does not come after {prev} s, the last scan of {}, given before it; give the scan files in time order, each once",
+                    "{}: its scans from {t} s to {end} s overlap those of {}, which run to {prev} s: the two files hold scans of the same time (a recording split into files that overlap, or two recordings); give each scan once, cutting the overlap out of one file",
                     p.display(),
                     prev_file.display()
                 )));

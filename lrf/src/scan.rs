@@ -652,7 +652,15 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
             }
             None => None,
         };
-        let new_scan = scans.last().is_none_or(|s| s.id != id);
+        // Without a scan column, a file with times holds one scan per time (a `t` column
+        // alone used to read as one scan, refused as its rows given twice).
+        let (new_scan, id) = match (cs, t) {
+            (None, Some(t)) => match scans.last() {
+                Some(s) if s.t_s == Some(t) => (false, s.id),
+                _ => (true, scans.len() as u64),
+            },
+            _ => (scans.last().is_none_or(|s| s.id != id), id),
+        };
         if let (true, Some(t), Some(prev)) = (new_scan, t, scans.last().and_then(|s| s.t_s)) {
             if t <= prev {
                 return Err(err(
@@ -1121,5 +1129,28 @@ mod tests {
         );
         let e = parse_scans_csv("angle,rng\n", "s.csv").unwrap_err();
         assert!(e.to_string().contains("angle,range,intensity"), "{e}");
+    }
+
+    /// A `t` column without a `scan` column read as one scan, refused as its rows given twice:
+    /// each time is a scan.
+    #[test]
+    fn times_without_a_scan_column_are_one_scan_each() {
+        let f = parse_scans_csv(
+            "t,angle,range,intensity\n0.0,0.0,1,0\n0.0,0.01,1,0\n0.1,0.0,2,0\n0.1,0.01,2,0\n",
+            "s.csv",
+        )
+        .expect("two scans");
+        let scans: Vec<(u64, Option<f64>, Vec<f64>)> = f
+            .scans
+            .iter()
+            .map(|s| (s.id, s.t_s, s.ranges_m.clone()))
+            .collect();
+        assert_eq!(
+            scans,
+            vec![
+                (0, Some(0.0), vec![1.0, 1.0]),
+                (1, Some(0.1), vec![2.0, 2.0])
+            ]
+        );
     }
 }
