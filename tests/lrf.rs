@@ -2783,6 +2783,18 @@ fn cli_poses_far_beyond_their_bound_name_the_noise_given() {
         "{err}"
     );
     assert!(!tight.join("poses.csv").exists());
+    // A σ far too large lets every scan fit the map in several places: named too, where the
+    // map was blamed.
+    let loose = d.join("loose");
+    synth_lrf(&loose, 1, 20);
+    let out = localize(&loose, &["--sigma-range-m", "0.2"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("with --sigma-range-m 0.02 m (1/10 of the 0.2 m given) 20 of the first 20 scans find a pose, where 0 did: matches are gated at a few σ of --sigma-range-m, so a σ far above")
+            && !err.contains("map of this room"),
+        "{err}"
+    );
     // Another room's map is still named as such: no σ finds its poses.
     std::fs::copy(d.join("map.json"), tight.join("map.json")).expect("copy");
     let out = localize(&tight, &[]);

@@ -390,10 +390,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // tried first, on the run's first scans, whenever most scans found no pose.
     let noise_hint = || {
         wider_noise_finds_poses(&loc, &scans, a.rate_hz, a.global_only).map(|w| {
+            let (times, why) = if w.sigma_range_m > a.sigma_range_m {
+                (
+                    format!("{:.0} times", w.sigma_range_m / a.sigma_range_m),
+                    "a σ below the scanner's range noise turns the true pose away",
+                )
+            } else {
+                (
+                    format!("1/{:.0} of", a.sigma_range_m / w.sigma_range_m),
+                    "a σ far above the scanner's range noise lets every scan fit the map in several places",
+                )
+            };
             format!(
-                "with --sigma-range-m {} m ({:.0} times the {} m given) {} of the first {} scans find a pose, where {} did: matches are gated at a few σ of --sigma-range-m, so a σ below the scanner's range noise turns the true pose away; give the scanner's range noise (1σ, from its datasheet or the spread of its ranges to a wall)",
+                "with --sigma-range-m {} m ({times} the {} m given) {} of the first {} scans find a pose, where {} did: matches are gated at a few σ of --sigma-range-m, so {why}; give the scanner's range noise (1σ, from its datasheet or the spread of its ranges to a wall)",
                 w.sigma_range_m,
-                w.sigma_range_m / a.sigma_range_m,
                 a.sigma_range_m,
                 w.n_ok_wider,
                 w.n_scans,
