@@ -3015,3 +3015,22 @@ fn cli_untimed_scans_whose_ids_skip_are_timed_by_their_ids() {
     assert!(z <= 1.2 && h <= 1.2, "error/σ RMS {z:.2}, heading {h:.2}");
     assert!(worst <= 5.5, "the pose at t = {at} s is {worst:.1}σ off");
 }
+
+/// `--max-range-m 0.5` (a range shorter than the landmarks' spacing) named 10 landmarks one by
+/// one as mistyped coordinates before the real cause: the range given is named once.
+#[test]
+fn cli_a_max_range_shorter_than_the_landmarks_spacing_is_named_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 10);
+    let out = localize(d, &["--max-range-m", "0.5"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(
+            "of its 30 landmarks are more than twice --max-range-m 0.5 m from every other"
+        ) && err.contains("is --max-range-m the scanner's range (its data sheet's), in metres?")
+            && !err.contains("is a coordinate mistyped"),
+        "{err}"
+    );
+}

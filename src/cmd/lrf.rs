@@ -123,7 +123,21 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
 /// Warns of every landmark that no scan sees with another: far from all the others, its
 /// coordinates are most likely mistyped.
 fn warn_isolated(map: &Map, name: &str, max_range_m: f64) {
-    for (id, p, nearest) in map.isolated(max_range_m) {
+    let isolated = map.isolated(max_range_m);
+    // Many landmarks alone are no typos: the range given is shorter than the room's spacing
+    // (`--max-range-m 0.5` named 10 landmarks as mistyped, one by one, before anything else).
+    if isolated.len() >= 3 && isolated.len() * 5 >= map.len() {
+        let mut gaps: Vec<f64> = isolated.iter().map(|x| x.2).collect();
+        gaps.sort_by(f64::total_cmp);
+        tell!(
+            "warning: {name}: {} of its {} landmarks are more than twice --max-range-m {max_range_m} m from every other (the nearest other {:.2} m away, median), so no scan sees them with another: is --max-range-m the scanner's range (its data sheet's), in metres?",
+            isolated.len(),
+            map.len(),
+            gaps[gaps.len() / 2]
+        );
+        return;
+    }
+    for (id, p, nearest) in isolated {
         tell!(
             "warning: {name}: landmark id {id} at ({:.3}, {:.3}) m is {nearest:.2} m from the nearest other landmark, more than twice --max-range-m {max_range_m} m, so no scan sees it with another and it cannot help a pose: is a coordinate mistyped?",
             p.x, p.y
