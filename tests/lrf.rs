@@ -1325,6 +1325,11 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
         e.contains("the scanner looks mounted upside down, its angles clockwise, so nothing was written; give --upside-down"),
         "{e}"
     );
+    // A map with its y axis flipped fits the scans the same way: it is named too.
+    assert!(
+        e.contains("or, if the scanner is the right way up, the map is a mirror image of the room (its y axis flipped, a left-handed frame)"),
+        "{e}"
+    );
     assert!(!poses.exists(), "nothing written on refusal");
     let mut a = args(&mirrored);
     a.push("--upside-down".into());

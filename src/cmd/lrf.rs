@@ -276,9 +276,12 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                     "drop --upside-down",
                 )
             } else {
+                // Scans and map mirrored to each other look the same whichever is: the map's
+                // frame may be the left-handed one (y flipped), which --upside-down would only
+                // mirror the poses into.
                 (
                     "the scanner looks mounted upside down, its angles clockwise",
-                    "give --upside-down (which negates every angle), or turn the scanner the right way up",
+                    "give --upside-down (which negates every angle), or turn the scanner the right way up; or, if the scanner is the right way up, the map is a mirror image of the room (its y axis flipped, a left-handed frame): give the map with y and facing_rad negated",
                 )
             };
             anyhow::bail!(
