@@ -926,7 +926,7 @@ fn cli_bad_input_exits_with_code_2() {
     );
     let uneven = w(
         "uneven.csv",
-        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.1\n0.03,1.0,0.1\n",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.1\n0.025,1.0,0.1\n",
     );
     let other_step = w(
         "other.csv",
@@ -3038,4 +3038,53 @@ fn cli_a_max_range_shorter_than_the_landmarks_spacing_is_named_once() {
             && !err.contains("is a coordinate mistyped"),
         "{err}"
     );
+}
+
+/// An export that writes only the beams with a return leaves a scan's angles skipping whole
+/// steps: refused as a "mismatched angle step", where the missing beams are beams without a
+/// return. They are put back so, and the poses are those of the scans in full.
+#[test]
+fn cli_scans_without_their_no_return_rows_give_the_same_poses() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 30);
+    let (header, rows) = scan_rows(d);
+    let returns = rewrite_scans(&d.join("returns.csv"), &header, &rows, &|scan| {
+        scan.iter()
+            .filter(|r| r[3].parse::<f64>().expect("range") > 0.0)
+            .map(|r| r.join(","))
+            .collect()
+    });
+    assert!(
+        std::fs::read_to_string(&returns)
+            .expect("read")
+            .lines()
+            .count()
+            < rows.len(),
+        "some beams had no return"
+    );
+    let truth = d.join("truth.csv");
+    let full = localize(d, &["--truth", s(&truth)]);
+    let (map, poses) = (d.join("map.json"), d.join("poses_returns.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&returns),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&truth),
+    ]);
+    let (a, b) = (
+        String::from_utf8_lossy(&full.stdout),
+        String::from_utf8_lossy(&out.stdout),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(a.lines().nth(1), b.lines().nth(1), "{a}\n{b}");
 }
