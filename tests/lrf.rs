@@ -3088,3 +3088,42 @@ fn cli_scans_without_their_no_return_rows_give_the_same_poses() {
     );
     assert_eq!(a.lines().nth(1), b.lines().nth(1), "{a}\n{b}");
 }
+
+/// Reflectors whose returns dim with range fall below `--intensity-min` far off, and the far
+/// ones were asked "is it still there? put it back, or remove it". A missed landmark whose
+/// place returns brighter than the wall beside it names the threshold instead.
+#[test]
+fn cli_reflectors_too_dim_for_the_threshold_name_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 100);
+    let (header, rows) = scan_rows(d);
+    let dim = rewrite_scans(&d.join("dim.csv"), &header, &rows, &|scan| {
+        scan.iter()
+            .map(|r| {
+                let range: f64 = r[3].parse().expect("range");
+                let i: f64 = r[4].parse().expect("intensity");
+                let i = i * (2.2 / range.max(0.01)).min(1.0);
+                format!("{},{},{},{},{i:.3}", r[0], r[1], r[2], r[3])
+            })
+            .collect()
+    });
+    let (map, poses) = (d.join("map.json"), d.join("poses.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&dim),
+        "--out",
+        s(&poses),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning: landmark 24 of")
+            && err.contains("in view in 14 scans and not seen in 14 of them, but in 14 of those a return lay at its place, at intensity 0.428 (median), below --intensity-min 0.5"),
+        "{err}"
+    );
+    assert!(!err.contains("is it still there?"), "{err}");
+}

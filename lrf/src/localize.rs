@@ -944,6 +944,7 @@ struct Pass {
     left_out: Vec<(usize, usize, Observation)>,
     n_repeated: usize,
     unseen: Vec<(u32, usize, usize)>,
+    dim: Vec<(u32, usize, f64)>,
 }
 
 impl Pass {
@@ -960,6 +961,7 @@ impl Pass {
             skewed,
             n_repeated: self.n_repeated,
             unseen: self.unseen,
+            dim: self.dim,
             moved,
             n_unsupported,
             fit,
@@ -1067,6 +1069,7 @@ fn localize_pass(
         left_out,
         n_repeated,
         unseen: views.unseen(loc),
+        dim: views.dim(loc),
     }
 }
 
@@ -1416,6 +1419,9 @@ const MIN_UNSEEN_SHARE: f64 = 0.9;
 struct LandmarkViews {
     in_view: Vec<usize>,
     missed: Vec<usize>,
+    /// Per landmark, the brightest return at its place in each scan it was missed in, where
+    /// a return lay there (a reflector too dim for `--intensity-min` is still there).
+    dim: Vec<Vec<f64>>,
 }
 
 impl LandmarkViews {
@@ -1423,6 +1429,7 @@ impl LandmarkViews {
         LandmarkViews {
             in_view: vec![0; n_landmarks],
             missed: vec![0; n_landmarks],
+            dim: vec![Vec::new(); n_landmarks],
         }
     }
 
@@ -1430,6 +1437,7 @@ impl LandmarkViews {
     fn add(&mut self, loc: &Localizer, scan: &Scan, hyps: &[Hypothesis]) {
         let n = self.in_view.len();
         let (mut in_view, mut missed) = (vec![false; n], vec![false; n]);
+        let mut brightest: Vec<Option<f64>> = vec![None; n];
         for h in hyps {
             let mut matched = vec![false; n];
             for &(_, l) in &h.matches {
@@ -1439,12 +1447,38 @@ impl LandmarkViews {
             loc.for_each_missing(scan, &h.pose, &matched, |l| {
                 in_view[l] = true;
                 missed[l] = true;
+                let at = return_at(loc, scan, &h.pose, l);
+                brightest[l] = match (brightest[l], at) {
+                    (Some(b), Some(i)) => Some(b.max(i)),
+                    (b, i) => b.or(i),
+                };
             });
         }
         for l in 0..n {
             self.in_view[l] += usize::from(in_view[l]);
             self.missed[l] += usize::from(missed[l]);
+            if let (true, Some(i)) = (missed[l], brightest[l]) {
+                self.dim[l].push(i);
+            }
         }
+    }
+
+    /// The unseen landmarks (id, scans missed in with a return at its place, the median
+    /// intensity of those returns) that returned at their place in most scans they were
+    /// missed in: there, but too dim for `--intensity-min`.
+    fn dim(&self, loc: &Localizer) -> Vec<(u32, usize, f64)> {
+        self.unseen(loc)
+            .into_iter()
+            .filter_map(|(id, _, missed)| {
+                let l = loc.map.landmarks.iter().position(|x| x.id == id)?;
+                let mut i = self.dim[l].clone();
+                if i.len() * 2 <= missed {
+                    return None;
+                }
+                i.sort_by(f64::total_cmp);
+                Some((id, i.len(), i[i.len() / 2]))
+            })
+            .collect()
     }
 
     /// The landmarks (id, scans in view, scans missed) missed in [`MIN_UNSEEN_SCANS`] scans or
@@ -1459,6 +1493,43 @@ impl LandmarkViews {
             .collect()
     }
 }
+
+/// The brightest return of `scan` at landmark `l`'s place seen from `pose` (within half a
+/// reflector's width and a beam step of its bearing, and 5 cm of its range), if any.
+fn return_at(loc: &Localizer, scan: &Scan, pose: &Pose2, l: usize) -> Option<f64> {
+    let p = pose.isometry().inverse() * loc.map.landmarks[l].position;
+    let range = p.coords.norm();
+    let bearing = p.y.atan2(p.x);
+    let half = 0.5 * loc.map.reflector_width_m / range.max(0.1) + loc.cfg.sensor.step_rad.abs();
+    let a = &scan.angles_rad;
+    let (lo, hi) = (
+        a.partition_point(|x| *x < bearing - half),
+        a.partition_point(|x| *x <= bearing + half),
+    );
+    let brightest = (lo..hi)
+        .filter(|&k| scan.ranges_m[k] > 0.0 && (scan.ranges_m[k] - range).abs() <= 0.05)
+        .map(|k| scan.intensities[k])
+        .max_by(f64::total_cmp)?;
+    // A wall returns at a wall-mounted reflector's place too: only a return clearly brighter
+    // than the wall beside it is the reflector's.
+    let (flank_lo, flank_hi) = (
+        a.partition_point(|x| *x < bearing - 3.0 * half),
+        a.partition_point(|x| *x <= bearing + 3.0 * half),
+    );
+    let mut beside: Vec<f64> = (flank_lo..lo)
+        .chain(hi..flank_hi)
+        .filter(|&k| scan.ranges_m[k] > 0.0 && (scan.ranges_m[k] - range).abs() <= 0.2)
+        .map(|k| scan.intensities[k])
+        .collect();
+    if beside.len() < 2 {
+        return None;
+    }
+    beside.sort_by(f64::total_cmp);
+    (brightest >= BRIGHTER_THAN_WALL * beside[beside.len() / 2]).then_some(brightest)
+}
+
+/// A return this many times as bright as the wall beside it is a reflector's.
+const BRIGHTER_THAN_WALL: f64 = 1.3;
 
 /// True if `scan` has the very ranges and intensities of `prev`, the scan before it, with
 /// some return among them: a driver republishing its last scan under a new time. The range
@@ -1616,6 +1687,9 @@ pub struct Localized {
     /// see nearly every time: gone from the room, or covered, and evidence against the right
     /// pose alone.
     pub unseen: Vec<(u32, usize, usize)>,
+    /// Of those, (id, scans missed in with a return at its place, the median intensity of
+    /// those returns): returning where the landmark is, too dim for `--intensity-min`.
+    pub dim: Vec<(u32, usize, f64)>,
     /// Landmarks whose detections sit off their mapped positions the same way scan after
     /// scan: moved since the map was made. The poses that matched them were fitted again
     /// without them.

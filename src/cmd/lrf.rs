@@ -241,6 +241,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         skewed,
         n_repeated,
         unseen,
+        dim,
         moved,
         n_unsupported,
         fit,
@@ -338,6 +339,15 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // Said before any refusal: a reflector gone from a symmetric room leaves every scan
     // ambiguous.
     for &(id, n, missed) in &unseen {
+        // A reflector that returns at its place, only dimly, is there: the threshold is.
+        if let Some(&(_, n_dim, median)) = dim.iter().find(|d| d.0 == id) {
+            tell!(
+                "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them, but in {n_dim} of those a return lay at its place, at intensity {median:.3} (median), below --intensity-min {}: is the reflector there and its returns dimmer than the threshold (far, or seen at a slant)? Give --intensity-min below {median:.3} if the walls stay under it",
+                a.map.display(),
+                a.intensity_min
+            );
+            continue;
+        }
         tell!(
             "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
             a.map.display()
