@@ -926,7 +926,7 @@ fn cli_bad_input_exits_with_code_2() {
     );
     let uneven = w(
         "uneven.csv",
-        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.1\n0.03,1.0,0.1\n",
+        "angle,range,intensity\n0.0,1.0,0.1\n0.01,1.0,0.1\n0.025,1.0,0.1\n",
     );
     let other_step = w(
         "other.csv",
@@ -1325,6 +1325,11 @@ fn cli_scans_in_the_wrong_unit_or_mirrored_are_named() {
         e.contains("the scanner looks mounted upside down, its angles clockwise, so nothing was written; give --upside-down"),
         "{e}"
     );
+    // A map with its y axis flipped fits the scans the same way: it is named too.
+    assert!(
+        e.contains("or, if the scanner is the right way up, the map is a mirror image of the room (its y axis flipped, a left-handed frame)"),
+        "{e}"
+    );
     assert!(!poses.exists(), "nothing written on refusal");
     let mut a = args(&mirrored);
     a.push("--upside-down".into());
@@ -1435,8 +1440,10 @@ fn cli_laser_poses_as_a_trajectory() {
     // pose left with its sweep's skew.
     assert!(worst <= 3.5, "a pose {worst:.1}σ off");
     assert!(!stderr.contains("de-skewed"), "{stderr}");
+    // The poses that fit their landmarks worst, or lie off the track, have their σ widened,
+    // which covers a part of the skew (error/σ 2.8 where it was 3.6), not all of it.
     let (_, z, h, _, _) = run("skewed", &["--sweep-s", "0"]);
-    assert!(z > 3.0 && h > 4.0, "error/σ RMS {z:.2}, heading {h:.2}");
+    assert!(z > 2.5 && h > 4.0, "error/σ RMS {z:.2}, heading {h:.2}");
     let (n_ok, z, h, _, stderr) = run("global", &["--global-only"]);
     assert!(n_ok >= 100, "{n_ok} ok");
     assert!(z <= 1.6 && h <= 1.6, "error/σ RMS {z:.2}, heading {h:.2}");
@@ -1925,7 +1932,7 @@ fn cli_reflectors_moved_after_mapping_are_named_and_left_out() {
     let (stdout, stderr) = run(&moved);
     assert!(
         stderr.contains(&format!(
-            "warning: landmark 8 of {} sits 46 mm from its mapped position along (0.01, -1.00) in 53 scans from 53 places (σ of that mean 1.0 mm): was it moved after mapping? Every scan was localised again with the map without it",
+            "warning: landmark 8 of {} sits 44 mm from its mapped position along (0.01, -1.00) in 53 scans from 53 places (σ of that mean 1.5 mm): was it moved after mapping? Every scan was localised again with the map without it",
             s(&moved)
         )),
         "{stderr}"
@@ -2038,8 +2045,9 @@ fn cli_scan_files_are_taken_in_time_order_and_twice_is_refused() {
     expect_error(
         &args.iter().map(String::as_str).collect::<Vec<_>>(),
         &format!(
-            "{}: its first scan's time 0 s does not come after 1.4 s",
-            s(&copy)
+            "{}: its scans from 0 s to 1.4 s overlap those of {}, which run to 1.4 s: the two files hold scans of the same time",
+            s(&copy),
+            s(&a)
         ),
     );
     assert!(!poses.exists(), "nothing written");
@@ -2780,6 +2788,18 @@ fn cli_poses_far_beyond_their_bound_name_the_noise_given() {
         "{err}"
     );
     assert!(!tight.join("poses.csv").exists());
+    // A σ far too large lets every scan fit the map in several places: named too, where the
+    // map was blamed.
+    let loose = d.join("loose");
+    synth_lrf(&loose, 1, 20);
+    let out = localize(&loose, &["--sigma-range-m", "0.2"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("with --sigma-range-m 0.02 m (1/10 of the 0.2 m given) 20 of the first 20 scans find a pose, where 0 did: matches are gated at a few σ of --sigma-range-m, so a σ far above")
+            && !err.contains("map of this room"),
+        "{err}"
+    );
     // Another room's map is still named as such: no σ finds its poses.
     std::fs::copy(d.join("map.json"), tight.join("map.json")).expect("copy");
     let out = localize(&tight, &[]);
@@ -2789,4 +2809,321 @@ fn cli_poses_far_beyond_their_bound_name_the_noise_given() {
         err.contains("map of this room") && !err.contains("--sigma-range-m"),
         "{err}"
     );
+}
+
+/// `synth lrf`'s scans in `d` rewritten into `out`, each data row's (angle, range, intensity)
+/// passed through `f`.
+fn beams_rewritten(d: &Path, out: &Path, f: impl Fn(f64, f64, f64) -> (f64, f64)) {
+    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header");
+    assert_eq!(header, "scan,t,angle,range,intensity");
+    let mut w = format!("{header}\n");
+    for l in lines {
+        let v: Vec<&str> = l.split(',').collect();
+        let num = |i: usize| v[i].parse::<f64>().expect("number");
+        let (a, r) = f(num(2), num(3), num(4));
+        w += &format!("{},{},{a},{r},{}\n", v[0], v[1], v[4]);
+    }
+    std::fs::write(out, w).expect("write scans");
+}
+
+/// A scanner whose ranges read 2 cm long, or whose angle step is 0.5 % off the one logged,
+/// leaves every landmark's residuals off alike: 12 and 11 landmarks were named as moved and
+/// 68 and 113 `ok` poses lay beyond 5σ. The range offset and angle scale are fitted over the
+/// recording, named with their values, taken out of the scans, and the poses are as good as
+/// the unbiased scans' (no pose beyond 4σ), with no landmark blamed.
+#[test]
+fn cli_a_range_offset_or_angle_scale_is_named_and_corrected() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf_with(d, 3, 300, &[]);
+    let (map, poses, traj, truth) = (
+        d.join("map.json"),
+        d.join("poses.csv"),
+        d.join("traj.csv"),
+        d.join("truth.csv"),
+    );
+    let long = d.join("long.csv");
+    beams_rewritten(d, &long, |a, r, _| (a, if r > 0.0 { r + 0.02 } else { r }));
+    let short = d.join("short.csv");
+    // Only the reflectors' returns read short (a range walk with intensity).
+    beams_rewritten(d, &short, |a, r, i| {
+        (a, if r > 0.0 && i >= 0.5 { r - 0.04 } else { r })
+    });
+    let scaled = d.join("scaled.csv");
+    beams_rewritten(d, &scaled, |a, r, _| (a * 0.995, r));
+    for (scans, said) in [
+        (&long, "the ranges read 20.1 ± 0.2 mm long"),
+        (&short, "the ranges read 39.8 ± 0.2 mm short"),
+        (
+            &scaled,
+            "the angles read 0.99535 ± 0.00008 times the true ones",
+        ),
+    ] {
+        let out = localize_judged(&map, scans, &poses, &traj, &truth);
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr),
+        );
+        assert!(stderr.contains(said), "{stderr}");
+        assert!(
+            stderr.contains("every range and angle was corrected by that"),
+            "{stderr}"
+        );
+        assert!(!stderr.contains("warning: landmark"), "{stderr}");
+        assert!(stdout.contains("299 ok, 0 ambiguous, 1 lost"), "{stdout}");
+        assert!(stdout.contains("confident wrong poses: 0;"), "{stdout}");
+        let (z, h, worst, at) = error_over_sigma(&traj, &truth);
+        assert!(z <= 1.2 && h <= 1.2, "error/σ RMS {z:.2}, heading {h:.2}");
+        assert!(worst <= 4.0, "the pose at t = {at} s is {worst:.1}σ off");
+    }
+    // The scans as recorded are left as they are.
+    let out = localize_judged(&map, &d.join("scans.csv"), &poses, &traj, &truth);
+    assert!(
+        !String::from_utf8_lossy(&out.stderr).contains("warning:"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// In an exact map (position_sigma_m 0) reflectors re-stuck 5 cm along their walls are seen
+/// mostly at a slant, where a strip's centre is known along it only within centimetres, and
+/// each pulled the poses matching it: two moved left 20 poses beyond 5σ (37 mm off with a σ of
+/// 3 mm) and one surveyed 2 cm off left 5 (13 mm, 12.9σ), none named. A landmark is now judged
+/// by its residuals at the pose the other landmarks give, which its pull does not shrink.
+#[test]
+fn cli_a_landmark_off_its_place_in_an_exact_map_is_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf_with(d, 3, 300, &[]);
+    let (scans, poses, traj, truth) = (
+        d.join("scans.csv"),
+        d.join("poses.csv"),
+        d.join("traj.csv"),
+        d.join("truth.csv"),
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("map.json")).expect("map"))
+            .expect("json");
+    assert_eq!(m["position_sigma_m"], serde_json::json!(0.0));
+    let shifted = |moves: &dyn Fn(u64, f64, f64, f64) -> (f64, f64), name: &str| {
+        let mut m = m.clone();
+        for l in m["landmarks"].as_array_mut().expect("landmarks") {
+            let id = l["id"].as_u64().expect("id");
+            let f = l["facing_rad"].as_f64().expect("facing");
+            let (x, y) = (l["x_m"].as_f64().expect("x"), l["y_m"].as_f64().expect("y"));
+            let (nx, ny) = moves(id, f, x, y);
+            l["x_m"] = serde_json::json!(nx);
+            l["y_m"] = serde_json::json!(ny);
+            let v = &mut l["visibility_line"];
+            if v.get("a").is_some() {
+                let a = v["a"].as_f64().expect("a");
+                v["b"] = serde_json::json!(ny - a * nx);
+            } else {
+                v["x_m"] = serde_json::json!(nx);
+            }
+        }
+        let p = d.join(name);
+        std::fs::write(&p, m.to_string()).expect("write");
+        p
+    };
+    let along = shifted(
+        &|id, f, x, y| {
+            if [8, 18].contains(&id) {
+                (x - 0.05 * f.sin(), y + 0.05 * f.cos())
+            } else {
+                (x, y)
+            }
+        },
+        "along.json",
+    );
+    let surveyed = shifted(
+        &|id, _, x, y| if id == 4 { (x, y + 0.02) } else { (x, y) },
+        "surveyed.json",
+    );
+    // Moved 5 cm, a landmark is left out of every fit as beyond its noise, and was named
+    // nowhere.
+    let farther = shifted(
+        &|id, _, x, y| if id == 18 { (x, y + 0.05) } else { (x, y) },
+        "farther.json",
+    );
+    for (map, said) in [
+        (&along, "warning: landmark 18 of {} sits "),
+        (&along, "warning: landmark 8 of {} was detected 48 mm from its mapped position"),
+        (&surveyed, "warning: landmark 4 of {} sits 23 mm from its mapped position"),
+        (
+            &farther,
+            "warning: landmark 18 of {} was detected 51 mm from its mapped position along (0.05, -1.00) in 67 scans",
+        ),
+    ] {
+        let out = localize_judged(map, &scans, &poses, &traj, &truth);
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr),
+        );
+        assert!(stderr.contains(&said.replace("{}", s(map))), "{stderr}");
+        assert!(stdout.contains("confident wrong poses: 0;"), "{stdout}");
+        let (z, h, worst, at) = error_over_sigma(&traj, &truth);
+        assert!(z <= 1.2 && h <= 1.2, "error/σ RMS {z:.2}, heading {h:.2}");
+        assert!(worst <= 4.0, "the pose at t = {at} s is {worst:.1}σ off");
+    }
+}
+
+/// Scans without a `t` column whose ids skip (scans dropped by the logger) were timed by
+/// their order, so the motion across a gap was taken as one period's and the sweeps after it
+/// de-skewed wrongly: 38 of 173 `ok` poses lay beyond 5σ, with no word. They are timed by their
+/// ids now, and the gap is said.
+#[test]
+fn cli_untimed_scans_whose_ids_skip_are_timed_by_their_ids() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf_with(d, 3, 150, &[]);
+    let (_, rows) = scan_rows(d);
+    let kept = |id: u64| (id * 7919) % 10 >= 4;
+    let scans = rewrite_scans(
+        &d.join("dropped.csv"),
+        "scan,angle,range,intensity",
+        &rows,
+        &|scan| {
+            let id: u64 = scan[0][0].parse().expect("scan id");
+            if !kept(id) {
+                return Vec::new();
+            }
+            scan.iter()
+                .map(|r| format!("{},{},{},{}", r[0], r[2], r[3], r[4]))
+                .collect()
+        },
+    );
+    // The truth at each kept scan's time counted from the first kept id.
+    let truth_text = std::fs::read_to_string(d.join("truth.csv")).expect("truth");
+    let mut lines = truth_text.lines();
+    let mut truth = format!("{}\n", lines.next().expect("header"));
+    let first = (0..).find(|&id| kept(id)).expect("a kept scan");
+    for (id, l) in lines.enumerate() {
+        let id = id as u64;
+        if kept(id) {
+            let rest = l.split_once(',').expect("a time").1;
+            truth += &format!("{:.3},{rest}\n", (id - first) as f64 * 0.1);
+        }
+    }
+    let truth_path = d.join("truth_by_id.csv");
+    std::fs::write(&truth_path, truth).expect("write truth");
+    let (poses, traj) = (d.join("poses.csv"), d.join("traj.csv"));
+    let out = localize_judged(&d.join("map.json"), &scans, &poses, &traj, &truth_path);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("note: the scans have no t column and 56 of the scan ids from 1 to 146 are missing: each scan is timed by its id"),
+        "{stderr}"
+    );
+    let (z, h, worst, at) = error_over_sigma(&traj, &truth_path);
+    assert!(z <= 1.2 && h <= 1.2, "error/σ RMS {z:.2}, heading {h:.2}");
+    assert!(worst <= 5.5, "the pose at t = {at} s is {worst:.1}σ off");
+}
+
+/// `--max-range-m 0.5` (a range shorter than the landmarks' spacing) named 10 landmarks one by
+/// one as mistyped coordinates before the real cause: the range given is named once.
+#[test]
+fn cli_a_max_range_shorter_than_the_landmarks_spacing_is_named_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 10);
+    let out = localize(d, &["--max-range-m", "0.5"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(
+            "of its 30 landmarks are more than twice --max-range-m 0.5 m from every other"
+        ) && err.contains("is --max-range-m the scanner's range (its data sheet's), in metres?")
+            && !err.contains("is a coordinate mistyped"),
+        "{err}"
+    );
+}
+
+/// An export that writes only the beams with a return leaves a scan's angles skipping whole
+/// steps: refused as a "mismatched angle step", where the missing beams are beams without a
+/// return. They are put back so, and the poses are those of the scans in full.
+#[test]
+fn cli_scans_without_their_no_return_rows_give_the_same_poses() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 30);
+    let (header, rows) = scan_rows(d);
+    let returns = rewrite_scans(&d.join("returns.csv"), &header, &rows, &|scan| {
+        scan.iter()
+            .filter(|r| r[3].parse::<f64>().expect("range") > 0.0)
+            .map(|r| r.join(","))
+            .collect()
+    });
+    assert!(
+        std::fs::read_to_string(&returns)
+            .expect("read")
+            .lines()
+            .count()
+            < rows.len(),
+        "some beams had no return"
+    );
+    let truth = d.join("truth.csv");
+    let full = localize(d, &["--truth", s(&truth)]);
+    let (map, poses) = (d.join("map.json"), d.join("poses_returns.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&returns),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&truth),
+    ]);
+    let (a, b) = (
+        String::from_utf8_lossy(&full.stdout),
+        String::from_utf8_lossy(&out.stdout),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(a.lines().nth(1), b.lines().nth(1), "{a}\n{b}");
+}
+
+/// Reflectors whose returns dim with range fall below `--intensity-min` far off, and the far
+/// ones were asked "is it still there? put it back, or remove it". A missed landmark whose
+/// place returns brighter than the wall beside it names the threshold instead.
+#[test]
+fn cli_reflectors_too_dim_for_the_threshold_name_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 100);
+    let (header, rows) = scan_rows(d);
+    let dim = rewrite_scans(&d.join("dim.csv"), &header, &rows, &|scan| {
+        scan.iter()
+            .map(|r| {
+                let range: f64 = r[3].parse().expect("range");
+                let i: f64 = r[4].parse().expect("intensity");
+                let i = i * (2.2 / range.max(0.01)).min(1.0);
+                format!("{},{},{},{},{i:.3}", r[0], r[1], r[2], r[3])
+            })
+            .collect()
+    });
+    let (map, poses) = (d.join("map.json"), d.join("poses.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&dim),
+        "--out",
+        s(&poses),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning: landmark 24 of")
+            && err.contains("in view in 14 scans and not seen in 14 of them, but in 14 of those a return lay at its place, at intensity 0.428 (median), below --intensity-min 0.5"),
+        "{err}"
+    );
+    assert!(!err.contains("is it still there?"), "{err}");
 }

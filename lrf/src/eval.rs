@@ -165,6 +165,9 @@ pub struct Evaluation {
     /// `ok` scans whose pose is wrong (> 0.05 m or > 1° from the truth) by more than its own
     /// σ allows (3σ: [`COVERED_SIGMAS`]): confident wrong poses.
     pub n_wrong_ok: usize,
+    /// The other `ok` scans whose pose is off by more than [`BEYOND_SIGMAS`] of its σ in x, y
+    /// or heading: confident wrong poses too, however near.
+    pub n_beyond_sigma_ok: usize,
     /// Scans whose truth says ≥ 3 landmarks were detected.
     pub n_eligible: usize,
     /// Eligible scans localised correctly (`ok` and within 0.05 m and 1°).
@@ -215,6 +218,10 @@ pub const CORRECT_HEADING_RAD: f64 = std::f64::consts::PI / 180.0;
 /// 3 cm, and 6 cm off is then what it says.
 pub const COVERED_SIGMAS: f64 = 3.0;
 
+/// An `ok` pose off by more than this many of its own σ in x, y or heading is a confident
+/// wrong one however small its error: a Gaussian error goes that far once in 600 000 poses.
+pub const BEYOND_SIGMAS: f64 = 5.0;
+
 /// Compares estimated poses with the truth at their times.
 pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
     let mut e = Evaluation::default();
@@ -245,9 +252,20 @@ pub fn evaluate(rows: &[EstimatedPose], truth: &LaserTruth) -> Evaluation {
             dp <= COVERED_SIGMAS * (c[(0, 0)] + c[(1, 1)]).sqrt()
                 && dh <= COVERED_SIGMAS * c[(2, 2)].sqrt()
         });
-        if !correct {
-            e.n_wrong_ok += usize::from(!covered);
-        } else if eligible {
+        // A pose within 5 cm and 1° can still be far beyond what its σ claims: 13 mm off
+        // with a σ of 1 mm is ground truth quietly wrong.
+        let beyond = r.cov.is_some_and(|c| {
+            let d = p.position() - tp.pose.position();
+            d.x.abs() > BEYOND_SIGMAS * c[(0, 0)].sqrt()
+                || d.y.abs() > BEYOND_SIGMAS * c[(1, 1)].sqrt()
+                || dh > BEYOND_SIGMAS * c[(2, 2)].sqrt()
+        });
+        if !correct && !covered {
+            e.n_wrong_ok += 1;
+        } else if beyond {
+            e.n_beyond_sigma_ok += 1;
+        }
+        if correct && eligible {
             e.n_correct_eligible += 1;
         }
         if n_lm >= 3 {
@@ -339,6 +357,36 @@ mod tests {
         assert_eq!(n_wrong(wrong(None, 0.0)), 1);
         let covered = evaluate(&[wrong(Some(0.034), 0.014)], &truth);
         assert_eq!((covered.n_wrong_ok, covered.n_correct_eligible), (0, 0));
+    }
+
+    /// A map with one landmark surveyed 2 cm off gave poses 13 mm off with a σ of 1 mm (12.9σ),
+    /// and `--truth` said "confident wrong poses: 0", as they were within 5 cm: a pose beyond
+    /// 5σ on an axis is a confident wrong one, and still a correct one by the 5 cm rule.
+    #[test]
+    fn a_pose_far_beyond_its_sigma_is_confident_and_wrong_however_near() {
+        let truth = LaserTruth::new(vec![TruthPose {
+            t_s: 0.0,
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            n_detected: None,
+        }])
+        .expect("one row");
+        let near = |sigma: f64| EstimatedPose {
+            t_s: 0.0,
+            status: Status::Ok,
+            pose: Some(Pose2::new(0.0, 0.013, 0.0)),
+            n_landmarks: 3,
+            cov: Some(Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                sigma * sigma,
+                sigma * sigma,
+                1e-6,
+            ))),
+        };
+        let e = evaluate(&[near(0.001)], &truth);
+        assert_eq!(
+            (e.n_wrong_ok, e.n_beyond_sigma_ok, e.n_correct_eligible),
+            (0, 1, 1)
+        );
+        assert_eq!(evaluate(&[near(0.003)], &truth).n_beyond_sigma_ok, 0);
     }
 
     #[test]

@@ -34,12 +34,12 @@ pub use check::{
 pub use error::LrfError;
 pub use eval::{
     evaluate, read_truth_csv, truth_unit_hint, EstimatedPose, Evaluation, LaserTruth, TruthAt,
-    TruthPose, CORRECT_POS_M,
+    TruthPose, BEYOND_SIGMAS, CORRECT_POS_M,
 };
 pub use localize::{
     check_beam_step, check_fov, check_intensity_scale, check_range_unit, check_scan_times,
-    drop_beyond_range, localize_scans, read_scan_files, Localized, MovedLandmark, ScanFiles,
-    Skewed, SUPPORT_ROWS,
+    drop_beyond_range, localize_scans, read_scan_files, Calibration, FitQuality, Localized,
+    MovedLandmark, ScanFiles, Skewed, Systematic, SUPPORT_ROWS,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use noise_probe::{mirrored_finds_poses, wider_noise_finds_poses, Mirrored, WiderNoise};

@@ -14,7 +14,23 @@ use crate::search::{Localizer, Status};
 const PROBE_SCANS: usize = 20;
 /// Factors tried on the given σ, smallest first: σ given in the wrong unit or by a place
 /// value can be a thousand times too small.
-const FACTORS: [f64; 6] = [3.0, 10.0, 30.0, 100.0, 300.0, 1000.0];
+/// Then smaller ones: a σ far above the scanner's noise widens the gates until every scan
+/// fits the map in several places (`--sigma-range-m 0.2` left all 100 scans ambiguous, and
+/// the map was blamed).
+const FACTORS: [f64; 10] = [
+    3.0,
+    10.0,
+    30.0,
+    100.0,
+    300.0,
+    1000.0,
+    1.0 / 3.0,
+    0.1,
+    1.0 / 30.0,
+    0.01,
+];
+/// No scanner of this kind is less noisy than this (1σ), metres.
+const MIN_SIGMA_RANGE_M: f64 = 0.0005;
 /// No scanner of this kind is noisier than this (1σ), metres: wider gates stop telling
 /// landmarks apart, and a "pose" found with them says nothing of the σ.
 const MAX_SIGMA_RANGE_M: f64 = 0.05;
@@ -35,7 +51,7 @@ pub struct WiderNoise {
 }
 
 /// Localises the first scans again with 3, 10, 30, … 1000 times `loc`'s range noise (up to
-/// 5 cm) and
+/// 5 cm), then with a third, a tenth, … a hundredth of it (down to 0.5 mm), and
 /// returns the first under which at least 80 % of them, and more than with `loc`'s own σ,
 /// find a pose. None when no wider σ does: the cause is then elsewhere.
 pub fn wider_noise_finds_poses(
@@ -62,7 +78,7 @@ pub fn wider_noise_finds_poses(
         .iter()
         // Rounded, as the option would be written.
         .map(|f| (f * given * 1e6).round() / 1e6)
-        .filter(|&s| s <= MAX_SIGMA_RANGE_M)
+        .filter(|&s| (MIN_SIGMA_RANGE_M..=MAX_SIGMA_RANGE_M).contains(&s))
         .find_map(|sigma_range_m| {
             let mut cfg = loc.cfg;
             cfg.sensor.sigma_range_m = sigma_range_m;

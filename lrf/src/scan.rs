@@ -161,6 +161,26 @@ impl Scan {
         }
     }
 
+    /// The scan of a scanner whose ranges read `offset_m` long and whose angles read `scale`
+    /// times the true ones, corrected: beams without a return keep their range.
+    pub fn corrected(&self, offset_m: f64, scale: f64) -> Scan {
+        Scan {
+            angles_rad: self.angles_rad.iter().map(|a| a / scale).collect(),
+            ranges_m: self
+                .ranges_m
+                .iter()
+                .map(|&r| {
+                    if r > 0.0 && r.is_finite() {
+                        r - offset_m
+                    } else {
+                        r
+                    }
+                })
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     /// The angular step of the scan, radians (0 for fewer than two beams).
     pub fn step_rad(&self) -> f64 {
         if self.angles_rad.len() < 2 {
@@ -632,7 +652,15 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
             }
             None => None,
         };
-        let new_scan = scans.last().is_none_or(|s| s.id != id);
+        // Without a scan column, a file with times holds one scan per time (a `t` column
+        // alone used to read as one scan, refused as its rows given twice).
+        let (new_scan, id) = match (cs, t) {
+            (None, Some(t)) => match scans.last() {
+                Some(s) if s.t_s == Some(t) => (false, s.id),
+                _ => (true, scans.len() as u64),
+            },
+            _ => (scans.last().is_none_or(|s| s.id != id), id),
+        };
         if let (true, Some(t), Some(prev)) = (new_scan, t, scans.last().and_then(|s| s.t_s)) {
             if t <= prev {
                 return Err(err(
@@ -683,6 +711,46 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
     Ok(ScanFile { scans, n_reversed })
 }
 
+/// Puts back the beams without a return that an export left out of a scan (only returns
+/// written), as beams with range 0: its angles then skip whole steps, and were refused as a
+/// "mismatched angle step". Done only when every gap is a whole number of the scan's smallest
+/// step (within 5 %), all in one direction, over at most a full turn.
+fn fill_dropped_beams(s: &mut Scan) {
+    let d: Vec<f64> = s.angles_rad.windows(2).map(|w| w[1] - w[0]).collect();
+    let Some(step) = d
+        .iter()
+        .copied()
+        .filter(|x| *x != 0.0)
+        .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+    else {
+        return;
+    };
+    let whole: Vec<f64> = d.iter().map(|x| (x / step).round()).collect();
+    let fits = d
+        .iter()
+        .zip(&whole)
+        .all(|(x, m)| *m >= 1.0 && (x - m * step).abs() <= 0.05 * step.abs());
+    let total: f64 = whole.iter().sum();
+    if !fits || total <= d.len() as f64 || total * step.abs() > std::f64::consts::TAU + step.abs() {
+        return;
+    }
+    let (mut angles, mut ranges, mut intensities) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, m) in whole.iter().enumerate() {
+        angles.push(s.angles_rad[k]);
+        ranges.push(s.ranges_m[k]);
+        intensities.push(s.intensities[k]);
+        for j in 1..*m as usize {
+            angles.push(s.angles_rad[k] + j as f64 * step);
+            ranges.push(0.0);
+            intensities.push(0.0);
+        }
+    }
+    angles.push(s.angles_rad[d.len()]);
+    ranges.push(s.ranges_m[d.len()]);
+    intensities.push(s.intensities[d.len()]);
+    (s.angles_rad, s.ranges_m, s.intensities) = (angles, ranges, intensities);
+}
+
 /// Checks that a scan's angles change by one even step over at most a full turn (and match
 /// the step `expected`, if given, in size), then puts beams listed in decreasing angle order
 /// in increasing order; true when it did. The lines named are the file's.
@@ -704,6 +772,7 @@ fn finish_scan(
             format!("scan {} has fewer than 2 beams", s.id),
         ));
     }
+    fill_dropped_beams(s);
     let a0 = s.angles_rad[0];
     let step0 = s.angles_rad[1] - a0;
     if step0 == 0.0 {
@@ -731,7 +800,7 @@ fn finish_scan(
             return Err(err(
                 first_line + k,
                 format!(
-                    "mismatched angle step {d:.6} rad (this scan's step is {step0:.6} rad); beams must be evenly spaced"
+                    "mismatched angle step {d:.6} rad (this scan's step is {step0:.6} rad); beams must be evenly spaced (a beam without a return is a row with range 0, or left out whole)"
                 ),
             ));
         }
@@ -1077,7 +1146,8 @@ mod tests {
             .unwrap_err();
         assert!(e.to_string().contains("≥ 0"), "{e}");
         let e = parse_scans_csv(
-            "angle,range,intensity\n0.0,1,0\n0.01,1,0\n0.03,1,0\n",
+            // A step and a half: no beams left out explain it.
+            "angle,range,intensity\n0.0,1,0\n0.01,1,0\n0.025,1,0\n",
             "s.csv",
         )
         .unwrap_err();
@@ -1101,5 +1171,43 @@ mod tests {
         );
         let e = parse_scans_csv("angle,rng\n", "s.csv").unwrap_err();
         assert!(e.to_string().contains("angle,range,intensity"), "{e}");
+    }
+
+    /// Scans whose beams without a return were left out of the rows were refused as a
+    /// "mismatched angle step": the missing beams are put back with range 0.
+    #[test]
+    fn beams_left_out_of_a_scan_are_put_back_without_a_return() {
+        let f = parse_scans_csv(
+            "angle,range,intensity\n0.0,1,0.1\n0.01,2,0.1\n0.04,3,0.9\n0.05,4,0.1\n",
+            "s.csv",
+        )
+        .expect("one scan");
+        let s = &f.scans[0];
+        assert_eq!(s.ranges_m, vec![1.0, 2.0, 0.0, 0.0, 3.0, 4.0]);
+        assert_eq!(s.intensities, vec![0.1, 0.1, 0.0, 0.0, 0.9, 0.1]);
+        assert!((s.angles_rad[3] - 0.03).abs() < 1e-12);
+    }
+
+    /// A `t` column without a `scan` column read as one scan, refused as its rows given twice:
+    /// each time is a scan.
+    #[test]
+    fn times_without_a_scan_column_are_one_scan_each() {
+        let f = parse_scans_csv(
+            "t,angle,range,intensity\n0.0,0.0,1,0\n0.0,0.01,1,0\n0.1,0.0,2,0\n0.1,0.01,2,0\n",
+            "s.csv",
+        )
+        .expect("two scans");
+        let scans: Vec<(u64, Option<f64>, Vec<f64>)> = f
+            .scans
+            .iter()
+            .map(|s| (s.id, s.t_s, s.ranges_m.clone()))
+            .collect();
+        assert_eq!(
+            scans,
+            vec![
+                (0, Some(0.0), vec![1.0, 1.0]),
+                (1, Some(0.1), vec![2.0, 2.0])
+            ]
+        );
     }
 }

@@ -77,6 +77,9 @@ pub struct Hypothesis {
     /// The matched detections as fitted, one per match: over a recording they tell a landmark
     /// moved since the map was made from noise. Empty for a search's unrefined hypotheses.
     pub(crate) observations: Vec<Observation>,
+    /// Matches the fit left out as beyond their noise, (landmark index, observation): a
+    /// landmark left out scan after scan, off the same way, was moved too far to be matched.
+    pub(crate) outliers: Vec<(usize, Observation)>,
 }
 
 /// Outcome class of a localisation.
@@ -523,7 +526,15 @@ impl Localizer {
         }
         // The pose: every detection weighted by its covariance, from the rigid fit (which
         // weighs all alike and serves the association and the checks above).
+        let gated = matches.clone();
         let (pose, cov) = self.fit_consistent(dets, &mut matches, pose)?;
+        let left_out: Vec<(usize, usize)> =
+            gated.into_iter().filter(|m| !matches.contains(m)).collect();
+        let outliers = left_out
+            .iter()
+            .map(|m| m.1)
+            .zip(self.observations(dets, &left_out, &pose))
+            .collect();
         for t in taken.iter_mut() {
             *t = false;
         }
@@ -547,6 +558,7 @@ impl Localizer {
             helmert_scale: helmert.scale,
             cov: Some(cov),
             observations,
+            outliers,
         })
     }
 
@@ -819,6 +831,7 @@ impl Localizer {
                         helmert_scale: h.scale,
                         cov,
                         observations: Vec::new(),
+                        outliers: Vec::new(),
                     });
                 }
             }

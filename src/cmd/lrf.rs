@@ -123,7 +123,21 @@ fn check_map(a: CheckMapArgs) -> anyhow::Result<()> {
 /// Warns of every landmark that no scan sees with another: far from all the others, its
 /// coordinates are most likely mistyped.
 fn warn_isolated(map: &Map, name: &str, max_range_m: f64) {
-    for (id, p, nearest) in map.isolated(max_range_m) {
+    let isolated = map.isolated(max_range_m);
+    // Many landmarks alone are no typos: the range given is shorter than the room's spacing
+    // (`--max-range-m 0.5` named 10 landmarks as mistyped, one by one, before anything else).
+    if isolated.len() >= 3 && isolated.len() * 5 >= map.len() {
+        let mut gaps: Vec<f64> = isolated.iter().map(|x| x.2).collect();
+        gaps.sort_by(f64::total_cmp);
+        tell!(
+            "warning: {name}: {} of its {} landmarks are more than twice --max-range-m {max_range_m} m from every other (the nearest other {:.2} m away, median), so no scan sees them with another: is --max-range-m the scanner's range (its data sheet's), in metres?",
+            isolated.len(),
+            map.len(),
+            gaps[gaps.len() / 2]
+        );
+        return;
+    }
+    for (id, p, nearest) in isolated {
         tell!(
             "warning: {name}: landmark id {id} at ({:.3}, {:.3}) m is {nearest:.2} m from the nearest other landmark, more than twice --max-range-m {max_range_m} m, so no scan sees it with another and it cannot help a pose: is a coordinate mistyped?",
             p.x, p.y
@@ -202,6 +216,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     cfg.sensor.check()?;
     check_fov(&scans, &cfg.sensor)?;
     check_intensity_scale(&scans, &cfg.sensor)?;
+    // Untimed scans are timed by their ids: a gap in them is scans dropped, said so.
+    if scans.iter().all(|s| s.t_s.is_none()) && scans.windows(2).all(|w| w[0].id < w[1].id) {
+        if let (Some(first), Some(last)) = (scans.first(), scans.last()) {
+            let missing = (last.id - first.id + 1) as usize - scans.len();
+            if missing > 0 {
+                tell!(
+                    "note: the scans have no t column and {missing} of the scan ids from {} to {} are missing: each scan is timed by its id at --rate-hz {} (a gap is scans dropped), so the motion between the scans either side of a gap is that of the time it spans; give each scan's time in a t column if the ids do not count the scanner's sweeps",
+                    first.id,
+                    last.id,
+                    a.rate_hz
+                );
+            }
+        }
+    }
     let loc = Localizer::new(map, cfg);
     if let Some(w) = check_beam_step(&loc, &scans) {
         tell!("warning: {w}");
@@ -213,8 +241,13 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         skewed,
         n_repeated,
         unseen,
+        dim,
         moved,
         n_unsupported,
+        fit,
+        calibration,
+        left_out,
+        n_off_track,
     } = localize_scans(&loc, &scans, a.rate_hz, a.global_only, &|| bar.inc(1));
     let elapsed = start.elapsed();
     bar.finish_and_clear();
@@ -244,9 +277,12 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
                     "drop --upside-down",
                 )
             } else {
+                // Scans and map mirrored to each other look the same whichever is: the map's
+                // frame may be the left-handed one (y flipped), which --upside-down would only
+                // mirror the poses into.
                 (
                     "the scanner looks mounted upside down, its angles clockwise",
-                    "give --upside-down (which negates every angle), or turn the scanner the right way up",
+                    "give --upside-down (which negates every angle), or turn the scanner the right way up; or, if the scanner is the right way up, the map is a mirror image of the room (its y axis flipped, a left-handed frame): give the map with y and facing_rad negated",
                 )
             };
             anyhow::bail!(
@@ -267,9 +303,51 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.max_range_m
         )
     };
+    // Said first: the landmarks, poses and counts below are of the corrected scans.
+    if let Some(c) = calibration {
+        let (_, sb) = c.residual.range_offset_m;
+        let (_, sk) = c.residual.angle_scale;
+        let mut found = Vec::new();
+        if c.range_offset_m.abs() >= 1e-3 {
+            found.push(format!(
+                "the ranges read {:.1} ± {:.1} mm {}",
+                c.range_offset_m.abs() * 1e3,
+                sb * 1e3,
+                if c.range_offset_m > 0.0 {
+                    "long"
+                } else {
+                    "short"
+                }
+            ));
+        }
+        if (c.angle_scale - 1.0).abs() >= 2e-4 {
+            found.push(format!(
+                "the angles read {:.5} ± {:.5} times the true ones (an angle step of {:.7} rad, where the scans step {:.7} rad)",
+                c.angle_scale,
+                sk,
+                loc.cfg.sensor.step_rad / c.angle_scale,
+                loc.cfg.sensor.step_rad
+            ));
+        }
+        tell!(
+            "warning: the landmarks' residuals were {:.1} times the detections' noise (χ² per degree of freedom), off alike at every landmark as a miscalibrated scanner leaves them: fitted over the recording, {}; every range and angle was corrected by that and the scans localised again (χ² per degree of freedom now {:.2}). Calibrate the scanner (its range offset, the angle_increment its driver reports), or give the scans corrected",
+            c.ratio_before,
+            found.join(" and "),
+            c.ratio_after
+        );
+    }
     // Said before any refusal: a reflector gone from a symmetric room leaves every scan
     // ambiguous.
     for &(id, n, missed) in &unseen {
+        // A reflector that returns at its place, only dimly, is there: the threshold is.
+        if let Some(&(_, n_dim, median)) = dim.iter().find(|d| d.0 == id) {
+            tell!(
+                "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them, but in {n_dim} of those a return lay at its place, at intensity {median:.3} (median), below --intensity-min {}: is the reflector there and its returns dimmer than the threshold (far, or seen at a slant)? Give --intensity-min below {median:.3} if the walls stay under it",
+                a.map.display(),
+                a.intensity_min
+            );
+            continue;
+        }
         tell!(
             "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
             a.map.display()
@@ -300,14 +378,59 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             a.map.display()
         );
     }
+    // Poses that fit their landmarks worse than the noise explains: more than chance would
+    // make (1 % of them, and three standard deviations of that count) is a cause to find.
+    let by_chance = 0.01 * fit.n_poses as f64;
+    if fit.n_widened as f64 > by_chance + 3.0 * by_chance.sqrt() + 1.0 {
+        tell!(
+            "warning: {} of {} ok poses fit their landmarks worse than the detections' noise explains (χ² beyond its 99 % quantile, where about {:.0} would by chance; over the recording χ² is {:.2} times its degrees of freedom): their σ were widened by that excess and by how far leaving out each landmark moves the pose. A landmark off its mapped place (moved, or surveyed wrong) or a shiny object taken for a reflector does this: check the landmarks named above, the map's position_sigma_m and --sigma-range-m",
+            fit.n_widened,
+            fit.n_poses,
+            by_chance,
+            fit.ratio
+        );
+    }
+    for m in left_out {
+        let dir = m.offset_m.normalize();
+        tell!(
+            "warning: landmark {} of {} was detected {:.0} mm from its mapped position along ({:.2}, {:.2}) in {} scans (σ of that mean {:.1} mm), too far to fit, and was left out of their poses each time: was it moved after mapping? Update its position in {}, or remove it",
+            m.id,
+            a.map.display(),
+            m.offset_m.norm() * 1e3,
+            dir.x,
+            dir.y,
+            m.n_scans,
+            m.sigma_m * 1e3,
+            a.map.display()
+        );
+    }
+    if n_off_track > 0 {
+        tell!(
+            "warning: {n_off_track} ok {} off the track the poses either side give by more than {} σ and a small robot's acceleration allow: {} widened to cover how far off {} (a shiny object taken for a reflector in place of one can fit as well as the right landmarks); check the scans at those times for glints, or raise --intensity-min",
+            if n_off_track == 1 { "pose lay" } else { "poses lay" },
+            if n_off_track == 1 { "its" } else { "their" },
+            if n_off_track == 1 { "its σ was" } else { "their σ were" },
+            if n_off_track == 1 { "it is" } else { "they are" },
+        );
+    }
     // A range noise given too small turns the true poses away and reads like a wrong map:
     // tried first, on the run's first scans, whenever most scans found no pose.
     let noise_hint = || {
         wider_noise_finds_poses(&loc, &scans, a.rate_hz, a.global_only).map(|w| {
+            let (times, why) = if w.sigma_range_m > a.sigma_range_m {
+                (
+                    format!("{:.0} times", w.sigma_range_m / a.sigma_range_m),
+                    "a σ below the scanner's range noise turns the true pose away",
+                )
+            } else {
+                (
+                    format!("1/{:.0} of", a.sigma_range_m / w.sigma_range_m),
+                    "a σ far above the scanner's range noise lets every scan fit the map in several places",
+                )
+            };
             format!(
-                "with --sigma-range-m {} m ({:.0} times the {} m given) {} of the first {} scans find a pose, where {} did: matches are gated at a few σ of --sigma-range-m, so a σ below the scanner's range noise turns the true pose away; give the scanner's range noise (1σ, from its datasheet or the spread of its ranges to a wall)",
+                "with --sigma-range-m {} m ({times} the {} m given) {} of the first {} scans find a pose, where {} did: matches are gated at a few σ of --sigma-range-m, so {why}; give the scanner's range noise (1σ, from its datasheet or the spread of its ranges to a wall)",
                 w.sigma_range_m,
-                w.sigma_range_m / a.sigma_range_m,
                 a.sigma_range_m,
                 w.n_ok_wider,
                 w.n_scans,
@@ -556,8 +679,17 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             )
         };
         say!(
-            "vs truth: {accuracy}; confident wrong poses: {}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %){}",
-            e.n_wrong_ok,
+            "vs truth: {accuracy}; confident wrong poses: {}{}; correct on {}/{} scans with >= 3 detected landmarks ({:.1} %){}",
+            e.n_wrong_ok + e.n_beyond_sigma_ok,
+            if e.n_beyond_sigma_ok > 0 {
+                format!(
+                    " ({} of them within 5 cm and 1° but more than {} of their σ off)",
+                    e.n_beyond_sigma_ok,
+                    odocal_lrf::BEYOND_SIGMAS
+                )
+            } else {
+                String::new()
+            },
             e.n_correct_eligible,
             e.n_eligible,
             100.0 * e.n_correct_eligible as f64 / e.n_eligible.max(1) as f64,
