@@ -1842,7 +1842,7 @@ fn a_motion_capture_truth_judges_the_fixes_between_its_samples() {
     assert!(mocap_n >= 58.0 && frames_n == 60.0, "{mocap_n} {frames_n}");
     assert!(
         out.contains(&format!(
-            "({mocap_n} of them between two truth rows ≤ 25 ms apart)"
+            "({mocap_n} of them interpolated between two truth rows, where that strays at most as far as midway between rows 25 ms apart)"
         )),
         "{out}"
     );
@@ -2801,5 +2801,117 @@ fn recordings_joined_byte_for_byte_are_named_where_time_starts_again() {
             && !err.contains("warning")
             && !err.contains("goes back in time"),
         "{err}"
+    );
+}
+
+/// A truth at the frames' times judges fixes a rolling shutter times at their tag's row where
+/// they are close enough to a row to interpolate (the tag near the top of the image), and a
+/// truth that judges none is said after the trajectory and report are written: it was
+/// refused after the whole video was tracked, and neither was written.
+#[test]
+fn a_truth_at_the_frames_times_judges_rolling_shutter_fixes_near_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 30, 3, &["--rolling-shutter-ms", "30"]);
+    let (out, report) = (d.join("a.csv"), d.join("a.json"));
+    let track = |truth: &std::path::Path| {
+        odocal(&[
+            "track",
+            p(&d.join("video.avi")),
+            "--camera",
+            p(&d.join("camera.json")),
+            "--out",
+            p(&out),
+            "--report",
+            p(&report),
+            "--rolling-shutter-s",
+            "0.03",
+            "--truth",
+            p(truth),
+        ])
+    };
+    let res = track(&d.join("truth.csv"));
+    succeeded(&res);
+    let text = String::from_utf8_lossy(&res.stdout);
+    let (rms_mm, n) = (
+        number_after(&text, "position RMS "),
+        number_after(&text, "over the "),
+    );
+    println!("{text}");
+    assert!(n >= 15.0 && rms_mm < 0.1, "{n} fixes, {rms_mm} mm");
+
+    // Every third row: 100 ms apart, no fix near enough to one.
+    let text = std::fs::read_to_string(d.join("truth.csv")).unwrap();
+    let sparse: String = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| *i == 0 || i % 3 == 1)
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    std::fs::write(d.join("t10.csv"), sparse).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    std::fs::remove_file(&report).unwrap();
+    let res = track(&d.join("t10.csv"));
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("rows are 100 ms apart")
+            && err.contains("the trajectory is written all the same"),
+        "{err}"
+    );
+    assert_eq!(Trajectory::read_csv(&out).unwrap().rows.len(), 30);
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(
+        r["warnings"]
+            .to_string()
+            .contains("no comparison with the truth"),
+        "{r}"
+    );
+}
+
+/// Fixes count from the video's first frame; a truth on the container's clock (a Matroska
+/// file starting at 100 s) is refused before tracking, with the offset to take off it, where
+/// it was blamed on the truth after the tracking.
+#[test]
+fn a_truth_on_the_containers_clock_is_told_the_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 10, 3, &["--video", "mp4"]);
+    let off = d.join("off.mkv");
+    ran(ffmpeg().args([
+        "-v",
+        "error",
+        "-i",
+        p(&d.join("video.mp4")),
+        "-c",
+        "copy",
+        "-output_ts_offset",
+        "100",
+        p(&off),
+    ]));
+    let text = std::fs::read_to_string(d.join("truth.csv")).unwrap();
+    let shifted: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match (i, l.split_once(',')) {
+            (0, _) | (_, None) => format!("{l}\n"),
+            (_, Some((t, rest))) => format!("{},{rest}\n", t.parse::<f64>().unwrap() + 100.0),
+        })
+        .collect();
+    std::fs::write(d.join("t100.csv"), shifted).unwrap();
+    let res = odocal(&[
+        "track",
+        p(&off),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("o.csv")),
+        "--truth",
+        p(&d.join("t100.csv")),
+    ]);
+    fails_with(
+        &res,
+        "the fixes are timed in seconds from the video's first frame (t = 0), 0.000 to 0.300 s: the video's first frame is at 100.000 s on its container's clock, so this looks like a truth on that clock: subtract 100.000 s from its times",
     );
 }

@@ -389,6 +389,7 @@ pub(crate) mod tests {
                 extrapolated_times: 0,
                 overridden_fps: None,
                 container_fps: video.then_some(FPS),
+                first_frame_clock_s: None,
                 display_rotation: None,
                 container_times_s: None,
                 corrupt_frames: Vec::new(),

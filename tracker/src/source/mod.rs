@@ -121,6 +121,10 @@ pub struct SourceInfo {
     /// image's EXIF orientation), which is not applied: frames are read as the sensor
     /// recorded them, the layout the calibration describes.
     pub display_rotation: Option<String>,
+    /// The first frame's time on the container's own clock, seconds, when it is not 0: frame
+    /// times count from the first frame, so a truth on the container's clock is this much
+    /// later than the fixes.
+    pub first_frame_clock_s: Option<f64>,
     /// The container's own times of the frames (seconds from the first, by frame index) when
     /// `--fps` timed them by counting instead: they still show the frames dropped.
     pub container_times_s: Option<Vec<f64>>,
@@ -310,6 +314,7 @@ impl MemorySource {
                 corrupt_files: Vec::new(),
                 container_fps: None,
                 container_times_s: None,
+                first_frame_clock_s: None,
                 display_rotation: None,
             },
             frames: frames.into(),

@@ -135,6 +135,10 @@ impl VideoSource {
         };
         (src.info.width, src.info.height) = (first.image.width, first.image.height);
         src.info.frame_count = src.frame_count_from_first();
+        // OpenCV times frames from the stream's start time.
+        let start = src.probe.as_ref().and_then(|p| p.stream_start_s);
+        src.info.first_frame_clock_s =
+            Some(start.unwrap_or(0.0) + src.first_pts_s.unwrap_or(0.0)).filter(|t| t.abs() > 1e-3);
         Ok(src)
     }
 
@@ -229,6 +233,7 @@ impl VideoSource {
                 corrupt_files: Vec::new(),
                 container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
                 container_times_s: None,
+                first_frame_clock_s: None,
                 display_rotation: (rotate_deg.rem_euclid(360) != 0)
                     .then(|| format!("its rotate tag asks for a turn of {rotate_deg}° on display")),
                 overridden_fps: opts
