@@ -121,9 +121,25 @@ impl VideoSource {
         if let Some(probe) = &probe {
             refuse_interlaced(path, probe)?;
         }
+        // A raw stream's times are FFmpeg's guess at 25 fps: the frames are counted at --fps,
+        // and without it refused, as an image folder without timestamps is.
+        let untimed = probe.as_ref().and_then(StreamProbe::untimed);
+        if let Some(format) = &untimed {
+            if opts.fps.is_none() {
+                return Err(TrackError::bad_input(
+                    path,
+                    format!(
+                        "a raw {format} stream holds no timestamps nor a frame rate (FFmpeg would guess 25 fps, and every time and speed would follow the guess): give --fps, the camera's frame rate"
+                    ),
+                ));
+            }
+            src.no_timestamps = true;
+            src.info.overridden_fps = None;
+            src.info.container_fps = None;
+        }
         src.probe = probe.clone();
         src.pending = src.read_batch(2)?;
-        if src.raw_jpeg && src.pending.len() == 2 && src.no_timestamps {
+        if src.raw_jpeg && src.pending.len() == 2 && src.no_timestamps && untimed.is_none() {
             // OpenCV gives no timestamps for undecoded packets of this container (AVI):
             // decode in FFmpeg instead, which does (beside --fps too: they show the drops).
             src = Self::open_capture(path, opts, false)?;
@@ -501,6 +517,8 @@ struct StreamProbe {
     format_start_s: Option<f64>,
     /// The container's duration, seconds.
     format_duration_s: Option<f64>,
+    /// The stream's average frame rate as ffprobe reads it ("30/1"; "0/0" when unknown).
+    avg_frame_rate: Option<String>,
 }
 
 impl StreamProbe {
@@ -526,7 +544,30 @@ impl StreamProbe {
             stream_duration_s: num(Some(stream), "duration"),
             format_start_s: num(format, "start_time"),
             format_duration_s: num(format, "duration"),
+            avg_frame_rate: text(Some(stream), "avg_frame_rate"),
         })
+    }
+
+    /// The raw stream format, when the file is a codec's bare stream whose frames carry no
+    /// times and which states no rate (an MJPEG stream, an H.264 stream without timing in its
+    /// headers): FFmpeg times such frames at a guessed 25 fps.
+    fn untimed(&self) -> Option<String> {
+        const RAW: [&str; 8] = [
+            "mjpeg",
+            "mpjpeg",
+            "jpeg_pipe",
+            "image2pipe",
+            "h264",
+            "hevc",
+            "m4v",
+            "rawvideo",
+        ];
+        let raw = self.format_name.split(',').find(|f| RAW.contains(f))?;
+        let rate_unknown = self
+            .avg_frame_rate
+            .as_deref()
+            .is_none_or(|r| r.starts_with("0/") || r.ends_with("/0"));
+        rate_unknown.then(|| raw.to_string())
     }
 
     /// Whether the container states where its stream ends (MP4/MOV and Matroska), rather
@@ -561,7 +602,7 @@ impl StreamProbe {
 fn probe_stream(path: &Path) -> Option<StreamProbe> {
     let out = std::process::Command::new("ffprobe")
         .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .args(["stream=field_order,start_time,duration:format=format_name,start_time,duration"])
+        .args(["stream=field_order,start_time,duration,avg_frame_rate:format=format_name,start_time,duration"])
         .args(["-of", "json"])
         .arg(path)
         .output()
