@@ -2915,3 +2915,48 @@ fn a_truth_on_the_containers_clock_is_told_the_offset() {
         "the fixes are timed in seconds from the video's first frame (t = 0), 0.000 to 0.300 s: the video's first frame is at 100.000 s on its container's clock, so this looks like a truth on that clock: subtract 100.000 s from its times",
     );
 }
+
+/// `synth track` at a high frame rate writes the frames its truth has: at 120 fps the path
+/// ran 10 ms past the last frame and the video held a frame more (41 for 40; 11 more at
+/// 1001 fps); rates `track` does not read, or an AVI beyond its writer's 1000 fps, are refused
+/// at once (0.0001 fps aborted asking for 47 GB); the default exposure follows a frame period
+/// shorter than it, where 250 fps was refused for an --exposure-ms never given.
+#[test]
+fn synth_track_at_high_and_low_rates() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(
+        d,
+        40,
+        3,
+        &["--fps", "120", "--exposure-ms", "0.5", "--video", "mp4"],
+    );
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
+        .arg(d.join("video.mp4"))
+        .output()
+        .unwrap();
+    let frames: usize = String::from_utf8_lossy(&out.stdout).trim().parse().unwrap();
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    assert_eq!((frames, truth.rows.len()), (40, 40));
+
+    let x = d.join("x");
+    let synth = |args: &[&str]| {
+        let mut a = vec!["synth", "track", "--out", p(&x), "--frames", "5"];
+        a.extend(args);
+        odocal(&a)
+    };
+    fails_with(
+        &synth(&["--fps", "0.0001"]),
+        "--fps 0.0001: a camera's frame rate is 0.1 to 10000 frames/s",
+    );
+    fails_with(
+        &synth(&["--fps", "1001"]),
+        "--fps 1001 --video avi: the AVI writer times frames at most 1000 fps",
+    );
+    succeeded(&synth(&["--fps", "250"]));
+    let scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("x/scene.json")).unwrap()).unwrap();
+    assert_eq!(scene["exposure_s"].as_f64(), Some(0.002), "{scene}");
+}
