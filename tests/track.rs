@@ -2960,3 +2960,50 @@ fn synth_track_at_high_and_low_rates() {
         serde_json::from_str(&std::fs::read_to_string(d.join("x/scene.json")).unwrap()).unwrap();
     assert_eq!(scene["exposure_s"].as_f64(), Some(0.002), "{scene}");
 }
+
+/// A robot that waits before it drives, in frames H.264 decodes identical: the waiting frames
+/// were taken as one image repeated (a still video kept 1 fix of 90, a 2 s wait had its 60
+/// frames called dropped); every frame keeps its fix, at the truth.
+#[test]
+fn a_robot_waiting_at_the_start_keeps_its_fixes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(d, 30, 3, &[]);
+    let wait = d.join("wait.mp4");
+    ran(ffmpeg().args([
+        "-v",
+        "error",
+        "-i",
+        p(&d.join("video.avi")),
+        "-vf",
+        "tpad=start_mode=clone:start_duration=2",
+        "-c:v",
+        "libx264",
+        "-crf",
+        "18",
+        p(&wait),
+    ]));
+    let out = d.join("w.csv");
+    let res = odocal(&[
+        "track",
+        p(&wait),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&out),
+    ]);
+    succeeded(&res);
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(!err.contains("warning"), "{err}");
+    let est = Trajectory::read_csv(&out).unwrap();
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    assert_eq!(est.rows.len(), 90);
+    let mut s = 0.0;
+    for r in &est.rows {
+        let k = ((r.t_s - 2.0) * 30.0).round().max(0.0) as usize;
+        s += (r.pose.position() - truth.rows[k].pose.position()).norm_squared();
+    }
+    let rms_mm = (s / 90.0).sqrt() * 1e3;
+    println!("{rms_mm:.3} mm RMS over 90 fixes");
+    assert!(rms_mm < 0.2, "{rms_mm} mm");
+}
