@@ -9,6 +9,7 @@ mod deblur;
 pub mod detect;
 mod edges;
 mod error;
+mod interlace;
 mod lost_frames;
 pub mod marker_height;
 pub mod multi;

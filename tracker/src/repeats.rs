@@ -402,6 +402,7 @@ pub(crate) mod tests {
                 extrapolated_times: 0,
                 overridden_fps: None,
                 container_fps: video.then_some(FPS),
+                interlace_comb: None,
                 first_frame_clock_s: None,
                 display_rotation: None,
                 container_times_s: None,

@@ -249,6 +249,7 @@ impl VideoSource {
                 corrupt_files: Vec::new(),
                 container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
                 container_times_s: None,
+                interlace_comb: None,
                 first_frame_clock_s: None,
                 display_rotation: (rotate_deg.rem_euclid(360) != 0)
                     .then(|| format!("its rotate tag asks for a turn of {rotate_deg}° on display")),
@@ -624,16 +625,11 @@ fn refuse_interlaced(path: &Path, probe: &StreamProbe) -> Result<(), TrackError>
     if !matches!(order, "tt" | "bb" | "tb" | "bt") {
         return Ok(());
     }
-    let stem = path
-        .file_stem()
-        .map_or("video".into(), |s| s.to_string_lossy());
-    let progressive = path.with_file_name(format!("{stem}_progressive.mp4"));
     Err(TrackError::bad_input(
         path,
-        format!(
-            "the video is interlaced (field order {order}): each frame holds two fields taken half a frame apart, so a moving tag is torn between two places and its fixes are off by more than their σ says; deinterlace it to one frame per field, `ffmpeg -i {} -vf yadif=1 {}`, and track that",
-            path.display(),
-            progressive.display()
+        super::interlaced_advice(
+            path,
+            &format!("the video is interlaced (field order {order})"),
         ),
     ))
 }
