@@ -3049,3 +3049,64 @@ fn an_unflagged_interlaced_video_is_read_off_its_comb() {
     assert!(ratio > 1.2 && e.contains("-vf yadif=1"), "{e}");
     succeeded(&track(&d.join("video.avi")));
 }
+
+/// A spare tag of the robot's id in view from the first frame leaves every frame a gap, and
+/// the error named the median of both tags' places ("pixel (384, 361)" for a spare at
+/// (1000, 360)); it names the tag that stands still.
+#[test]
+fn a_spare_tag_in_view_from_the_start_is_named_where_it_lies() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth_track_with(&d.join("sp"), 2, 9, &[]);
+    synth_track_with(d, 20, 3, &[]);
+    let patch = d.join("patch.png");
+    ran(ffmpeg()
+        .args([
+            "-v",
+            "error",
+            "-i",
+            p(&d.join("sp/video.avi")),
+            "-frames:v",
+            "1",
+        ])
+        .args(["-vf", "crop=80:80:345:91", p(&patch)]));
+    let two = d.join("two.avi");
+    ran(ffmpeg()
+        .args([
+            "-v",
+            "error",
+            "-i",
+            p(&d.join("video.avi")),
+            "-i",
+            p(&patch),
+        ])
+        .args([
+            "-filter_complex",
+            "[0][1]overlay=960:320",
+            "-c:v",
+            "mjpeg",
+            "-q:v",
+            "2",
+        ])
+        .arg(&two));
+    let res = odocal(&[
+        "track",
+        p(&two),
+        "--camera",
+        p(&d.join("camera.json")),
+        "--out",
+        p(&d.join("k.csv")),
+    ]);
+    let e = fails_with(&res, "another tag 0 at pixel (");
+    let (u, v) = (
+        number_after(&e, "another tag 0 at pixel ("),
+        number_after(
+            &e,
+            &format!(
+                "another tag 0 at pixel ({}, ",
+                number_after(&e, "another tag 0 at pixel (")
+            ),
+        ),
+    );
+    assert!((u - 1000.0).abs() < 3.0 && (v - 360.0).abs() < 3.0, "{e}");
+}
