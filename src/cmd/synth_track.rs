@@ -221,6 +221,36 @@ impl CameraArgs {
     }
 }
 
+/// The fastest frame rate OpenCV's AVI writer keeps: above it, it writes 600 fps timestamps
+/// that repeat, and FFmpeg drops the frames on them.
+const MAX_AVI_FPS: f64 = 1000.0;
+
+/// Refuses a frame rate `track` does not read (0.1 to 10000 frames/s), a recording longer
+/// than the hour `--frames` allows at 30 frames/s (0.0001 fps asked for 47 GB of path), and
+/// an AVI faster than its writer times (1001 fps wrote 600 fps frames, some lost).
+fn check_fps(fps: f64, frames: usize, format: VideoFormat) -> anyhow::Result<()> {
+    use odocal_tracker::source::{MAX_FPS, MIN_FPS};
+    if !(MIN_FPS..=MAX_FPS).contains(&fps) {
+        anyhow::bail!(
+            "--fps {fps}: a camera's frame rate is {MIN_FPS} to {MAX_FPS} frames/s (what `odocal track` reads)"
+        );
+    }
+    let hour_s = MAX_FRAMES as f64 / 30.0;
+    let duration_s = frames.saturating_sub(1) as f64 / fps;
+    if duration_s > hour_s {
+        anyhow::bail!(
+            "--fps {fps} --frames {frames}: {duration_s:.0} s of video, more than an hour; give fewer frames (at most {} at {fps} fps) or a higher rate",
+            (hour_s * fps).floor() as usize + 1
+        );
+    }
+    if format == VideoFormat::Avi && fps > MAX_AVI_FPS {
+        anyhow::bail!(
+            "--fps {fps} --video avi: the AVI writer times frames at most {MAX_AVI_FPS} fps (faster, it writes 600 fps timestamps and loses frames); use --video mp4 or --video png, which hold up to {MAX_FPS} fps"
+        );
+    }
+    Ok(())
+}
+
 /// Runs the subcommand.
 /// Frames `synth track` and `synth arena` render at most: an hour at 30 frames/s.
 pub(crate) const MAX_FRAMES: usize = 108_000;
@@ -233,7 +263,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "an hour at 30 frames/s",
     )?;
     let format = args.camera.format(args.video.as_deref())?;
-    let (exposure_s, effects) = args.camera.effects(format);
+    check_fps(args.fps, args.frames, format)?;
+    let (mut exposure_s, effects) = args.camera.effects(format);
+    // The default exposure (4 ms, 16 with --realistic) is longer than a frame at 250 fps
+    // (62.5 with --realistic): left to its default, it takes half the frame period there.
+    if args.camera.exposure_ms.is_none() && exposure_s >= 0.5 / args.fps {
+        exposure_s = 0.5 / args.fps;
+    }
     let scene = TrackScene {
         seed: args.seed,
         frames: args.frames,

@@ -8,9 +8,9 @@ use odocal_synth::scene::FramesTruth;
 use odocal_tracker::multi::TagSelection;
 use odocal_tracker::Trajectory;
 use odocal_tracker::{
-    errors_against, fix_warnings, open_source, overlay, quiet_video_logs, track_report,
-    track_source, AgainstTruth, SourceOptions, TagDetector, TimingReport, TrackError, TrackOptions,
-    TrackResult,
+    errors_against, fix_warnings, open_source, overlay, quiet_video_logs, reference_at,
+    track_report, track_source, AgainstTruth, SourceOptions, TagDetector, TimingReport, TrackError,
+    TrackOptions, TrackResult,
 };
 
 use crate::output::{
@@ -109,6 +109,60 @@ fn read_truth(path: &Path) -> anyhow::Result<(Trajectory, Option<usize>)> {
     Ok((Trajectory::read_csv(path)?, None))
 }
 
+/// Why a truth spanning other times than the fixes (`fixes_s`: first and last, seconds) judges
+/// none of them, and what to do: the fixes count from the video's first frame, which is
+/// `first_clock_s` on the container's own clock (a truth on that clock is that much late).
+fn other_clock(
+    path: &Path,
+    truth: &Trajectory,
+    fixes_s: (f64, f64),
+    first_clock_s: Option<f64>,
+) -> String {
+    let (t0, t1) = (truth.start_s(), truth.end_s());
+    let todo = match first_clock_s {
+        Some(c) if t0 - c <= fixes_s.1 && t1 - c >= fixes_s.0 => format!(
+            "the video's first frame is at {c:.3} s on its container's clock, so this looks like a truth on that clock: subtract {c:.3} s from its times"
+        ),
+        Some(c) => format!(
+            "the video's first frame is at {c:.3} s on its container's clock: give the truth in seconds from the first frame"
+        ),
+        None => "give the truth of this video in seconds from its first frame".to_string(),
+    };
+    format!(
+        "{}: it spans {t0:.3} to {t1:.3} s, and the fixes are timed in seconds from the video's first frame (t = 0), {:.3} to {:.3} s: {todo}",
+        path.display(),
+        fixes_s.0,
+        fixes_s.1
+    )
+}
+
+/// Why a truth whose rows are too far apart to interpolate between anywhere judges no fix
+/// (None when its rows are close enough): its spacing, how near a row a fix must be, and,
+/// under a rolling shutter (`readout_s`), that fixes are timed between the frames.
+fn too_sparse(path: &Path, truth: &Trajectory, readout_s: f64) -> Option<String> {
+    let gap = truth
+        .median_spacing_s()
+        .filter(|s| *s > REFERENCE_MAX_GAP_S + SAME_TIME_S)?;
+    // How far from one of its rows a fix can be judged (the tracker's `reference_at`).
+    let g = REFERENCE_MAX_GAP_S;
+    let reach = (gap - (gap * gap - g * g).max(0.0).sqrt()) / 2.0;
+    let readout = match readout_s {
+        0.0 => String::new(),
+        r => format!(
+            " (with --rolling-shutter-s {r} each fix is timed at its tag's row, up to {:.0} ms after its frame, so a truth at the frames' times judges only the fixes within {:.1} ms of a frame: give the truth at the tags' rows, as frames.csv of a video rendered with that readout has, or check the readout)",
+            r.abs() * 1e3,
+            reach * 1e3
+        ),
+    };
+    Some(format!(
+        "{}: no row has the time of a tracked frame, and its rows are {:.0} ms apart (median), too far apart to interpolate between except within {:.1} ms of a row, where no fix is (rows at most {:.0} ms apart interpolate anywhere): give a truth sampled at 40 Hz or more, or at the fixes' times{readout}",
+        path.display(),
+        gap * 1e3,
+        reach * 1e3,
+        REFERENCE_MAX_GAP_S * 1e3
+    ))
+}
+
 /// The trajectory against the truth.
 fn against_truth(
     args: &Args,
@@ -116,6 +170,7 @@ fn against_truth(
     trajectory: &Trajectory,
     (truth, frames): &(Trajectory, Option<usize>),
     path: &Path,
+    first_clock_s: Option<f64>,
 ) -> anyhow::Result<AgainstTruth> {
     let e = errors_against(trajectory, truth);
     if e.matched == 0 {
@@ -123,16 +178,11 @@ fn against_truth(
         // another clock's or another recording's.
         let overlaps =
             truth.start_s() <= trajectory.end_s() && truth.end_s() >= trajectory.start_s();
-        if let Some(gap) = truth
-            .median_spacing_s()
-            .filter(|s| overlaps && *s > REFERENCE_MAX_GAP_S + SAME_TIME_S)
+        if let Some(why) = overlaps
+            .then(|| too_sparse(path, truth, args.tag.rolling_shutter_s))
+            .flatten()
         {
-            anyhow::bail!(
-                "{}: no row has the time of a tracked frame, and its rows are {:.0} ms apart (median), too far apart to interpolate between (at most {:.0} ms): give a truth sampled at 40 Hz or more, or at the frames' times",
-                path.display(),
-                gap * 1e3,
-                REFERENCE_MAX_GAP_S * 1e3
-            );
+            anyhow::bail!("{why}");
         }
         // Under a rolling shutter each fix is timed at its tag's row: only a truth timed
         // with the same readout has rows at those times.
@@ -144,19 +194,19 @@ fn against_truth(
         } else {
             String::new()
         };
-        let span = if overlaps {
-            String::new()
-        } else {
-            format!(
-                " (it spans {:.3} to {:.3} s, the fixes {:.3} to {:.3} s)",
-                truth.start_s(),
-                truth.end_s(),
-                trajectory.start_s(),
-                trajectory.end_s()
-            )
-        };
+        if !overlaps {
+            anyhow::bail!(
+                "{}",
+                other_clock(
+                    path,
+                    truth,
+                    (trajectory.start_s(), trajectory.end_s()),
+                    first_clock_s
+                )
+            );
+        }
         anyhow::bail!(
-            "{}: no row has the timestamp of a tracked frame, nor are two rows around one{span}: give the truth of this video (synth track's truth.csv or frames.csv, on the video's clock){readout}",
+            "{}: no row has the timestamp of a tracked frame, nor are two rows around one: give the truth of this video (synth track's truth.csv or frames.csv, in seconds from the video's first frame){readout}",
             path.display()
         );
     }
@@ -185,7 +235,7 @@ const TRUTH_HEADING_MISMATCH_RAD: f64 = 0.17;
 /// `worst_both_ways`: the camera file's floor uncertainty map has σ of the worst direction
 /// only, which the fixes take for x and y alike, so an honest σ gives error/σ under 1 where
 /// it dominates.
-fn print_against_truth(a: &AgainstTruth, tag_id: u32, worst_both_ways: bool) {
+fn print_against_truth(a: &AgainstTruth, tag_id: u32, worst_both_ways: bool, readout_s: f64) {
     let e = &a.errors;
     let z = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.2}"));
     say!(
@@ -197,7 +247,7 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32, worst_both_ways: bool) {
         e.matched,
         if e.interpolated > 0 {
             format!(
-                " ({} of them between two truth rows ≤ {:.0} ms apart)",
+                " ({} of them interpolated between two truth rows, where that strays at most as far as midway between rows {:.0} ms apart)",
                 e.interpolated,
                 REFERENCE_MAX_GAP_S * 1e3
             )
@@ -227,8 +277,14 @@ fn print_against_truth(a: &AgainstTruth, tag_id: u32, worst_both_ways: bool) {
         );
     }
     if 2 * e.matched < a.fixes {
+        let readout = match readout_s {
+            0.0 => String::new(),
+            r => format!(
+                " (with --rolling-shutter-s {r} the fixes are timed at their tag's row, between the frames' times: a truth at the frames' times judges only those near one)"
+            ),
+        };
         tell!(
-            "warning: only {} of the {} fixes have a truth in {} at their time, so the figures above judge those only: give the truth of the whole video (frames.csv of `synth track` has a row per frame)",
+            "warning: only {} of the {} fixes have a truth in {} at their time, so the figures above judge those only: give the truth of the whole video (frames.csv of `synth track` has a row per frame){readout}",
             e.matched, a.fixes, a.truth
         );
     }
@@ -370,6 +426,27 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(fps) = args.fps.or(source.info().container_fps) {
         check_readout(args.tag.rolling_shutter_s, 1.0 / fps)?;
     }
+    let first_clock_s = source.info().first_frame_clock_s;
+    // A truth on another clock is refused before the tracking it could not judge.
+    if let (Some((truth, _)), Some(path), Some(n), Some(fps)) = (
+        &truth,
+        &args.truth,
+        source.info().frame_count,
+        args.fps.or(source.info().container_fps),
+    ) {
+        let (end, slack) = (n.saturating_sub(1) as f64 / fps, 1.0 / fps);
+        if truth.end_s() < -slack || truth.start_s() > end + slack {
+            anyhow::bail!("{}", other_clock(path, truth, (0.0, end), first_clock_s));
+        }
+        // Without a readout the fixes are at the frames' times, which the container states:
+        // a truth judging none of them is refused before the tracking.
+        let judged = (0..n).any(|k| reference_at(truth, k as f64 / fps).is_some());
+        if args.tag.rolling_shutter_s == 0.0 && !judged {
+            if let Some(why) = too_sparse(path, truth, 0.0) {
+                anyhow::bail!("{why}");
+            }
+        }
+    }
     let overlay_dir = match &args.overlay {
         Some(dir) => Some(staged_dir(dir, "--overlay")?),
         None => None,
@@ -441,15 +518,25 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         tell!("warning: {}: {w}", args.video.display());
         warnings.push(w);
     }
-    let compared = match (&truth, &args.truth) {
+    // The truth only judges the trajectory: a truth that cannot is said after the trajectory
+    // is written, not instead of it.
+    let (compared, truth_refused) = match (&truth, &args.truth) {
         (Some(truth), Some(path)) => {
-            let mut a = against_truth(&args, &result, &trajectory, truth, path)?;
-            if args.apriltag3 && at3_frames > 0 {
-                a.apriltag3_rate = Some(at3_hits as f64 / at3_frames as f64);
+            match against_truth(&args, &result, &trajectory, truth, path, first_clock_s) {
+                Ok(mut a) => {
+                    if args.apriltag3 && at3_frames > 0 {
+                        a.apriltag3_rate = Some(at3_hits as f64 / at3_frames as f64);
+                    }
+                    (Some(a), None)
+                }
+                Err(e) => {
+                    let w = format!("no comparison with the truth: {e:#}");
+                    warnings.push(w);
+                    (None, Some(e))
+                }
             }
-            Some(a)
         }
-        _ => None,
+        _ => (None, None),
     };
     // All outputs are built before anything is written; each is written atomically.
     write_atomic(&args.out, trajectory.to_csv().as_bytes())?;
@@ -462,7 +549,22 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     commit()?;
     tell!("{} → {}", result.summary(opts.tag_id), args.out.display());
     if let Some(a) = &compared {
-        print_against_truth(a, args.tag.tag_id, worst_both_ways);
+        print_against_truth(
+            a,
+            args.tag.tag_id,
+            worst_both_ways,
+            args.tag.rolling_shutter_s,
+        );
+    }
+    if let Some(e) = truth_refused {
+        let report = match &args.report {
+            Some(r) => format!(" and {}", r.display()),
+            None => String::new(),
+        };
+        anyhow::bail!(
+            "{e:#} (the trajectory is written all the same: {}{report}; only the comparison with --truth failed)",
+            args.out.display()
+        );
     }
     Ok(())
 }

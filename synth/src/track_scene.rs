@@ -13,8 +13,8 @@ use odocal_core::TagToRobot;
 use serde::Serialize;
 
 use crate::scene::{
-    demo_trajectory, frames_csv, nadir, render_video_with_progress, truth_csv, CameraEffects,
-    FrameTruth, SceneConfig, SceneError, VideoFormat, ROW_TIME_CONVENTION,
+    demo_trajectory, frames_csv, nadir, render_frames, truth_csv, CameraEffects, FrameTruth,
+    SceneConfig, SceneError, VideoFormat, ROW_TIME_CONVENTION,
 };
 
 /// The `format` tag of scene.json.
@@ -173,8 +173,10 @@ impl TrackScene {
         }
         if !(self.exposure_s >= 0.0 && self.exposure_s < 1.0 / self.fps) {
             return bad(format!(
-                "--exposure-ms {}: must be between 0 and the frame period",
-                self.exposure_s * 1000.0
+                "--exposure-ms {}: must be between 0 and the frame period, {:.3} ms at {} fps",
+                self.exposure_s * 1000.0,
+                1000.0 / self.fps,
+                self.fps
             ));
         }
         if self.effects.h264_bitrate_kbps.is_some() && self.format != VideoFormat::Mp4 {
@@ -264,12 +266,13 @@ pub fn write_track_scene(
         VideoFormat::Mp4 => "video.mp4",
         VideoFormat::Png => "frames",
     };
-    let truths = render_video_with_progress(
+    let truths = render_frames(
         &out.join(name),
         s.format,
         &cfg,
         &tag_path,
         s.fps,
+        Some(s.frames),
         s.seed,
         on_frame,
     )?;

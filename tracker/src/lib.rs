@@ -9,6 +9,7 @@ mod deblur;
 pub mod detect;
 mod edges;
 mod error;
+mod interlace;
 mod lost_frames;
 pub mod marker_height;
 pub mod multi;
@@ -31,8 +32,8 @@ pub use odocal_core::{PoseSigma, Trajectory, TrajectoryRow};
 pub use pose::{planar_pose, pnp_cross_check, tag_model, PlanarPose, PnpCheck};
 pub use report::{
     errors_against, few_fixes_warning, fix_warnings, mount_warnings, mount_warnings_of_runs,
-    quiet_video_logs, tag_shape_warnings, track_report, track_video, AgainstTruth, FoundFrames,
-    TrackReport, TrackReportTruth, TruthErrors, TRACK_REPORT_FORMAT,
+    quiet_video_logs, reference_at, tag_shape_warnings, track_report, track_video, AgainstTruth,
+    FoundFrames, TrackReport, TrackReportTruth, TruthErrors, TRACK_REPORT_FORMAT,
 };
 pub use rolling_shutter::ShutterEstimate;
 pub use source::{

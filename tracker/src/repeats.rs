@@ -24,6 +24,10 @@ const WITHIN_FRAMES: usize = 3;
 /// uncertain, leaves the slot in doubt: σ is widened by a frame's motion.
 const SLOT_DOUBT_STEPS: f64 = 0.3;
 
+/// A run of one image this long that the fixes start with, the robot moving off at its last
+/// slot, is a robot waiting (a conversion fills two or three slots, a camera repeats one).
+const STILL_AT_START_SLOTS: usize = 4;
+
 /// The position of a record's fix.
 pub(crate) fn fix_position(r: &FrameRecord) -> Option<nalgebra::Point2<f64>> {
     match &r.outcome {
@@ -161,11 +165,10 @@ pub(crate) fn place_repeated_images(records: &mut [FrameRecord]) {
         let step = |n: Option<Neighbour>| n.map(|n| (n.1.position() - fix.pose.position()).norm());
         let noise_m = 3.0 * fix.sigma.x_m.hypot(fix.sigma.y_m);
         let steps: Vec<f64> = [step(prev), step(next)].into_iter().flatten().collect();
-        if steps.is_empty() {
-            at.push(Some(here));
-            continue;
-        }
-        if steps.iter().all(|&s| s <= noise_m) {
+        // With no fix on either side nothing tells a repeat from a still scene, and a camera
+        // repeats a frame or two, not a whole video: the video's one image stands in every
+        // slot (a 3 s still video kept 1 fix of 90).
+        if steps.is_empty() || steps.iter().all(|&s| s <= noise_m) {
             // A still scene: the pose is right at every slot, to the neighbours' steps.
             let widen = steps.iter().copied().fold(0.0, f64::max);
             for &i in &run[1..] {
@@ -202,6 +205,16 @@ pub(crate) fn place_repeated_images(records: &mut [FrameRecord]) {
                     .total_cmp(&(slots[b] - t_image).abs())
             })
             .unwrap_or(0);
+        // Held from the start of the fixes until the robot moves off: nothing before it says
+        // the robot moved during the slots, and a robot waiting at the start is likelier than
+        // its first frames all lost (a robot waiting 2 s had its 60 frames taken as dropped).
+        if prev.is_none() && j + 1 == slots.len() && slots.len() >= STILL_AT_START_SLOTS {
+            for &i in &run[1..] {
+                records[i] = shifted(&records[run[0]], &records[i], 0.0, 0.0);
+            }
+            at.push(Some((slots[j], fix.pose)));
+            continue;
+        }
         let doubt = (slots[j] - t_image).abs() > SLOT_DOUBT_STEPS * frame_s
             || noise_m / speed > SLOT_DOUBT_STEPS * frame_s;
         let (widen_m, widen_rad) = if doubt {
@@ -389,6 +402,8 @@ pub(crate) mod tests {
                 extrapolated_times: 0,
                 overridden_fps: None,
                 container_fps: video.then_some(FPS),
+                interlace_comb: None,
+                first_frame_clock_s: None,
                 display_rotation: None,
                 container_times_s: None,
                 corrupt_frames: Vec::new(),

@@ -13,8 +13,7 @@ pub const TRACK_REPORT_FORMAT: &str = "odocal.track-report/1";
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TruthErrors {
     /// Rows of the trajectory judged: those with a truth row at the fix's own time (within
-    /// 0.1 ms) or between two truth rows at most 25 ms apart
-    /// ([`odocal_core::Trajectory::reference_at`]).
+    /// 0.1 ms) or between two truth rows close enough to interpolate ([`reference_at`]).
     pub matched: usize,
     /// Of those, the ones judged by interpolating between truth rows.
     #[serde(default)]
@@ -30,13 +29,36 @@ pub struct TruthErrors {
     pub error_over_sigma_theta: Option<f64>,
 }
 
+/// The truth at time `t`: a row at that time, or the pose interpolated between the rows around
+/// it when the straight line between them strays no further from a robot accelerating at
+/// 1 m/s² than it does midway between rows [`odocal_core::REFERENCE_MAX_GAP_S`] apart. That
+/// stray is a·δ·(h−δ)/2 at δ from the nearer of rows h apart, so a fix a few milliseconds
+/// from a row of a truth sampled at the frame rate (a fix a rolling shutter times at its tag's
+/// row near the top of the image) is judged too, where only rows 25 ms apart qualified.
+pub fn reference_at(truth: &Trajectory, t: f64) -> Option<odocal_core::Reference> {
+    use odocal_core::{REFERENCE_MAX_GAP_S as G, SAME_TIME_S};
+    if let Some(r) = truth.reference_at(t) {
+        return Some(r);
+    }
+    let i = truth.rows.partition_point(|r| r.t_s < t);
+    let (a, b) = (truth.rows.get(i.checked_sub(1)?)?, truth.rows.get(i)?);
+    let h = b.t_s - a.t_s;
+    let d = (t - a.t_s).min(b.t_s - t);
+    // The same floating-point tolerance as for rows 25 ms apart.
+    let g = G + SAME_TIME_S;
+    (d * (h - d) <= g * g / 4.0).then(|| odocal_core::Reference {
+        pose: a.pose.lerp(&b.pose, (t - a.t_s) / h),
+        row: None,
+    })
+}
+
 /// `est`'s errors against `truth`, each row judged by the truth at its time (a row, or
-/// interpolated between close rows).
+/// interpolated between close rows: [`reference_at`]).
 pub fn errors_against(est: &Trajectory, truth: &Trajectory) -> TruthErrors {
     let (mut sp, mut sh, mut max, mut n, mut between) = (0.0, 0.0, 0.0f64, 0usize, 0usize);
     let (mut zxy, mut zt, mut nz) = (0.0, 0.0, 0usize);
     for r in &est.rows {
-        if let Some(t) = truth.reference_at(r.t_s) {
+        if let Some(t) = reference_at(truth, r.t_s) {
             between += usize::from(t.row.is_none());
             let d = r.pose.position() - t.pose.position();
             let dh = odocal_core::wrap_angle(r.pose.theta_rad - t.pose.theta_rad);

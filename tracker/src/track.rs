@@ -416,6 +416,8 @@ pub struct Tracker {
     /// Where other tags of the tracked id were seen beside the track (pixels, newest last):
     /// a (re)start is never made on a tag there.
     other_places_px: Vec<Point2<f64>>,
+    /// Where the tags of the id stood in the last frame that could not tell them apart.
+    refused_places_px: Vec<Point2<f64>>,
 }
 
 /// While the ROI follows the tag, a whole-frame search runs every this many frames: a second
@@ -518,6 +520,7 @@ impl Tracker {
             blurred_searches_unfound: 0,
             frames_since_search: 0,
             other_places_px: Vec::new(),
+            refused_places_px: Vec::new(),
         };
         if let Some(cov) = covariance {
             tracker.set_intrinsics_covariance(cov)?;
@@ -858,7 +861,26 @@ impl Tracker {
             *self.seen.entry(id).or_insert(0) += 1;
         }
         self.ids_in_last_frame = ids_in_frame;
-        let other_tag = others.first().map(|d| self.other_tag(d));
+        // With no track to tell two tags apart both are "others": the one named is the one
+        // standing where a tag stood in the last such frame (a spare lies still, the robot
+        // moves), else the median place mixed the robot's with the spare's.
+        let other_tag = if refused && others.len() > 1 {
+            let moved = |d: &TagDetection| {
+                self.refused_places_px
+                    .iter()
+                    .map(|p| (d.centre_px() - p).norm())
+                    .fold(f64::INFINITY, f64::min)
+            };
+            others
+                .iter()
+                .min_by(|a, b| moved(a).total_cmp(&moved(b)))
+                .map(|d| self.other_tag(d))
+        } else {
+            others.first().map(|d| self.other_tag(d))
+        };
+        if refused {
+            self.refused_places_px = others.iter().map(|d| d.centre_px()).collect();
+        }
         let (outcome, rejected) = match found {
             None if refused => (Outcome::Gap(GapReason::OtherTagOfId), None),
             None => (Outcome::Gap(GapReason::NotDetected), None),
@@ -1660,6 +1682,7 @@ pub fn track_source(
             });
             let mut records = Vec::with_capacity(info.frame_count.unwrap_or(0));
             let mut kept = KeptFrames::new(info.frame_count);
+            let mut comb = crate::interlace::CombProbe::default();
             for batch in done_rx {
                 let batch = batch?;
                 if batch.is_empty() {
@@ -1667,6 +1690,7 @@ pub fn track_source(
                 }
                 for (frame, rec) in batch {
                     on_frame(&frame, &rec)?;
+                    comb.offer(&frame, &rec);
                     kept.offer(frame, &rec);
                     records.push(rec);
                 }
@@ -1678,6 +1702,8 @@ pub fn track_source(
             let final_info = decoder.join().map_err(|_| {
                 TrackError::bad_input(&info.path, "the frame decoder stopped on a panic")
             })?;
+            let mut final_info = final_info;
+            final_info.interlace_comb = comb.ratio();
             Ok((records, seen_ids, final_info, kept.frames))
         })?;
     if records.is_empty() {
@@ -1685,6 +1711,20 @@ pub fn track_source(
     }
     if let Some(message) = time_restart(&records) {
         return Err(TrackError::bad_input(&info.path, message));
+    }
+    if let Some(ratio) = final_info
+        .interlace_comb
+        .filter(|r| *r >= crate::interlace::COMBED)
+    {
+        return Err(TrackError::bad_input(
+            &info.path,
+            crate::source::interlaced_advice(
+                &info.path,
+                &format!(
+                    "the frames are interlaced, though the stream does not say so: around the moving tag, adjacent rows differ {ratio:.2} times as much as rows two apart (under 0.6 in a progressive frame), the comb of two fields woven together"
+                ),
+            ),
+        ));
     }
     crate::repeats::place_repeated_images(&mut records);
     let (lost_in_file, dropped_by_motion) =

@@ -29,7 +29,9 @@ pub use sensor::{
 };
 pub use tag::tag36h11_pattern;
 pub use truth::{frames_csv, truth_csv, FrameTruth, FramesTruth, FRAMES_CSV_HEADER};
-pub use video::{png_name, png_timestamps, render_video, render_video_with_progress, VideoFormat};
+pub use video::{
+    png_name, png_timestamps, render_frames, render_video, render_video_with_progress, VideoFormat,
+};
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -57,6 +57,24 @@ pub fn render_video_with_progress(
     seed: u64,
     on_frame: &(dyn Fn(usize) + Sync),
 ) -> Result<Vec<FrameTruth>, SceneError> {
+    render_frames(out, format, config, trajectory, fps, None, seed, on_frame)
+}
+
+/// [`render_video_with_progress`] of the first `frames` frames only (all of the trajectory's
+/// when None): a trajectory that runs on past the last frame wanted, by less than a frame
+/// period at 30 fps but by more at 100 fps and above, put frames in the file that its truth
+/// did not have.
+#[allow(clippy::too_many_arguments)]
+pub fn render_frames(
+    out: &Path,
+    format: VideoFormat,
+    config: &SceneConfig,
+    trajectory: &[(f64, Pose2)],
+    fps: f64,
+    frames: Option<usize>,
+    seed: u64,
+    on_frame: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<FrameTruth>, SceneError> {
     if !(fps > 0.0 && fps.is_finite()) {
         return Err(SceneError::Input(format!(
             "frame rate must be positive, got {fps}"
@@ -74,7 +92,10 @@ pub fn render_video_with_progress(
     }
     config.effects.check(fps)?;
     let renderer = SceneRenderer::new(config.clone(), seed)?;
-    let times = frame_times(trajectory, fps);
+    let mut times = frame_times(trajectory, fps);
+    if let Some(n) = frames {
+        times.truncate(n);
+    }
     let dropped = dropped_frames(times.len(), config.effects.drop_rate, seed);
     let (w, h) = (config.camera.width as i32, config.camera.height as i32);
     let mut truths = Vec::with_capacity(times.len());

@@ -225,6 +225,8 @@ impl FolderSource {
                 container_fps: None,
                 container_times_s: None,
                 // A folder's frames come from one camera: the first speaks for them all.
+                interlace_comb: None,
+                first_frame_clock_s: None,
                 display_rotation: odocal_calib::display_rotation(&first_file)
                     .map(|turn| format!("its first image carries {turn} for display")),
             },

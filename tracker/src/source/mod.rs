@@ -121,6 +121,14 @@ pub struct SourceInfo {
     /// image's EXIF orientation), which is not applied: frames are read as the sensor
     /// recorded them, the layout the calibration describes.
     pub display_rotation: Option<String>,
+    /// The first frame's time on the container's own clock, seconds, when it is not 0: frame
+    /// times count from the first frame, so a truth on the container's clock is this much
+    /// later than the fixes.
+    pub first_frame_clock_s: Option<f64>,
+    /// How much a moving tag's rows alternate between two places (adjacent rows' differences
+    /// over those of rows two apart, around the tag in frames where it moves): above
+    /// [`crate::interlace::COMBED`] the frames are interlaced fields woven together.
+    pub interlace_comb: Option<f64>,
     /// The container's own times of the frames (seconds from the first, by frame index) when
     /// `--fps` timed them by counting instead: they still show the frames dropped.
     pub container_times_s: Option<Vec<f64>>,
@@ -130,6 +138,20 @@ pub struct SourceInfo {
     /// An image folder's frame files among [`Self::corrupt_frames`], in its order, each with
     /// what is wrong with it ("frame_000042.jpg (cut short: no JPEG end-of-image marker)").
     pub corrupt_files: Vec<String>,
+}
+
+/// Why an interlaced video (`what` says how it was found) is refused, and the FFmpeg command
+/// that deinterlaces it to one frame per field.
+pub(crate) fn interlaced_advice(path: &Path, what: &str) -> String {
+    let stem = path
+        .file_stem()
+        .map_or("video".into(), |s| s.to_string_lossy());
+    let progressive = path.with_file_name(format!("{stem}_progressive.mp4"));
+    format!(
+        "{what}: each frame holds two fields taken half a frame apart, so a moving tag is torn between two places and its fixes are off by more than their σ says; deinterlace it to one frame per field, `ffmpeg -i {} -vf yadif=1 {}`, and track that",
+        path.display(),
+        progressive.display()
+    )
 }
 
 /// Whether `bytes` hold a whole JPEG image: its start-of-image marker first and its
@@ -310,6 +332,8 @@ impl MemorySource {
                 corrupt_files: Vec::new(),
                 container_fps: None,
                 container_times_s: None,
+                interlace_comb: None,
+                first_frame_clock_s: None,
                 display_rotation: None,
             },
             frames: frames.into(),

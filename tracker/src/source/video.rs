@@ -121,9 +121,25 @@ impl VideoSource {
         if let Some(probe) = &probe {
             refuse_interlaced(path, probe)?;
         }
+        // A raw stream's times are FFmpeg's guess at 25 fps: the frames are counted at --fps,
+        // and without it refused, as an image folder without timestamps is.
+        let untimed = probe.as_ref().and_then(StreamProbe::untimed);
+        if let Some(format) = &untimed {
+            if opts.fps.is_none() {
+                return Err(TrackError::bad_input(
+                    path,
+                    format!(
+                        "a raw {format} stream holds no timestamps nor a frame rate (FFmpeg would guess 25 fps, and every time and speed would follow the guess): give --fps, the camera's frame rate"
+                    ),
+                ));
+            }
+            src.no_timestamps = true;
+            src.info.overridden_fps = None;
+            src.info.container_fps = None;
+        }
         src.probe = probe.clone();
         src.pending = src.read_batch(2)?;
-        if src.raw_jpeg && src.pending.len() == 2 && src.no_timestamps {
+        if src.raw_jpeg && src.pending.len() == 2 && src.no_timestamps && untimed.is_none() {
             // OpenCV gives no timestamps for undecoded packets of this container (AVI):
             // decode in FFmpeg instead, which does (beside --fps too: they show the drops).
             src = Self::open_capture(path, opts, false)?;
@@ -135,6 +151,10 @@ impl VideoSource {
         };
         (src.info.width, src.info.height) = (first.image.width, first.image.height);
         src.info.frame_count = src.frame_count_from_first();
+        // OpenCV times frames from the stream's start time.
+        let start = src.probe.as_ref().and_then(|p| p.stream_start_s);
+        src.info.first_frame_clock_s =
+            Some(start.unwrap_or(0.0) + src.first_pts_s.unwrap_or(0.0)).filter(|t| t.abs() > 1e-3);
         Ok(src)
     }
 
@@ -229,6 +249,8 @@ impl VideoSource {
                 corrupt_files: Vec::new(),
                 container_fps: (own_fps > 0.0 && own_fps.is_finite()).then_some(own_fps),
                 container_times_s: None,
+                interlace_comb: None,
+                first_frame_clock_s: None,
                 display_rotation: (rotate_deg.rem_euclid(360) != 0)
                     .then(|| format!("its rotate tag asks for a turn of {rotate_deg}° on display")),
                 overridden_fps: opts
@@ -496,6 +518,8 @@ struct StreamProbe {
     format_start_s: Option<f64>,
     /// The container's duration, seconds.
     format_duration_s: Option<f64>,
+    /// The stream's average frame rate as ffprobe reads it ("30/1"; "0/0" when unknown).
+    avg_frame_rate: Option<String>,
 }
 
 impl StreamProbe {
@@ -521,7 +545,30 @@ impl StreamProbe {
             stream_duration_s: num(Some(stream), "duration"),
             format_start_s: num(format, "start_time"),
             format_duration_s: num(format, "duration"),
+            avg_frame_rate: text(Some(stream), "avg_frame_rate"),
         })
+    }
+
+    /// The raw stream format, when the file is a codec's bare stream whose frames carry no
+    /// times and which states no rate (an MJPEG stream, an H.264 stream without timing in its
+    /// headers): FFmpeg times such frames at a guessed 25 fps.
+    fn untimed(&self) -> Option<String> {
+        const RAW: [&str; 8] = [
+            "mjpeg",
+            "mpjpeg",
+            "jpeg_pipe",
+            "image2pipe",
+            "h264",
+            "hevc",
+            "m4v",
+            "rawvideo",
+        ];
+        let raw = self.format_name.split(',').find(|f| RAW.contains(f))?;
+        let rate_unknown = self
+            .avg_frame_rate
+            .as_deref()
+            .is_none_or(|r| r.starts_with("0/") || r.ends_with("/0"));
+        rate_unknown.then(|| raw.to_string())
     }
 
     /// Whether the container states where its stream ends (MP4/MOV and Matroska), rather
@@ -556,7 +603,7 @@ impl StreamProbe {
 fn probe_stream(path: &Path) -> Option<StreamProbe> {
     let out = std::process::Command::new("ffprobe")
         .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .args(["stream=field_order,start_time,duration:format=format_name,start_time,duration"])
+        .args(["stream=field_order,start_time,duration,avg_frame_rate:format=format_name,start_time,duration"])
         .args(["-of", "json"])
         .arg(path)
         .output()
@@ -578,16 +625,11 @@ fn refuse_interlaced(path: &Path, probe: &StreamProbe) -> Result<(), TrackError>
     if !matches!(order, "tt" | "bb" | "tb" | "bt") {
         return Ok(());
     }
-    let stem = path
-        .file_stem()
-        .map_or("video".into(), |s| s.to_string_lossy());
-    let progressive = path.with_file_name(format!("{stem}_progressive.mp4"));
     Err(TrackError::bad_input(
         path,
-        format!(
-            "the video is interlaced (field order {order}): each frame holds two fields taken half a frame apart, so a moving tag is torn between two places and its fixes are off by more than their σ says; deinterlace it to one frame per field, `ffmpeg -i {} -vf yadif=1 {}`, and track that",
-            path.display(),
-            progressive.display()
+        super::interlaced_advice(
+            path,
+            &format!("the video is interlaced (field order {order})"),
         ),
     ))
 }
