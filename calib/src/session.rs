@@ -231,6 +231,83 @@ fn consistency_notes(
     )]
 }
 
+/// A warning naming the views whose own focal length or principal point disagrees with the
+/// calibration of the other views beyond chance ([`crate::view_consistency`]): a varifocal
+/// lens nudged between photos (5 %) or photos turned 180° put fx 11σ and cx 4σ off while the
+/// held-out error stayed within 7 % of the fit, below what the held-out check can tell.
+fn disagreeing_views_note(
+    cal: &crate::Calibration,
+    views: &[BoardView],
+    board: &BoardSpec,
+    model: LensModel,
+) -> Option<String> {
+    let per_view: Vec<crate::view_consistency::ViewIntrinsics> = (0..views.len())
+        .into_par_iter()
+        .filter_map(|i| {
+            let others: Vec<BoardView> = views
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| *k != i)
+                .map(|(_, v)| v.clone())
+                .collect();
+            let c = calibrate(&others, board, model).ok()?;
+            let v = &views[i];
+            let pose = crate::solve_pnp(
+                &c.camera,
+                &v.object_points,
+                &v.corners,
+                opencv::calib3d::SOLVEPNP_ITERATIVE,
+            )
+            .ok()??;
+            let o = crate::Observation {
+                pose: crate::BoardToCamera(pose),
+                object: &v.object_points,
+                image: &v.corners,
+            };
+            crate::view_consistency::view_intrinsics(
+                &c.camera,
+                &c.covariance,
+                c.rms_px * c.rms_px / 2.0,
+                std::slice::from_ref(&v.image),
+                std::slice::from_ref(&o),
+            )
+            .pop()
+        })
+        .collect();
+    if !crate::view_consistency::disagree(&per_view) {
+        return None;
+    }
+    let mut worst: Vec<&crate::view_consistency::ViewIntrinsics> = per_view.iter().collect();
+    worst.sort_by(|a, b| b.chi2.total_cmp(&a.chi2));
+    let named: Vec<String> = worst
+        .iter()
+        .filter(|v| v.chi2 > crate::view_consistency::VIEW_CHI2)
+        .take(6)
+        .chain(worst.first().filter(|v| v.chi2 <= crate::view_consistency::VIEW_CHI2))
+        .map(|v| {
+            format!(
+                "{} (focal length {:+.1} % ± {:.1}, principal point {:+.1} ± {:.1}, {:+.1} ± {:.1} px; χ² {:.0})",
+                name_among(&cal.views, &v.image),
+                v.focal_share * 100.0,
+                v.sigma[0] * 100.0,
+                v.dcx_px,
+                v.sigma[1],
+                v.dcy_px,
+                v.sigma[2],
+                v.chi2
+            )
+        })
+        .collect();
+    let n = per_view.len();
+    let sum: f64 = per_view.iter().map(|v| v.chi2).sum();
+    Some(format!(
+        "warning: the views do not agree on one camera, though together they fit one: each view's own focal length and principal point, fitted against the calibration of the other views, differ from it by χ² {sum:.0} summed over the {n} views, where one camera's views sum to about {} ± {:.0}; the ± below do not cover the difference, and fx, cx, cy may be off by many σ. Most disagreeing: {}. Were some photos taken at another zoom or focus, turned 180° or mirrored by a photo viewer (which moves the principal point to the other side), or by another camera? Leave those views out",
+        3 * n,
+        (6.0 * n as f64).sqrt(),
+        named.join("; ")
+    ))
+}
+
 /// A warning when another lens model fits all the views clearly better than the chosen one
 /// ([`crate::select::CLEARLY_BETTER_FIT`]) but predicts the median held-out view worse.
 fn misfit_note(chosen: &crate::ModelScore, scores: &[crate::ModelScore]) -> Option<String> {
@@ -487,6 +564,7 @@ pub fn calibrate_session(
     }
     let unlocated = held_out.iter().filter(|h| !h.is_finite()).count();
     notes.extend(crate::coverage::coverage_notes(&cal.camera, &views));
+    notes.extend(disagreeing_views_note(&cal, &views, board, model));
     let alternatives = || -> Vec<Alternative> {
         if !model_comparison.is_empty() {
             return model_comparison
