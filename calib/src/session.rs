@@ -681,11 +681,10 @@ pub fn calibrate_session(
         // So are those fitting the views clearly better than the chosen one: the chosen
         // one's covariance does not cover its misfit (a fisheye kept on a 110° rational
         // lens vouched for a floor 4.6 mm off).
-        let best = crate::select::best_held_out_px(&model_comparison);
         let others: Vec<(crate::CameraModel, crate::FloorToCamera)> = model_comparison
             .iter()
             .filter(|s| {
-                !s.chosen && (s.fits_as_well(best) || s.fits_clearly_better_than(cal.rms_px))
+                !s.chosen && (s.fits_as_well(&model_comparison) || s.fits_clearly_better_than(cal.rms_px))
             })
             .filter_map(|s| s.camera)
             .chain(fitting_better.iter().copied())
@@ -1103,7 +1102,7 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
             ));
         }
         out.push(format!(
-            "    (the first of pinhole5, fisheye, rational whose median view held out is within {:.0} % of the best is chosen)",
+            "    (the first of pinhole5, fisheye, rational whose median view held out is within {:.0} % of the best, or whose views held out are so view by view (median), is chosen)",
             crate::select::SIMPLER_WITHIN * 100.0
         ));
     }
