@@ -319,7 +319,9 @@ mod tests {
         let mut scores = [
             score(
                 LensModel::Pinhole5,
-                &[0.0361, 0.0527, 0.0661, 0.0362, 0.0986, 0.0511, 0.0566, 0.034],
+                &[
+                    0.0361, 0.0527, 0.0661, 0.0362, 0.0986, 0.0511, 0.0566, 0.034,
+                ],
             ),
             score(
                 LensModel::Fisheye,
@@ -327,7 +329,9 @@ mod tests {
             ),
             score(
                 LensModel::Rational,
-                &[0.0383, 0.0534, 0.0661, 0.0363, 0.0987, 0.051, 0.0596, 0.0339],
+                &[
+                    0.0383, 0.0534, 0.0661, 0.0363, 0.0987, 0.051, 0.0596, 0.0339,
+                ],
             ),
         ];
         assert!(scores[0].held_out_median_px.unwrap() > 1.15 * best_held_out_px(&scores));

@@ -42,11 +42,7 @@ impl BoardSpec {
                 "at most {MAX_BOARD_CORNERS} inner corners a side (one fewer than the squares): count the board's inner corners"
             )));
         }
-        if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
-            return Err(CalibError::Input(format!(
-                "--square {square_m}: the square size is in metres, e.g. 0.03 for 3 cm"
-            )));
-        }
+        check_square(square_m, "0.03 for 3 cm")?;
         Ok(BoardSpec::checkerboard(cols, rows, square_m))
     }
 
@@ -76,11 +72,7 @@ impl BoardSpec {
                     .into(),
             ));
         }
-        if !(square_m.is_finite() && square_m > 0.0 && square_m < 1.0) {
-            return Err(CalibError::Input(format!(
-                "--square {square_m}: the square size is in metres, e.g. 0.04 for 4 cm"
-            )));
-        }
+        check_square(square_m, "0.04 for 4 cm")?;
         let dictionary = ArucoDictionary::from_name(dictionary).ok_or_else(|| {
             CalibError::Input(format!(
                 "--dictionary {dictionary:?}: not an ArUco dictionary OpenCV knows; one of {}",
@@ -99,6 +91,23 @@ impl BoardSpec {
         crate::charuco::check_board(&board)?;
         Ok(board)
     }
+}
+
+/// The sides a board's printed squares can have, metres: under 2 mm no camera over a floor
+/// resolves them, and a value there is a size given in other units (`--square 1e-6` put the
+/// camera 0.00 m above the floor, exit 0).
+const SQUARE_M: std::ops::Range<f64> = 0.002..1.0;
+
+/// Refuses a square side outside [`SQUARE_M`], with an example in metres.
+fn check_square(square_m: f64, example: &str) -> Result<(), CalibError> {
+    if square_m.is_finite() && SQUARE_M.contains(&square_m) {
+        return Ok(());
+    }
+    Err(CalibError::Input(format!(
+        "--square {square_m}: the square size is in metres, e.g. {example}; a printed board's squares are {} mm to {} m",
+        SQUARE_M.start * 1000.0,
+        SQUARE_M.end
+    )))
 }
 
 /// A calibrated camera and the views it skipped, as notes for the user.
@@ -684,7 +693,8 @@ pub fn calibrate_session(
         let others: Vec<(crate::CameraModel, crate::FloorToCamera)> = model_comparison
             .iter()
             .filter(|s| {
-                !s.chosen && (s.fits_as_well(&model_comparison) || s.fits_clearly_better_than(cal.rms_px))
+                !s.chosen
+                    && (s.fits_as_well(&model_comparison) || s.fits_clearly_better_than(cal.rms_px))
             })
             .filter_map(|s| s.camera)
             .chain(fitting_better.iter().copied())
@@ -1222,6 +1232,24 @@ fn short(p: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--square 1e-6` (a size in other units) calibrated, the camera "0.00 m above the
+    /// floor", exit 0: squares under 2 mm are refused up front for both board kinds.
+    #[test]
+    fn implausibly_small_squares_are_refused_in_metres() {
+        for sq in [1e-6, 1e-3, 0.0, 1.0] {
+            let e = BoardSpec::parse("9x6", sq).unwrap_err().to_string();
+            assert!(
+                e.contains("the square size is in metres") && e.contains("2 mm to 1 m"),
+                "{e}"
+            );
+            let e = BoardSpec::parse_charuco("11x8", sq, sq * 0.75, "4X4_50")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("the square size is in metres"), "{e}");
+        }
+        assert!(BoardSpec::parse("9x6", 0.005).is_ok());
+    }
 
     /// 12 views of a 70° lens calibrated as a fisheye, one of which the fisheye calibration
     /// of the others could not locate, while pinhole5 predicts every view left out: the
