@@ -406,6 +406,32 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!arena.exists());
+    // Two cameras' files in each other's places: diagnosed, and so refused (an arena was
+    // written with the two cameras 143 and 151 mm off, exit 0).
+    let cam2 = d.join("cam2/camera_true.json");
+    let swapped: Vec<&str> = args
+        .iter()
+        .map(|a| {
+            if *a == p(&cam1) {
+                p(&cam2)
+            } else if *a == p(&cam2) {
+                p(&cam1)
+            } else {
+                a
+            }
+        })
+        .collect();
+    let o = odocal(&swapped);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let last = e.trim_end().lines().last().unwrap_or("");
+    assert!(
+        last.starts_with("odocal: error: ")
+            && last.contains("(two swapped?); nothing written")
+            && last.contains("camera 1 ("),
+        "{e}"
+    );
+    assert!(!arena.exists());
     // A --board that is not the board's: named from the first image in a second or two (a
     // board too small found part of the board in each camera, read as cameras 75 mm apart
     // after a search of about 20 s per image).
