@@ -1076,3 +1076,45 @@ fn fused_sigma_holds_over_many_arenas() {
     assert!((0.7..=1.4).contains(&z), "pooled error/σ {z:.2}");
     assert!(z_old > 2.0, "without the floor's covariance: {z_old:.2}");
 }
+
+/// Running `synth arena` again into its own folder keeps the files it did not write there,
+/// in its subfolders too: the `camera.json` its `next:` hint has `calibrate` write into a
+/// camera's folder, and a user's notes beside the shared views (both were deleted, exit 0),
+/// while its own series is replaced.
+#[test]
+fn synth_arena_again_keeps_the_users_files_in_its_subfolders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |seed: &str| {
+        ok(&[
+            "synth",
+            "arena",
+            "--out",
+            p(d),
+            "--seed",
+            seed,
+            "--width",
+            "480",
+            "--height",
+            "270",
+            "--frames",
+            "2",
+            "--calib-views",
+            "6",
+        ])
+    };
+    run("1");
+    std::fs::write(d.join("cam1/camera.json"), "mine").unwrap();
+    std::fs::write(d.join("shared/NOTES.txt"), "notes").unwrap();
+    let view = std::fs::read(d.join("cam1/view_00.png")).unwrap();
+    run("2");
+    assert_eq!(
+        std::fs::read_to_string(d.join("cam1/camera.json")).unwrap(),
+        "mine"
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("shared/NOTES.txt")).unwrap(),
+        "notes"
+    );
+    assert_ne!(std::fs::read(d.join("cam1/view_00.png")).unwrap(), view);
+}
