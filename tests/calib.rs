@@ -616,8 +616,12 @@ fn repeated_floor_view_is_skipped() {
     );
     succeeded(&res);
     let err = String::from_utf8_lossy(&res.stderr);
+    // The same file named again is said so, not "the same view as" itself.
     assert!(
-        err.contains("skipped floor view") && err.contains("the same view as"),
+        err.contains(&format!(
+            "skipped floor view {}: the same file given again",
+            floors[0]
+        )) && !err.contains("the same view as"),
         "{err}"
     );
     let cam = CameraFile::load(&out).unwrap();

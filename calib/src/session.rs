@@ -864,6 +864,12 @@ fn distinct_views(views: Vec<BoardView>, skipped: &mut Vec<SkippedView>) -> Vec<
             k.ids == v.ids && (ss / n).sqrt() < SAME_VIEW_RMS_PX
         });
         match same {
+            // The same file named again (a glob and a name overlapping) is said as such, not
+            // as "the same view as" itself.
+            Some(k) if k.image == v.image => skipped.push(SkippedView {
+                image: v.image.clone(),
+                reason: "the same file given again".into(),
+            }),
             Some(k) => skipped.push(SkippedView {
                 image: v.image.clone(),
                 reason: format!(
