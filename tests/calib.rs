@@ -366,6 +366,32 @@ fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
     assert!(plain.status.success());
     let fx = |f: &str| CameraFile::load(&d.join(f)).unwrap().camera.intrinsics.fx;
     assert_eq!(fx("deep.json"), fx("plain.json"));
+    // 10-bit data in 16-bit PNGs was refused as a black frame; PNGs named .jpg, or with no
+    // extension, as damaged PNGs: all calibrate as the 8-bit views do.
+    let ten = d.join("ten");
+    std::fs::create_dir_all(&ten).unwrap();
+    let (mut tens, mut named_jpg, mut bare) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, v) in images(d, "view_").iter().enumerate() {
+        let g = image::open(v).unwrap().to_luma8();
+        let wide: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
+            image::ImageBuffer::from_fn(g.width(), g.height(), |x, y| {
+                image::Luma([u16::from(g.get_pixel(x, y)[0]) * 4])
+            });
+        let out = ten.join(Path::new(v).file_name().unwrap());
+        wide.save(&out).unwrap();
+        tens.push(p(&out).to_string());
+        let jpg = ten.join(format!("png_{k:02}.jpg"));
+        let none = ten.join(format!("noext_{k:02}"));
+        std::fs::copy(v, &jpg).unwrap();
+        std::fs::copy(v, &none).unwrap();
+        named_jpg.push(p(&jpg).to_string());
+        bare.push(p(&none).to_string());
+    }
+    for (views, out) in [(&tens, "ten.json"), (&named_jpg, "jpg.json"), (&bare, "bare.json")] {
+        let res = calibrate(views, &d.join(out));
+        assert!(res.status.success(), "{out}: {}", String::from_utf8_lossy(&res.stderr));
+        assert!((fx(out) - fx("plain.json")).abs() < 0.05, "{out}: fx {}", fx(out));
+    }
     let black: Vec<String> = (0..3)
         .map(|i| {
             let f = d.join(format!("black_{i}.png"));
