@@ -387,10 +387,22 @@ fn sixteen_bit_views_of_8_bit_values_calibrate_and_blank_frames_are_named() {
         named_jpg.push(p(&jpg).to_string());
         bare.push(p(&none).to_string());
     }
-    for (views, out) in [(&tens, "ten.json"), (&named_jpg, "jpg.json"), (&bare, "bare.json")] {
+    for (views, out) in [
+        (&tens, "ten.json"),
+        (&named_jpg, "jpg.json"),
+        (&bare, "bare.json"),
+    ] {
         let res = calibrate(views, &d.join(out));
-        assert!(res.status.success(), "{out}: {}", String::from_utf8_lossy(&res.stderr));
-        assert!((fx(out) - fx("plain.json")).abs() < 0.05, "{out}: fx {}", fx(out));
+        assert!(
+            res.status.success(),
+            "{out}: {}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        assert!(
+            (fx(out) - fx("plain.json")).abs() < 0.05,
+            "{out}: fx {}",
+            fx(out)
+        );
     }
     let black: Vec<String> = (0..3)
         .map(|i| {
@@ -944,6 +956,20 @@ fn mixed_image_sizes_fail() {
     let out = dir.path().join("camera.json");
     let res = calibrate(dir.path(), &out, "9x6", "0.05");
     assert_fails(&res, "one resolution", &out);
+    // A floor view turned 90° is named as turned, before any view is calibrated.
+    std::fs::remove_file(dir.path().join("view_50.png")).unwrap();
+    let turned = dir.path().join("turned.png");
+    image::imageops::rotate90(
+        &image::open(dir.path().join("view_01.png"))
+            .unwrap()
+            .to_luma8(),
+    )
+    .save(&turned)
+    .unwrap();
+    let mut args = images(dir.path(), "view_");
+    args.extend(["--square", "0.05", "--out", p(&out), "--floor", p(&turned)].map(String::from));
+    let res = calibrate_views(&args, &[]);
+    assert_fails(&res, "turned 90° against it", &out);
 }
 
 #[test]

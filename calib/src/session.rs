@@ -472,6 +472,20 @@ pub fn calibrate_session(
     if let Some(seen) = quick {
         return Err(CalibError::Input(seen.refusal(&images[0], board)));
     }
+    // The floor images' sizes are read from their headers up front: a floor view turned 90°
+    // was refused only after every view had been calibrated.
+    let header_sizes: Sizes = images[..1]
+        .iter()
+        .chain(floor)
+        .filter_map(|p| {
+            image::image_dimensions(p)
+                .ok()
+                .map(|s| (p.display().to_string(), s))
+        })
+        .collect();
+    if header_sizes.len() == floor.len() + 1 {
+        check_sizes(&header_sizes)?;
+    }
     let detections = detect_all(images, board, on_image)?;
     let (views, mut skipped, sizes) = split(detections);
     check_sizes(&sizes)?;
@@ -980,8 +994,17 @@ fn split(detections: Vec<Detection>) -> (Vec<BoardView>, Vec<SkippedView>, Sizes
 fn check_sizes(sizes: &[(String, (u32, u32))]) -> Result<(), CalibError> {
     if let Some((first, s0)) = sizes.first() {
         if let Some((other, s)) = sizes.iter().find(|(_, s)| s != s0) {
+            // Width and height swapped: a photo turned a quarter (by a viewer, or saved
+            // upright from a camera held on its side), which the resolution alone hid.
+            let turned = if (s.1, s.0) == *s0 {
+                format!(
+                    ", turned 90° against it: turn {other} back (and any other image so turned), as the camera recorded it"
+                )
+            } else {
+                String::new()
+            };
             return Err(CalibError::Input(format!(
-                "{other} is {}x{} but {first} is {}x{}: all images must come from one camera at one resolution",
+                "{other} is {}x{} but {first} is {}x{}{turned}: all images must come from one camera at one resolution",
                 s.0,
                 s.1,
                 s0.0,
