@@ -1898,4 +1898,63 @@ fn check_calib_passes_an_honest_calibration_outside_the_fixed_bounds() {
             && text.contains("check passed"),
         "{text}"
     );
+    // A camera file half of whose views are of another scene (their corners far from the
+    // truth's board) is said to mix scenes, naming them, not to have been given the wrong truth.
+    let mut c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&camera).unwrap()).unwrap();
+    for v in c["views"].as_array_mut().unwrap().iter_mut().skip(4) {
+        for corner in v["corners_px"].as_array_mut().unwrap() {
+            corner[0] = (corner[0].as_f64().unwrap() + 1000.0).into();
+        }
+    }
+    let mixed = d.join("mixed.json");
+    std::fs::write(&mixed, c.to_string()).unwrap();
+    let truth_path = d.join("truth.json");
+    let check = |camera: &Path| {
+        odocal(&[
+            "synth",
+            "check-calib",
+            "--camera",
+            p(camera),
+            "--truth",
+            p(&truth_path),
+        ])
+    };
+    let e = fails_with(
+        &check(&mixed),
+        "is the truth of 4 of the 8 views calibrated, but not of 4",
+    );
+    assert!(
+        e.contains("view_04.png") && e.contains("mixed images of another scene"),
+        "{e}"
+    );
+    // Views converted to JPEG keep their stems: matched by them.
+    let jpeg = d.join("jpeg");
+    std::fs::create_dir_all(&jpeg).unwrap();
+    let mut views = Vec::new();
+    for v in images(d, "view_") {
+        let out = jpeg.join(Path::new(&v).with_extension("jpg").file_name().unwrap());
+        image::open(&v).unwrap().to_luma8().save(&out).unwrap();
+        views.push(p(&out).to_string());
+    }
+    let jpeg_camera = d.join("jpeg.json");
+    succeeded(&calibrate_views(
+        &views,
+        &[
+            "--square",
+            "0.05",
+            "--model",
+            "pinhole5",
+            "--out",
+            p(&jpeg_camera),
+        ],
+    ));
+    let out = check(&jpeg_camera);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("calibration error against the truth")
+            && !String::from_utf8_lossy(&out.stderr).contains("names none"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
