@@ -306,10 +306,12 @@ fn keep_others(new: &Path, old: &Path) -> Result<(), FileError> {
         if from.is_dir() {
             std::fs::create_dir_all(&to).map_err(|e| io(&to, e))?;
             keep_others(&to, &from)?;
-        } else if from.is_file() && !to.exists() && !replaced.contains(&from) {
-            if std::fs::hard_link(&from, &to).is_err() {
-                std::fs::copy(&from, &to).map_err(|e| io(&from, e))?;
-            }
+        } else if from.is_file()
+            && !to.exists()
+            && !replaced.contains(&from)
+            && std::fs::hard_link(&from, &to).is_err()
+        {
+            std::fs::copy(&from, &to).map_err(|e| io(&from, e))?;
         }
     }
     Ok(())
