@@ -295,12 +295,12 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             .and_then(|k| sigmas[k])
             .is_some_and(|z| z <= CHECK_SIGMAS)
     });
-    if !beyond_sigma.is_empty() {
-        tell!(
-            "warning: off by more than {CHECK_SIGMAS:.0}σ of the calibration's own σ: {}: its ± understate the error",
+    let understated = (!beyond_sigma.is_empty()).then(|| {
+        format!(
+            "off by more than {CHECK_SIGMAS:.0}σ of the calibration's own σ ({}): its ± understate the error",
             beyond_sigma.join(", ")
-        );
-    }
+        )
+    });
     if !honest.is_empty() {
         say!(
             "  outside the fixed bounds but within {CHECK_SIGMAS:.0}σ of the calibration's own σ, so not failed (the views allow no better; more views, or views filling more of the image, tighten it): {}",
@@ -309,11 +309,15 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
     }
     if !failed.is_empty() {
         anyhow::bail!(
-            "{} fails the check against {}: {}",
+            "{} fails the check against {}: {}{}",
             a.camera.display(),
             a.truth.display(),
-            failed.join("; ")
+            failed.join("; "),
+            understated.map(|u| format!("; {u}")).unwrap_or_default()
         );
+    }
+    if let Some(u) = understated {
+        tell!("warning: {u}");
     }
     say!(
         "check passed: fx, fy within 0.2 %, cx, cy within 1 px{}{}",
