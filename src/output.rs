@@ -253,7 +253,7 @@ pub fn synth_out_dir(out: &Path, option: &str) -> Result<PathBuf, FileError> {
 /// a file of a folder synth did not write (the outputs are then discarded, nothing moved).
 pub fn commit() -> Result<(), FileError> {
     let dirs = std::mem::take(&mut *SYNTH_DIRS.lock().unwrap_or_else(|e| e.into_inner()));
-    for (tmp, out, option) in dirs {
+    for (tmp, out, option) in dirs.iter().cloned() {
         if !out.is_dir() || out.join(SYNTH_MARK).exists() || tmp == out {
             continue;
         }
@@ -263,7 +263,58 @@ pub fn commit() -> Result<(), FileError> {
             return Err(refuse_replacing(&out, &option, &replaced));
         }
     }
+    for (tmp, out, _) in &dirs {
+        if out.is_dir() && tmp != out {
+            if let Err(e) = keep_others_in_subfolders(tmp, out) {
+                discard();
+                return Err(e);
+            }
+        }
+    }
     staging::commit()
+}
+
+/// Carries into the staged synth folder `tmp` the files of `out`'s subfolders that the new
+/// output neither replaces nor deletes as a stale part of its numbered series: a subfolder is
+/// moved in whole, and `synth arena` used to delete the `cam1/camera.json` its own `next:`
+/// hint had `calibrate` write there, and a user's `shared/NOTES.txt`, exit 0. Hard links where
+/// the file system has them, copies elsewhere.
+fn keep_others_in_subfolders(tmp: &Path, out: &Path) -> Result<(), FileError> {
+    let io = |p: &Path, e: std::io::Error| {
+        FileError::content(&p.display().to_string(), format!("cannot keep: {e}"))
+    };
+    let entries = std::fs::read_dir(tmp).map_err(|e| io(tmp, e))?;
+    for entry in entries.filter_map(|e| e.ok()) {
+        let (new, old) = (entry.path(), out.join(entry.file_name()));
+        if new.is_dir() && old.is_dir() {
+            keep_others(&new, &old)?;
+        }
+    }
+    Ok(())
+}
+
+/// [`keep_others_in_subfolders`] for one subfolder `new` replacing `old`, and its own
+/// subfolders in turn.
+fn keep_others(new: &Path, old: &Path) -> Result<(), FileError> {
+    let io = |p: &Path, e: std::io::Error| {
+        FileError::content(&p.display().to_string(), format!("cannot keep: {e}"))
+    };
+    let replaced = staging::replaced_by_merge(new, old)?;
+    let entries = std::fs::read_dir(old).map_err(|e| io(old, e))?;
+    for entry in entries.filter_map(|e| e.ok()) {
+        let (from, to) = (entry.path(), new.join(entry.file_name()));
+        if from.is_dir() {
+            std::fs::create_dir_all(&to).map_err(|e| io(&to, e))?;
+            keep_others(&to, &from)?;
+        } else if from.is_file()
+            && !to.exists()
+            && !replaced.contains(&from)
+            && std::fs::hard_link(&from, &to).is_err()
+        {
+            std::fs::copy(&from, &to).map_err(|e| io(&from, e))?;
+        }
+    }
+    Ok(())
 }
 
 /// Deletes the temporaries (`.odocal-<pid>-<n>.tmp`) beside `output` whose process no longer

@@ -406,6 +406,32 @@ fn an_arena_run_without_a_fix_is_refused_and_a_missing_tag_named() {
         "{e}"
     );
     assert!(!arena.exists());
+    // Two cameras' files in each other's places: diagnosed, and so refused (an arena was
+    // written with the two cameras 143 and 151 mm off, exit 0).
+    let cam2 = d.join("cam2/camera_true.json");
+    let swapped: Vec<&str> = args
+        .iter()
+        .map(|a| {
+            if *a == p(&cam1) {
+                p(&cam2)
+            } else if *a == p(&cam2) {
+                p(&cam1)
+            } else {
+                a
+            }
+        })
+        .collect();
+    let o = odocal(&swapped);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let last = e.trim_end().lines().last().unwrap_or("");
+    assert!(
+        last.starts_with("odocal: error: ")
+            && last.contains("(two swapped?); nothing written")
+            && last.contains("camera 1 ("),
+        "{e}"
+    );
+    assert!(!arena.exists());
     // A --board that is not the board's: named from the first image in a second or two (a
     // board too small found part of the board in each camera, read as cameras 75 mm apart
     // after a search of about 20 s per image).
@@ -1049,4 +1075,46 @@ fn fused_sigma_holds_over_many_arenas() {
     eprintln!("pooled error/σ RMS per axis over 12 arenas: {z:.2}; without the first floor's covariance {z_old:.2}");
     assert!((0.7..=1.4).contains(&z), "pooled error/σ {z:.2}");
     assert!(z_old > 2.0, "without the floor's covariance: {z_old:.2}");
+}
+
+/// Running `synth arena` again into its own folder keeps the files it did not write there,
+/// in its subfolders too: the `camera.json` its `next:` hint has `calibrate` write into a
+/// camera's folder, and a user's notes beside the shared views (both were deleted, exit 0),
+/// while its own series is replaced.
+#[test]
+fn synth_arena_again_keeps_the_users_files_in_its_subfolders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |seed: &str| {
+        ok(&[
+            "synth",
+            "arena",
+            "--out",
+            p(d),
+            "--seed",
+            seed,
+            "--width",
+            "480",
+            "--height",
+            "270",
+            "--frames",
+            "2",
+            "--calib-views",
+            "6",
+        ])
+    };
+    run("1");
+    std::fs::write(d.join("cam1/camera.json"), "mine").unwrap();
+    std::fs::write(d.join("shared/NOTES.txt"), "notes").unwrap();
+    let view = std::fs::read(d.join("cam1/view_00.png")).unwrap();
+    run("2");
+    assert_eq!(
+        std::fs::read_to_string(d.join("cam1/camera.json")).unwrap(),
+        "mine"
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("shared/NOTES.txt")).unwrap(),
+        "notes"
+    );
+    assert_ne!(std::fs::read(d.join("cam1/view_00.png")).unwrap(), view);
 }

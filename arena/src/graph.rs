@@ -879,14 +879,15 @@ fn heights(cameras: &[CameraFile], poses: &[FloorToCamera]) -> Vec<(Option<f64>,
         .collect()
 }
 
-/// Warnings for cameras whose height in the arena is off the one their own floor views gave
-/// ([`HEIGHT_MISMATCH`]): the camera file is another camera's (two such are most likely two
-/// files given in each other's places), or the floor is not one plane.
+/// Warnings for a camera whose height in the arena is off the one its own floor views gave
+/// ([`HEIGHT_MISMATCH`]): the camera file is another camera's, or the floor is not one plane.
+/// Two or more such are refused: files given in each other's places (an arena written so put
+/// two cameras 143 and 151 mm off, exit 0).
 pub fn height_warnings(
     cameras: &[CameraFile],
     camera_paths: &[&Path],
     poses: &[FloorToCamera],
-) -> Vec<String> {
+) -> Result<Vec<String>, ArenaError> {
     let off: Vec<String> = heights(cameras, poses)
         .into_iter()
         .enumerate()
@@ -901,15 +902,15 @@ pub fn height_warnings(
         })
         .collect();
     match off.len() {
-        0 => Vec::new(),
-        1 => vec![format!(
+        0 => Ok(Vec::new()),
+        1 => Ok(vec![format!(
             "the shared views put {}: check that the camera file is this camera's (in the order of the _cK names), and that the floor under it is level with the shared boards",
             off[0]
-        )],
-        _ => vec![format!(
-            "the shared views put {}: camera files given in other places than their _cK names (two swapped?): give each camera's file in its place in --camera",
+        )]),
+        _ => Err(ArenaError::Refused(format!(
+            "the shared views put {}: camera files given in other places than their _cK names (two swapped?); nothing written: give each camera's file in its place in --camera",
             off.join(", and ")
-        )],
+        ))),
     }
 }
 

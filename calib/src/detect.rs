@@ -96,8 +96,14 @@ pub fn check_image_file(path: &Path) -> Result<(), CalibError> {
             MAX_IMAGE_PIXELS / 1_000_000
         )));
     }
+    // Decoded as its content says, as OpenCV reads it: by its name, a PNG called .jpg (or
+    // with no extension) was called a damaged PNG.
     if format == Some(image::ImageFormat::Png) {
-        image::open(path).map_err(|e| bad(format!("is a damaged PNG ({e})")))?;
+        image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| bad(format!("cannot be read ({e})")))?
+            .decode()
+            .map_err(|e| bad(format!("is a damaged PNG ({e})")))?;
     }
     Ok(())
 }
@@ -179,11 +185,13 @@ pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
             reason: "cannot be decoded as an image (corrupt or not PNG/JPEG/PGM?)".into(),
         });
     }
-    // A 16-bit image holding 8-bit values (numpy's astype(uint16)) reads as black when
-    // scaled to 8 bits: its values are taken as they are.
+    // A 16-bit image holding fewer bits (numpy's astype(uint16) of 8-bit values; a 10- or
+    // 12-bit sensor's raw values) reads as black or a few grey levels when its top 8 bits
+    // are taken: it is scaled by its own range instead (10-bit data was refused as a black
+    // frame, 12-bit cut to 16 grey levels).
     let mut max = 0.0;
     core::min_max_loc(&img, None, Some(&mut max), None, None, &core::no_array())?;
-    if max < 2.0 {
+    if max < 64.0 {
         let deep = imgcodecs::imread(path, IMREAD_SENSOR_GRAY | imgcodecs::IMREAD_ANYDEPTH)?;
         let mut deep_max = 0.0;
         core::min_max_loc(
@@ -194,9 +202,17 @@ pub fn read_gray(path: &Path) -> Result<Mat, CalibError> {
             None,
             &core::no_array(),
         )?;
-        if deep.depth() == core::CV_16U && (2.0..=255.0).contains(&deep_max) {
+        if deep.depth() == core::CV_16U && deep_max >= 2.0 {
+            let scale = if deep_max <= 255.0 {
+                1.0
+            } else {
+                // The smallest whole number of bits holding the data, so a dark frame of a
+                // 12-bit sensor stays dark.
+                let bits = (deep_max + 1.0).log2().ceil();
+                255.0 / (2f64.powf(bits) - 1.0)
+            };
             let mut as_8bit = Mat::default();
-            deep.convert_to(&mut as_8bit, core::CV_8U, 1.0, 0.0)?;
+            deep.convert_to(&mut as_8bit, core::CV_8U, scale, 0.0)?;
             return Ok(as_8bit);
         }
     }

@@ -16,6 +16,7 @@ mod opencv_glue;
 pub mod select;
 mod session;
 pub mod uncertainty;
+pub mod view_consistency;
 
 pub use calibrate::{board_points, calibrate, Calibration, Observation};
 pub use camera_file::{

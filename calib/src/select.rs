@@ -165,12 +165,12 @@ pub fn compare_models(
     Ok(scores)
 }
 
-/// Marks the first model in [`PREFERENCE`] order whose median held-out error is within
-/// [`SIMPLER_WITHIN`] of the best as chosen.
+/// Marks the first model in [`PREFERENCE`] order the held-out views cannot tell from the
+/// best ([`ModelScore::fits_as_well`]) as chosen.
 pub fn mark_chosen(scores: &mut [ModelScore]) {
-    let best = best_held_out_px(scores);
-    if let Some(s) = scores.iter_mut().find(|s| s.fits_as_well(best)) {
-        s.chosen = true;
+    let tied: Vec<bool> = scores.iter().map(|s| s.fits_as_well(scores)).collect();
+    if let Some(k) = tied.iter().position(|t| *t) {
+        scores[k].chosen = true;
     }
 }
 
@@ -205,11 +205,37 @@ pub fn best_held_out_px(scores: &[ModelScore]) -> f64 {
 pub const CLEARLY_BETTER_FIT: f64 = 0.05;
 
 impl ModelScore {
-    /// Whether the held-out views cannot tell this model from the best one (`best_px`, the
-    /// lowest median held-out error): its median is within [`SIMPLER_WITHIN`] of it.
-    pub fn fits_as_well(&self, best_px: f64) -> bool {
-        self.held_out_median_px
-            .is_some_and(|e| e <= best_px * (1.0 + SIMPLER_WITHIN))
+    /// Whether the held-out views cannot tell this model from the best one of `scores` (the
+    /// lowest median held-out error): its median is within [`SIMPLER_WITHIN`] of it, or view
+    /// by view (the same corners held out under both) the median of its errors over the best
+    /// one's is. The medians alone part on one view's error in a set of 8 (pinhole5 0.052 px
+    /// against fisheye 0.044 on a pinhole lens, each view but one within 4 % of the other),
+    /// and auto chose the fisheye with a principal point 3σ off.
+    pub fn fits_as_well(&self, scores: &[ModelScore]) -> bool {
+        let best_px = best_held_out_px(scores);
+        let Some(own) = self.held_out_median_px else {
+            return false;
+        };
+        if own <= best_px * (1.0 + SIMPLER_WITHIN) {
+            return true;
+        }
+        let Some(best) = scores
+            .iter()
+            .find(|s| s.held_out_median_px == Some(best_px))
+        else {
+            return false;
+        };
+        let n = self.view_held_out_rms_px.len();
+        if n == 0 || best.view_held_out_rms_px.len() != n {
+            return false;
+        }
+        let ratios: Vec<f64> = self
+            .view_held_out_rms_px
+            .iter()
+            .zip(&best.view_held_out_rms_px)
+            .map(|(a, b)| a / b.max(1e-12))
+            .collect();
+        median(&ratios) <= 1.0 + SIMPLER_WITHIN
     }
 
     /// Whether this model fits all the views clearly better than one fitting them to
@@ -268,7 +294,49 @@ mod tests {
         assert_eq!(chosen, Some(LensModel::Rational));
         let best = best_held_out_px(&scores);
         assert!((best - 0.048).abs() < 1e-9, "{best}");
+        assert!(!scores[0].fits_as_well(&scores) && !scores[1].fits_as_well(&scores));
         assert!(scores[2].fits_clearly_better_than(0.071));
         assert!(!scores[1].fits_clearly_better_than(0.074));
+    }
+
+    /// The held-out errors of a pinhole lens, 8 views of `synth calib --seed 1` at 640x360:
+    /// one view (0.057 against 0.035 px) puts the fisheye's median 15 % under pinhole5's,
+    /// every other view within 4 %; auto chose the fisheye, its cx, cy 1.2 and 1.6 px off
+    /// with σ 0.5 (pinhole5: 0.4 and 0.2 px off with σ 0.9).
+    #[test]
+    fn one_view_does_not_break_a_near_tie_for_the_more_complex_model() {
+        let score = |model: LensModel, v: &[f64]| ModelScore {
+            model,
+            parameters: 4 + model.coefficient_names().len(),
+            fit_rms_px: Some(0.054),
+            held_out_rms_px: Some(rms(v)),
+            held_out_median_px: Some(median(v)),
+            view_held_out_rms_px: v.to_vec(),
+            failure: None,
+            chosen: false,
+            camera: None,
+        };
+        let mut scores = [
+            score(
+                LensModel::Pinhole5,
+                &[
+                    0.0361, 0.0527, 0.0661, 0.0362, 0.0986, 0.0511, 0.0566, 0.034,
+                ],
+            ),
+            score(
+                LensModel::Fisheye,
+                &[0.0366, 0.055, 0.0661, 0.0368, 0.0987, 0.051, 0.0353, 0.0346],
+            ),
+            score(
+                LensModel::Rational,
+                &[
+                    0.0383, 0.0534, 0.0661, 0.0363, 0.0987, 0.051, 0.0596, 0.0339,
+                ],
+            ),
+        ];
+        assert!(scores[0].held_out_median_px.unwrap() > 1.15 * best_held_out_px(&scores));
+        mark_chosen(&mut scores);
+        let chosen = scores.iter().find(|s| s.chosen).map(|s| s.model);
+        assert_eq!(chosen, Some(LensModel::Pinhole5));
     }
 }

@@ -136,9 +136,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             solution.consistency.rms_mm
         );
     }
+    let heights = height_warnings(&files, &paths, &solution.arena_to_camera)?;
     for w in shared_residual_warnings(&files, &paths, &solution.rms_px)
         .into_iter()
-        .chain(height_warnings(&files, &paths, &solution.arena_to_camera))
+        .chain(heights)
     {
         tell!("warning: {w}");
     }
