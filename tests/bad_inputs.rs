@@ -522,7 +522,7 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
         p(&long),
     ]);
     assert!(long.exists());
-    // A later step fails (a reference of other times): the trajectory is not left behind.
+    // A reference of other times, refused before tracking: no trajectory is left behind.
     let exp = dir.join("exp");
     ok(&[
         "synth",
@@ -550,7 +550,8 @@ fn outputs_are_plain_files_and_appear_together_or_not_at_all() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        err.contains("odocal: error: ") && err.contains("no row has the timestamp"),
+        err.contains("odocal: error: ")
+            && err.contains("give the truth of this video in seconds from its first frame"),
         "{err}"
     );
     assert!(

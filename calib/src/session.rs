@@ -708,7 +708,8 @@ pub fn calibrate_session(
             .iter()
             .filter(|s| {
                 !s.chosen
-                    && (s.fits_as_well(&model_comparison) || s.fits_clearly_better_than(cal.rms_px))
+                    && (s.held_out_within(&model_comparison)
+                        || s.fits_clearly_better_than(cal.rms_px))
             })
             .filter_map(|s| s.camera)
             .chain(fitting_better.iter().copied())

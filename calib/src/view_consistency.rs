@@ -5,7 +5,7 @@
 //! hundredth of a pixel of the held-out error, while putting fx 11σ off; the views' own
 //! intrinsics tell them apart by tens of σ.
 
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3};
 
 use crate::calibrate::Observation;
 use crate::uncertainty::{nudge, residuals};
@@ -48,7 +48,7 @@ pub fn disagree(views: &[ViewIntrinsics]) -> bool {
 }
 
 /// Each view's focal length (one scale for fx and fy) and principal point fitted from its
-/// corners with its own pose, the calibration's distortion held (Gauss–Newton from the
+/// corners with its own pose, the calibration's distortion held (Levenberg–Marquardt from the
 /// calibration's pose), against `camera` whose parameters have `covariance`; `sigma2` is the
 /// residual variance per pixel coordinate. Views whose fit does not converge are left out.
 pub fn view_intrinsics(
@@ -118,68 +118,42 @@ fn moved(camera: &CameraModel, s: f64, dcx: f64, dcy: f64) -> CameraModel {
     c
 }
 
-/// One view's (focal share, dcx, dcy) and their covariance.
+/// One view's (focal share, dcx, dcy) and their covariance: fitted by Levenberg–Marquardt
+/// (`odocal_core::lsq`) with the view's pose, which starts at the calibration's; the
+/// covariance from the Jacobian at the optimum, the pose marginalised out.
 fn fit_view(
     camera: &CameraModel,
     o: &Observation,
     sigma2: f64,
 ) -> Option<(DVector<f64>, DMatrix<f64>)> {
-    let mut x = [0.0f64; 3];
-    let mut pose = o.pose.0;
-    let steps = [1e-7, 1e-4, 1e-4];
-    let mut normal = DMatrix::<f64>::zeros(9, 9);
-    for _ in 0..6 {
-        let r0 = DVector::from_vec(residuals(&moved(camera, x[0], x[1], x[2]), &pose, o));
-        if !r0.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        let n = r0.len();
-        let mut j = DMatrix::<f64>::zeros(n, 9);
-        for (i, h) in steps.iter().enumerate() {
-            let mut p = x;
-            let mut m = x;
-            p[i] += h;
-            m[i] -= h;
-            let rp = residuals(&moved(camera, p[0], p[1], p[2]), &pose, o);
-            let rm = residuals(&moved(camera, m[0], m[1], m[2]), &pose, o);
-            for r in 0..n {
-                j[(r, i)] = (rp[r] - rm[r]) / (2.0 * h);
-            }
-        }
-        let cam = moved(camera, x[0], x[1], x[2]);
-        for k in 0..6 {
-            let h = 1e-7;
-            let rp = residuals(&cam, &nudge(&pose, k, h), o);
-            let rm = residuals(&cam, &nudge(&pose, k, -h), o);
-            for r in 0..n {
-                j[(r, 3 + k)] = (rp[r] - rm[r]) / (2.0 * h);
-            }
-        }
-        if !j.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        normal = j.transpose() * &j;
-        let step = normal.clone().lu().solve(&(-(j.transpose() * r0)))?;
-        for (xi, si) in x.iter_mut().zip(step.iter()) {
-            *xi += si;
-        }
-        for k in 0..6 {
-            pose = nudge(&pose, k, step[3 + k]);
-        }
-        if step
-            .rows(0, 3)
-            .component_mul(&DVector::from_row_slice(&[1e3, 1.0, 1.0]))
-            .norm()
-            < 1e-6
-        {
-            break;
+    // Parameters: the focal share, the principal point's move, then the pose's six nudges.
+    let at = |p: &[f64]| {
+        let pose = (0..6).fold(o.pose.0, |pose, k| nudge(&pose, k, p[3 + k]));
+        residuals(&moved(camera, p[0], p[1], p[2]), &pose, o)
+    };
+    let (x, report) = odocal_core::lsq::minimize(&at, vec![0.0; 9], 100);
+    if !report.termination.was_successful() {
+        return None;
+    }
+    // Central differences, each step small against what the parameter moves a corner by.
+    let steps = [1e-7, 1e-4, 1e-4, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7];
+    let r0 = at(&x);
+    let mut j = DMatrix::<f64>::zeros(r0.len(), 9);
+    for (c, h) in steps.iter().enumerate() {
+        let (mut a, mut b) = (x.clone(), x.clone());
+        a[c] += h;
+        b[c] -= h;
+        for (r, (ra, rb)) in at(&a).iter().zip(at(&b)).enumerate() {
+            j[(r, c)] = (ra - rb) / (2.0 * h);
         }
     }
-    let inv = normal.try_inverse()?;
+    if !j.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let inv = (j.transpose() * j).try_inverse()?;
     let cov: Matrix3<f64> = inv.fixed_view::<3, 3>(0, 0).into_owned() * sigma2;
-    let cov = DMatrix::from_iterator(3, 3, cov.iter().copied());
     Some((
-        DVector::from_vec(Vector3::from(x).iter().copied().collect()),
-        cov,
+        DVector::from_column_slice(&x[..3]),
+        DMatrix::from_iterator(3, 3, cov.iter().copied()),
     ))
 }
