@@ -218,7 +218,11 @@ pub fn check_map_report(
     }
     let (amb, complete) =
         find_ambiguities_within(map, tolerance_m, max_range_m, min_size, CHECK_BUDGET);
-    if !complete {
+    let congruent_found = amb.iter().any(|x| x.kind == AmbiguityKind::Congruent);
+    // A search that stopped with congruent configurations in hand has its verdict: more
+    // of them would not make the layout less ambiguous. Only one that stopped with none
+    // found cannot judge the map.
+    if !complete && !congruent_found {
         return Err(LrfError::Config(format!(
             "{name}: the ambiguity search stopped after {CHECK_BUDGET} candidate matches with {} ambiguous configurations found: the layout repeats itself within {tolerance_m} m (a regular lattice, or so many reflectors that groups of them match others by chance) and a scan seeing only such a group cannot be placed without motion; break the symmetry by moving some reflectors, or judge it with a smaller --tolerance-m if the reflectors are surveyed more finely",
             amb.len()
@@ -229,14 +233,20 @@ pub fn check_map_report(
         of(AmbiguityKind::Congruent).count(),
         of(AmbiguityKind::Mirror).count(),
     );
+    let at_least = if complete { "" } else { "at least " };
     let mut out = vec![
         format!(
             "{name}: {} landmarks, {} walls; tolerance {tolerance_m:.3} m, range {max_range_m:.1} m",
             map.len(),
             map.walls.len()
         ),
-        format!("congruent sub-configurations (ambiguous for any matcher): {congruent}; mirror images (ambiguous for distance-only matching): {mirror}"),
+        format!("congruent sub-configurations (ambiguous for any matcher): {at_least}{congruent}; mirror images (ambiguous for distance-only matching): {at_least}{mirror}"),
     ];
+    if !complete {
+        out.push(format!(
+            "the search stopped after {CHECK_BUDGET} candidate matches: the counts are those found by then, the largest configurations may be missing"
+        ));
+    }
     for x in of(AmbiguityKind::Congruent)
         .chain(of(AmbiguityKind::Mirror))
         .take(10)
@@ -257,7 +267,8 @@ pub fn check_map_report(
     out.push(match of(AmbiguityKind::Congruent).next() {
         None => format!("verdict: no congruent configuration of {} or more landmarks", min_size.max(3)),
         Some(first) => format!(
-            "verdict: AMBIGUOUS layout ({congruent} congruent configurations, largest {} landmarks): expect `ambiguous` poses there until motion resolves them",
+            "verdict: AMBIGUOUS layout ({at_least}{congruent} congruent configurations, largest {}{} landmarks): expect `ambiguous` poses there until motion resolves them",
+            at_least,
             first.size()
         ),
     });
