@@ -53,6 +53,11 @@ pub struct BuildOptions {
     /// What one sample is: a straight run (the reference experiment) or a window of any
     /// motion.
     pub layout: crate::windows::Layout,
+    /// Where the point and heading of the manifest's trajectory files sit on the robot (a
+    /// motion-capture body defined by hand): each file is taken off it as it is read, so its
+    /// trajectory is the axle midpoint's, heading forwards, as the odometry is. Videos are
+    /// tracked with their own mount.
+    pub trajectory_mount: odocal_core::TagToRobot,
 }
 
 /// The default of [`BuildOptions::max_alignment_residual_mps`]: three times what good runs
@@ -72,6 +77,7 @@ impl Default for BuildOptions {
             min_rest_frames: 3,
             max_alignment_residual_mps: DEFAULT_MAX_ALIGNMENT_RESIDUAL_MPS,
             layout: crate::windows::Layout::StraightRuns,
+            trajectory_mount: odocal_core::TagToRobot::IDENTITY,
         }
     }
 }

@@ -123,7 +123,9 @@ fn one_row(
         .collect();
     let log = mended.log;
     let traj = match (&row.trajectory, &row.video, track) {
-        (Some(t), _, _) => Trajectory::read_csv(&m.resolve(t))?,
+        (Some(t), _, _) => opts
+            .trajectory_mount
+            .robot_trajectory(&Trajectory::read_csv(&m.resolve(t))?),
         (None, Some(v), Some(track)) => {
             track(row, &m.resolve(v)).map_err(DatasetError::Mismatch)?
         }
@@ -340,6 +342,15 @@ pub fn build_from_manifest(
     if let Some(why) = swapped_pair(m, &results, opts) {
         return Err(DatasetError::Mismatch(why));
     }
+    // Tracked videos are checked for their mount by the tracker; trajectory files are not.
+    let files: Vec<&Trajectory> = m
+        .runs
+        .iter()
+        .zip(&results)
+        .filter(|(row, _)| row.trajectory.is_some())
+        .filter_map(|(_, (_, pair))| pair.as_ref().map(|(_, t)| t))
+        .collect();
+    let mount = crate::mount::check_mount(&files, &opts.trajectory_mount);
     let mut outcomes = Vec::with_capacity(results.len());
     let mut notes = Vec::new();
     let mut turns = TurnEvidence::default();
@@ -350,6 +361,14 @@ pub fn build_from_manifest(
         notes.extend(note);
         turns.add(&evidence.turns);
         travel.extend(evidence.travel);
+    }
+    // After each row's own refusals, which name its file: a trajectory turned 180° or in
+    // degrees is one row's fault, not the mount of all of them.
+    if let Some(why) = mount.refusal {
+        return Err(DatasetError::Mismatch(format!(
+            "{}: {why}",
+            m.source_name()
+        )));
     }
     // Each straight run turns too little to judge on its own; all of them together show a
     // mirrored floor frame, which left the alignment untouched and every run accepted with
@@ -367,6 +386,7 @@ pub fn build_from_manifest(
     }
     let mut ds = assemble(opts.robot, outcomes);
     ds.notes = notes;
+    ds.warnings.extend(mount.warning);
     if let Layout::Windows(_) = opts.layout {
         ds.feature_rule = WINDOW_RULE.to_string();
         ds.summary.travel_scale = crate::units::travel_scale(&travel);

@@ -11,6 +11,7 @@ pub mod heading;
 pub mod kinematics;
 pub mod lost_rows;
 pub mod manifest;
+pub mod mount;
 pub mod odometry;
 pub mod oracle;
 pub mod sample;

@@ -140,6 +140,10 @@ pub struct Dataset {
     /// unwrapped, twitches at rest set back), one line each naming the file.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// What the data says is likely wrong with it but cannot prove (a trajectory's point off
+    /// the wheel axle, say), one line each with the figure and the option that mends it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Summary figures of a dataset build.
@@ -212,6 +216,7 @@ impl Dataset {
             rejected,
             summary,
             notes: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 

@@ -53,7 +53,9 @@ pub struct Args {
     /// also print the targets' and clock offsets' errors against it.
     #[arg(long)]
     pub truth: Option<PathBuf>,
-    /// The tag on the robot in the manifest's videos, as `odocal track` takes it.
+    /// The tag on the robot in the manifest's videos, as `odocal track` takes it. A manifest of
+    /// trajectory files only takes --tag-offset and --tag-yaw as where the files' point and
+    /// heading sit on the robot (a motion-capture body), and takes them off every file.
     #[command(flatten)]
     pub tag: super::tag::TagArgs,
 }
@@ -204,7 +206,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let track_options = args.tag.apply(TrackOptions::default())?;
     let has_videos = manifest.runs.iter().any(|r| r.video.is_some());
     if !has_videos {
-        let unused = args.tag.given();
+        // A trajectory file's mount is taken off it as a tag's is off its fixes.
+        let unused: Vec<String> = args
+            .tag
+            .given()
+            .into_iter()
+            .filter(|o| !o.starts_with("--tag-offset ") && !o.starts_with("--tag-yaw "))
+            .collect();
         if !unused.is_empty() || args.camera.is_some() {
             let mut what = unused;
             if args.camera.is_some() {
@@ -269,6 +277,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         robot,
         min_gap_s: args.min_gap_s,
         layout,
+        trajectory_mount: if has_videos {
+            odocal_core::TagToRobot::IDENTITY
+        } else {
+            track_options.tag_to_robot
+        },
         ..BuildOptions::default()
     };
     let bar = progress(manifest.runs.len() as u64, "dataset");
@@ -402,6 +415,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ds.rejected.len(),
             ds.rejected.len() + ds.samples.len()
         );
+    }
+    for w in &ds.warnings {
+        tell!("warning: {w}");
     }
     // Every note is in the dataset file; a few name the kind on the terminal.
     const NOTES_SHOWN: usize = 3;
