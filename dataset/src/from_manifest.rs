@@ -123,9 +123,17 @@ fn one_row(
         .collect();
     let log = mended.log;
     let traj = match (&row.trajectory, &row.video, track) {
-        (Some(t), _, _) => opts
-            .trajectory_mount
-            .robot_trajectory(&Trajectory::read_csv(&m.resolve(t))?),
+        (Some(t), _, _) => {
+            let path = m.resolve(t);
+            let read = Trajectory::read_csv(&path)?;
+            let (kept, dropped) = crate::frame_glitch::drop_glitch_frames(&read);
+            notes.extend(
+                dropped
+                    .note(read.rows.len())
+                    .map(|n| format!("{}: {n}", path.display())),
+            );
+            opts.trajectory_mount.robot_trajectory(&kept)
+        }
         (None, Some(v), Some(track)) => {
             track(row, &m.resolve(v)).map_err(DatasetError::Mismatch)?
         }

@@ -5,6 +5,7 @@ pub mod align;
 pub mod build;
 pub mod counter_wrap;
 pub mod error;
+pub mod frame_glitch;
 mod from_manifest;
 pub mod glitch;
 pub mod heading;

@@ -426,7 +426,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if ds.notes.len() > NOTES_SHOWN {
         tell!(
-            "note: and {} more, on other logs (every note is in {}'s \"notes\")",
+            "note: and {} more, on other files (every note is in {}'s \"notes\")",
             ds.notes.len() - NOTES_SHOWN,
             args.out.display()
         );
