@@ -2093,3 +2093,46 @@ fn trajectory_frames_that_jump_flip_or_read_zero_are_dropped_and_said() {
         );
     }
 }
+
+/// Trajectories in feet were blamed on the manifest's speed labels (straight runs) or the
+/// robot file (tours), in inches on counts per period; millimetres and centimetres were
+/// named. Feet and inches are named too, with the factor that mends them.
+#[test]
+fn trajectories_in_feet_or_inches_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (paths, runs) in [("straight", "20"), ("tours", "2")] {
+        for (k, unit) in [(3.28084, "in feet?"), (39.37, "in inches?")] {
+            let _ = std::fs::remove_dir_all(d);
+            ok(&[
+                "synth",
+                "experiment",
+                "--out",
+                p(d),
+                "--runs",
+                runs,
+                "--frames",
+                "none",
+                "--paths",
+                paths,
+            ]);
+            edit_trajectories(d, &|_, f| {
+                for j in [1, 2] {
+                    f[j] = (num(f, j) * k).to_string();
+                }
+            });
+            let out = d.join("ds.json");
+            let layout = if paths == "tours" { "windows" } else { "runs" };
+            let e = fails(&dataset_args(
+                &d.join("manifest.json"),
+                &out,
+                &["--layout", layout],
+            ));
+            assert!(
+                e.contains(unit) && e.contains("it must be in metres"),
+                "{e}"
+            );
+            assert!(!out.exists());
+        }
+    }
+}

@@ -18,6 +18,12 @@ use crate::{Dataset, RejectedRun, RobotParams, Sample};
 /// the same motion (odometry drifts by percent, not by factors).
 const MAX_EXTENT_RATIO: f64 = 5.0;
 
+/// Feet in a metre: a trajectory exported in feet reads this many times the odometry.
+const FOOT_PER_M: f64 = 1.0 / 0.3048;
+
+/// Inches in a metre.
+const INCH_PER_M: f64 = 1.0 / 0.0254;
+
 /// Extents below this (metres) are too small to compare (a robot at rest, tracking noise).
 const MIN_EXTENT_M: f64 = 0.05;
 
@@ -94,7 +100,20 @@ fn extent_mismatch(
     }
     // Too large a camera path is judged against the whole log (its largest possible
     // extent), too small a one against the largest segment (its smallest).
-    let (odo_m, of) = if cam_m > MAX_EXTENT_RATIO * whole_m {
+    // The true ratio lies between the camera's extent over the whole log's and over its
+    // longest run's; a unit's factor is named when it lies within half again of that range
+    // (the nearest when two do): dead-reckoned tours and squares drift by tens of percent
+    // (their paths in millimetres read 1246 and 1427 times).
+    let (lo, hi) = (cam_m / whole_m, cam_m / run_m.max(f64::MIN_POSITIVE));
+    let off_range = |k: f64| {
+        let (l, h, k) = (lo.ln(), hi.max(lo).ln(), k.ln());
+        (l - k).max(k - h).max(0.0)
+    };
+    // Feet are within the ratio that drift alone may give, so they are named only where the
+    // range lies within 15 % of them (straight runs in feet read 3.38); else the robot
+    // file's scale check names them, on the wheels' travel.
+    let in_feet = off_range(FOOT_PER_M) < 1.15f64.ln();
+    let (odo_m, of) = if cam_m > MAX_EXTENT_RATIO * whole_m || in_feet {
         (whole_m, "")
     } else if cam_m * MAX_EXTENT_RATIO < run_m {
         (run_m, " (its longest run between rests)")
@@ -102,18 +121,10 @@ fn extent_mismatch(
         return None;
     };
     let ratio = cam_m / odo_m;
-    // The true ratio lies between the camera's extent over the whole log's and over its
-    // longest run's; a unit's factor is named when it lies within half again of that range
-    // (the nearest when two do): dead-reckoned tours and squares drift by tens of percent
-    // (their paths in millimetres read 1246 and 1427 times).
-    let (lo, hi) = (cam_m / whole_m, cam_m / run_m.max(f64::MIN_POSITIVE));
-    let off = |k: f64| {
-        let (l, h, k) = (lo.ln(), hi.max(lo).ln(), k.ln());
-        ((l - k).max(k - h).max(0.0), (k - ratio.ln()).abs())
-    };
-    let unit_k = [1000.0, 100.0, 0.001]
+    let off = |k: f64| (off_range(k), (k.ln() - ratio.ln()).abs());
+    let unit_k = [1000.0, 100.0, INCH_PER_M, FOOT_PER_M, 0.001]
         .into_iter()
-        .filter(|&k| off(k).0 < 1.5f64.ln())
+        .filter(|&k| off(k).0 < if k == FOOT_PER_M { 1.15f64 } else { 1.5 }.ln())
         .min_by(|&a, &b| {
             off(a)
                 .partial_cmp(&off(b))
@@ -128,6 +139,16 @@ fn extent_mismatch(
         (
             true,
             "100 times: is the trajectory in centimetres? it must be in metres",
+        )
+    } else if unit_k == Some(INCH_PER_M) {
+        (
+            true,
+            "39.37 times: is the trajectory in inches? it must be in metres (multiply inches by 0.0254)",
+        )
+    } else if unit_k == Some(FOOT_PER_M) {
+        (
+            true,
+            "3.281 times: is the trajectory in feet? it must be in metres (multiply feet by 0.3048)",
         )
     } else if unit_k == Some(0.001) {
         (
@@ -429,6 +450,13 @@ pub fn robot_scale_mismatch(
         (scale, format!("median over {n} samples"))
     };
     let near = |k: f64| (scale / k - 1.0).abs() < 0.1;
+    // A trajectory in feet scales every distance of the camera's, whatever the log: the
+    // robot file would not mend it.
+    if near(1.0 / FOOT_PER_M) {
+        return Err(format!(
+            "the odometry's distances are {scale:.3} times the camera's ({over}), and 1/3.281 is a trajectory in feet: it must be in metres (multiply feet by 0.3048)"
+        ));
+    }
     // A speed log's distances are its speeds times its times, whatever the wheels: the robot
     // file cannot scale them, their unit does. km/h read as m/s were blamed on ticks_per_rev.
     if speed_logs {

@@ -342,7 +342,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .is_ok_and(|l| l.kind == odocal_dataset::LogKind::Speeds)
     });
     match odocal_dataset::units::robot_scale_mismatch(&ds, &opts.robot, speed_logs) {
-        Err(why) if speed_logs => bail!("{why}; nothing was written"),
+        // A trajectory in feet is no fault of the robot file.
+        Err(why) if speed_logs || why.contains("a trajectory in feet") => {
+            bail!("{why}; nothing was written")
+        }
         Err(why) => bail!("{robot_file}: {why}; nothing was written"),
         Ok(Some(w)) if speed_logs => tell!("warning: {w}"),
         Ok(Some(w)) => tell!("warning: {robot_file}: {w}"),
