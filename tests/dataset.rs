@@ -2136,3 +2136,37 @@ fn trajectories_in_feet_or_inches_are_named() {
         }
     }
 }
+
+/// A `t,x,y,theta` motion-capture export marks its lost frames with NaN (or nothing): such
+/// files were refused "NaN is not a finite number", with no hint. Those rows are read as
+/// lost frames, and said; the targets are the clean experiment's.
+#[test]
+fn nan_rows_of_a_trajectory_without_quality_are_lost_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    synth(d, 20, 1, 1);
+    edit_trajectories(d, &|i, f| {
+        f.truncate(4);
+        if i % 90 == 45 {
+            f[1] = "NaN".into();
+            f[2] = "NaN".into();
+            f[3] = if i % 180 == 45 { "NaN" } else { "" }.into();
+        }
+    });
+    for entry in std::fs::read_dir(d.join("runs")).unwrap() {
+        let path = entry.unwrap().path();
+        if p(&path).ends_with(".trajectory.csv") {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let text = text.replacen("t,x,y,theta,quality", "t,x,y,theta", 1);
+            std::fs::write(&path, text).unwrap();
+        }
+    }
+    let (ds, said) = build_said(d);
+    assert!(
+        said.contains("rows have no pose (NaN or empty x, y and theta): read as lost frames"),
+        "{said}"
+    );
+    assert_eq!(ds.samples.len(), 20, "{said}");
+    let rms_mm = target_rms_mm(d, &ds);
+    assert!(rms_mm < 1.0, "targets {rms_mm:.2} mm RMS from the truth");
+}

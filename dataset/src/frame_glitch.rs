@@ -214,6 +214,65 @@ pub fn drop_glitch_frames(trajectory: &Trajectory) -> (Trajectory, DroppedFrames
     (kept, counts)
 }
 
+/// Reads a trajectory file. A `t,x,y,theta` export (no quality column) marks the frames it
+/// lost with NaN or empty x, y and theta; they are read as lost frames, as rows of quality 0
+/// are where the quality column exists, instead of refusing the file ("NaN is not a finite
+/// number"). Returns the trajectory and the note on the rows so read, if any.
+pub fn read_trajectory(
+    path: &std::path::Path,
+) -> Result<(Trajectory, Option<String>), crate::DatasetError> {
+    let text = crate::error::read_text(path)?;
+    let name = path.display().to_string();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap_or("")
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .map(|f| f.trim().to_ascii_lowercase())
+        .collect();
+    if header != ["t", "x", "y", "theta"] {
+        return Ok((Trajectory::parse_csv(&text, &name)?, None));
+    }
+    let no_value = |f: &str| {
+        let f = f.trim();
+        f.is_empty() || f.eq_ignore_ascii_case("nan")
+    };
+    let (mut rows, mut lost) = (0usize, 0usize);
+    let mut with_quality = String::from("t,x,y,theta,quality\n");
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        let is_lost = fields.len() == 4
+            && fields[0].trim().parse::<f64>().is_ok_and(f64::is_finite)
+            && fields[1..].iter().all(|f| no_value(f));
+        if !line.trim().is_empty() {
+            rows += 1;
+            lost += usize::from(is_lost);
+        }
+        with_quality.push_str(line);
+        if !line.trim().is_empty() {
+            with_quality.push_str(if is_lost { ",0" } else { ",1" });
+        }
+        with_quality.push('\n');
+    }
+    if lost == 0 {
+        return Ok((Trajectory::parse_csv(&text, &name)?, None));
+    }
+    if lost == rows {
+        return Err(crate::DatasetError::content(
+            &name,
+            "every row has no pose (NaN or empty x, y and theta, as a motion capture writes the frames it lost): give the trajectory of a recording the source tracked",
+        ));
+    }
+    let trajectory = Trajectory::parse_csv(&with_quality, &name)?;
+    Ok((
+        trajectory,
+        Some(format!(
+            "{lost} of {rows} rows have no pose (NaN or empty x, y and theta): read as lost frames, as a motion capture writes them"
+        )),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -125,7 +125,8 @@ fn one_row(
     let traj = match (&row.trajectory, &row.video, track) {
         (Some(t), _, _) => {
             let path = m.resolve(t);
-            let read = Trajectory::read_csv(&path)?;
+            let (read, lost_note) = crate::frame_glitch::read_trajectory(&path)?;
+            notes.extend(lost_note.map(|n| format!("{}: {n}", path.display())));
             let (kept, dropped) = crate::frame_glitch::drop_glitch_frames(&read);
             notes.extend(
                 dropped
