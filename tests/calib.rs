@@ -1958,3 +1958,72 @@ fn check_calib_passes_an_honest_calibration_outside_the_fixed_bounds() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// A floor board with 8 cm squares under a hand-held board of 5 cm, given as `--square 0.05`
+/// alone, put the camera 1.37 m above the floor (true 2.20 m), exit 0, unwarned: one flat
+/// board cannot tell its own scale. The hand-held boards found beyond that floor are now
+/// warned of, naming --floor-square, which gives the floor back.
+#[test]
+fn a_floor_board_of_another_square_is_warned_of_and_given_by_floor_square() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hand, big) = (dir.path().join("hand"), dir.path().join("big"));
+    views_640(&hand, 5, "6", "0", &[]);
+    let truth = views_640(&big, 5, "6", "2", &["--square", "0.08"]);
+    let true_height_m = truth.floor_to_camera.0.inverse().translation.vector.z;
+    let views = images(&hand, "view_");
+    let floors = images(&big, "floor_");
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["--square", "0.05", "--model", "pinhole5", "--out", p(out)];
+        args.extend_from_slice(extra);
+        args.push("--floor");
+        args.extend(floors.iter().map(String::as_str));
+        calibrate_views(&views, &args)
+    };
+    let out = dir.path().join("scaled.json");
+    let res = run(&out, &[]);
+    succeeded(&res);
+    let height_m = CameraFile::load(&out)
+        .unwrap()
+        .floor
+        .unwrap()
+        .camera_height_m;
+    let err = String::from_utf8_lossy(&res.stderr);
+    println!("height {height_m:.4} m, true {true_height_m:.4} m");
+    assert!(
+        (height_m / (true_height_m * 0.05 / 0.08) - 1.0).abs() < 0.02,
+        "{height_m}"
+    );
+    assert!(
+        err.contains("hand-held boards lie beyond the floor")
+            && err.contains("floor board's squares are larger than --square 0.05 m")
+            && err.contains("--floor-square"),
+        "{err}"
+    );
+    let out = dir.path().join("right.json");
+    let res = run(&out, &["--floor-square", "0.08"]);
+    succeeded(&res);
+    let height_m = CameraFile::load(&out)
+        .unwrap()
+        .floor
+        .unwrap()
+        .camera_height_m;
+    println!("--floor-square 0.08: height {height_m:.4} m");
+    // Six views at 640x360 fix the focal length, and so the height, to about half a percent.
+    assert!((height_m / true_height_m - 1.0).abs() < 0.01, "{height_m}");
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(!err.contains("beyond the floor"), "{err}");
+    // The floor board's square without floor views says nothing.
+    let out = dir.path().join("none.json");
+    let res = calibrate_views(
+        &views,
+        &[
+            "--square",
+            "0.05",
+            "--floor-square",
+            "0.08",
+            "--out",
+            p(&out),
+        ],
+    );
+    fails_with(&res, "give the floor views with --floor");
+}

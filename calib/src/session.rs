@@ -435,7 +435,8 @@ fn auto_or_pinhole5(
 
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
 /// `on_image` is called after each image's detection and after each model's cross-validation
-/// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise).
+/// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise). The
+/// floor board is `board`; [`calibrate_session_floor_square`] takes another square for it.
 pub fn calibrate_session(
     images: &[PathBuf],
     floor: &[PathBuf],
@@ -443,6 +444,48 @@ pub fn calibrate_session(
     choice: ModelChoice,
     on_image: &(dyn Fn() + Sync),
 ) -> Result<Session, CalibError> {
+    calibrate_session_floor_square(images, floor, board, None, choice, on_image)
+}
+
+/// [`calibrate_session`] with the floor board's square side `floor_square_m` (metres) when it
+/// is not `board`'s: one flat board seen alone cannot tell its own scale, so a floor board of
+/// another size than the hand-held one must be given, or every floor distance and the
+/// camera's height come out scaled by the ratio of the two squares. A ChArUco floor board's
+/// markers are taken as scaled alike.
+pub fn calibrate_session_floor_square(
+    images: &[PathBuf],
+    floor: &[PathBuf],
+    board: &BoardSpec,
+    floor_square_m: Option<f64>,
+    choice: ModelChoice,
+    on_image: &(dyn Fn() + Sync),
+) -> Result<Session, CalibError> {
+    let floor_board = match floor_square_m {
+        None => *board,
+        Some(sq) => {
+            check_square(sq, "0.08 for 8 cm").map_err(|e| {
+                CalibError::Input(e.to_string().replacen("--square", "--floor-square", 1))
+            })?;
+            let mut b = *board;
+            b.square_m = sq;
+            if let BoardTarget::Charuco {
+                marker_m,
+                dictionary,
+            } = board.target
+            {
+                b.target = BoardTarget::Charuco {
+                    marker_m: marker_m * sq / board.square_m,
+                    dictionary,
+                };
+            }
+            b
+        }
+    };
+    let square_option = if floor_square_m.is_some() {
+        "--floor-square"
+    } else {
+        "--square"
+    };
     if images.is_empty() {
         return Err(CalibError::Input(if floor.is_empty() {
             "no images: give the checkerboard views to calibrate from".into()
@@ -618,7 +661,7 @@ pub fn calibrate_session(
     let floor = if floor.is_empty() {
         None
     } else {
-        let fd = detect_all(floor, board, on_image)?;
+        let fd = detect_all(floor, &floor_board, on_image)?;
         // The first floor view fixes the floor frame (README, ARCHITECTURE): without its board
         // the next view's would, and every trajectory would come out moved and turned.
         if let (Some(Detection::NotFound { image, reason, .. }), true) = (fd.first(), fd.len() > 1)
@@ -638,7 +681,7 @@ pub fn calibrate_session(
         // A floor photo given twice would count its board twice in the joint floor fit and
         // halve the floor's σ with no new information.
         let fviews = distinct_views(fviews, &mut fskipped);
-        check_board_size(&fviews, board)?;
+        check_board_size(&fviews, &floor_board)?;
         check_layouts(views.iter().chain(&fviews))?;
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
@@ -647,11 +690,11 @@ pub fn calibrate_session(
                 .map(|s| format!("note: skipped floor view {}: {}", s.image, s.reason)),
         );
         if fviews.is_empty() {
-            return Err(no_board_error(floor, board, "floor"));
+            return Err(no_board_error(floor, &floor_board, "floor"));
         }
         // The corners' noise per coordinate: the calibration's RMS is per corner (2-D).
         let corner_sigma_px = cal.rms_px / std::f64::consts::SQRT_2;
-        let boards = FloorBoards::locate(&cal.camera, &fviews, board, corner_sigma_px)?;
+        let boards = FloorBoards::locate(&cal.camera, &fviews, &floor_board, corner_sigma_px)?;
         let fitted = boards.fit_parameters(&cal.camera);
         let plane = boards.plane(&fitted);
         notes.extend(crate::floor_consistency::check_floor_fits_camera(
@@ -665,11 +708,11 @@ pub fn calibrate_session(
         if !CEILING_HEIGHT_M.contains(&plane.camera_height_m) {
             let high = plane.camera_height_m > *CEILING_HEIGHT_M.end();
             notes.push(format!(
-                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is --square {} the side of one square in metres? (a square 10 times too {} makes every floor distance 10 times too {})",
+                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is {square_option} {} the side of one square in metres? (a square 10 times too {} makes every floor distance 10 times too {})",
                 plane.camera_height_m,
                 CEILING_HEIGHT_M.start(),
                 CEILING_HEIGHT_M.end(),
-                board.square_m,
+                floor_board.square_m,
                 if high { "large" } else { "small" },
                 if high { "large" } else { "small" },
             ));
@@ -685,7 +728,14 @@ pub fn calibrate_session(
                 if fviews.len() == 1 { "the floor board was" } else { "the floor boards were" }
             ));
         }
-        notes.extend(turned_floor_note(&fviews[0], board));
+        notes.extend(turned_floor_note(&fviews[0], &floor_board));
+        notes.extend(views_beyond_floor_note(
+            &cal.poses,
+            &views,
+            &plane,
+            square_option,
+            floor_board.square_m,
+        ));
         if let [only] = fviews.as_slice() {
             notes.push(format!(
                 "warning: the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
@@ -714,7 +764,7 @@ pub fn calibrate_session(
             .filter_map(|s| s.camera)
             .chain(fitting_better.iter().copied())
             .filter_map(|cam| {
-                let b = FloorBoards::locate(&cam, &fviews, board, corner_sigma_px).ok()?;
+                let b = FloorBoards::locate(&cam, &fviews, &floor_board, corner_sigma_px).ok()?;
                 let f = b.fit_parameters(&cam);
                 Some((cam, b.floor(&f)))
             })
@@ -762,6 +812,55 @@ fn check_layouts<'a>(
         ))),
         (l, _) => Ok(l.is_some()),
     }
+}
+
+/// Hand-held boards located this far beyond the floor (a share of the camera's height) are
+/// beyond chance: a board is placed along the line of sight to a fraction of a percent.
+const BEYOND_FLOOR_SHARE: f64 = 0.1;
+
+/// A warning when most hand-held boards (`poses` of `views`) lie beyond the floor `plane`:
+/// held under a ceiling camera a board is nearer than the floor, so the floor is too near,
+/// which a floor board larger than the `square_m` given for it (by `option`) does, scaling
+/// every floor distance and the camera's height down by the ratio of the two squares. One
+/// flat board alone cannot tell its own scale, and the hand-held boards' distances are the
+/// only other scale in the session. Views taken before the camera was mounted, or a board
+/// held up to a far wall, can lie beyond the floor: hence the median board and a warning
+/// (`synth calib` holds one board in twenty beyond a right floor).
+fn views_beyond_floor_note(
+    poses: &[crate::BoardToCamera],
+    views: &[BoardView],
+    plane: &crate::FloorPlane,
+    option: &str,
+    square_m: f64,
+) -> Option<String> {
+    let up = plane.floor_to_camera.0.rotation * nalgebra::Vector3::z();
+    let height_m = plane.camera_height_m;
+    // Each hand-held board's centre: its depth below the camera along the floor's normal.
+    let depths: Vec<f64> = poses
+        .iter()
+        .zip(views)
+        .map(|(pose, v)| {
+            let n = v.object_points.len().max(1) as f64;
+            let c = v
+                .object_points
+                .iter()
+                .map(|p| p.coords)
+                .sum::<nalgebra::Vector3<f64>>()
+                / n;
+            -(pose.0 * nalgebra::Point3::from(c)).coords.dot(&up)
+        })
+        .collect();
+    let median_m = crate::select::median(&depths);
+    let limit_m = height_m * (1.0 + BEYOND_FLOOR_SHARE);
+    if !(height_m > 0.0 && median_m > limit_m) {
+        return None;
+    }
+    let beyond = depths.iter().filter(|d| **d > limit_m).count();
+    Some(format!(
+        "warning: {beyond} of the {} hand-held boards lie beyond the floor: the median board is {median_m:.2} m below the camera, where the floor boards put the floor {height_m:.2} m below it, yet a board held under a ceiling camera is nearer than the floor. If the views were taken with the camera in place, the floor board's squares are larger than {option} {square_m} m (by this median, at least {:.3} m), and the camera's height and every floor distance come out too small by the ratio of the two: pass the floor board's own square side as --floor-square",
+        views.len(),
+        square_m * median_m / height_m
+    ))
 }
 
 /// A note when the floor frame's x axis (along the board's rows of `cols` corners) runs up or
