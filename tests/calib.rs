@@ -2027,3 +2027,38 @@ fn a_floor_board_of_another_square_is_warned_of_and_given_by_floor_square() {
     );
     fails_with(&res, "give the floor views with --floor");
 }
+
+/// pinhole5 forced on a 110° rational lens: with floor views the error blamed them ("another
+/// zoom or focus?"), where without them the model was named; the model is named first now.
+/// Without floor views the projection σ ran to "1737648756.293 px": a σ beyond the image is
+/// said to be unbounded.
+#[test]
+fn a_forced_lens_model_is_blamed_before_the_floor_views() {
+    let dir = tempfile::tempdir().unwrap();
+    views_640(dir.path(), 5, "9", "3", &["--lens", "rational"]);
+    let out = dir.path().join("camera.json");
+    let res = calibrate_with(dir.path(), &out, "9x6", "0.08", &["--model", "pinhole5"]);
+    let err = fails_with(&res, "--model pinhole5 fits the views");
+    assert!(
+        err.contains("worse than the rational model")
+            && err.contains("the floor views do not fit the camera either")
+            && err.contains("Calibrate with --model rational")
+            && !err.contains("the ± below"),
+        "{err}"
+    );
+    let views = images(dir.path(), "view_");
+    let res = calibrate_views(
+        &views,
+        &["--square", "0.08", "--model", "pinhole5", "--out", p(&out)],
+    );
+    succeeded(&res);
+    let said = String::from_utf8_lossy(&res.stdout);
+    let line = said
+        .lines()
+        .find(|l| l.contains("projection uncertainty"))
+        .unwrap_or_default();
+    assert!(
+        line.contains("largest more than 640 px, the image's size (unbounded)"),
+        "{said}"
+    );
+}

@@ -578,6 +578,9 @@ pub fn calibrate_session_floor_square(
         ));
     }
     let choice = auto_or_pinhole5(choice, views.len(), &mut notes, on_image);
+    // Another lens model fitting the views clearly better: the floor views, located through
+    // the same misfit, are not to take the blame for it.
+    let mut model_misfit: Option<String> = None;
     let (model, model_comparison, held_out) = match choice {
         ModelChoice::Auto => {
             let scores = compare_models(&views, board, &|_| on_image())?;
@@ -586,7 +589,8 @@ pub fn calibrate_session_floor_square(
                 .find(|s| s.chosen)
                 .ok_or_else(|| CalibError::Input("no lens model fits these views".into()))?;
             let held = chosen.view_held_out_rms_px.clone();
-            notes.extend(misfit_note(chosen, &scores));
+            model_misfit = misfit_note(chosen, &scores);
+            notes.extend(model_misfit.clone());
             (chosen.model, scores, held)
         }
         ModelChoice::Fixed(m) => {
@@ -617,7 +621,8 @@ pub fn calibrate_session_floor_square(
     if let ModelChoice::Fixed(m) = choice {
         let others = other_models(&views, board, m);
         let fits: Vec<(LensModel, f64)> = others.iter().map(|(m, c)| (*m, c.rms_px)).collect();
-        notes.extend(judge_fixed_model(m, cal.rms_px, &fits)?);
+        model_misfit = judge_fixed_model(m, cal.rms_px, &fits)?;
+        notes.extend(model_misfit.clone());
         fitting_better = others
             .into_iter()
             .filter(|(_, c)| c.rms_px * (1.0 + crate::select::CLEARLY_BETTER_FIT) < cal.rms_px)
@@ -697,14 +702,29 @@ pub fn calibrate_session_floor_square(
         let boards = FloorBoards::locate(&cal.camera, &fviews, &floor_board, corner_sigma_px)?;
         let fitted = boards.fit_parameters(&cal.camera);
         let plane = boards.plane(&fitted);
-        notes.extend(crate::floor_consistency::check_floor_fits_camera(
+        let fits_camera = crate::floor_consistency::check_floor_fits_camera(
             &cal.camera,
             &cal.covariance,
             &boards,
             &fitted,
             &plane,
             cal.rms_px,
-        )?);
+        );
+        // The lens model's misfit is named first: through a model that misfits the lens, the
+        // floor boards held on one plane misfit too (pinhole5 on a rational lens: "another
+        // zoom or focus?", where without floor views the model was rightly named).
+        let fits_camera = match (fits_camera, &model_misfit) {
+            (Err(e), Some(m)) => {
+                let m = m.trim_start_matches("warning: ");
+                let head = m.split(", more than").next().unwrap_or(m);
+                let advice = m.rsplit(". ").next().unwrap_or_default();
+                return Err(CalibError::Input(format!(
+                    "{head}, more than its extra parameters explain: the {model} model misfits the lens, and through that misfit the floor views do not fit the camera either, the model's doing rather than theirs; {advice} (the floor check said: {e})"
+                )));
+            }
+            (r, _) => r?,
+        };
+        notes.extend(fits_camera);
         if !CEILING_HEIGHT_M.contains(&plane.camera_height_m) {
             let high = plane.camera_height_m > *CEILING_HEIGHT_M.end();
             notes.push(format!(
@@ -1299,10 +1319,12 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
     }
     if let Some(cov) = f.covariance_matrix() {
         let map = UncertaintyMap::new(&f.camera, &cov, (f.camera.width / 32).max(8));
+        let side_px = f.camera.width.max(f.camera.height);
         if let Some(median) = map.median_px() {
             out.push(format!(
-                "  projection uncertainty of a camera-frame direction (1σ, worst direction, from the covariance): median {median:.3} px, largest {:.3} px over the image (an upper bound on the floor, whose plane the same intrinsics fix)",
-                map.max_px()
+                "  projection uncertainty of a camera-frame direction (1σ, worst direction, from the covariance): median {}, largest {} over the image (an upper bound on the floor, whose plane the same intrinsics fix)",
+                crate::uncertainty::far_px(median, side_px, 3),
+                crate::uncertainty::far_px(map.max_px(), side_px, 3)
             ));
         }
     }
