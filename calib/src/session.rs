@@ -687,7 +687,21 @@ pub fn calibrate_session_floor_square(
         // halve the floor's σ with no new information.
         let fviews = distinct_views(fviews, &mut fskipped);
         check_board_size(&fviews, &floor_board)?;
+        let fviews = odd_layout_floor_view(fviews, legacy_layout, &mut fskipped)?;
         check_layouts(views.iter().chain(&fviews))?;
+        // The hand-held views read the board with these very options: a floor view's markers
+        // out of place are unreadable ones (small or blurred), not wrong options.
+        if floor_square_m.is_none() {
+            for s in &mut fskipped {
+                if let Some(at) = s
+                    .reason
+                    .find(": check --board (squares), --square and --marker")
+                {
+                    s.reason.truncate(at);
+                    s.reason.push_str(": unreadable, the markers too small or blurred to read reliably (the hand-held views read the board with these options)");
+                }
+            }
+        }
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
             fskipped
@@ -881,6 +895,48 @@ fn views_beyond_floor_note(
         views.len(),
         square_m * median_m / height_m
     ))
+}
+
+/// Skips the one floor view of a ChArUco board whose markers read as the other layout than
+/// the hand-held views' (`legacy_layout`, see [`check_layouts`]): markers small or blurred
+/// (far out in a fisheye's image) can agree a little better with the other layout by
+/// chance, and one such view aborted the whole calibration. The layout's verdict needs
+/// several views: two or more floor views reading so are left to [`check_layouts`]. The first
+/// floor view fixes the floor frame, so it is not skipped but refused.
+fn odd_layout_floor_view(
+    mut fviews: Vec<BoardView>,
+    legacy_layout: bool,
+    skipped: &mut Vec<SkippedView>,
+) -> Result<Vec<BoardView>, CalibError> {
+    let odd: Vec<usize> = (0..fviews.len())
+        .filter(|&k| fviews[k].legacy_layout != legacy_layout)
+        .collect();
+    let [k] = odd.as_slice() else {
+        return Ok(fviews);
+    };
+    if fviews.len() < 2 {
+        return Ok(fviews);
+    }
+    let (this, other) = if legacy_layout {
+        ("OpenCV 4.6 on", "before 4.6")
+    } else {
+        ("before 4.6", "OpenCV 4.6 on")
+    };
+    let reason = format!(
+        "unreadable: its markers fit the ChArUco layout of {this} a little better than the layout of {other} every other view shows, as markers too small or blurred to read reliably can"
+    );
+    if *k == 0 {
+        return Err(CalibError::Input(format!(
+            "the first floor view {}, which fixes the floor frame's origin and axes, is {reason}; retake it with the board nearer the image's centre, or give first the floor view whose board should be the origin",
+            fviews[0].image
+        )));
+    }
+    let v = fviews.remove(*k);
+    skipped.push(SkippedView {
+        image: v.image,
+        reason,
+    });
+    Ok(fviews)
 }
 
 /// A note when the floor frame's x axis (along the board's rows of `cols` corners) runs up or
