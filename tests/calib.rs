@@ -2063,6 +2063,56 @@ fn a_forced_lens_model_is_blamed_before_the_floor_views() {
     );
 }
 
+/// `synth check-calib` passed a fisheye ChArUco floor whose error was 2.49 times its σ where
+/// `calibrate` vouched for it: a σ understated so fails the check. A camera file whose floor
+/// σ is cut tenfold fails; the honest one passes.
+#[test]
+fn check_calib_fails_a_floor_sigma_that_understates_the_error() {
+    let dir = tempfile::tempdir().unwrap();
+    six_views_640(dir.path(), "2");
+    let out = dir.path().join("camera.json");
+    succeeded(&calibrate_with(
+        dir.path(),
+        &out,
+        "9x6",
+        "0.05",
+        &["--model", "pinhole5"],
+    ));
+    let truth = dir.path().join("truth.json");
+    ok(&[
+        "synth",
+        "check-calib",
+        "--camera",
+        p(&out),
+        "--truth",
+        p(&truth),
+    ]);
+    let mut cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    for s in cam["floor_uncertainty"]["sigma_mm"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .filter(|s| s.is_number())
+    {
+        *s = serde_json::json!(s.as_f64().unwrap() / 10.0);
+    }
+    let cut = dir.path().join("cut.json");
+    std::fs::write(&cut, cam.to_string()).unwrap();
+    let err = fails(&[
+        "synth",
+        "check-calib",
+        "--camera",
+        p(&cut),
+        "--truth",
+        p(&truth),
+    ]);
+    assert!(
+        err.contains("times the floor map's σ") && err.contains("the σ understates the error"),
+        "{err}"
+    );
+}
+
 /// A fisheye ChArUco floor view whose few small markers fit the layout before OpenCV 4.6 a
 /// little better (floor_07 of seed 3) aborted the whole calibration as a board of the other
 /// layout, and one whose markers sat out of place (floor_03) was skipped as if --board,
