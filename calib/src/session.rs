@@ -435,7 +435,8 @@ fn auto_or_pinhole5(
 
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
 /// `on_image` is called after each image's detection and after each model's cross-validation
-/// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise).
+/// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise). The
+/// floor board is `board`; [`calibrate_session_floor_square`] takes another square for it.
 pub fn calibrate_session(
     images: &[PathBuf],
     floor: &[PathBuf],
@@ -443,6 +444,48 @@ pub fn calibrate_session(
     choice: ModelChoice,
     on_image: &(dyn Fn() + Sync),
 ) -> Result<Session, CalibError> {
+    calibrate_session_floor_square(images, floor, board, None, choice, on_image)
+}
+
+/// [`calibrate_session`] with the floor board's square side `floor_square_m` (metres) when it
+/// is not `board`'s: one flat board seen alone cannot tell its own scale, so a floor board of
+/// another size than the hand-held one must be given, or every floor distance and the
+/// camera's height come out scaled by the ratio of the two squares. A ChArUco floor board's
+/// markers are taken as scaled alike.
+pub fn calibrate_session_floor_square(
+    images: &[PathBuf],
+    floor: &[PathBuf],
+    board: &BoardSpec,
+    floor_square_m: Option<f64>,
+    choice: ModelChoice,
+    on_image: &(dyn Fn() + Sync),
+) -> Result<Session, CalibError> {
+    let floor_board = match floor_square_m {
+        None => *board,
+        Some(sq) => {
+            check_square(sq, "0.08 for 8 cm").map_err(|e| {
+                CalibError::Input(e.to_string().replacen("--square", "--floor-square", 1))
+            })?;
+            let mut b = *board;
+            b.square_m = sq;
+            if let BoardTarget::Charuco {
+                marker_m,
+                dictionary,
+            } = board.target
+            {
+                b.target = BoardTarget::Charuco {
+                    marker_m: marker_m * sq / board.square_m,
+                    dictionary,
+                };
+            }
+            b
+        }
+    };
+    let square_option = if floor_square_m.is_some() {
+        "--floor-square"
+    } else {
+        "--square"
+    };
     if images.is_empty() {
         return Err(CalibError::Input(if floor.is_empty() {
             "no images: give the checkerboard views to calibrate from".into()
@@ -535,6 +578,9 @@ pub fn calibrate_session(
         ));
     }
     let choice = auto_or_pinhole5(choice, views.len(), &mut notes, on_image);
+    // Another lens model fitting the views clearly better: the floor views, located through
+    // the same misfit, are not to take the blame for it.
+    let mut model_misfit: Option<String> = None;
     let (model, model_comparison, held_out) = match choice {
         ModelChoice::Auto => {
             let scores = compare_models(&views, board, &|_| on_image())?;
@@ -543,7 +589,8 @@ pub fn calibrate_session(
                 .find(|s| s.chosen)
                 .ok_or_else(|| CalibError::Input("no lens model fits these views".into()))?;
             let held = chosen.view_held_out_rms_px.clone();
-            notes.extend(misfit_note(chosen, &scores));
+            model_misfit = misfit_note(chosen, &scores);
+            notes.extend(model_misfit.clone());
             (chosen.model, scores, held)
         }
         ModelChoice::Fixed(m) => {
@@ -574,7 +621,8 @@ pub fn calibrate_session(
     if let ModelChoice::Fixed(m) = choice {
         let others = other_models(&views, board, m);
         let fits: Vec<(LensModel, f64)> = others.iter().map(|(m, c)| (*m, c.rms_px)).collect();
-        notes.extend(judge_fixed_model(m, cal.rms_px, &fits)?);
+        model_misfit = judge_fixed_model(m, cal.rms_px, &fits)?;
+        notes.extend(model_misfit.clone());
         fitting_better = others
             .into_iter()
             .filter(|(_, c)| c.rms_px * (1.0 + crate::select::CLEARLY_BETTER_FIT) < cal.rms_px)
@@ -618,7 +666,7 @@ pub fn calibrate_session(
     let floor = if floor.is_empty() {
         None
     } else {
-        let fd = detect_all(floor, board, on_image)?;
+        let fd = detect_all(floor, &floor_board, on_image)?;
         // The first floor view fixes the floor frame (README, ARCHITECTURE): without its board
         // the next view's would, and every trajectory would come out moved and turned.
         if let (Some(Detection::NotFound { image, reason, .. }), true) = (fd.first(), fd.len() > 1)
@@ -638,8 +686,22 @@ pub fn calibrate_session(
         // A floor photo given twice would count its board twice in the joint floor fit and
         // halve the floor's σ with no new information.
         let fviews = distinct_views(fviews, &mut fskipped);
-        check_board_size(&fviews, board)?;
+        check_board_size(&fviews, &floor_board)?;
+        let fviews = odd_layout_floor_view(fviews, legacy_layout, &mut fskipped)?;
         check_layouts(views.iter().chain(&fviews))?;
+        // The hand-held views read the board with these very options: a floor view's markers
+        // out of place are unreadable ones (small or blurred), not wrong options.
+        if floor_square_m.is_none() {
+            for s in &mut fskipped {
+                if let Some(at) = s
+                    .reason
+                    .find(": check --board (squares), --square and --marker")
+                {
+                    s.reason.truncate(at);
+                    s.reason.push_str(": unreadable, the markers too small or blurred to read reliably (the hand-held views read the board with these options)");
+                }
+            }
+        }
         check_sizes(&[sizes[..1].to_vec(), fsizes].concat())?;
         notes.extend(
             fskipped
@@ -647,29 +709,44 @@ pub fn calibrate_session(
                 .map(|s| format!("note: skipped floor view {}: {}", s.image, s.reason)),
         );
         if fviews.is_empty() {
-            return Err(no_board_error(floor, board, "floor"));
+            return Err(no_board_error(floor, &floor_board, "floor"));
         }
         // The corners' noise per coordinate: the calibration's RMS is per corner (2-D).
         let corner_sigma_px = cal.rms_px / std::f64::consts::SQRT_2;
-        let boards = FloorBoards::locate(&cal.camera, &fviews, board, corner_sigma_px)?;
+        let boards = FloorBoards::locate(&cal.camera, &fviews, &floor_board, corner_sigma_px)?;
         let fitted = boards.fit_parameters(&cal.camera);
         let plane = boards.plane(&fitted);
-        notes.extend(crate::floor_consistency::check_floor_fits_camera(
+        let fits_camera = crate::floor_consistency::check_floor_fits_camera(
             &cal.camera,
             &cal.covariance,
             &boards,
             &fitted,
             &plane,
             cal.rms_px,
-        )?);
+        );
+        // The lens model's misfit is named first: through a model that misfits the lens, the
+        // floor boards held on one plane misfit too (pinhole5 on a rational lens: "another
+        // zoom or focus?", where without floor views the model was rightly named).
+        let fits_camera = match (fits_camera, &model_misfit) {
+            (Err(e), Some(m)) => {
+                let m = m.trim_start_matches("warning: ");
+                let head = m.split(", more than").next().unwrap_or(m);
+                let advice = m.rsplit(". ").next().unwrap_or_default();
+                return Err(CalibError::Input(format!(
+                    "{head}, more than its extra parameters explain: the {model} model misfits the lens, and through that misfit the floor views do not fit the camera either, the model's doing rather than theirs; {advice} (the floor check said: {e})"
+                )));
+            }
+            (r, _) => r?,
+        };
+        notes.extend(fits_camera);
         if !CEILING_HEIGHT_M.contains(&plane.camera_height_m) {
             let high = plane.camera_height_m > *CEILING_HEIGHT_M.end();
             notes.push(format!(
-                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is --square {} the side of one square in metres? (a square 10 times too {} makes every floor distance 10 times too {})",
+                "warning: by these floor boards the camera is {:.2} m above the floor, outside the {:.1}–{:.0} m of a ceiling camera over small robots; is {square_option} {} the side of one square in metres? (a square 10 times too {} makes every floor distance 10 times too {})",
                 plane.camera_height_m,
                 CEILING_HEIGHT_M.start(),
                 CEILING_HEIGHT_M.end(),
-                board.square_m,
+                floor_board.square_m,
                 if high { "large" } else { "small" },
                 if high { "large" } else { "small" },
             ));
@@ -685,7 +762,14 @@ pub fn calibrate_session(
                 if fviews.len() == 1 { "the floor board was" } else { "the floor boards were" }
             ));
         }
-        notes.extend(turned_floor_note(&fviews[0], board));
+        notes.extend(turned_floor_note(&fviews[0], &floor_board));
+        notes.extend(views_beyond_floor_note(
+            &cal.poses,
+            &views,
+            &plane,
+            square_option,
+            floor_board.square_m,
+        ));
         if let [only] = fviews.as_slice() {
             notes.push(format!(
                 "warning: the floor rests on one board ({}): nothing checks that it lies flat on the floor, and its tilt alone sets the floor's; lay the board at 3 or more places spread over the floor",
@@ -714,7 +798,7 @@ pub fn calibrate_session(
             .filter_map(|s| s.camera)
             .chain(fitting_better.iter().copied())
             .filter_map(|cam| {
-                let b = FloorBoards::locate(&cam, &fviews, board, corner_sigma_px).ok()?;
+                let b = FloorBoards::locate(&cam, &fviews, &floor_board, corner_sigma_px).ok()?;
                 let f = b.fit_parameters(&cam);
                 Some((cam, b.floor(&f)))
             })
@@ -762,6 +846,97 @@ fn check_layouts<'a>(
         ))),
         (l, _) => Ok(l.is_some()),
     }
+}
+
+/// Hand-held boards located this far beyond the floor (a share of the camera's height) are
+/// beyond chance: a board is placed along the line of sight to a fraction of a percent.
+const BEYOND_FLOOR_SHARE: f64 = 0.1;
+
+/// A warning when most hand-held boards (`poses` of `views`) lie beyond the floor `plane`:
+/// held under a ceiling camera a board is nearer than the floor, so the floor is too near,
+/// which a floor board larger than the `square_m` given for it (by `option`) does, scaling
+/// every floor distance and the camera's height down by the ratio of the two squares. One
+/// flat board alone cannot tell its own scale, and the hand-held boards' distances are the
+/// only other scale in the session. Views taken before the camera was mounted, or a board
+/// held up to a far wall, can lie beyond the floor: hence the median board and a warning
+/// (`synth calib` holds one board in twenty beyond a right floor).
+fn views_beyond_floor_note(
+    poses: &[crate::BoardToCamera],
+    views: &[BoardView],
+    plane: &crate::FloorPlane,
+    option: &str,
+    square_m: f64,
+) -> Option<String> {
+    let up = plane.floor_to_camera.0.rotation * nalgebra::Vector3::z();
+    let height_m = plane.camera_height_m;
+    // Each hand-held board's centre: its depth below the camera along the floor's normal.
+    let depths: Vec<f64> = poses
+        .iter()
+        .zip(views)
+        .map(|(pose, v)| {
+            let n = v.object_points.len().max(1) as f64;
+            let c = v
+                .object_points
+                .iter()
+                .map(|p| p.coords)
+                .sum::<nalgebra::Vector3<f64>>()
+                / n;
+            -(pose.0 * nalgebra::Point3::from(c)).coords.dot(&up)
+        })
+        .collect();
+    let median_m = crate::select::median(&depths);
+    let limit_m = height_m * (1.0 + BEYOND_FLOOR_SHARE);
+    if !(height_m > 0.0 && median_m > limit_m) {
+        return None;
+    }
+    let beyond = depths.iter().filter(|d| **d > limit_m).count();
+    Some(format!(
+        "warning: {beyond} of the {} hand-held boards lie beyond the floor: the median board is {median_m:.2} m below the camera, where the floor boards put the floor {height_m:.2} m below it, yet a board held under a ceiling camera is nearer than the floor. If the views were taken with the camera in place, the floor board's squares are larger than {option} {square_m} m (by this median, at least {:.3} m), and the camera's height and every floor distance come out too small by the ratio of the two: pass the floor board's own square side as --floor-square",
+        views.len(),
+        square_m * median_m / height_m
+    ))
+}
+
+/// Skips the one floor view of a ChArUco board whose markers read as the other layout than
+/// the hand-held views' (`legacy_layout`, see [`check_layouts`]): markers small or blurred
+/// (far out in a fisheye's image) can agree a little better with the other layout by
+/// chance, and one such view aborted the whole calibration. The layout's verdict needs
+/// several views: two or more floor views reading so are left to [`check_layouts`]. The first
+/// floor view fixes the floor frame, so it is not skipped but refused.
+fn odd_layout_floor_view(
+    mut fviews: Vec<BoardView>,
+    legacy_layout: bool,
+    skipped: &mut Vec<SkippedView>,
+) -> Result<Vec<BoardView>, CalibError> {
+    let odd: Vec<usize> = (0..fviews.len())
+        .filter(|&k| fviews[k].legacy_layout != legacy_layout)
+        .collect();
+    let [k] = odd.as_slice() else {
+        return Ok(fviews);
+    };
+    if fviews.len() < 2 {
+        return Ok(fviews);
+    }
+    let (this, other) = if legacy_layout {
+        ("OpenCV 4.6 on", "before 4.6")
+    } else {
+        ("before 4.6", "OpenCV 4.6 on")
+    };
+    let reason = format!(
+        "unreadable: its markers fit the ChArUco layout of {this} a little better than the layout of {other} every other view shows, as markers too small or blurred to read reliably can"
+    );
+    if *k == 0 {
+        return Err(CalibError::Input(format!(
+            "the first floor view {}, which fixes the floor frame's origin and axes, is {reason}; retake it with the board nearer the image's centre, or give first the floor view whose board should be the origin",
+            fviews[0].image
+        )));
+    }
+    let v = fviews.remove(*k);
+    skipped.push(SkippedView {
+        image: v.image,
+        reason,
+    });
+    Ok(fviews)
 }
 
 /// A note when the floor frame's x axis (along the board's rows of `cols` corners) runs up or
@@ -1200,10 +1375,12 @@ pub fn summary(f: &CameraFile) -> Vec<String> {
     }
     if let Some(cov) = f.covariance_matrix() {
         let map = UncertaintyMap::new(&f.camera, &cov, (f.camera.width / 32).max(8));
+        let side_px = f.camera.width.max(f.camera.height);
         if let Some(median) = map.median_px() {
             out.push(format!(
-                "  projection uncertainty of a camera-frame direction (1σ, worst direction, from the covariance): median {median:.3} px, largest {:.3} px over the image (an upper bound on the floor, whose plane the same intrinsics fix)",
-                map.max_px()
+                "  projection uncertainty of a camera-frame direction (1σ, worst direction, from the covariance): median {}, largest {} over the image (an upper bound on the floor, whose plane the same intrinsics fix)",
+                crate::uncertainty::far_px(median, side_px, 3),
+                crate::uncertainty::far_px(map.max_px(), side_px, 3)
             ));
         }
     }

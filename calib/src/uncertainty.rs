@@ -269,3 +269,16 @@ impl UncertaintyMap {
         v.get(v.len() / 2).copied()
     }
 }
+
+/// A projection σ for people, pixels with `decimals` places, or "more than N px
+/// (unbounded)" from `side_px` (the image's larger side) up: where a lens model turns over or
+/// its parameters are barely fixed, the covariance gives σ of millions of pixels ("largest
+/// 1737648756.293 px" for pinhole5 fixed on a wide rational lens), and a σ beyond the image
+/// itself says only that the direction is not known there.
+pub fn far_px(px: f64, side_px: u32, decimals: usize) -> String {
+    if px < f64::from(side_px) {
+        format!("{px:.decimals$} px")
+    } else {
+        format!("more than {side_px} px, the image's size (unbounded)")
+    }
+}

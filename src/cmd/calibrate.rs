@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use odocal_calib::export::{opencv_yaml, ros_yaml};
-use odocal_calib::{calibrate_session, summary, ModelChoice};
+use odocal_calib::{calibrate_session_floor_square, summary, ModelChoice};
 
 use super::board::TargetArgs;
 use crate::output::{check_output_file, commit, progress, write_atomic, write_json};
@@ -24,9 +24,15 @@ pub struct Args {
     square: f64,
     #[command(flatten)]
     target: TargetArgs,
-    /// Images of the board lying flat on the floor; the first fixes the floor frame.
+    /// Images of the board lying flat on the floor; the first fixes the floor frame. The floor
+    /// board is taken to be the --board/--square board unless --floor-square gives its own.
     #[arg(long, num_args = 1..)]
     floor: Vec<PathBuf>,
+    /// Side of one square of the floor board, metres, when it is another (e.g. larger) print
+    /// of the --board layout than the hand-held one: one flat board cannot tell its own scale,
+    /// so a wrong side scales the camera's height and every floor distance. Default --square.
+    #[arg(long)]
+    floor_square: Option<f64>,
     /// Lens model: pinhole5 (OpenCV's k1 k2 p1 p2 k3), rational (wide lenses to ~120°),
     /// fisheye (Kannala–Brandt, to ~180°), or auto: fit each and keep the one that best
     /// predicts views left out of its calibration (the comparison is printed).
@@ -50,6 +56,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .board_spec(a.board.as_deref(), a.square, "9x6", None)?;
     let choice = ModelChoice::parse(&a.model)?;
     check_output_file(&a.out, "--out")?;
+    if a.floor_square.is_some() && a.floor.is_empty() {
+        anyhow::bail!("--floor-square is the side of the floor board's squares: give the floor views with --floor, or leave --floor-square out");
+    }
     for (p, opt) in [
         (&a.yaml_opencv, "--yaml-opencv"),
         (&a.yaml_ros, "--yaml-ros"),
@@ -63,7 +72,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (a.images.len() + a.floor.len() + model_steps) as u64,
         "calibrating",
     );
-    let session = calibrate_session(&a.images, &a.floor, &board, choice, &|| bar.inc(1));
+    let session = calibrate_session_floor_square(
+        &a.images,
+        &a.floor,
+        &board,
+        a.floor_square,
+        choice,
+        &|| bar.inc(1),
+    );
     bar.finish_and_clear();
     let session = session?;
     for note in &session.notes {

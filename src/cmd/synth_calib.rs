@@ -186,6 +186,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 /// not honest.
 const CHECK_SIGMAS: f64 = 3.0;
 
+/// The floor's error over its σ (RMS over the vouched pixels) beyond which the check fails:
+/// an honest σ gives 1 to 1.4 (√2, its worst direction), and the pixels of one smooth map
+/// are not independent, so a margin is left over that.
+const FLOOR_SIGMA_UNDERSTATED: f64 = 2.0;
+
 /// Arguments of `odocal synth check-calib`.
 #[derive(ClapArgs)]
 pub struct CheckArgs {
@@ -273,19 +278,35 @@ pub fn run_check(a: CheckArgs) -> anyhow::Result<()> {
             max * 1e3
         );
     }
+    // The floor's σ judged where `calibrate` vouches for the floor: the vouched bound is a
+    // multiple of σ, so a σ too small vouches for floor it does not know.
+    let mut sigma_understated: Option<String> = None;
     if let Some((z, n)) = floor_error_over_sigma(&cam, &truth, None) {
         // Beyond the floor vouched for, the lens model is extrapolated, and σ (how well the
         // model's parameters are known) does not say how far the model is from the lens.
+        let vouched_z = match vouched {
+            Some((reach, _)) if !reach.whole => {
+                floor_error_over_sigma(&cam, &truth, Some(reach.radius_m))
+            }
+            Some(_) => Some((z, n)),
+            None => None,
+        };
+        if let Some((zv, nv)) = vouched_z.filter(|(zv, _)| *zv > FLOOR_SIGMA_UNDERSTATED) {
+            sigma_understated = Some(format!(
+                "the floor mapping error is {zv:.2} times the floor map's σ (RMS over the {nv} pixels where `calibrate` vouches for the floor; 1 to 1.4 when σ is honest, failed beyond {FLOOR_SIGMA_UNDERSTATED}): the σ understates the error, and the floor is vouched for farther than it is known"
+            ));
+        }
         let vouched_part = vouched
             .filter(|(reach, _)| !reach.whole)
-            .and_then(|(reach, _)| floor_error_over_sigma(&cam, &truth, Some(reach.radius_m)))
+            .and(vouched_z)
             .map(|(z, n)| format!("; over the {n} where `calibrate` vouches for the floor: {z:.2}"))
             .unwrap_or_default();
         say!(
             "  floor mapping error over the floor map's σ (its worst direction), RMS over {n} pixels: {z:.2}{vouched_part} (1 to 1.4 when σ is honest; under 1, σ too large)"
         );
     }
-    let failed = e.failures(vouched.map(|(_, max)| max));
+    let mut failed = e.failures(vouched.map(|(_, max)| max));
+    failed.extend(sigma_understated);
     // An intrinsic outside its fixed bound but within 3σ is as good as the views allow, and
     // says so; one outside both is off by more than the calibration claims.
     let (honest, failed): (Vec<String>, Vec<String>) = failed.into_iter().partition(|f| {

@@ -1959,7 +1959,7 @@ fn bad_geometry_advice(side_m: Option<f64>, opts: &TrackOptions) -> String {
         // another camera's calibration (its focal length scales every side), which a
         // --tag-size fitted to it only hides (101 mm RMS off, the tag read tilted).
         Some(side_m) if (side_m / opts.tag_size_m - 1.0).abs() > CAMERA_FILE_SIDE_OFF => format!(
-            "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm, further off than a print's scaling: check first that the camera file is this camera's, calibrated at this resolution, lens and zoom (a camera file of another camera scales every side so), then {height}; only if the tag's black square measures {:.1} mm, give --tag-size {:.4}",
+            "the corners span a square of {:.1} mm on the marker plane (median), {:+.1} % from --tag-size {:.1} mm, further off than a print's scaling: check first that the camera file is this camera's, calibrated at this resolution, lens and zoom (a camera file of another camera scales every side so, as does a floor calibrated from a floor board whose squares were not calibrate's --square: recalibrate giving that board's side as --floor-square), then {height}; only if the tag's black square measures {:.1} mm, give --tag-size {:.4}",
             side_m * 1e3,
             100.0 * (side_m / opts.tag_size_m - 1.0),
             opts.tag_size_m * 1e3,
