@@ -441,6 +441,41 @@ fn a_late_start_or_a_copy_cut_by_stream_copy_is_not_cut_short() {
             report["timing"]
         );
     }
+
+    // The first frame dropped before the file was written, the others' times kept: the file
+    // starts at 0.033 s. Fixes count from the first frame, and were 33 ms early against a
+    // clock started with the container (15.3 mm RMS) in silence: the start is named, with
+    // the time to add, and recorded.
+    let late_first = d.join("late_first.mp4");
+    ffmpeg(&[
+        "-i",
+        p(&d.join("video.avi")),
+        "-vf",
+        "select='gte(n,1)'",
+        "-fps_mode",
+        "passthrough",
+        "-c:v",
+        "libx264",
+        "-crf",
+        "12",
+        "-pix_fmt",
+        "yuv420p",
+        p(&late_first),
+    ]);
+    let (mut est, err, report) = track(d, &late_first, &[]);
+    assert!(
+        err.contains("the video's first frame is at 0.033 s on its container's clock (its start time), and the fixes count from that frame (t = 0): against a clock that started with the container (frames cut or dropped before the first one kept), add 0.033 s to the fixes' times"),
+        "{err}"
+    );
+    let clock_s = report["timing"]["first_frame_clock_s"].as_f64().unwrap();
+    assert!((clock_s - 1.0 / 30.0).abs() < 1e-3, "{clock_s}");
+    assert!(est.rows[0].t_s == 0.0);
+    // The truth is at whole frames; the container's start is rounded to its time base.
+    for r in &mut est.rows {
+        r.t_s = ((r.t_s + clock_s) * 30.0).round() / 30.0;
+    }
+    let (rms, n) = position_rms(&est, &truth);
+    assert!(n + 1 >= FRAMES && rms < 0.5e-3, "{n} rows, {rms} m");
 }
 
 /// A 30 fps recording converted by FFmpeg: to 60 fps each frame is repeated, and H.264 makes the
