@@ -662,3 +662,33 @@ fn a_raw_mjpeg_stream_needs_fps() {
     let (rms, n) = position_rms(&Trajectory::read_csv(&out).unwrap(), &truth);
     assert!(n == FRAMES && rms < 2e-4, "{n} fixes, {:.3} mm", rms * 1e3);
 }
+
+/// Black frames at a video's start (14 of 24) repeat one image without the tag: they were
+/// counted as frames where the tag was found, left out as repeated images, and blamed on a
+/// damaged video. They are frames where it was not detected.
+#[test]
+fn black_frames_are_not_detected_not_repeats_of_the_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    let black = d.join("black.avi");
+    ffmpeg(&[
+        "-i",
+        p(&d.join("video.avi")),
+        "-vf",
+        "drawbox=x=0:y=0:w=iw:h=ih:color=black:t=fill:enable='lt(n,14)'",
+        "-c:v",
+        "mjpeg",
+        "-q:v",
+        "2",
+        p(&black),
+    ]);
+    let (est, err, report) = track(d, &black, &[]);
+    assert!(!err.contains("repeat"), "{err}");
+    assert!(!err.contains("gave a fix"), "{err}");
+    assert_eq!(report["timing"]["repeated_images"], 0, "{report}");
+    assert_eq!(est.rows.len(), FRAMES - 14);
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let (rms, n) = position_rms(&est, &truth);
+    assert!(n == FRAMES - 14 && rms < 0.5e-3, "{n} rows, {rms} m");
+}
