@@ -441,6 +441,41 @@ fn a_late_start_or_a_copy_cut_by_stream_copy_is_not_cut_short() {
             report["timing"]
         );
     }
+
+    // The first frame dropped before the file was written, the others' times kept: the file
+    // starts at 0.033 s. Fixes count from the first frame, and were 33 ms early against a
+    // clock started with the container (15.3 mm RMS) in silence: the start is named, with
+    // the time to add, and recorded.
+    let late_first = d.join("late_first.mp4");
+    ffmpeg(&[
+        "-i",
+        p(&d.join("video.avi")),
+        "-vf",
+        "select='gte(n,1)'",
+        "-fps_mode",
+        "passthrough",
+        "-c:v",
+        "libx264",
+        "-crf",
+        "12",
+        "-pix_fmt",
+        "yuv420p",
+        p(&late_first),
+    ]);
+    let (mut est, err, report) = track(d, &late_first, &[]);
+    assert!(
+        err.contains("the video's first frame is at 0.033 s on its container's clock (its start time), and the fixes count from that frame (t = 0): against a clock that started with the container (frames cut or dropped before the first one kept), add 0.033 s to the fixes' times"),
+        "{err}"
+    );
+    let clock_s = report["timing"]["first_frame_clock_s"].as_f64().unwrap();
+    assert!((clock_s - 1.0 / 30.0).abs() < 1e-3, "{clock_s}");
+    assert!(est.rows[0].t_s == 0.0);
+    // The truth is at whole frames; the container's start is rounded to its time base.
+    for r in &mut est.rows {
+        r.t_s = ((r.t_s + clock_s) * 30.0).round() / 30.0;
+    }
+    let (rms, n) = position_rms(&est, &truth);
+    assert!(n + 1 >= FRAMES && rms < 0.5e-3, "{n} rows, {rms} m");
 }
 
 /// A 30 fps recording converted by FFmpeg: to 60 fps each frame is repeated, and H.264 makes the
@@ -626,4 +661,34 @@ fn a_raw_mjpeg_stream_needs_fps() {
     let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
     let (rms, n) = position_rms(&Trajectory::read_csv(&out).unwrap(), &truth);
     assert!(n == FRAMES && rms < 2e-4, "{n} fixes, {:.3} mm", rms * 1e3);
+}
+
+/// Black frames at a video's start (14 of 24) repeat one image without the tag: they were
+/// counted as frames where the tag was found, left out as repeated images, and blamed on a
+/// damaged video. They are frames where it was not detected.
+#[test]
+fn black_frames_are_not_detected_not_repeats_of_the_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    rendered(d);
+    let black = d.join("black.avi");
+    ffmpeg(&[
+        "-i",
+        p(&d.join("video.avi")),
+        "-vf",
+        "drawbox=x=0:y=0:w=iw:h=ih:color=black:t=fill:enable='lt(n,14)'",
+        "-c:v",
+        "mjpeg",
+        "-q:v",
+        "2",
+        p(&black),
+    ]);
+    let (est, err, report) = track(d, &black, &[]);
+    assert!(!err.contains("repeat"), "{err}");
+    assert!(!err.contains("gave a fix"), "{err}");
+    assert_eq!(report["timing"]["repeated_images"], 0, "{report}");
+    assert_eq!(est.rows.len(), FRAMES - 14);
+    let truth = Trajectory::read_csv(&d.join("truth.csv")).unwrap();
+    let (rms, n) = position_rms(&est, &truth);
+    assert!(n == FRAMES - 14 && rms < 0.5e-3, "{n} rows, {rms} m");
 }

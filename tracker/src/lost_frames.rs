@@ -60,24 +60,62 @@ pub(crate) fn place_lost_frames_of(
 
 /// Without a frame count to confirm a loss (a recording that dropped frames and was then
 /// written at a constant rate: three drops in 87 frames put the trajectory 30 mm RMS off in
-/// silence), the steps on either side agree within this ratio, two on each side.
-const UNANNOUNCED_STEADY_RATIO: f64 = 1.25;
+/// silence), the single steps around it lie on a line (the robot's speed changing evenly)
+/// within this share of their mean and [`NOISE_M`]: a robot does not double its speed for
+/// one frame.
+const UNANNOUNCED_LINE_SHARE: f64 = 0.05;
 
-/// How far such a step, in its neighbours' lengths, may lie from a whole number of frames:
-/// this many frames, or this share of the number where a longer loss lets the speed change
-/// more across it (6 frames dropped as a robot braked from 8.0 to 6.7 mm steps left a step
-/// of 6.85 of their mean).
+/// The fixes' noise in a step's length, metres.
+const NOISE_M: f64 = 0.3e-3;
+
+/// How far such a step, in the speed the line gives there, may lie from a whole number of
+/// frames: this many frames, or this share of the number where a longer loss lets the speed
+/// change more across it (6 frames dropped as a robot braked from 8.0 to 6.7 mm steps left a
+/// step of 6.85 of their mean).
 const UNANNOUNCED_WHOLE_FRAMES: f64 = 0.15;
 const UNANNOUNCED_WHOLE_SHARE: f64 = 0.05;
+
+/// How many steps on each side of a step are searched for the single steps it is measured
+/// against: drops two or three frames apart (frames 40 and 42 of 150) leave a double step
+/// beside a double step, and measured only against its immediate neighbours neither was
+/// found (27.8 mm RMS in silence).
+const NEIGHBOUR_WINDOW: usize = 5;
+
+/// Single steps wanted on each side of a step; on one side only at the start or end of a run
+/// of fixes (a frame dropped after frame 0 or 1: 15 mm RMS in silence), that many.
+const SINGLES_PER_SIDE: usize = 2;
+const ONE_SIDED_SINGLES: usize = 4;
 
 /// Fixes of consecutive frames: (record position, frame, time, place).
 type Placed = (usize, usize, f64, nalgebra::Point2<f64>);
 
+/// The line through the points (x, y) by least squares: its value at 0 and the largest
+/// distance of a point from it.
+fn line_at_zero(points: &[(f64, f64)]) -> (f64, f64) {
+    let n = points.len() as f64;
+    let (mx, my) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
+    let (sxy, sxx) = points.iter().fold((0.0, 0.0), |(a, b), p| {
+        (a + (p.0 - mx) * (p.1 - my), b + (p.0 - mx).powi(2))
+    });
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let worst = points
+        .iter()
+        .map(|p| (p.1 - my - slope * (p.0 - mx)).abs())
+        .fold(0.0, f64::max);
+    (my - slope * mx, worst)
+}
+
 /// Finds the places where, between two frames one step apart in index and time, the robot
-/// moved a whole number (two or more) of the steps it made on either side, those four steps
-/// steady; and times every frame after each past the frames the step holds beyond one.
-/// Losses recurring at a fixed period are a frame-rate conversion, named by the timing
-/// report, and are left alone. Returns the losses placed.
+/// moved a whole number (two or more) of the steps its speed around gives: the speed is the
+/// line through the nearest single steps on either side (two each), passing over steps of
+/// several frames' motion themselves, so that drops close together are each measured against
+/// the robot's speed, not against one another. At the start or end of a run of fixes, four
+/// single steps on one side serve. Times every frame after each place past the frames the
+/// step holds beyond one. Losses recurring at a fixed period all through the video are a
+/// frame-rate conversion, named by the timing report, and are left alone. Returns the losses
+/// placed.
 pub(crate) fn place_unannounced_drops(
     records: &mut [FrameRecord],
     step_s: f64,
@@ -92,31 +130,112 @@ pub(crate) fn place_unannounced_drops(
         .collect();
     let one_step =
         |a: &Placed, b: &Placed| b.1 == a.1 + 1 && ((b.2 - a.2) / step_s - 1.0).abs() <= ONE_STEP;
+    // The length of each step between fixes one frame apart; None across a break.
+    let steps: Vec<Option<f64>> = fixes
+        .windows(2)
+        .map(|w| one_step(&w[0], &w[1]).then(|| (w[1].3 - w[0].3).norm()))
+        .collect();
+    // The steps beside step j on the side `dir`, nearest first, up to a break: (offset, m).
+    let side = |j: usize, dir: isize| -> Vec<(isize, f64)> {
+        (1..=NEIGHBOUR_WINDOW as isize)
+            .map_while(|k| {
+                let at = j.checked_add_signed(dir * k)?;
+                Some((dir * k, (*steps.get(at)?)?))
+            })
+            .collect()
+    };
+    // Steps of one frame's motion: those below one and a half of the lower third of the
+    // steps around them (a braking robot's speed changes too much across them for a whole
+    // number of one speed, but not by half; where a conversion doubles every other step,
+    // their median may be a double).
+    let single: Vec<bool> = (0..steps.len())
+        .map(|j| {
+            let Some(s) = steps[j] else { return false };
+            let mut around: Vec<f64> = side(j, -1)
+                .into_iter()
+                .chain(side(j, 1))
+                .filter(|p| p.0.abs() <= 3)
+                .map(|p| p.1)
+                .collect();
+            around.push(s);
+            around.sort_by(f64::total_cmp);
+            s < 1.5 * around[around.len() / 3]
+        })
+        .collect();
     let mut losses: Vec<(usize, usize)> = Vec::new();
-    for w in fixes.windows(6) {
-        if !w.windows(2).all(|p| one_step(&p[0], &p[1])) {
+    for (j, step) in steps.iter().enumerate() {
+        let Some(step) = *step else { continue };
+        if single[j] {
             continue;
         }
-        let step = |k: usize| (w[k + 1].3 - w[k].3).norm();
-        let sides = [step(0), step(1), step(3), step(4)];
-        let (low, high) = sides
-            .iter()
-            .fold((f64::INFINITY, 0.0_f64), |(l, h), &s| (l.min(s), h.max(s)));
-        if low < MIN_STEP_M || high > UNANNOUNCED_STEADY_RATIO * low {
+        let singles = |dir: isize, want: usize| -> Vec<(f64, f64)> {
+            side(j, dir)
+                .into_iter()
+                .filter(|p| single[j.saturating_add_signed(p.0)])
+                .take(want)
+                .map(|p| (p.0 as f64, p.1))
+                .collect()
+        };
+        let (before, after) = (singles(-1, SINGLES_PER_SIDE), singles(1, SINGLES_PER_SIDE));
+        let points = if before.len() == SINGLES_PER_SIDE && after.len() == SINGLES_PER_SIDE {
+            [before, after].concat()
+        } else if side(j, -1).len() < SINGLES_PER_SIDE || side(j, 1).len() < SINGLES_PER_SIDE {
+            // At the start or end of a run: the long side's singles, and the short side's.
+            let dir = if side(j, -1).len() < side(j, 1).len() {
+                1
+            } else {
+                -1
+            };
+            let long = singles(dir, ONE_SIDED_SINGLES);
+            if long.len() < ONE_SIDED_SINGLES {
+                continue;
+            }
+            [long, singles(-dir, 1)].concat()
+        } else {
+            continue;
+        };
+        let (speed, worst) = line_at_zero(&points);
+        let low = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        if low < MIN_STEP_M || worst > UNANNOUNCED_LINE_SHARE * speed + NOISE_M {
             continue;
         }
-        let frames = step(2) / (0.5 * (sides[1] + sides[2]));
+        let frames = step / speed;
         let whole = frames.round();
         let tolerance = UNANNOUNCED_WHOLE_FRAMES.max(UNANNOUNCED_WHOLE_SHARE * whole);
         if whole >= 2.0 && (frames - whole).abs() <= tolerance {
-            losses.push((w[3].0, whole as usize - 1));
+            losses.push((fixes[j + 1].0, whole as usize - 1));
         }
     }
-    let periodic = losses.len() >= 3
+    // A conversion leaves steps out at a fixed period all through the video; a few drops at
+    // a period over a stretch of it (frames 20, 23, 26, 29 of 150) are drops: the pattern
+    // carried on both ways finds single steps where its steps of several frames would be.
+    let regular = losses.len() >= 3
         && losses.windows(3).all(|l| {
             let (a, b) = (l[1].0 - l[0].0, l[2].0 - l[1].0);
             a.abs_diff(b) <= 1
         });
+    let periodic = regular && {
+        let at: Vec<usize> = losses
+            .iter()
+            .filter_map(|l| fixes.iter().position(|f| f.0 == l.0)?.checked_sub(1))
+            .collect();
+        let period = (at[at.len() - 1] - at[0]) as f64 / (at.len() - 1) as f64;
+        let single_near = |j: f64| {
+            let j = j.round() as usize;
+            (j.saturating_sub(1)..=j + 1).all(|k| steps.get(k).is_some_and(|s| s.is_some()))
+                && (j.saturating_sub(1)..=j + 1).all(|k| single[k])
+        };
+        let (first, last) = (at[0] as f64, at[at.len() - 1] as f64);
+        let mut before = (1..)
+            .map(|k| first - k as f64 * period)
+            .take_while(|&j| j >= 1.0);
+        let mut after = (1..)
+            .map(|k| last + k as f64 * period)
+            .take_while(|&j| j + 1.0 < steps.len() as f64);
+        // A conversion may start a few frames in (FFmpeg's -r keeps the first frames): the
+        // pattern broken on one side only is still one.
+        !(before.any(single_near) && after.any(single_near))
+    };
     if periodic {
         return Vec::new();
     }
@@ -248,6 +367,47 @@ mod tests {
         assert!((r[29].t_s - 31.0 * STEP_S).abs() < 1e-9);
     }
 
+    /// The places of a robot at `x`, read with the frames `dropped` left out.
+    fn dropped(x: &[f64], dropped: &[usize]) -> Vec<crate::FrameRecord> {
+        let x: Vec<f64> = (0..x.len())
+            .filter(|k| !dropped.contains(k))
+            .map(|k| x[k])
+            .collect();
+        records(&x)
+    }
+
+    #[test]
+    fn drops_close_together_and_at_the_start_are_each_timed_past() {
+        // Drops two and three frames apart were measured against each other's double steps
+        // and missed (27.8 mm RMS); one after frame 0 or 1 had no steps before it to compare.
+        for drops in [
+            vec![40, 42],
+            vec![40, 43],
+            vec![20, 23, 26, 29],
+            vec![100, 102, 104],
+            vec![1],
+            vec![2],
+            vec![147],
+        ] {
+            // Steady at 7 mm a frame, and braking 1 % a frame from 13 mm.
+            for x in [
+                path(150, |_| 7e-3),
+                path(150, |k| 13e-3 * 0.99_f64.powi(k as i32)),
+            ] {
+                let mut r = dropped(&x, &drops);
+                let placed = place_unannounced_drops(&mut r, STEP_S);
+                let missing: usize = placed.iter().map(|d| d.missing).sum();
+                assert_eq!(missing, drops.len(), "{drops:?}: {placed:?}");
+                for (i, k) in (0..150).filter(|k| !drops.contains(k)).enumerate() {
+                    assert!(
+                        (r[i].t_s - k as f64 * STEP_S).abs() < 1e-9,
+                        "{drops:?}: {k}"
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn smooth_acceleration_braking_and_rest_are_not_drops() {
         // Accelerating 8 % a frame, braking as hard, and standing still (the fixes' noise).
@@ -267,6 +427,10 @@ mod tests {
     fn a_regular_pattern_of_double_steps_is_left_to_the_conversion_report() {
         // Every tenth frame left out (30 to 27 fps), the rest on an even grid.
         let x = path(40, |k| if k % 10 == 5 { 14e-3 } else { 7e-3 });
+        let mut r = records(&x);
+        assert!(place_unannounced_drops(&mut r, STEP_S).is_empty());
+        // 30 to 20 fps from the sixth frame on, as FFmpeg's -r converts.
+        let x = path(24, |k| if k >= 6 && k % 2 == 0 { 14e-3 } else { 7e-3 });
         let mut r = records(&x);
         assert!(place_unannounced_drops(&mut r, STEP_S).is_empty());
     }

@@ -1909,22 +1909,35 @@ pub(crate) fn unusable_frame(
 #[derive(Debug, Default)]
 pub(crate) struct RepeatedFixes {
     last: Option<Pose2>,
+    /// Whether the last image not repeated showed no tag.
+    last_blank: bool,
 }
 
 impl RepeatedFixes {
     /// Turns `rec` into a repeated-image gap when its fix equals the last fix before it (a
-    /// run of repeated frames compares with the fix they repeat).
+    /// run of repeated frames compares with the fix they repeat). An image repeating one
+    /// where no tag was found is a still scene without the tag (100 black frames at a
+    /// video's start were counted as frames where the tag was found, left out as repeats,
+    /// and blamed on a damaged video): not detected.
     pub(crate) fn screen(&mut self, rec: &mut FrameRecord) {
         if let (Outcome::Fix(fix), Some(last)) = (&rec.outcome, self.last.as_ref()) {
             if same_pose(&fix.pose, last) {
                 rec.outcome = Outcome::Gap(GapReason::RepeatedImage);
             }
         }
+        if rec.outcome == Outcome::Gap(GapReason::RepeatedImage) && self.last_blank {
+            rec.outcome = Outcome::Gap(GapReason::NotDetected);
+        }
         match &rec.outcome {
             Outcome::Fix(fix) => self.last = Some(fix.pose),
             Outcome::Gap(GapReason::RepeatedImage) => {}
             _ => self.last = None,
         }
+        self.last_blank = match rec.outcome {
+            Outcome::Gap(GapReason::NotDetected) => true,
+            Outcome::Gap(GapReason::RepeatedImage) => self.last_blank,
+            _ => false,
+        };
     }
 }
 
