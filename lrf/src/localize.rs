@@ -76,6 +76,9 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
     let mut step: Option<(f64, String)> = None;
     // The last timed scan so far and its file.
     let mut last: Option<(f64, &PathBuf)> = None;
+    // Per file in the order taken: its path and how many scans it holds.
+    let order: Vec<&PathBuf> = files.iter().map(|f| f.0).collect();
+    let counts: Vec<usize> = files.iter().map(|f| f.1.len()).collect();
     for (p, s) in files {
         if let (Some((prev, prev_file)), Some(t)) = (last, s.first().and_then(|s| s.t_s)) {
             if t <= prev {
@@ -105,13 +108,31 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
         }
         scans.extend(s);
     }
-    // One scan per file without a `scan` column gives every scan the id 0: number them in
-    // the order read, so the poses' `scan` column tells them apart.
+    // One scan per file without a `scan` column gives every scan the id 0: number them by
+    // the numbers in the files' names when each file holds one untimed scan (a logger numbers
+    // every scan it takes, so a number skipped is scans dropped, and the scans after it are
+    // timed by their ids as such: timed by their order they were 0.5 s early after 5 files
+    // missing), else in the order read, so the poses' `scan` column tells them apart.
     let mut ids: Vec<u64> = scans.iter().map(|s| s.id).collect();
     ids.sort_unstable();
+    let mut numbered_by_name = false;
     if ids.windows(2).any(|w| w[0] == w[1]) {
-        for (k, s) in scans.iter_mut().enumerate() {
-            s.id = k as u64;
+        let by_name: Option<Vec<u64>> = (counts.iter().all(|&n| n == 1)
+            && scans.iter().all(|s| s.t_s.is_none()))
+        .then(|| order.iter().map(|p| number_in_name(p)).collect())
+        .flatten();
+        match by_name.filter(|n| n.windows(2).all(|w| w[0] < w[1])) {
+            Some(numbers) => {
+                numbered_by_name = true;
+                for (s, n) in scans.iter_mut().zip(numbers) {
+                    s.id = n;
+                }
+            }
+            None => {
+                for (k, s) in scans.iter_mut().enumerate() {
+                    s.id = k as u64;
+                }
+            }
         }
     }
     // Angles are explicit, so a scan listed left to right is as good as one listed right to
@@ -127,7 +148,18 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
         scans,
         step_rad: step.map(|s| s.0),
         reversed_note,
+        numbered_by_name,
     })
+}
+
+/// The last number in a file's name (`scan14.csv`: 14), if it has one.
+fn number_in_name(p: &std::path::Path) -> Option<u64> {
+    let stem = p.file_stem()?.to_str()?;
+    let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+    let start = stem[..end]
+        .rfind(|c: char| !c.is_ascii_digit())
+        .map_or(0, |i| i + 1);
+    stem[start..end].parse().ok()
 }
 
 /// Scans read from files by [`read_scan_files`].
@@ -139,6 +171,8 @@ pub struct ScanFiles {
     pub step_rad: Option<f64>,
     /// A note when scans listed their beams in decreasing angle order.
     pub reversed_note: Option<String>,
+    /// The scans, one per file without ids, were numbered by the numbers in the files' names.
+    pub numbered_by_name: bool,
 }
 
 /// A recording's scans may be logged sparser than the scanner sweeps (every few sweeps), but

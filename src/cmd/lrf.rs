@@ -188,6 +188,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         mut scans,
         step_rad,
         reversed_note,
+        numbered_by_name,
     } = read_scan_files(&a.scans)?;
     if let Some(note) = reversed_note {
         tell!("note: {note}");
@@ -221,7 +222,28 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     if scans.iter().all(|s| s.t_s.is_none()) && scans.windows(2).all(|w| w[0].id < w[1].id) {
         if let (Some(first), Some(last)) = (scans.first(), scans.last()) {
             let missing = (last.id - first.id + 1) as usize - scans.len();
-            if missing > 0 {
+            if missing > 0 && numbered_by_name {
+                // Few are listed, so the user can look for those files.
+                let gaps: Vec<String> = scans
+                    .windows(2)
+                    .filter(|w| w[1].id > w[0].id + 1)
+                    .map(|w| match (w[0].id + 1, w[1].id - 1) {
+                        (a, b) if a == b => a.to_string(),
+                        (a, b) => format!("{a}–{b}"),
+                    })
+                    .collect();
+                let which = if gaps.len() <= 10 {
+                    format!(" ({})", gaps.join(", "))
+                } else {
+                    String::new()
+                };
+                tell!(
+                    "note: the scan files have no t column and {missing} of the numbers in their names from {} to {} are missing{which}: each scan is timed by its file's number at --rate-hz {} (a number skipped is a scan dropped), so the motion between the scans either side of a gap is that of the time it spans; give each scan's time in a t column if the numbers do not count the scanner's sweeps",
+                    first.id,
+                    last.id,
+                    a.rate_hz
+                );
+            } else if missing > 0 {
                 tell!(
                     "note: the scans have no t column and {missing} of the scan ids from {} to {} are missing: each scan is timed by its id at --rate-hz {} (a gap is scans dropped), so the motion between the scans either side of a gap is that of the time it spans; give each scan's time in a t column if the ids do not count the scanner's sweeps",
                     first.id,
