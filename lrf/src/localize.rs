@@ -1140,8 +1140,11 @@ const SUPPORT_SLACK_RAD: f64 = 0.1;
 /// mode `unsupported`), and returns how many. Scans that fit the map nowhere are of another
 /// room or read wrongly, and the few that pass the chance test among them are coincidences:
 /// a scanner mounted upside down gave one `ok` pose 4.2 m off with a σ of 3 mm among 93 lost
-/// scans. The right poses of such a recording come in runs, each agreeing with the next; a
-/// recording mostly localised keeps its lone poses, as the chance test vouches for them.
+/// scans. The right poses of such a recording come in runs, each agreeing with the next. In a
+/// recording mostly localised the same is done to a pose between two scans without one: a
+/// robot driven out of the mapped area gave one `ok` pose 4.7 m and 180° off (100σ) among
+/// lost and ambiguous scans, with no word. A lone pose beside `ok` ones is left to
+/// [`widen_off_track`].
 fn drop_unsupported(log: &mut PoseLog) -> usize {
     let judged = log.rows.iter().filter(|r| r.mode != "repeated").count();
     let lost = log
@@ -1149,12 +1152,15 @@ fn drop_unsupported(log: &mut PoseLog) -> usize {
         .iter()
         .filter(|r| r.status == Status::Lost && r.mode != "repeated")
         .count();
-    if lost * 2 <= judged {
-        return 0;
-    }
+    let mostly_lost = lost * 2 > judged;
     let ok: Vec<usize> = (0..log.rows.len())
         .filter(|&k| log.rows[k].status == Status::Ok && log.rows[k].pose.is_some())
         .collect();
+    let is_ok = |k: usize| {
+        log.rows
+            .get(k)
+            .is_some_and(|r| r.status == Status::Ok && r.pose.is_some())
+    };
     let agree = |a: &PoseLogRow, b: &PoseLogRow| {
         let (Some(p), Some(q)) = (a.pose, b.pose) else {
             return false;
@@ -1172,6 +1178,11 @@ fn drop_unsupported(log: &mut PoseLog) -> usize {
             !ok.iter().any(|&j| {
                 j != k && j.abs_diff(k) <= SUPPORT_ROWS && agree(&log.rows[k], &log.rows[j])
             })
+        })
+        .filter(|&k| {
+            // Between two scans: the one scan of a file has no neighbours to be lost.
+            let between = k > 0 && k + 1 < log.rows.len();
+            mostly_lost || (between && !is_ok(k - 1) && !is_ok(k + 1))
         })
         .collect();
     for &k in &lone {
@@ -1886,10 +1897,18 @@ mod tests {
             );
         }
         assert!((70..=74).all(|k| log.rows[k].status == Status::Ok));
-        // In a recording mostly localised a lone pose keeps its word.
-        let mut log = log_of(100, |k| (k < 60 || k == 80).then(|| along(k)));
-        assert_eq!(drop_unsupported(&mut log), 0);
-        assert_eq!(log.rows[80].status, Status::Ok);
+        // In a recording mostly localised, a lone pose between scans without one is taken
+        // away too (a robot driven out of the mapped area); one beside `ok` poses is left to
+        // the track's test.
+        let mut log = log_of(100, |k| match k {
+            30 => Some(Pose2::new(5.2, 1.0, 2.0)),
+            80 => Some(Pose2::new(5.2, 1.0, 2.0)),
+            k if k < 60 => Some(along(k)),
+            _ => None,
+        });
+        assert_eq!(drop_unsupported(&mut log), 1);
+        assert_eq!(log.rows[80].mode, "unsupported");
+        assert_eq!(log.rows[30].status, Status::Ok);
     }
     /// Three landmarks fit by a glint in place of one of them put a pose 88 mm off the track
     /// with a σ of 7 mm (11.5σ) while the scans either side agreed with each other: its σ is

@@ -652,7 +652,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     if n_unsupported > 0 {
         tell!(
-            "warning: {n_unsupported} {} no pose of the {} scans either side to agree with, in a recording where most scans found none: a lone pose among lost scans is more likely a coincidence than the scanner's place, so {} left out (status lost, mode unsupported)",
+            "warning: {n_unsupported} {} no pose of the {} scans either side to agree with, among scans without one: a lone pose among lost scans (a robot driven out of the mapped area, or scans of another room) is more likely a coincidence than the scanner's place, so {} left out (status lost, mode unsupported)",
             if n_unsupported == 1 { "ok pose had" } else { "ok poses had" },
             odocal_lrf::SUPPORT_ROWS,
             if n_unsupported == 1 { "it was" } else { "they were" }
