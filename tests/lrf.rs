@@ -3357,3 +3357,37 @@ fn cli_a_lone_pose_outside_the_mapped_area_is_left_out() {
     let (_, _, worst, at) = error_over_sigma(&traj, &truth);
     assert!(worst <= 6.0, "the pose at t = {at} s is {worst:.1}σ off");
 }
+
+/// Scans wider than the default field of view are refused naming `--fov-deg 240` as typed,
+/// where the message said `--fov-deg 239.99999999999997`.
+#[test]
+fn cli_the_default_field_of_view_is_named_as_typed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 3);
+    let (header, rows) = scan_rows(d);
+    // Every angle 1.2 times: the beams span 288°, evenly.
+    let wide = rewrite_scans(&d.join("wide.csv"), &header, &rows, &|scan| {
+        scan.iter()
+            .map(|r| {
+                let mut r = r.clone();
+                r[2] = format!("{}", 1.2 * r[2].parse::<f64>().expect("angle"));
+                r.join(",")
+            })
+            .collect()
+    });
+    let (map, poses) = (d.join("map.json"), d.join("poses.csv"));
+    let e = expect_error(
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(&wide),
+            "--out",
+            s(&poses),
+        ],
+        "--fov-deg 240: the scans' beams span 287.7°",
+    );
+    assert!(!e.contains("239.9"), "{e}");
+}

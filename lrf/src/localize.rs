@@ -348,11 +348,12 @@ pub fn check_fov(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> 
     if span_rad <= sensor.fov_rad + 1.5 * step_rad {
         return Ok(());
     }
-    let fov_deg = sensor.fov_rad.to_degrees();
-    let as_radians = if fov_deg <= std::f64::consts::TAU {
+    // Back from radians as the user typed it: 240, not 239.99999999999997.
+    let fov_deg = six_digits(sensor.fov_rad.to_degrees());
+    let as_radians = if sensor.fov_rad.to_degrees() <= std::f64::consts::TAU {
         format!(
             " (if {fov_deg} is in radians, it is {:.1}°)",
-            fov_deg.to_degrees()
+            sensor.fov_rad.to_degrees().to_degrees()
         )
     } else {
         String::new()
