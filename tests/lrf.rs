@@ -3391,3 +3391,66 @@ fn cli_the_default_field_of_view_is_named_as_typed() {
     );
     assert!(!e.contains("239.9"), "{e}");
 }
+
+/// A scanner 4 cm noisy in range (1σ) at the default --sigma-range-m 0.01: the χ² warning
+/// said "check the landmarks named above" with none named. It now names the range noise the
+/// residuals imply, between the σ given and the scans' true 41 mm (gating trims the
+/// largest), and the option to give.
+#[test]
+fn cli_scans_noisier_than_the_sigma_given_name_the_noise() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 100);
+    let (header, rows) = scan_rows(d);
+    // A fixed sequence of normal deviates (sum of 12 uniforms), so the test is the same
+    // every run.
+    let state = std::cell::Cell::new(12345u64);
+    let gauss = || {
+        let mut sum = 0.0;
+        for _ in 0..12 {
+            let x = state
+                .get()
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            state.set(x);
+            sum += (x >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        sum - 6.0
+    };
+    let noisy = rewrite_scans(&d.join("noisy.csv"), &header, &rows, &|scan| {
+        scan.iter()
+            .map(|r| {
+                let mut r = r.clone();
+                let range: f64 = r[3].parse().expect("range");
+                if range > 0.0 {
+                    r[3] = format!("{:.4}", (range + 0.04 * gauss()).max(0.03));
+                }
+                r.join(",")
+            })
+            .collect()
+    });
+    let (map, poses) = (d.join("map.json"), d.join("poses.csv"));
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&noisy),
+        "--out",
+        s(&poses),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        !stderr.contains("check the landmarks named above"),
+        "{stderr}"
+    );
+    let mm: f64 = stderr
+        .split("the residuals imply a range noise of about ")
+        .nth(1)
+        .and_then(|t| t.split(" mm").next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no implied noise in {stderr}"));
+    assert!((15.0..=41.0).contains(&mm), "implied {mm} mm");
+    assert!(stderr.contains("give --sigma-range-m 0.0"), "{stderr}");
+}

@@ -403,6 +403,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         (None, Some(hz)) => format!("a scanner slower than --rate-hz {} biases the landmarks too: if it runs at {hz} Hz, give --rate-hz {hz}", a.rate_hz),
         (None, None) => format!("a scanner whose rate is not --rate-hz {}, or whose mirror turns faster than it sends scans (give --sweep-s), biases the landmarks too", a.rate_hz),
     };
+    // Whether the χ² warning below has landmarks above to point at.
+    let named = !moved.is_empty() || !left_out.is_empty();
     for m in moved {
         let dir = m.offset_m.normalize();
         tell!(
@@ -426,8 +428,22 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // make (1 % of them, and three standard deviations of that count) is a cause to find.
     let by_chance = 0.01 * fit.n_poses as f64;
     if fit.n_widened as f64 > by_chance + 3.0 * by_chance.sqrt() + 1.0 {
+        // With no landmark to blame, residuals χ² times their noise all over are a range
+        // noise √χ² times the one given (4 cm noise at --sigma-range-m 0.01 gave χ² 3.76,
+        // 19 mm): named as a figure the user can give, or check against the datasheet.
+        let cause = if named {
+            "A landmark off its mapped place (moved, or surveyed wrong) or a shiny object taken for a reflector does this: check the landmarks named above, the map's position_sigma_m and --sigma-range-m".to_string()
+        } else {
+            let implied = a.sigma_range_m * fit.ratio.max(1.0).sqrt();
+            format!(
+                "No landmark sits off its place, so the detections are noisier than --sigma-range-m {} m says: the residuals imply a range noise of about {:.0} mm (1σ, --sigma-range-m times √χ² per degree of freedom); if the scanner's datasheet or the spread of its ranges to a wall agree, give --sigma-range-m {:.3}, else look for a shiny object taken for a reflector or a map surveyed coarser than its position_sigma_m",
+                a.sigma_range_m,
+                implied * 1e3,
+                implied
+            )
+        };
         tell!(
-            "warning: {} of {} ok poses fit their landmarks worse than the detections' noise explains (χ² beyond its 99 % quantile, where about {:.0} would by chance; over the recording χ² is {:.2} times its degrees of freedom): their σ were widened by that excess and by how far leaving out each landmark moves the pose. A landmark off its mapped place (moved, or surveyed wrong) or a shiny object taken for a reflector does this: check the landmarks named above, the map's position_sigma_m and --sigma-range-m",
+            "warning: {} of {} ok poses fit their landmarks worse than the detections' noise explains (χ² beyond its 99 % quantile, where about {:.0} would by chance; over the recording χ² is {:.2} times its degrees of freedom): their σ were widened by that excess and by how far leaving out each landmark moves the pose. {cause}",
             fit.n_widened,
             fit.n_poses,
             by_chance,
