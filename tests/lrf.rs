@@ -3454,3 +3454,49 @@ fn cli_scans_noisier_than_the_sigma_given_name_the_noise() {
     assert!((15.0..=41.0).contains(&mm), "implied {mm} mm");
     assert!(stderr.contains("give --sigma-range-m 0.0"), "{stderr}");
 }
+
+/// A map of landmarks alone (no facings, no walls) takes every reflector for visible from
+/// all sides: the reflectors the scanner saw only from behind (every one of them there, in
+/// the synthetic room) were called gone, "remove it from the map". The warning now asks for
+/// their facing_rad.
+#[test]
+fn cli_a_landmark_unseen_in_a_map_without_facings_asks_for_them() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 3, 300);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("map.json")).expect("map"))
+            .expect("json");
+    let landmarks: Vec<serde_json::Value> = m["landmarks"]
+        .as_array()
+        .expect("landmarks")
+        .iter()
+        .map(|l| serde_json::json!({"id": l["id"], "x_m": l["x_m"], "y_m": l["y_m"]}))
+        .collect();
+    let m = serde_json::json!({"format": m["format"], "landmarks": landmarks});
+    let map = d.join("no_facing.json");
+    std::fs::write(&map, m.to_string()).expect("write map");
+    let poses = d.join("poses.csv");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&d.join("scans.csv")),
+        "--out",
+        s(&poses),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let unseen: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("is it still there?"))
+        .collect();
+    assert!(!unseen.is_empty(), "{stderr}");
+    for l in unseen {
+        assert!(
+            l.ends_with("give its facing_rad (the direction it faces, radians) so that it is expected only where it can be seen"),
+            "{l}"
+        );
+    }
+}

@@ -392,8 +392,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             );
             continue;
         }
+        // A map without facings takes every reflector for visible from all sides: one on a
+        // wall seen from behind it was called gone, and removing it loses a good landmark.
+        let facing_hint = if loc
+            .map
+            .landmarks
+            .iter()
+            .any(|l| l.id == id && l.facing.is_none())
+        {
+            "; if it is there, on a wall or post that hides it from some side, give its facing_rad (the direction it faces, radians) so that it is expected only where it can be seen"
+        } else {
+            ""
+        };
         tell!(
-            "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
+            "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map{facing_hint}",
             a.map.display()
         );
     }
