@@ -3500,3 +3500,59 @@ fn cli_a_landmark_unseen_in_a_map_without_facings_asks_for_them() {
         );
     }
 }
+
+/// A scan file whose last line was cut short (a logger stopped while writing it) was refused
+/// whole as a "malformed CSV row". The partial row is left out with a warning, and every
+/// scan gives its pose as with the file whole; a malformed row inside the file is still
+/// refused.
+#[test]
+fn cli_a_scan_file_cut_short_in_its_last_line_is_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    synth_lrf(d, 1, 20);
+    let text = std::fs::read_to_string(d.join("scans.csv")).expect("scans");
+    let last = text.trim_end().rfind('\n').expect("rows") + 1;
+    let cut = d.join("cut.csv");
+    // The last row's first two fields and part of the third.
+    let end = last + text[last..].match_indices(',').nth(1).expect("fields").0 + 3;
+    std::fs::write(&cut, &text[..end]).expect("write");
+    let (map, truth) = (d.join("map.json"), d.join("truth.csv"));
+    let poses = d.join("poses.csv");
+    let out = odocal(&[
+        "lrf",
+        "localize",
+        "--map",
+        s(&map),
+        s(&cut),
+        "--out",
+        s(&poses),
+        "--truth",
+        s(&truth),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(
+            "is cut short with no line end (a logger stopped while writing it) and was left out"
+        ),
+        "{stderr}"
+    );
+    let (ok, rms_mm) = ok_and_rms(&out);
+    assert!(ok >= 19, "{ok} ok of 20");
+    assert!(rms_mm < 10.0, "position RMS {rms_mm} mm");
+    // The same row cut short inside the file is no logger's stop.
+    let inside = d.join("inside.csv");
+    std::fs::write(&inside, format!("{}\n{}", &text[..end], &text[last..])).expect("write");
+    expect_error(
+        &[
+            "lrf",
+            "localize",
+            "--map",
+            s(&map),
+            s(&inside),
+            "--out",
+            s(&poses),
+        ],
+        "malformed CSV row",
+    );
+}

@@ -35,8 +35,15 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
     }
     let mut reversed: Option<(usize, &PathBuf)> = None;
     let mut files: Vec<(&PathBuf, Vec<Scan>)> = Vec::with_capacity(paths.len());
+    let mut truncated_notes = Vec::new();
     for p in paths {
         let f = read_scans_csv(p)?;
+        if let Some(line) = f.truncated_line {
+            truncated_notes.push(format!(
+                "{}: its last line ({line}) is cut short with no line end (a logger stopped while writing it) and was left out; the scan it belongs to is read without that beam",
+                p.display()
+            ));
+        }
         if f.n_reversed > 0 {
             let (n, first) = reversed.unwrap_or((0, p));
             reversed = Some((n + f.n_reversed, first));
@@ -149,6 +156,7 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
         step_rad: step.map(|s| s.0),
         reversed_note,
         numbered_by_name,
+        truncated_notes,
     })
 }
 
@@ -173,6 +181,8 @@ pub struct ScanFiles {
     pub reversed_note: Option<String>,
     /// The scans, one per file without ids, were numbered by the numbers in the files' names.
     pub numbered_by_name: bool,
+    /// Per file whose last line was cut short and left out, a warning saying so.
+    pub truncated_notes: Vec<String>,
 }
 
 /// A recording's scans may be logged sparser than the scanner sweeps (every few sweeps), but

@@ -524,6 +524,9 @@ pub struct ScanFile {
     /// How many scans listed their beams in decreasing angle order (a ROS scan with a
     /// negative `angle_increment`), reversed on reading.
     pub n_reversed: usize,
+    /// The file's last line, cut short with no line end (a logger stopped while writing
+    /// it), left out.
+    pub truncated_line: Option<usize>,
 }
 
 /// The names a scan file's time column is read under (any case), seconds; the first found is
@@ -617,13 +620,25 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
     let mut seen = std::collections::HashSet::new();
     let mut first_line = 0usize;
     let mut n_reversed = 0;
+    let mut truncated_line = None;
     for rec in rdr.records() {
-        let rec = rec.map_err(|e| {
-            let line = e
-                .position()
-                .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
-            err(line, "-", format!("malformed CSV row: {e}"))
-        })?;
+        let rec = match rec {
+            Ok(rec) => rec,
+            Err(e) => {
+                let byte = e.position().map_or(0, |p| p.byte() as usize);
+                let line = lines.line_of_byte(byte as u64) as usize;
+                // The last row cut short, with no line end after it, is a logger stopped
+                // while writing it: the file was refused whole for one partial beam.
+                let cut_short = byte > 0
+                    && text.get(byte..).is_some_and(|rest| !rest.contains('\n'))
+                    && matches!(e.kind(), csv::ErrorKind::UnequalLengths { .. });
+                if cut_short {
+                    truncated_line = Some(line);
+                    break;
+                }
+                return Err(err(line, "-", format!("malformed CSV row: {e}")));
+            }
+        };
         let line = rec
             .position()
             .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
@@ -749,7 +764,11 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
             "no scan rows; the file has only a header".into(),
         ));
     }
-    Ok(ScanFile { scans, n_reversed })
+    Ok(ScanFile {
+        scans,
+        n_reversed,
+        truncated_line,
+    })
 }
 
 /// Puts back the beams without a return that an export left out of a scan (only returns

@@ -189,9 +189,13 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         step_rad,
         reversed_note,
         numbered_by_name,
+        truncated_notes,
     } = read_scan_files(&a.scans)?;
     if let Some(note) = reversed_note {
         tell!("note: {note}");
+    }
+    for w in truncated_notes {
+        tell!("warning: {w}");
     }
     if a.upside_down {
         for s in &mut scans {
