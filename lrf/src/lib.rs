@@ -43,8 +43,8 @@ pub use localize::{
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
 pub use noise_probe::{
-    mirror_fits_better, mirrored_finds_poses, poses_outside, wider_noise_finds_poses, MirrorFits,
-    Mirrored, WiderNoise, HULL_MARGIN_M,
+    facings_hide_poses, mirror_fits_better, mirrored_finds_poses, poses_outside,
+    wider_noise_finds_poses, FacingsOff, MirrorFits, Mirrored, WiderNoise, HULL_MARGIN_M,
 };
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{

@@ -553,6 +553,29 @@ impl Map {
             .collect()
     }
 
+    /// The map with every landmark's facing left out (seen from every side), or None if it
+    /// has no facing to leave out.
+    pub fn without_facings(&self) -> Option<Map> {
+        if self.landmarks.iter().all(|l| l.facing.is_none()) {
+            return None;
+        }
+        let landmarks: Vec<Landmark> = self
+            .landmarks
+            .iter()
+            .map(|l| Landmark {
+                facing: None,
+                ..l.clone()
+            })
+            .collect();
+        Map::build(
+            landmarks,
+            self.walls.clone(),
+            self.reflector_width_m,
+            self.position_sigma_m,
+        )
+        .ok()
+    }
+
     /// True if `p` lies in the convex hull of the landmarks grown by `margin_m` (within
     /// `margin_m` of it). A scanner fixed by reflectors around it stands among them; a
     /// recording whose poses lie mostly outside them was fitted to a map that is not the room's.

@@ -6,8 +6,8 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_fov, check_intensity_scale, check_map_report, check_range_unit,
-    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans,
-    mirror_fits_better, mirrored_finds_poses, read_scan_files, read_truth_csv,
+    check_scan_times, drop_beyond_range, evaluate, facings_hide_poses, layout_repeats,
+    localize_scans, mirror_fits_better, mirrored_finds_poses, read_scan_files, read_truth_csv,
     wider_noise_finds_poses, Localized, Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig,
     Skewed, Status, DEFAULT_TOLERANCE_M, HULL_MARGIN_M,
 };
@@ -342,6 +342,36 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             m.n_ok_mirrored - m.n_outside_mirrored,
             m.n_ok_first - m.n_outside_first,
         );
+    }
+    // Facings of another convention hide the landmarks where the scanner sees them: tried
+    // whenever a twentieth of the scans or more found no pose.
+    if count(Status::Ok) * 20 < n_judged * 19 {
+        if let Some(f) = facings_hide_poses(&loc, &scans, a.rate_hz, a.global_only, &log) {
+            let deg = f.offset_rad.to_degrees();
+            // Conventions differ by quarter turns; the mean itself is pulled towards 0 by
+            // landmarks in range the scanner did not see (-69° for facings 90° off).
+            let quarter = std::f64::consts::FRAC_PI_2;
+            let turn = (f.offset_rad / quarter).round() * quarter;
+            anyhow::bail!(
+                "{} of {} found a pose, and with the facing_rad of {} left out {} of the first {} find one, where {} did: the scanner sees the landmarks from about {:.0}° off the way their facing_rad says they face (mean over the landmarks in range at those poses, more than 45° off), so nothing was written; facing_rad is the direction a reflector faces, into the room, in radians counter-clockwise from the map's x axis: add {:.4} rad ({:.0}°) to every facing_rad{}, or leave facing_rad out",
+                count(Status::Ok),
+                scans_judged,
+                a.map.display(),
+                f.n_ok_free,
+                f.n_scans,
+                f.n_ok_given,
+                deg,
+                turn,
+                turn.to_degrees(),
+                if deg.abs() > 135.0 {
+                    " (they point into the walls)"
+                } else if deg.abs() > 45.0 {
+                    " (measured from the y axis, or clockwise?)"
+                } else {
+                    ""
+                }
+            );
+        }
     }
     let why_lost = || {
         format!(
