@@ -42,7 +42,10 @@ pub use localize::{
     MovedLandmark, ScanFiles, Skewed, Systematic, SUPPORT_ROWS,
 };
 pub use map::{Landmark, LandmarkSpec, Map, MapFile, Side, VisibilityLine, MAP_FORMAT};
-pub use noise_probe::{mirrored_finds_poses, wider_noise_finds_poses, Mirrored, WiderNoise};
+pub use noise_probe::{
+    facings_hide_poses, mirror_fits_better, mirrored_finds_poses, poses_outside,
+    wider_noise_finds_poses, FacingsOff, MirrorFits, Mirrored, WiderNoise, HULL_MARGIN_M,
+};
 pub use pose_log::{PoseLog, PoseLogRow, POSE_LOG_HEADER};
 pub use scan::{
     extract_detections, parse_scans_csv, read_scans_csv, Detection, Scan, ScanFile, SensorConfig,

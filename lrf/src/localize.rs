@@ -35,8 +35,15 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
     }
     let mut reversed: Option<(usize, &PathBuf)> = None;
     let mut files: Vec<(&PathBuf, Vec<Scan>)> = Vec::with_capacity(paths.len());
+    let mut truncated_notes = Vec::new();
     for p in paths {
         let f = read_scans_csv(p)?;
+        if let Some(line) = f.truncated_line {
+            truncated_notes.push(format!(
+                "{}: its last line ({line}) is cut short with no line end (a logger stopped while writing it) and was left out; the scan it belongs to is read without that beam",
+                p.display()
+            ));
+        }
         if f.n_reversed > 0 {
             let (n, first) = reversed.unwrap_or((0, p));
             reversed = Some((n + f.n_reversed, first));
@@ -76,6 +83,9 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
     let mut step: Option<(f64, String)> = None;
     // The last timed scan so far and its file.
     let mut last: Option<(f64, &PathBuf)> = None;
+    // Per file in the order taken: its path and how many scans it holds.
+    let order: Vec<&PathBuf> = files.iter().map(|f| f.0).collect();
+    let counts: Vec<usize> = files.iter().map(|f| f.1.len()).collect();
     for (p, s) in files {
         if let (Some((prev, prev_file)), Some(t)) = (last, s.first().and_then(|s| s.t_s)) {
             if t <= prev {
@@ -105,13 +115,31 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
         }
         scans.extend(s);
     }
-    // One scan per file without a `scan` column gives every scan the id 0: number them in
-    // the order read, so the poses' `scan` column tells them apart.
+    // One scan per file without a `scan` column gives every scan the id 0: number them by
+    // the numbers in the files' names when each file holds one untimed scan (a logger numbers
+    // every scan it takes, so a number skipped is scans dropped, and the scans after it are
+    // timed by their ids as such: timed by their order they were 0.5 s early after 5 files
+    // missing), else in the order read, so the poses' `scan` column tells them apart.
     let mut ids: Vec<u64> = scans.iter().map(|s| s.id).collect();
     ids.sort_unstable();
+    let mut numbered_by_name = false;
     if ids.windows(2).any(|w| w[0] == w[1]) {
-        for (k, s) in scans.iter_mut().enumerate() {
-            s.id = k as u64;
+        let by_name: Option<Vec<u64>> = (counts.iter().all(|&n| n == 1)
+            && scans.iter().all(|s| s.t_s.is_none()))
+        .then(|| order.iter().map(|p| number_in_name(p)).collect())
+        .flatten();
+        match by_name.filter(|n| n.windows(2).all(|w| w[0] < w[1])) {
+            Some(numbers) => {
+                numbered_by_name = true;
+                for (s, n) in scans.iter_mut().zip(numbers) {
+                    s.id = n;
+                }
+            }
+            None => {
+                for (k, s) in scans.iter_mut().enumerate() {
+                    s.id = k as u64;
+                }
+            }
         }
     }
     // Angles are explicit, so a scan listed left to right is as good as one listed right to
@@ -127,7 +155,19 @@ pub fn read_scan_files(paths: &[PathBuf]) -> Result<ScanFiles, LrfError> {
         scans,
         step_rad: step.map(|s| s.0),
         reversed_note,
+        numbered_by_name,
+        truncated_notes,
     })
+}
+
+/// The last number in a file's name (`scan14.csv`: 14), if it has one.
+fn number_in_name(p: &std::path::Path) -> Option<u64> {
+    let stem = p.file_stem()?.to_str()?;
+    let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+    let start = stem[..end]
+        .rfind(|c: char| !c.is_ascii_digit())
+        .map_or(0, |i| i + 1);
+    stem[start..end].parse().ok()
 }
 
 /// Scans read from files by [`read_scan_files`].
@@ -139,6 +179,10 @@ pub struct ScanFiles {
     pub step_rad: Option<f64>,
     /// A note when scans listed their beams in decreasing angle order.
     pub reversed_note: Option<String>,
+    /// The scans, one per file without ids, were numbered by the numbers in the files' names.
+    pub numbered_by_name: bool,
+    /// Per file whose last line was cut short and left out, a warning saying so.
+    pub truncated_notes: Vec<String>,
 }
 
 /// A recording's scans may be logged sparser than the scanner sweeps (every few sweeps), but
@@ -314,11 +358,12 @@ pub fn check_fov(scans: &[Scan], sensor: &SensorConfig) -> Result<(), LrfError> 
     if span_rad <= sensor.fov_rad + 1.5 * step_rad {
         return Ok(());
     }
-    let fov_deg = sensor.fov_rad.to_degrees();
-    let as_radians = if fov_deg <= std::f64::consts::TAU {
+    // Back from radians as the user typed it: 240, not 239.99999999999997.
+    let fov_deg = six_digits(sensor.fov_rad.to_degrees());
+    let as_radians = if sensor.fov_rad.to_degrees() <= std::f64::consts::TAU {
         format!(
             " (if {fov_deg} is in radians, it is {:.1}°)",
-            fov_deg.to_degrees()
+            sensor.fov_rad.to_degrees().to_degrees()
         )
     } else {
         String::new()
@@ -1106,8 +1151,11 @@ const SUPPORT_SLACK_RAD: f64 = 0.1;
 /// mode `unsupported`), and returns how many. Scans that fit the map nowhere are of another
 /// room or read wrongly, and the few that pass the chance test among them are coincidences:
 /// a scanner mounted upside down gave one `ok` pose 4.2 m off with a σ of 3 mm among 93 lost
-/// scans. The right poses of such a recording come in runs, each agreeing with the next; a
-/// recording mostly localised keeps its lone poses, as the chance test vouches for them.
+/// scans. The right poses of such a recording come in runs, each agreeing with the next. In a
+/// recording mostly localised the same is done to a pose between two scans without one: a
+/// robot driven out of the mapped area gave one `ok` pose 4.7 m and 180° off (100σ) among
+/// lost and ambiguous scans, with no word. A lone pose beside `ok` ones is left to
+/// [`widen_off_track`].
 fn drop_unsupported(log: &mut PoseLog) -> usize {
     let judged = log.rows.iter().filter(|r| r.mode != "repeated").count();
     let lost = log
@@ -1115,12 +1163,15 @@ fn drop_unsupported(log: &mut PoseLog) -> usize {
         .iter()
         .filter(|r| r.status == Status::Lost && r.mode != "repeated")
         .count();
-    if lost * 2 <= judged {
-        return 0;
-    }
+    let mostly_lost = lost * 2 > judged;
     let ok: Vec<usize> = (0..log.rows.len())
         .filter(|&k| log.rows[k].status == Status::Ok && log.rows[k].pose.is_some())
         .collect();
+    let is_ok = |k: usize| {
+        log.rows
+            .get(k)
+            .is_some_and(|r| r.status == Status::Ok && r.pose.is_some())
+    };
     let agree = |a: &PoseLogRow, b: &PoseLogRow| {
         let (Some(p), Some(q)) = (a.pose, b.pose) else {
             return false;
@@ -1138,6 +1189,11 @@ fn drop_unsupported(log: &mut PoseLog) -> usize {
             !ok.iter().any(|&j| {
                 j != k && j.abs_diff(k) <= SUPPORT_ROWS && agree(&log.rows[k], &log.rows[j])
             })
+        })
+        .filter(|&k| {
+            // Between two scans: the one scan of a file has no neighbours to be lost.
+            let between = k > 0 && k + 1 < log.rows.len();
+            mostly_lost || (between && !is_ok(k - 1) && !is_ok(k + 1))
         })
         .collect();
     for &k in &lone {
@@ -1852,10 +1908,18 @@ mod tests {
             );
         }
         assert!((70..=74).all(|k| log.rows[k].status == Status::Ok));
-        // In a recording mostly localised a lone pose keeps its word.
-        let mut log = log_of(100, |k| (k < 60 || k == 80).then(|| along(k)));
-        assert_eq!(drop_unsupported(&mut log), 0);
-        assert_eq!(log.rows[80].status, Status::Ok);
+        // In a recording mostly localised, a lone pose between scans without one is taken
+        // away too (a robot driven out of the mapped area); one beside `ok` poses is left to
+        // the track's test.
+        let mut log = log_of(100, |k| match k {
+            30 => Some(Pose2::new(5.2, 1.0, 2.0)),
+            80 => Some(Pose2::new(5.2, 1.0, 2.0)),
+            k if k < 60 => Some(along(k)),
+            _ => None,
+        });
+        assert_eq!(drop_unsupported(&mut log), 1);
+        assert_eq!(log.rows[80].mode, "unsupported");
+        assert_eq!(log.rows[30].status, Status::Ok);
     }
     /// Three landmarks fit by a glint in place of one of them put a pose 88 mm off the track
     /// with a σ of 7 mm (11.5σ) while the scans either side agreed with each other: its σ is

@@ -553,6 +553,83 @@ impl Map {
             .collect()
     }
 
+    /// The map with every landmark's facing left out (seen from every side), or None if it
+    /// has no facing to leave out.
+    pub fn without_facings(&self) -> Option<Map> {
+        if self.landmarks.iter().all(|l| l.facing.is_none()) {
+            return None;
+        }
+        let landmarks: Vec<Landmark> = self
+            .landmarks
+            .iter()
+            .map(|l| Landmark {
+                facing: None,
+                ..l.clone()
+            })
+            .collect();
+        Map::build(
+            landmarks,
+            self.walls.clone(),
+            self.reflector_width_m,
+            self.position_sigma_m,
+        )
+        .ok()
+    }
+
+    /// True if `p` lies in the convex hull of the landmarks grown by `margin_m` (within
+    /// `margin_m` of it). A scanner fixed by reflectors around it stands among them; a
+    /// recording whose poses lie mostly outside them was fitted to a map that is not the room's.
+    pub fn within_hull(&self, p: &Point2<f64>, margin_m: f64) -> bool {
+        let hull = self.hull();
+        match hull.len() {
+            0 => false,
+            1 => (p - hull[0]).norm() <= margin_m,
+            _ => {
+                let n = hull.len();
+                let inside = n > 2
+                    && (0..n).all(|i| {
+                        let (a, b) = (hull[i], hull[(i + 1) % n]);
+                        (b - a).perp(&(p - a)) >= 0.0
+                    });
+                inside
+                    || (0..n).any(|i| {
+                        let (a, b) = (hull[i], hull[(i + 1) % n]);
+                        let ab = b - a;
+                        let w = ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+                        (p - (a + ab * w)).norm() <= margin_m
+                    })
+            }
+        }
+    }
+
+    /// The landmarks' convex hull, counter-clockwise (Andrew's monotone chain).
+    fn hull(&self) -> Vec<Point2<f64>> {
+        let mut pts: Vec<Point2<f64>> = self.landmarks.iter().map(|l| l.position).collect();
+        pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+        pts.dedup();
+        if pts.len() < 3 {
+            return pts;
+        }
+        let turn = |o: Point2<f64>, a: Point2<f64>, b: Point2<f64>| (a - o).perp(&(b - o));
+        let mut h: Vec<Point2<f64>> = Vec::with_capacity(2 * pts.len());
+        for pass in 0..2 {
+            let start = h.len();
+            let order: Vec<Point2<f64>> = if pass == 0 {
+                pts.clone()
+            } else {
+                pts.iter().rev().copied().collect()
+            };
+            for p in order {
+                while h.len() >= start + 2 && turn(h[h.len() - 2], h[h.len() - 1], p) <= 0.0 {
+                    h.pop();
+                }
+                h.push(p);
+            }
+            h.pop();
+        }
+        h
+    }
+
     /// Number of landmarks.
     pub fn len(&self) -> usize {
         self.landmarks.len()

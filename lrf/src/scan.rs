@@ -524,6 +524,33 @@ pub struct ScanFile {
     /// How many scans listed their beams in decreasing angle order (a ROS scan with a
     /// negative `angle_increment`), reversed on reading.
     pub n_reversed: usize,
+    /// The file's last line, cut short with no line end (a logger stopped while writing
+    /// it), left out.
+    pub truncated_line: Option<usize>,
+}
+
+/// The names a scan file's time column is read under (any case), seconds; the first found is
+/// taken.
+pub const TIME_COLUMNS: [&str; 8] = [
+    "t",
+    "time",
+    "timestamp",
+    "stamp",
+    "t_s",
+    "time_s",
+    "timestamp_s",
+    "stamp_s",
+];
+
+/// True if a column named `h` (none of [`TIME_COLUMNS`]) holds times in another unit or of
+/// another form (`t_ms`, `time_ns`, `stamp_secs`, `nsecs`).
+fn looks_like_time(h: &str) -> bool {
+    let h = h.to_ascii_lowercase();
+    ["t_", "time", "stamp", "timestamp", "sec", "nsec"]
+        .iter()
+        .any(|p| h.starts_with(p))
+        || h.ends_with("stamp")
+        || h.ends_with("_time")
 }
 
 /// Reads a scan CSV file (see [`parse_scans_csv`]).
@@ -537,7 +564,8 @@ pub fn read_scans_csv(path: &Path) -> Result<ScanFile, LrfError> {
 }
 
 /// Parses scans from CSV with header `angle,range,intensity` (radians, metres,
-/// unitless), optionally with `scan` (id) and `t` (seconds) columns; rows of
+/// unitless), optionally with `scan` (id) and `t` (seconds; or named as in [`TIME_COLUMNS`])
+/// columns; rows of
 /// one scan must be contiguous. A scan's beams may be listed in either angle order (they are
 /// kept in increasing order) and may start anywhere, but span at most a full turn. Rejects
 /// negative values (a range of NaN or ±inf is no return, 0), angles spanning more than a turn (degrees, not radians) and
@@ -571,18 +599,46 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
             ),
         ));
     };
-    let (cs, ct) = (col("scan"), col("t"));
+    let cs = col("scan");
+    // The time column under the names exports give it (a ROS bag's `stamp`, a logger's
+    // `timestamp`): under any of them but `t` it was passed over, and scans after a second of
+    // dropped ones were timed a second late, with no word.
+    let ct = TIME_COLUMNS.iter().find_map(|n| col(n));
+    let tname = ct.and_then(|c| headers.get(c)).unwrap_or("t").to_string();
+    // A time in another unit, or a column whose unit cannot be told, is refused by name: read
+    // as seconds it is wrong, and passed over the scans are timed by their order.
+    if ct.is_none() {
+        if let Some(h) = headers.iter().find(|h| looks_like_time(h)) {
+            return Err(err(
+                1,
+                h,
+                format!("column \"{h}\" looks like the scans' times, but odocal reads them in seconds from a column named t (or time, timestamp, stamp); give the times in seconds under one of those names"),
+            ));
+        }
+    }
     let mut scans: Vec<Scan> = Vec::new();
     let mut seen = std::collections::HashSet::new();
     let mut first_line = 0usize;
     let mut n_reversed = 0;
+    let mut truncated_line = None;
     for rec in rdr.records() {
-        let rec = rec.map_err(|e| {
-            let line = e
-                .position()
-                .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
-            err(line, "-", format!("malformed CSV row: {e}"))
-        })?;
+        let rec = match rec {
+            Ok(rec) => rec,
+            Err(e) => {
+                let byte = e.position().map_or(0, |p| p.byte() as usize);
+                let line = lines.line_of_byte(byte as u64) as usize;
+                // The last row cut short, with no line end after it, is a logger stopped
+                // while writing it: the file was refused whole for one partial beam.
+                let cut_short = byte > 0
+                    && text.get(byte..).is_some_and(|rest| !rest.contains('\n'))
+                    && matches!(e.kind(), csv::ErrorKind::UnequalLengths { .. });
+                if cut_short {
+                    truncated_line = Some(line);
+                    break;
+                }
+                return Err(err(line, "-", format!("malformed CSV row: {e}")));
+            }
+        };
         let line = rec
             .position()
             .map_or(0, |p| lines.line_of_byte(p.byte()) as usize);
@@ -640,11 +696,11 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
         };
         let t = match ct {
             Some(c) => {
-                let t = num(c, "t")?;
+                let t = num(c, &tname)?;
                 if !(t.is_finite() && (0.0..=MAX_SCAN_TIME_S).contains(&t)) {
                     return Err(err(
                         line,
-                        "t",
+                        &tname,
                         format!("time {t} s is not a scan time (0 to {MAX_SCAN_TIME_S:e} s, the year 2286 counted from 1970); give t in seconds, from the recording's start or the epoch (epoch milliseconds / 1000, nanoseconds / 1e9)"),
                     ));
                 }
@@ -665,7 +721,7 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
             if t <= prev {
                 return Err(err(
                     line,
-                    "t",
+                    &tname,
                     format!("scan time {t} s does not come after the previous scan's {prev} s; scans must be in time order"),
                 ));
             }
@@ -708,7 +764,11 @@ pub fn parse_scans_csv(text: &str, name: &str) -> Result<ScanFile, LrfError> {
             "no scan rows; the file has only a header".into(),
         ));
     }
-    Ok(ScanFile { scans, n_reversed })
+    Ok(ScanFile {
+        scans,
+        n_reversed,
+        truncated_line,
+    })
 }
 
 /// Puts back the beams without a return that an export left out of a scan (only returns

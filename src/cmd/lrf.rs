@@ -6,9 +6,10 @@ use std::time::Instant;
 use anyhow::Context;
 use odocal_lrf::{
     check_beam_step, check_fov, check_intensity_scale, check_map_report, check_range_unit,
-    check_scan_times, drop_beyond_range, evaluate, layout_repeats, localize_scans,
-    mirrored_finds_poses, read_scan_files, read_truth_csv, wider_noise_finds_poses, Localized,
-    Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig, Skewed, Status, DEFAULT_TOLERANCE_M,
+    check_scan_times, drop_beyond_range, evaluate, facings_hide_poses, layout_repeats,
+    localize_scans, mirror_fits_better, mirrored_finds_poses, read_scan_files, read_truth_csv,
+    wider_noise_finds_poses, Localized, Localizer, LocalizerConfig, Map, ScanFiles, SensorConfig,
+    Skewed, Status, DEFAULT_TOLERANCE_M, HULL_MARGIN_M,
 };
 
 use crate::output::{check_output_file, commit, progress, write_atomic};
@@ -187,9 +188,14 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         mut scans,
         step_rad,
         reversed_note,
+        numbered_by_name,
+        truncated_notes,
     } = read_scan_files(&a.scans)?;
     if let Some(note) = reversed_note {
         tell!("note: {note}");
+    }
+    for w in truncated_notes {
+        tell!("warning: {w}");
     }
     if a.upside_down {
         for s in &mut scans {
@@ -220,7 +226,28 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     if scans.iter().all(|s| s.t_s.is_none()) && scans.windows(2).all(|w| w[0].id < w[1].id) {
         if let (Some(first), Some(last)) = (scans.first(), scans.last()) {
             let missing = (last.id - first.id + 1) as usize - scans.len();
-            if missing > 0 {
+            if missing > 0 && numbered_by_name {
+                // Few are listed, so the user can look for those files.
+                let gaps: Vec<String> = scans
+                    .windows(2)
+                    .filter(|w| w[1].id > w[0].id + 1)
+                    .map(|w| match (w[0].id + 1, w[1].id - 1) {
+                        (a, b) if a == b => a.to_string(),
+                        (a, b) => format!("{a}–{b}"),
+                    })
+                    .collect();
+                let which = if gaps.len() <= 10 {
+                    format!(" ({})", gaps.join(", "))
+                } else {
+                    String::new()
+                };
+                tell!(
+                    "note: the scan files have no t column and {missing} of the numbers in their names from {} to {} are missing{which}: each scan is timed by its file's number at --rate-hz {} (a number skipped is a scan dropped), so the motion between the scans either side of a gap is that of the time it spans; give each scan's time in a t column if the numbers do not count the scanner's sweeps",
+                    first.id,
+                    last.id,
+                    a.rate_hz
+                );
+            } else if missing > 0 {
                 tell!(
                     "note: the scans have no t column and {missing} of the scan ids from {} to {} are missing: each scan is timed by its id at --rate-hz {} (a gap is scans dropped), so the motion between the scans either side of a gap is that of the time it spans; give each scan's time in a t column if the ids do not count the scanner's sweeps",
                     first.id,
@@ -295,6 +322,57 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             );
         }
     }
+    // Most scans found a pose, but away from every landmark, and the scans mirrored fit among
+    // them: a map of landmarks alone mirrored to the room (y flipped, x and y swapped) gave
+    // 232 of 300 scans `ok`, 12 m off, with exit 0.
+    if let Some(m) = mirror_fits_better(&loc, &scans, a.rate_hz, a.global_only, &log) {
+        let scanner = if a.upside_down {
+            "if the scanner is the right way up, drop --upside-down"
+        } else {
+            "if the scanner is mounted upside down (its angles clockwise), give --upside-down"
+        };
+        anyhow::bail!(
+            "{} of the {} ok poses lie outside the landmarks of {} (by more than {} m), and with their angles mirrored {} of the first {} scans find a pose, {} of them among the landmarks, where as given {} found one there: the scans and the map are mirror images of each other, so nothing was written; {scanner}; else the map is a mirror image of the room (its y axis flipped, a left-handed frame, or x and y swapped, northing before easting): give it with y and facing_rad negated, or x and y swapped back",
+            m.n_outside_given,
+            m.n_ok_given,
+            a.map.display(),
+            HULL_MARGIN_M,
+            m.n_ok_mirrored,
+            m.n_scans,
+            m.n_ok_mirrored - m.n_outside_mirrored,
+            m.n_ok_first - m.n_outside_first,
+        );
+    }
+    // Facings of another convention hide the landmarks where the scanner sees them: tried
+    // whenever a twentieth of the scans or more found no pose.
+    if count(Status::Ok) * 20 < n_judged * 19 {
+        if let Some(f) = facings_hide_poses(&loc, &scans, a.rate_hz, a.global_only, &log) {
+            let deg = f.offset_rad.to_degrees();
+            // Conventions differ by quarter turns; the mean itself is pulled towards 0 by
+            // landmarks in range the scanner did not see (-69° for facings 90° off).
+            let quarter = std::f64::consts::FRAC_PI_2;
+            let turn = (f.offset_rad / quarter).round() * quarter;
+            anyhow::bail!(
+                "{} of {} found a pose, and with the facing_rad of {} left out {} of the first {} find one, where {} did: the scanner sees the landmarks from about {:.0}° off the way their facing_rad says they face (mean over the landmarks in range at those poses, more than 45° off), so nothing was written; facing_rad is the direction a reflector faces, into the room, in radians counter-clockwise from the map's x axis: add {:.4} rad ({:.0}°) to every facing_rad{}, or leave facing_rad out",
+                count(Status::Ok),
+                scans_judged,
+                a.map.display(),
+                f.n_ok_free,
+                f.n_scans,
+                f.n_ok_given,
+                deg,
+                turn,
+                turn.to_degrees(),
+                if deg.abs() > 135.0 {
+                    " (they point into the walls)"
+                } else if deg.abs() > 45.0 {
+                    " (measured from the y axis, or clockwise?)"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
     let why_lost = || {
         format!(
             "is {} the map of this room, in metres, and are the scanner's angles counter-clockwise (a scanner mounted upside down mirrors them)? Check --intensity-min {} against the reflectors' returns and --max-range-m {} m",
@@ -348,8 +426,20 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
             );
             continue;
         }
+        // A map without facings takes every reflector for visible from all sides: one on a
+        // wall seen from behind it was called gone, and removing it loses a good landmark.
+        let facing_hint = if loc
+            .map
+            .landmarks
+            .iter()
+            .any(|l| l.id == id && l.facing.is_none())
+        {
+            "; if it is there, on a wall or post that hides it from some side, give its facing_rad (the direction it faces, radians) so that it is expected only where it can be seen"
+        } else {
+            ""
+        };
         tell!(
-            "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map",
+            "warning: landmark {id} of {} was in view in {n} scans and not seen in {missed} of them: is it still there? A mapped reflector that is gone (fallen off, covered) counts against the right pose alone, and in a symmetric layout it leaves the scans ambiguous; put it back, or remove it from the map{facing_hint}",
             a.map.display()
         );
     }
@@ -359,6 +449,8 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
         (None, Some(hz)) => format!("a scanner slower than --rate-hz {} biases the landmarks too: if it runs at {hz} Hz, give --rate-hz {hz}", a.rate_hz),
         (None, None) => format!("a scanner whose rate is not --rate-hz {}, or whose mirror turns faster than it sends scans (give --sweep-s), biases the landmarks too", a.rate_hz),
     };
+    // Whether the χ² warning below has landmarks above to point at.
+    let named = !moved.is_empty() || !left_out.is_empty();
     for m in moved {
         let dir = m.offset_m.normalize();
         tell!(
@@ -382,8 +474,22 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     // make (1 % of them, and three standard deviations of that count) is a cause to find.
     let by_chance = 0.01 * fit.n_poses as f64;
     if fit.n_widened as f64 > by_chance + 3.0 * by_chance.sqrt() + 1.0 {
+        // With no landmark to blame, residuals χ² times their noise all over are a range
+        // noise √χ² times the one given (4 cm noise at --sigma-range-m 0.01 gave χ² 3.76,
+        // 19 mm): named as a figure the user can give, or check against the datasheet.
+        let cause = if named {
+            "A landmark off its mapped place (moved, or surveyed wrong) or a shiny object taken for a reflector does this: check the landmarks named above, the map's position_sigma_m and --sigma-range-m".to_string()
+        } else {
+            let implied = a.sigma_range_m * fit.ratio.max(1.0).sqrt();
+            format!(
+                "No landmark sits off its place, so the detections are noisier than --sigma-range-m {} m says: the residuals imply a range noise of about {:.0} mm (1σ, --sigma-range-m times √χ² per degree of freedom); if the scanner's datasheet or the spread of its ranges to a wall agree, give --sigma-range-m {:.3}, else look for a shiny object taken for a reflector or a map surveyed coarser than its position_sigma_m",
+                a.sigma_range_m,
+                implied * 1e3,
+                implied
+            )
+        };
         tell!(
-            "warning: {} of {} ok poses fit their landmarks worse than the detections' noise explains (χ² beyond its 99 % quantile, where about {:.0} would by chance; over the recording χ² is {:.2} times its degrees of freedom): their σ were widened by that excess and by how far leaving out each landmark moves the pose. A landmark off its mapped place (moved, or surveyed wrong) or a shiny object taken for a reflector does this: check the landmarks named above, the map's position_sigma_m and --sigma-range-m",
+            "warning: {} of {} ok poses fit their landmarks worse than the detections' noise explains (χ² beyond its 99 % quantile, where about {:.0} would by chance; over the recording χ² is {:.2} times its degrees of freedom): their σ were widened by that excess and by how far leaving out each landmark moves the pose. {cause}",
             fit.n_widened,
             fit.n_poses,
             by_chance,
@@ -608,7 +714,7 @@ fn localize(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     if n_unsupported > 0 {
         tell!(
-            "warning: {n_unsupported} {} no pose of the {} scans either side to agree with, in a recording where most scans found none: a lone pose among lost scans is more likely a coincidence than the scanner's place, so {} left out (status lost, mode unsupported)",
+            "warning: {n_unsupported} {} no pose of the {} scans either side to agree with, among scans without one: a lone pose among lost scans (a robot driven out of the mapped area, or scans of another room) is more likely a coincidence than the scanner's place, so {} left out (status lost, mode unsupported)",
             if n_unsupported == 1 { "ok pose had" } else { "ok poses had" },
             odocal_lrf::SUPPORT_ROWS,
             if n_unsupported == 1 { "it was" } else { "they were" }
