@@ -99,13 +99,14 @@ pub fn mend_glitches(log: &OdometryLog, robot: &RobotParams) -> LogGlitches {
                     .count_beyond_counters
                     .as_ref()
                     .filter(|b| b.line == line && b.column == *name)
-                    .map_or_else(|| column[k].to_string(), |b| b.written.clone());
+                    .map_or_else(|| log.count_text(w, column[k]), |b| b.written.clone());
                 let speed = (column[k] - column[k - 1]).abs() * metres_per_tick
                     / (log.t_s[k] - log.t_s[k - 1]);
                 mended.push(format!(
-                    "line {line}: {name} reads {written} between {} and {} on the rows around it, {speed:.0} m/s there and back: a garbled reading, read as {read_as}",
-                    column[k - 1],
-                    column[k + 1]
+                    "line {line}: {name} reads {written} between {} and {} on the rows around it, {speed:.0} m/s there and back: a garbled reading, read as {}",
+                    log.count_text(w, column[k - 1]),
+                    log.count_text(w, column[k + 1]),
+                    log.count_text(w, read_as)
                 ));
                 column[k] = read_as;
             }
