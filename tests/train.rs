@@ -765,3 +765,26 @@ fn an_oracle_of_another_experiment_is_warned() {
     let err = train(&dir.path().join("exp/truth/oracle.json"));
     assert!(!err.contains("--oracle:"), "{err}");
 }
+
+/// A log of every other row (400 ms) corrected with a model of a 200 ms robot: its steps
+/// were read as rows the logger lost, filled in, and the log corrected or judged outside the
+/// training domain; `dataset` refuses the same log naming both periods.
+#[test]
+fn a_log_of_another_period_is_refused_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let ds = experiment(dir.path(), 8, 5);
+    let model = dir.path().join("model.json");
+    ok(&["train", p(&ds), "--out", p(&model), "--no-cv"]);
+    let log = dir.path().join("exp/runs/run002.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let halved = dir.path().join("half.csv");
+    let mut rows = vec![text.lines().next().unwrap()];
+    rows.extend(text.lines().skip(1).step_by(2));
+    std::fs::write(&halved, rows.join("\n") + "\n").unwrap();
+    let err = fails(&["correct", "--model", p(&model), p(&halved)]);
+    assert!(
+        err.contains("rows are 0.400 s apart, but the robot logs every 0.200 s")
+            && !err.contains("lost"),
+        "{err}"
+    );
+}
