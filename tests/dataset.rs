@@ -278,6 +278,53 @@ fn sixty_four_bit_encoder_counts_give_the_same_dataset_and_correction() {
     assert_eq!(std::fs::read_to_string(&log).unwrap(), text);
 }
 
+/// A counter reset at rest between two runs costs no run; its note said "cut the log before
+/// line 53, or record the run again; no run spans it", advice and its denial at once.
+#[test]
+fn a_counter_reset_between_runs_is_noted_as_harmless() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), 6, 4, 3);
+    let plain = build(dir.path());
+    let path = dir.path().join("runs/rec001.odometry.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let rows: Vec<Vec<i64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').skip(1).map(|c| c.parse().unwrap()).collect())
+        .collect();
+    // The fourth row at rest after the first run's motion.
+    let first_move = (1..rows.len()).find(|&i| rows[i] != rows[i - 1]).unwrap();
+    let reset = (first_move..rows.len())
+        .filter(|&i| rows[i] == rows[i - 1])
+        .nth(3)
+        .unwrap();
+    let mut out = String::from(text.lines().next().unwrap());
+    for (i, (line, r)) in text.lines().skip(1).zip(&rows).enumerate() {
+        let t = line.split(',').next().unwrap();
+        let base = if i >= reset {
+            &rows[reset]
+        } else {
+            &vec![0, 0]
+        };
+        out.push_str(&format!("\n{t},{},{}", r[0] - base[0], r[1] - base[1]));
+    }
+    std::fs::write(&path, out + "\n").unwrap();
+    let ds = build(dir.path());
+    assert_eq!(ds.samples, plain.samples);
+    let line = reset + 2;
+    let [note] = &ds.notes[..] else {
+        panic!("{:?}", ds.notes)
+    };
+    assert!(
+        note.contains(&format!("line {line}: left_ticks drops from"))
+            && note.contains(
+                "the counter was reset (motor board restarted?); harmless: no run spans it"
+            )
+            && !note.contains("cut the log"),
+        "{note}"
+    );
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();

@@ -43,6 +43,9 @@ const RESET_SLACK_TICKS: f64 = 2.0;
 /// taken relative to its median count, in integers.
 pub const EXACT_COUNT: i128 = 1 << 53;
 
+/// What a counter reset's reason says after naming it: the advice for a run across it.
+pub const RESET_ADVICE: &str = "; the counts after it do not continue the run's";
+
 /// The fastest a small wheeled robot's wheel surface moves, m/s: the reference robot drives
 /// at 0.1-0.7 m/s; a faster step is a glitch or a unit error.
 pub const MAX_WHEEL_SPEED_MPS: f64 = 5.0;
@@ -679,7 +682,7 @@ impl OdometryLog {
                     None => "the counter was reset (motor board restarted?)".into(),
                 };
                 (k, format!(
-                    "line {line}: {}: {cause}; the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
+                    "line {line}: {}: {cause}{RESET_ADVICE}: cut the log before line {line}, or record the run again",
                     drops.join(", and ")
                 ))
             })
