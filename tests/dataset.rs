@@ -325,6 +325,62 @@ fn a_counter_reset_between_runs_is_noted_as_harmless() {
     );
 }
 
+/// A right encoder counting down on tours (`--layout windows`) made the odometry spin in
+/// place: blamed on counts per period or a mispaired log ("a ratio of 9.895"), where
+/// straight runs named the encoders' sense.
+#[test]
+fn an_encoder_counting_down_on_tours_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |s: &str| dir.path().join(s);
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "tours",
+        "--runs",
+        "2",
+        "--frames",
+        "none",
+        "--out",
+        p(&d("tours")),
+    ]);
+    let windows = |out: &str| {
+        dataset_args(&d("tours/manifest.json"), &d(out), &["--layout", "windows"])
+            .into_iter()
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    let args = windows("w.json");
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    for rec in ["run001", "run002"] {
+        offset_counts_by(&d(&format!("tours/runs/{rec}.odometry.csv")), &|_, r| -r);
+    }
+    let args = windows("n.json");
+    let e = fails(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        e.contains("with one wheel's counts negated the odometry's path spans the camera's: is one encoder counting down as the robot drives forward?")
+            && !e.contains("cumulative counts"),
+        "{e}"
+    );
+}
+
+/// Rewrites each count pair (left, right) of the tick log at `path` by `f`.
+fn offset_counts_by(path: &Path, f: &dyn Fn(i128, i128) -> i128) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        if i == 0 {
+            out.push_str(line);
+        } else {
+            let c: Vec<&str> = line.split(',').collect();
+            let (l, r) = (c[1].parse().unwrap(), c[2].parse().unwrap());
+            out.push_str(&format!("{},{l},{}", c[0], f(l, r)));
+        }
+        out.push('\n');
+    }
+    std::fs::write(path, out).unwrap();
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();
