@@ -197,7 +197,7 @@ fn wrapped_encoder_counters_and_twitches_give_the_same_dataset() {
     }
     // One tick more on the left wheel at rest, on the log's second row (line 3) or third.
     for line in [3, 4] {
-        let path = dir.path().join("runs/run002.odometry.csv");
+        let path = dir.path().join("runs/rec002.odometry.csv");
         let text = std::fs::read_to_string(&path).unwrap();
         let mut lines: Vec<String> = text.lines().map(String::from).collect();
         let mut f: Vec<String> = lines[line - 1].split(',').map(String::from).collect();
@@ -1656,7 +1656,7 @@ fn a_counter_glitch_spoils_the_run_across_it_not_its_recording() {
     synth(d, 6, 2, 3);
     let (log1, log2) = (
         d.join("runs/rec001.odometry.csv"),
-        d.join("runs/run002.odometry.csv"),
+        d.join("runs/rec002.odometry.csv"),
     );
     let runs1 = moving_rows_by_run(&log1);
     let runs2 = moving_rows_by_run(&log2);
