@@ -381,6 +381,54 @@ fn offset_counts_by(path: &Path, f: &dyn Fn(i128, i128) -> i128) {
     std::fs::write(path, out).unwrap();
 }
 
+/// A robot file of another wheel base on tours: most windows were rejected as "the clock is
+/// off here, or the log is not this run's", exit 0 with no summary; said, naming the file.
+#[test]
+fn most_windows_rejected_are_summed_up_naming_the_robot_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |s: &str| dir.path().join(s);
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "tours",
+        "--runs",
+        "3",
+        "--frames",
+        "none",
+        "--out",
+        p(&d("tours")),
+    ]);
+    let robot = d("wide.json");
+    std::fs::write(
+        &robot,
+        r#"{"format":"odocal.robot/1","wheel_diameter_m":0.043,"ticks_per_rev":12,"wheel_base_m":0.35,"period_s":0.2}"#,
+    )
+    .unwrap();
+    let out = common::odocal(&dataset_args(
+        &d("tours/manifest.json"),
+        &d("w.json"),
+        &["--layout", "windows", "--robot", p(&robot)],
+    ));
+    succeeded(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let ds = Dataset::read(&d("w.json")).unwrap();
+    assert!(ds.rejected.len() > ds.samples.len(), "{err}");
+    let warning = format!(
+        "warning: {} of {} windows rejected (",
+        ds.rejected.len(),
+        ds.rejected.len() + ds.samples.len()
+    );
+    assert!(
+        err.contains(&warning)
+            && err.contains(&format!(
+                "also what {} gives when its wheel_base_m or wheel_diameter_m is not the robot's",
+                p(&robot)
+            )),
+        "{err}"
+    );
+}
+
 #[test]
 fn same_seed_same_bytes() {
     let a = tempfile::tempdir().unwrap();
