@@ -653,7 +653,7 @@ fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
     ok(&["train", p(&ds), "--out", p(&model), "--no-cv"]);
     let log = dir.path().join("exp/runs/run001.odometry.csv");
     let text = std::fs::read_to_string(&model).expect("model");
-    let edits: [(&str, Edit, &str); 3] = [
+    let edits: [(&str, Edit, &str); 5] = [
         (
             "scale.json",
             |v| v["output_normalisation"]["scale"] = serde_json::json!([0.0, 0.0]),
@@ -666,6 +666,20 @@ fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
                 v["domain"]["input_min"][3] = serde_json::json!(hi + 1.0);
             },
             "range.json: domain.input_min[3] = ",
+        ),
+        // Reversed, every run was refused as "a speed the training did not drive".
+        (
+            "duration.json",
+            |v| {
+                let d = v["domain"]["duration_s"].as_array_mut().expect("duration_s");
+                d.swap(0, 1);
+            },
+            "duration.json: domain.duration_s = [",
+        ),
+        (
+            "input_scale.json",
+            |v| v["input_normalisation"]["scale"][2] = serde_json::json!(0.0),
+            "input_scale.json: input_normalisation.scale[2] = 0, but the training's input 2 ranged from ",
         ),
         (
             "activation.json",
@@ -681,7 +695,25 @@ fn hand_edited_models_and_swapped_run_times_are_refused_in_one_line() {
         let e = fails(&["correct", "--model", p(&path), p(&log)]);
         assert!(e.contains(needle), "{e}");
     }
-    ok(&["correct", "--model", p(&model), p(&log)]);
+    let correct = |model: &Path| {
+        let out = common::odocal(&["correct", "--model", p(model), p(&log)]);
+        common::succeeded(&out);
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    assert!(!correct(&model).contains("duration_s"));
+    // A model without the runs' durations loaded unsaid.
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
+    v["domain"]
+        .as_object_mut()
+        .expect("domain")
+        .remove("duration_s");
+    let old = dir.path().join("old.json");
+    std::fs::write(&old, v.to_string()).expect("write");
+    assert!(
+        correct(&old).contains("its training domain has no domain.duration_s"),
+        "{}",
+        correct(&old)
+    );
     // A path model given where a straight-run model is read: the message said to retrain a
     // model that this build had just written.
     let mut v: serde_json::Value = serde_json::from_str(&text).expect("json");
@@ -764,4 +796,76 @@ fn an_oracle_of_another_experiment_is_warned() {
     );
     let err = train(&dir.path().join("exp/truth/oracle.json"));
     assert!(!err.contains("--oracle:"), "{err}");
+}
+
+/// A log of every other row (400 ms) corrected with a model of a 200 ms robot: its steps
+/// were read as rows the logger lost, filled in, and the log corrected or judged outside the
+/// training domain; `dataset` refuses the same log naming both periods.
+#[test]
+fn a_log_of_another_period_is_refused_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    let ds = experiment(dir.path(), 8, 5);
+    let model = dir.path().join("model.json");
+    ok(&["train", p(&ds), "--out", p(&model), "--no-cv"]);
+    let log = dir.path().join("exp/runs/run002.odometry.csv");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let halved = dir.path().join("half.csv");
+    let mut rows = vec![text.lines().next().unwrap()];
+    rows.extend(text.lines().skip(1).step_by(2));
+    std::fs::write(&halved, rows.join("\n") + "\n").unwrap();
+    let err = fails(&["correct", "--model", p(&model), p(&halved)]);
+    assert!(
+        err.contains("rows are 0.400 s apart, but the robot logs every 0.200 s")
+            && !err.contains("lost"),
+        "{err}"
+    );
+}
+
+/// A path model's kinematic fit edited to a wheel base of 0 made `correct` and `evaluate`
+/// print "NaN % of path" and write null, exit 0; a negative one gave plausible wrong rows.
+#[test]
+fn a_path_model_with_an_edited_kinematic_fit_is_refused_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |s: &str| dir.path().join(s);
+    ok(&[
+        "synth",
+        "experiment",
+        "--paths",
+        "tours",
+        "--runs",
+        "4",
+        "--frames",
+        "none",
+        "--out",
+        p(&d("tours")),
+    ]);
+    ok(&[
+        "dataset",
+        "--manifest",
+        p(&d("tours/manifest.json")),
+        "--layout",
+        "windows",
+        "--out",
+        p(&d("windows.json")),
+    ]);
+    ok(&["train", p(&d("windows.json")), "--out", p(&d("model.json"))]);
+    let text = std::fs::read_to_string(d("model.json")).unwrap();
+    let log = std::fs::read_dir(d("tours/runs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().ends_with(".odometry.csv"))
+        .unwrap();
+    ok(&["correct", "--model", p(&d("model.json")), p(&log)]);
+    for (field, value) in [("wheel_base_m", 0.0), ("left_wheel_diameter_m", -0.043)] {
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["kinematic_fit"][field] = serde_json::json!(value);
+        std::fs::write(d("edited.json"), v.to_string()).unwrap();
+        let e = fails(&["correct", "--model", p(&d("edited.json")), p(&log)]);
+        assert!(
+            e.contains(&format!(
+                "edited.json: kinematic_fit.{field} = {value} m against the robot's "
+            )) && e.contains("the model is damaged or edited; train it again"),
+            "{e}"
+        );
+    }
 }

@@ -21,10 +21,18 @@ const EIGHT_BIT_SLACK_TICKS: f64 = 8.0;
 /// The range of counts a 16- or 32-bit counter gives, signed or not.
 const COUNTER_RANGE: std::ops::RangeInclusive<f64> = -2_147_483_648.0..=4_294_967_295.0;
 
-/// A count in a tick column that no 16- or 32-bit counter gives: a glitch (a 64-bit
-/// `18446744073709551615`, a `1e30`). Its step is no wrap: read as a number, a huge count is
-/// a whole number of 2³² turns from its neighbours, and was "unwrapped" to a count that is
-/// nowhere in the file.
+/// Whether a step from or to `count` is no 16- or 32-bit counter's wrap: a count beyond
+/// their range is a 64-bit counter's, which does not wrap in a robot's life, or a glitch (a
+/// `1e30`). Read as a number, a huge count is a whole number of 2³² turns from its neighbours,
+/// and was "unwrapped" to a count that is nowhere in the file.
+pub fn beyond_32_bit(count: f64) -> bool {
+    !COUNTER_RANGE.contains(&count)
+}
+
+/// A count in a tick column that no wheel's counter reaches from the column's other counts:
+/// more than 2⁵³ ticks (thousands of light years of wheel) from their median, which no step of
+/// a 64-bit count read as a number keeps exact either. A glitch (a `1e30`, a garbled
+/// `18446744073709551615` among counts of a few thousand).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CountBeyondCounters {
     /// The wheel's column, `left_ticks` or `right_ticks`.
@@ -33,25 +41,16 @@ pub struct CountBeyondCounters {
     pub line: u64,
     /// The count as written in the file.
     pub written: String,
-}
-
-impl CountBeyondCounters {
-    /// Whether `count` lies beyond what a 16- or 32-bit counter gives.
-    pub fn is_beyond(count: f64) -> bool {
-        !COUNTER_RANGE.contains(&count)
-    }
+    /// The column's median count, as an integer.
+    pub median: i128,
 }
 
 impl std::fmt::Display for CountBeyondCounters {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "line {}: {} is {}, beyond any 16- or 32-bit encoder counter ({} to {}): a glitch in the log?",
-            self.line,
-            self.column,
-            self.written,
-            COUNTER_RANGE.start(),
-            COUNTER_RANGE.end()
+            "line {}: {} is {}, more than 2^53 ticks from the column's other counts (around {}), farther than any wheel turns: a glitch in the log?",
+            self.line, self.column, self.written, self.median
         )
     }
 }
@@ -104,9 +103,7 @@ pub fn unwrap_counts(v: &mut [f64], column: &'static str, lines: &[u64]) -> Vec<
     let mut wraps = Vec::new();
     let mut offset = 0.0;
     for (i, step) in steps.iter().enumerate() {
-        let glitch = logged[i..i + 2]
-            .iter()
-            .any(|&c| CountBeyondCounters::is_beyond(c));
+        let glitch = logged[i..i + 2].iter().any(|&c| beyond_32_bit(c));
         let widths: &[u32] = if glitch { &[] } else { &COUNTER_BITS };
         for &bits in widths {
             let turn = 2f64.powi(bits as i32);

@@ -107,9 +107,15 @@ fn one_row(
                 .iter()
                 .any(|s| step.touches(s.start_row, s.end_row))
         {
+            // The reason's advice to cut the log or record again is for a run across the
+            // step; between runs the step costs nothing, and said so.
+            let what = step
+                .reason
+                .split(crate::odometry::RESET_ADVICE)
+                .next()
+                .unwrap_or(&step.reason);
             notes.push(at_log(&format!(
-                "{}; no run spans it: the counts after it are read on from the rows before it",
-                step.reason
+                "{what}; harmless: no run spans it, and the counts after it are read on from the rows before it"
             )));
         }
     }

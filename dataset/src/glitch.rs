@@ -65,6 +65,13 @@ pub enum LogGlitches {
 /// steps; else `log` as it is (no notes), for the log checks to refuse. A model applied to a whole log (`correct`, `evaluate`) can read around a garbled
 /// count, but not across a step whose travel is lost.
 pub fn mend_garbled_readings(log: &OdometryLog, robot: &RobotParams) -> (OdometryLog, Vec<String>) {
+    // A log off the robot's period throughout is another robot's or logger's, not one that
+    // lost rows: filled in, a 400 ms log on a 200 ms robot was "9 rows the logger lost" and
+    // corrected as such; left as it is, the log check refuses it naming both periods, as
+    // `dataset` does.
+    if log.period_mismatch(robot.period_s).is_some() {
+        return (log.clone(), Vec::new());
+    }
     match mend_glitches(log, robot) {
         LogGlitches::Mended(m) if m.lost.is_empty() && !m.mended.is_empty() => (m.log, m.mended),
         _ => (log.clone(), Vec::new()),
@@ -99,13 +106,14 @@ pub fn mend_glitches(log: &OdometryLog, robot: &RobotParams) -> LogGlitches {
                     .count_beyond_counters
                     .as_ref()
                     .filter(|b| b.line == line && b.column == *name)
-                    .map_or_else(|| column[k].to_string(), |b| b.written.clone());
+                    .map_or_else(|| log.count_text(w, column[k]), |b| b.written.clone());
                 let speed = (column[k] - column[k - 1]).abs() * metres_per_tick
                     / (log.t_s[k] - log.t_s[k - 1]);
                 mended.push(format!(
-                    "line {line}: {name} reads {written} between {} and {} on the rows around it, {speed:.0} m/s there and back: a garbled reading, read as {read_as}",
-                    column[k - 1],
-                    column[k + 1]
+                    "line {line}: {name} reads {written} between {} and {} on the rows around it, {speed:.0} m/s there and back: a garbled reading, read as {}",
+                    log.count_text(w, column[k - 1]),
+                    log.count_text(w, column[k + 1]),
+                    log.count_text(w, read_as)
                 ));
                 column[k] = read_as;
             }
@@ -276,6 +284,23 @@ mod tests {
             why.starts_with("lines 2 and 3: the left wheel goes from 0 to 100 ticks")
                 && why.ends_with("; and 10 more such steps, too many for glitches"),
             "{why}"
+        );
+    }
+
+    #[test]
+    fn a_log_of_another_period_is_left_for_the_period_check() {
+        // Every other row of a 200 ms log: 0.4 s steps, read as a row lost at each.
+        let counts: Vec<i64> = (0..20).map(|k| 20 * k).collect();
+        let t = (0..20).map(|k| 0.4 * k as f64).collect();
+        let log = OdometryLog::from_ticks(t, counts.clone(), counts).expect("log");
+        let robot = RobotParams::default();
+        assert_eq!(
+            mend_garbled_readings(&log, &robot),
+            (log.clone(), Vec::new())
+        );
+        assert_eq!(
+            log.period_mismatch(robot.period_s).as_deref(),
+            Some("rows are 0.400 s apart, but the robot logs every 0.200 s")
         );
     }
 

@@ -39,6 +39,13 @@ const RESET_STEPS: f64 = 3.0;
 /// See [`RESET_STEPS`]: a wheel at rest nudged by a tick or two is no reset.
 const RESET_SLACK_TICKS: f64 = 2.0;
 
+/// The largest count a double holds exactly (2⁵³): a tick column with a count beyond it is
+/// taken relative to its median count, in integers.
+pub const EXACT_COUNT: i128 = 1 << 53;
+
+/// What a counter reset's reason says after naming it: the advice for a run across it.
+pub const RESET_ADVICE: &str = "; the counts after it do not continue the run's";
+
 /// The fastest a small wheeled robot's wheel surface moves, m/s: the reference robot drives
 /// at 0.1-0.7 m/s; a faster step is a glitch or a unit error.
 pub const MAX_WHEEL_SPEED_MPS: f64 = 5.0;
@@ -69,8 +76,14 @@ pub struct OdometryLog {
     /// The encoder twitches at rest set back to the count around them (see
     /// [`crate::twitch`]).
     pub twitches: Vec<Twitch>,
-    /// The first count of a tick log that no 16- or 32-bit counter gives, as written.
+    /// The first count of a tick log that no wheel's counter reaches from its column's
+    /// other counts, as written.
     pub count_beyond_counters: Option<CountBeyondCounters>,
+    /// The count each tick column's values (`left`, `right`) are taken from: 0, or for a
+    /// column holding a count beyond [`EXACT_COUNT`] (a 64-bit counter's) its median count, so
+    /// that its steps, taken between integers, are exact: as numbers, counts near 10¹⁶ are 2
+    /// ticks apart and near 2⁶² 1024, and every step read as noise or as rest.
+    pub count_origin: [i128; 2],
     /// The file's line of each row (the header is line 1), for messages; a row filled in
     /// where the logger lost one ([`crate::lost_rows`]) carries the line of the row after it.
     pub lines: Vec<u64>,
@@ -92,14 +105,17 @@ impl OdometryLog {
         left: Vec<i64>,
         right: Vec<i64>,
     ) -> Result<Self, DatasetError> {
+        let wide = |c: Vec<i64>| counts_from(&c.into_iter().map(i128::from).collect::<Vec<_>>());
+        let ((lo, left), (ro, right)) = (wide(left), wide(right));
         let log = Self {
             kind: LogKind::Ticks,
             t_s,
-            left: left.into_iter().map(|v| v as f64).collect(),
-            right: right.into_iter().map(|v| v as f64).collect(),
+            left,
+            right,
             counter_wraps: Vec::new(),
             twitches: Vec::new(),
             count_beyond_counters: None,
+            count_origin: [lo, ro],
             lines: Vec::new(),
         };
         log.validate("<ticks>", |i| i as u64 + 2)?;
@@ -120,6 +136,7 @@ impl OdometryLog {
             counter_wraps: Vec::new(),
             twitches: Vec::new(),
             count_beyond_counters: None,
+            count_origin: [0, 0],
             lines: Vec::new(),
         };
         log.validate("<speeds>", |i| i as u64 + 2)?;
@@ -130,6 +147,15 @@ impl OdometryLog {
     /// for a log made in memory.
     pub fn line(&self, k: usize) -> u64 {
         self.lines.get(k).copied().unwrap_or(k as u64 + 2)
+    }
+
+    /// Count `v` of wheel `w` (0 left, 1 right) as the file writes it: `v` is taken from the
+    /// column's [`Self::count_origin`].
+    pub fn count_text(&self, w: usize, v: f64) -> String {
+        match self.count_origin[w] {
+            0 => v.to_string(),
+            origin => origin.saturating_add(v as i128).to_string(),
+        }
     }
 
     /// Number of rows.
@@ -336,8 +362,8 @@ impl OdometryLog {
         let mut t_s = Vec::new();
         let mut left = Vec::new();
         let mut right = Vec::new();
+        let mut raw: [Vec<i128>; 2] = [Vec::new(), Vec::new()];
         let mut lines = Vec::new();
-        let mut count_beyond_counters = None;
         for &(line, ref rec) in &table.rows {
             if let Some(t) = rec.get(0).filter(|t| looks_like_a_date(t)) {
                 return Err(DatasetError::parse(
@@ -360,14 +386,12 @@ impl OdometryLog {
                     ));
                 }
             }
-            if kind == LogKind::Ticks && count_beyond_counters.is_none() {
-                count_beyond_counters = (1..3)
-                    .find(|&c| CountBeyondCounters::is_beyond(vals[c]))
-                    .map(|c| CountBeyondCounters {
-                        column: TICKS_HEADER[c],
-                        line,
-                        written: rec[c].to_string(),
-                    });
+            if kind == LogKind::Ticks {
+                // A 64-bit count is read as an integer: as a number it is rounded to the
+                // nearest of doubles up to 1024 apart. "1e30" and the like are numbers only.
+                for c in 1..3 {
+                    raw[c - 1].push(rec[c].parse::<i128>().unwrap_or(vals[c] as i128));
+                }
             }
             t_s.push(vals[0]);
             left.push(vals[1]);
@@ -376,9 +400,31 @@ impl OdometryLog {
         }
         let mut counter_wraps = Vec::new();
         let mut twitches = Vec::new();
+        let mut count_origin = [0, 0];
+        let mut count_beyond_counters = None;
         if kind == LogKind::Ticks {
-            counter_wraps.extend(unwrap_counts(&mut left, TICKS_HEADER[1], &lines));
-            counter_wraps.extend(unwrap_counts(&mut right, TICKS_HEADER[2], &lines));
+            let ((lo, l), (ro, r)) = (counts_from(&raw[0]), counts_from(&raw[1]));
+            (left, right, count_origin) = (l, r, [lo, ro]);
+            count_beyond_counters = (0..raw[0].len())
+                .flat_map(|k| [(k, 0), (k, 1)])
+                .find(|&(k, w)| {
+                    raw[w][k].saturating_sub(count_origin[w]).unsigned_abs()
+                        > EXACT_COUNT.unsigned_abs()
+                })
+                .map(|(k, w)| CountBeyondCounters {
+                    column: TICKS_HEADER[w + 1],
+                    line: lines[k],
+                    written: table.rows[k].1[w + 1].to_string(),
+                    median: count_origin[w],
+                });
+            // A column beyond a double's integers is no 16- or 32-bit counter: it does not
+            // wrap.
+            if count_origin[0] == 0 {
+                counter_wraps.extend(unwrap_counts(&mut left, TICKS_HEADER[1], &lines));
+            }
+            if count_origin[1] == 0 {
+                counter_wraps.extend(unwrap_counts(&mut right, TICKS_HEADER[2], &lines));
+            }
             twitches = remove_twitches(&mut left, &mut right, &lines);
         }
         let log = Self {
@@ -389,6 +435,7 @@ impl OdometryLog {
             counter_wraps,
             twitches,
             count_beyond_counters,
+            count_origin,
             lines,
         };
         log.validate(name, |i| log.line(i))?;
@@ -461,10 +508,14 @@ impl OdometryLog {
         let mut s = header.join(",");
         s.push('\n');
         for i in 0..self.t_s.len() {
-            s.push_str(&format!(
-                "{},{},{}\n",
-                self.t_s[i], self.left[i], self.right[i]
-            ));
+            let (l, r) = match self.kind {
+                LogKind::Ticks => (
+                    self.count_text(0, self.left[i]),
+                    self.count_text(1, self.right[i]),
+                ),
+                LogKind::Speeds => (self.left[i].to_string(), self.right[i].to_string()),
+            };
+            s.push_str(&format!("{},{l},{r}\n", self.t_s[i]));
         }
         s
     }
@@ -552,8 +603,8 @@ impl OdometryLog {
                 let what = match self.kind {
                     LogKind::Ticks => format!(
                         "goes from {} to {} ticks, {:.1} m/s",
-                        column[k - 1],
-                        column[k],
+                        self.count_text(w, column[k - 1]),
+                        self.count_text(w, column[k]),
                         v.abs()
                     ),
                     LogKind::Speeds => format!("reads {} m/s", column[k]),
@@ -603,33 +654,35 @@ impl OdometryLog {
         };
         // The count lands where a counter started at 0 would be a step later, after a fall
         // no step of the wheel around it comes near.
-        let reset_at = |c: &[f64], k: usize| {
+        let columns = [&self.left, &self.right];
+        let reset_at = |w: usize, k: usize| {
+            let c = columns[w];
             (c[k] - c[k - 1]).abs() > RESET_STEPS * around(c, k) + RESET_SLACK_TICKS
-                && c[k].abs() <= around(c, k) + 1.0
+                && (c[k] + self.count_origin[w] as f64).abs() <= around(c, k) + 1.0
         };
         (1..n)
-            .filter(|&k| reset_at(&self.left, k) || reset_at(&self.right, k))
+            .filter(|&k| reset_at(0, k) || reset_at(1, k))
             .map(|k| {
                 let line = self.line(k);
-                let drops: Vec<String> =
-                    [(TICKS_HEADER[1], &self.left), (TICKS_HEADER[2], &self.right)]
-                        .into_iter()
-                        .filter(|(_, c)| reset_at(c, k))
-                        .map(|(name, c)| {
-                            format!(
-                                "{name} drops from {} to {} in one step where the wheel moves {} ticks a step around it",
-                                c[k - 1],
-                                c[k],
-                                around(c, k)
-                            )
-                        })
-                        .collect();
+                let drops: Vec<String> = (0..2)
+                    .filter(|&w| reset_at(w, k))
+                    .map(|w| {
+                        let c = columns[w];
+                        format!(
+                            "{} drops from {} to {} in one step where the wheel moves {} ticks a step around it",
+                            TICKS_HEADER[w + 1],
+                            self.count_text(w, c[k - 1]),
+                            self.count_text(w, c[k]),
+                            around(c, k)
+                        )
+                    })
+                    .collect();
                 let cause = match self.counts_per_period(k) {
                     Some(hint) => format!("counts per period? {hint}; or the counter was reset (motor board restarted?)"),
                     None => "the counter was reset (motor board restarted?)".into(),
                 };
                 (k, format!(
-                    "line {line}: {}: {cause}; the counts after it do not continue the run's: cut the log before line {line}, or record the run again",
+                    "line {line}: {}: {cause}{RESET_ADVICE}: cut the log before line {line}, or record the run again",
                     drops.join(", and ")
                 ))
             })
@@ -685,6 +738,28 @@ impl OdometryLog {
             rev,
         }
     }
+}
+
+/// A tick column's counts as doubles, and the count they are taken from
+/// ([`OdometryLog::count_origin`]): 0 while every count is exact as a double, else the
+/// column's median count, the steps taken between integers.
+fn counts_from(raw: &[i128]) -> (i128, Vec<f64>) {
+    let origin = if raw
+        .iter()
+        .all(|c| c.unsigned_abs() <= EXACT_COUNT.unsigned_abs())
+    {
+        0
+    } else {
+        let mut sorted = raw.to_vec();
+        sorted.sort_unstable();
+        sorted[sorted.len() / 2]
+    };
+    (
+        origin,
+        raw.iter()
+            .map(|&c| c.saturating_sub(origin) as f64)
+            .collect(),
+    )
 }
 
 /// Whether a log's time field is a date or a clock time (`2024-05-01T12:00:00.000`,
@@ -887,18 +962,67 @@ mod tests {
     /// 0, noted as a 32-bit wrap "(18 → 18446744073709552000)", and the run rejected for a
     /// step "from 95 to 0 ticks", a count nowhere in the file.
     #[test]
-    fn a_count_no_32_bit_counter_gives_is_named_as_written() {
+    fn a_count_no_counter_reaches_is_named_as_written() {
         let log = OdometryLog::parse_csv(
             "t,left_ticks,right_ticks\n0,90,90\n0.2,95,95\n0.4,99,18446744073709551615\n0.6,104,104\n",
             "g.csv",
         )
         .unwrap();
         assert_eq!(log.count_note(), None);
-        assert_eq!(log.right[2], 18446744073709551615.0);
+        assert_eq!(log.right[1], -9.0, "taken from the median count, 104");
         assert_eq!(
             log.implausible_step(&RobotParams::default()).unwrap(),
-            "line 4: right_ticks is 18446744073709551615, beyond any 16- or 32-bit encoder counter (-2147483648 to 4294967295): a glitch in the log?"
+            "line 4: right_ticks is 18446744073709551615, more than 2^53 ticks from the column's other counts (around 104), farther than any wheel turns: a glitch in the log?"
         );
+    }
+
+    /// A 64-bit counter's counts were read as doubles: near 10¹⁶ two ticks apart (every step
+    /// off by up to a tick, raw odometry's error read as 31 % where it is 10 %), near 2⁶² 1024
+    /// apart (every run at rest); counts past 32 bits were refused as glitches by `correct`.
+    #[test]
+    fn sixty_four_bit_counts_are_read_exactly() {
+        let steps: Vec<i64> = (0..30).map(|k| (k * k) % 7 + 3 * k).collect();
+        let t: Vec<f64> = (0..30).map(|k| 0.2 * k as f64).collect();
+        // Counts from `offset`, the left jumping by `jump` at row 10.
+        let counts = |offset: i128, jump: i128| {
+            let mut s = String::from("t,left_ticks,right_ticks\n");
+            for (k, c) in steps.iter().enumerate() {
+                let c = *c as i128 + offset;
+                let j = if k >= 10 { jump } else { 0 };
+                s.push_str(&format!("{},{},{}\n", t[k], c + 1 + j, c + 3));
+            }
+            s
+        };
+        let csv = |offset: i128| counts(offset, 0);
+        let base = OdometryLog::parse_csv(&csv(0), "a.csv").unwrap();
+        let robot = RobotParams::default();
+        for offset in [5_000_000_000, 10_i128.pow(16), 1 << 62, (1 << 64) - 1000] {
+            let log = OdometryLog::parse_csv(&csv(offset), "b.csv").unwrap();
+            assert_eq!(log.wheel_revs(&robot), base.wheel_revs(&robot), "{offset}");
+            assert_eq!(log.implausible_step(&robot), None, "{offset}");
+            assert_eq!(log.count_note(), None, "{offset}");
+            assert_eq!(OdometryLog::parse_csv(&log.to_csv(), "c").unwrap(), log);
+            assert!(
+                log.to_csv().contains(&format!(",{},", offset + 1)),
+                "{offset}"
+            );
+        }
+        // Its counts named as written where a step is impossible.
+        let jump = counts(10_i128.pow(16), 900_000);
+        let log = OdometryLog::parse_csv(&jump, "j.csv").unwrap();
+        let why = log.implausible_step(&robot).expect("a jump");
+        assert!(
+            why.starts_with("lines 11 and 12: the left wheel goes from 10000000000000032 to 10000000000900033 ticks"),
+            "{why}"
+        );
+        let from_ints = OdometryLog::from_ticks(
+            t.clone(),
+            steps.iter().map(|c| c + (1 << 62)).collect(),
+            steps.clone(),
+        )
+        .unwrap();
+        let (a, b) = (from_ints.wheel_revs(&robot), base.wheel_revs(&robot));
+        assert!(a.rev.iter().zip(&b.rev).all(|(a, b)| a[0] == b[0]));
     }
 
     fn err(text: &str) -> String {

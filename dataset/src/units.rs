@@ -155,6 +155,8 @@ fn extent_mismatch(
             true,
             "1/1000: is the robot's wheel_diameter_m in millimetres? it must be in metres",
         )
+    } else if let Some(side) = negated_wheel(&revs.rev, &geom, cam_m) {
+        (false, side)
     } else if log.kind == LogKind::Ticks && ratio > 1.0 {
         (false, "are the ticks cumulative counts (not counts per period), the log paired with the right trajectory, and the robot's parameters its own?")
     } else {
@@ -169,6 +171,19 @@ fn extent_mismatch(
             "the camera's path spans {cam_m:.3} m and the odometry's{of} {odo_m:.3} m, a ratio of {ratio:.3}; {hint}"
         ),
     ))
+}
+
+/// What to check when one wheel's travel negated makes the odometry's path span the camera's
+/// (within a quarter): an encoder counting down as the robot drives forward turns a tour into
+/// a spin in place, whose small extent read as counts per period or a mispaired log. Either
+/// wheel negated gives that span (the one path driven backwards), so neither is named.
+fn negated_wheel(rev: &[[f64; 2]], geom: &WheelGeometry, cam_m: f64) -> Option<&'static str> {
+    let flipped: Vec<[f64; 2]> = rev.iter().map(|r| [r[0], -r[1]]).collect();
+    let path = dead_reckon(&flipped, geom);
+    let m = extent_m(path.iter().map(|p| [p.x_m, p.y_m]));
+    ((m / cam_m - 1.0).abs() < 0.25).then_some(
+        "with one wheel's counts negated the odometry's path spans the camera's: is one encoder counting down as the robot drives forward? both must count up driving forward; negate that wheel's column",
+    )
 }
 
 /// The longest median interval between a camera trajectory's rows that can be in seconds,

@@ -170,9 +170,15 @@ impl ModelFile {
 
     /// A warning when the file carries no training domain: logs outside it cannot be named.
     pub fn no_domain_warning(&self, name: &str) -> Option<String> {
-        self.domain.is_none().then(|| format!(
-            "{name} carries no training domain (written by an older odocal, or edited): a log unlike the runs it was trained on (driven backwards, longer, faster) is corrected without being named as outside it; train it again to have such logs named"
-        ))
+        match &self.domain {
+            None => Some(format!(
+                "{name} carries no training domain (written by an older odocal, or edited): a log unlike the runs it was trained on (driven backwards, longer, faster) is corrected without being named as outside it; train it again to have such logs named"
+            )),
+            Some(d) if d.duration_s.is_none() => Some(format!(
+                "{name}: its training domain has no domain.duration_s (written by an older odocal, or edited): a run at a speed the training never drove is corrected without being named as outside it; train it again to have such runs named"
+            )),
+            Some(_) => None,
+        }
     }
 
     /// A warning when training kept a net's random initialisation (epoch 0, which `train`
@@ -293,6 +299,29 @@ impl ModelFile {
             if !(p0.is_finite() && p1.is_finite() && 0.0 <= p0 && p0 <= p1) {
                 return Err(format!(
                     "domain.end_distance_m = [{p0}, {p1}] must be two distances, metres, shortest first"
+                ));
+            }
+            // Reversed, every run was refused as "a speed the training did not drive".
+            if let Some([t0, t1]) = d.duration_s {
+                if !(t0.is_finite() && t1.is_finite() && 0.0 < t0 && t0 <= t1) {
+                    return Err(format!(
+                        "domain.duration_s = [{t0}, {t1}] must be two run durations, seconds, shortest first"
+                    ));
+                }
+            }
+            // A scale of 0 is written for an input the training never varied; on one it
+            // varied, the net reads that input as constant, whatever the log says.
+            let varied = d.input_min.iter().zip(&d.input_max).map(|(a, b)| a < b);
+            if let Some(i) = self
+                .input_normalisation
+                .scale
+                .iter()
+                .zip(varied)
+                .position(|(&v, varied)| v == 0.0 && varied)
+            {
+                return Err(format!(
+                    "input_normalisation.scale[{i}] = 0, but the training's input {i} ranged from {} to {} (a scale is 1 / its spread)",
+                    d.input_min[i], d.input_max[i]
                 ));
             }
         }

@@ -286,6 +286,27 @@ impl PathModelFile {
                 "{name}: max_wheel_speed_mps must be a positive number"
             )));
         }
+        // Zero, the base read "NaN % of path" and wrote null; negative, plausible wrong rows.
+        let g = &m.kinematic_fit;
+        for (field, fitted, nominal) in [
+            (
+                "left_wheel_diameter_m",
+                g.left_wheel_diameter_m,
+                m.robot.wheel_diameter_m,
+            ),
+            (
+                "right_wheel_diameter_m",
+                g.right_wheel_diameter_m,
+                m.robot.wheel_diameter_m,
+            ),
+            ("wheel_base_m", g.wheel_base_m, m.robot.wheel_base_m),
+        ] {
+            if !PLAUSIBLE_MULTIPLIER.contains(&(fitted / nominal)) {
+                return Err(TrainError::Model(format!(
+                    "{name}: kinematic_fit.{field} = {fitted} m against the robot's {nominal} m, which no real robot has: the model is damaged or edited; train it again"
+                )));
+            }
+        }
         if let Some(d) = &m.step_directions {
             d.check()
                 .map_err(|e| TrainError::Model(format!("{name}: step_directions.{e}")))?;
