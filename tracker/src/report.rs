@@ -613,10 +613,20 @@ pub fn tag_shape_warnings(
         None
     };
     // The tilt is read from the tags' corners as the camera file maps them: a wrong size or
-    // height leaves it, and a shear named by the rolling-shutter check would repeat it.
+    // height leaves it, and a shear named by the rolling-shutter check would repeat it. A
+    // camera file that maps the image wrongly (a height or side named above) tilts every
+    // tag's corners too, and reads as a tag tilted on the robot: advice to tilt it back
+    // would turn the headings further (distortion left out of the file: 0.03° → 0.42°).
+    let camera_file_named = height.is_some() || side.is_some();
     let tilt = if shear.is_none() {
         crate::tag_tilt::TagTilt::of(result, &camera.camera, floor, options)
-            .map(|t| t.warnings())
+            .map(|t| {
+                if camera_file_named {
+                    t.camera_warning().into_iter().collect()
+                } else {
+                    t.warnings()
+                }
+            })
             .unwrap_or_default()
     } else {
         Vec::new()

@@ -215,7 +215,7 @@ impl TagTilt {
 
     /// A warning when the floor-fixed tilt says the camera no longer looks at the floor it was
     /// calibrated over (or, unseparated, when the tag or the camera is tilted beyond a degree).
-    fn camera_warning(&self) -> Option<String> {
+    pub(crate) fn camera_warning(&self) -> Option<String> {
         let tilt_rad = self.floor_fixed_rad.norm();
         let tilt_deg = tilt_rad.to_degrees();
         let limit_deg = if self.separated {
