@@ -68,6 +68,7 @@ fn arena_meets_the_bounds() {
             &pngs(&cd, "view_"),
             &pngs(&cd, "floor_"),
             &scene.board,
+            None,
             ModelChoice::Fixed(LensModel::Pinhole5),
             &|| {},
         )

@@ -35,7 +35,5 @@ pub use model::{
 };
 pub use opencv_glue::{camera_matrix, dist_coeffs, solve_pnp};
 pub use select::{compare_models, ModelScore};
-pub use session::{
-    calibrate_session, calibrate_session_floor_square, summary, ModelChoice, Session,
-};
+pub use session::{calibrate_session, summary, ModelChoice, Session};
 pub use uncertainty::{projection_sigma_px, UncertaintyMap};

@@ -454,23 +454,12 @@ fn auto_or_pinhole5(
 /// Calibrates from `images` and, when given, fixes the floor from `floor` images;
 /// `on_image` is called after each image's detection and after each model's cross-validation
 /// (for a progress bar: images + 3 steps with `--model auto`, images + 1 otherwise). The
-/// floor board is `board`; [`calibrate_session_floor_square`] takes another square for it.
+/// floor board is `board`, or `board` with the square side `floor_square_m` (metres) when
+/// given: one flat board seen alone cannot tell its own scale, so a floor board of another
+/// size than the hand-held one must be given, or every floor distance and the camera's height
+/// come out scaled by the ratio of the two squares. A ChArUco floor board's markers are taken
+/// as scaled alike.
 pub fn calibrate_session(
-    images: &[PathBuf],
-    floor: &[PathBuf],
-    board: &BoardSpec,
-    choice: ModelChoice,
-    on_image: &(dyn Fn() + Sync),
-) -> Result<Session, CalibError> {
-    calibrate_session_floor_square(images, floor, board, None, choice, on_image)
-}
-
-/// [`calibrate_session`] with the floor board's square side `floor_square_m` (metres) when it
-/// is not `board`'s: one flat board seen alone cannot tell its own scale, so a floor board of
-/// another size than the hand-held one must be given, or every floor distance and the
-/// camera's height come out scaled by the ratio of the two squares. A ChArUco floor board's
-/// markers are taken as scaled alike.
-pub fn calibrate_session_floor_square(
     images: &[PathBuf],
     floor: &[PathBuf],
     board: &BoardSpec,

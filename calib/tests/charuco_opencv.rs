@@ -247,6 +247,7 @@ fn a_charuco_board_given_as_another_target_is_named() {
             &images,
             &[],
             board,
+            None,
             odocal_calib::ModelChoice::Auto,
             &|| {},
         )

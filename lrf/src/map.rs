@@ -453,6 +453,12 @@ impl Map {
         if landmarks.len() < 3 {
             return None;
         }
+        self.with_landmarks(landmarks)
+    }
+
+    /// This map's walls, reflector width and survey σ around other `landmarks` (a subset of
+    /// its own, or its own changed), None if they do not make a map.
+    fn with_landmarks(&self, landmarks: Vec<Landmark>) -> Option<Map> {
         Map::build(
             landmarks,
             self.walls.clone(),
@@ -567,13 +573,7 @@ impl Map {
                 ..l.clone()
             })
             .collect();
-        Map::build(
-            landmarks,
-            self.walls.clone(),
-            self.reflector_width_m,
-            self.position_sigma_m,
-        )
-        .ok()
+        self.with_landmarks(landmarks)
     }
 
     /// True if `p` lies in the convex hull of the landmarks grown by `margin_m` (within

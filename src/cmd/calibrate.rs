@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use odocal_calib::export::{opencv_yaml, ros_yaml};
-use odocal_calib::{calibrate_session_floor_square, summary, ModelChoice};
+use odocal_calib::{calibrate_session, summary, ModelChoice};
 
 use super::board::TargetArgs;
 use crate::output::{check_output_file, commit, progress, write_atomic, write_json};
@@ -72,14 +72,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (a.images.len() + a.floor.len() + model_steps) as u64,
         "calibrating",
     );
-    let session = calibrate_session_floor_square(
-        &a.images,
-        &a.floor,
-        &board,
-        a.floor_square,
-        choice,
-        &|| bar.inc(1),
-    );
+    let session = calibrate_session(&a.images, &a.floor, &board, a.floor_square, choice, &|| {
+        bar.inc(1)
+    });
     bar.finish_and_clear();
     let session = session?;
     for note in &session.notes {
